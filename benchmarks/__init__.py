@@ -1,0 +1,64 @@
+"""Benchmarks: speed and accuracy targets, run by ``heliotrack bench NAME``.
+
+Each benchmark is a module ``benchmarks/<name>.py`` exposing ``run(quick: bool) -> dict``
+(plus an optional ``DESCRIPTION``).  The runner stamps the result with the machine and the
+time and writes ``benchmarks/results/<name>.json``.  ``quick`` trims sizes for a smoke
+run; published figures come from full runs.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import platform
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+#: Registered benchmarks (module names under ``benchmarks``).
+BENCHMARKS: tuple[str, ...] = ("loop",)
+
+RESULTS_DIR = Path(__file__).resolve().parent / "results"
+
+
+def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None) -> dict:
+    """Run one benchmark and write its JSON; return the result dict."""
+    if name not in BENCHMARKS:
+        raise KeyError(name)
+    module = importlib.import_module(f"benchmarks.{name}")
+    t0 = time.perf_counter()
+    result = module.run(quick=quick)
+    record = {
+        "benchmark": name,
+        "quick": quick,
+        "finished_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "wall_s": round(time.perf_counter() - t0, 3),
+        "machine": {
+            "python": platform.python_version(),
+            "platform": platform.platform(),
+            "cpus": os.cpu_count(),
+        },
+        "result": result,
+    }
+    out_dir = results_dir or RESULTS_DIR
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / f"{name}{'-quick' if quick else ''}.json"
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(record, indent=2, default=_json_default) + "\n")
+    os.replace(tmp, path)
+    record["path"] = str(path)
+    return record
+
+
+def _json_default(obj):
+    try:
+        import numpy as np
+
+        if isinstance(obj, np.generic):
+            return obj.item()
+        if isinstance(obj, np.ndarray):
+            return obj.tolist()
+    except ImportError:  # pragma: no cover
+        pass
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

@@ -1,0 +1,1 @@
+"""What runs on the tracker's edge computer: sun sources, filters, geometry, drive clients."""

@@ -1,0 +1,181 @@
+"""Modbus RTU and TCP drive links over pymodbus (``modbus-rtu``, ``modbus-tcp``)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ModbusException
+
+from firmware_protocol import (
+    AXIS_STRIDE, MAGIC, PROTOCOL_VERSION, Command, Fault, Mode, Status, decode, decode_block,
+    encode, register,
+)
+from firmware_protocol.codec import axis_block_address
+
+from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
+
+_ID_WORDS = 3
+
+
+class ModbusDrive(DriveLink):
+    """A drive on a pymodbus client (serial RTU or TCP).
+
+    Parameters
+    ----------
+    client : pymodbus sync client
+    device_id : int
+        Modbus slave id of the drive.
+    retries : int
+        Extra attempts after a failed transaction.
+    label : str
+        Used in error messages (``"row-3 @ /dev/ttyUSB0 id 4"``).
+    """
+
+    def __init__(self, client, device_id: int, retries: int = 2, label: str = ""):
+        self.client = client
+        self.device_id = device_id
+        self.retries = retries
+        self.label = label or f"id {device_id}"
+        self.axis_count = 0
+        self.stats = LinkStats()
+        self._beat = 0
+
+    # -- transport ----------------------------------------------------------------
+    def _call(self, what: str, fn, *args, **kwargs):
+        last = None
+        for attempt in range(self.retries + 1):
+            t0 = time.perf_counter()
+            self.stats.transactions += 1
+            try:
+                rr = fn(*args, device_id=self.device_id, **kwargs)
+            except (ModbusException, OSError) as exc:
+                rr, last = None, exc
+            else:
+                if not rr.isError():
+                    self.stats.latencies_s.append(time.perf_counter() - t0)
+                    return rr
+                last = rr
+            self.stats.errors += 1
+            if attempt < self.retries:
+                self.stats.retries += 1
+        raise DriveCommError(f"{self.label}: {what} failed after {self.retries + 1} attempt(s): {last}")
+
+    def connect(self) -> None:
+        if not self.client.connect():
+            raise DriveCommError(f"{self.label}: cannot open the link")
+        words = self._call("identification read", self.client.read_holding_registers,
+                           0, count=_ID_WORDS).registers
+        if words[0] != MAGIC:
+            raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
+        if words[1] >> 8 != PROTOCOL_VERSION >> 8:
+            raise DriveCommError(f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x")
+        self.axis_count = words[2]
+
+    def close(self) -> None:
+        self.client.close()
+
+    # -- operations ---------------------------------------------------------------
+    def read_state(self) -> DriveState:
+        start = axis_block_address(0)
+        words = self._call("state read", self.client.read_holding_registers,
+                           start, count=AXIS_STRIDE * self.axis_count).registers
+        axes = []
+        for k in range(self.axis_count):
+            v = decode_block(words, start, axis=k)
+            axes.append(AxisState(
+                actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
+                velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),
+                fault=Fault(int(v["FAULT_CODE"])), mode=Mode(int(v["MODE"]))))
+        dev = Status(0)
+        for a in axes:
+            dev |= a.status
+        return DriveState(self.axis_count, tuple(axes), dev)
+
+    def write_targets(self, angles_deg: Sequence[float]) -> None:
+        if len(angles_deg) != self.axis_count:
+            raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
+        reg = register("TARGET_ANGLE")
+        for k, angle in enumerate(angles_deg):
+            self._call("target write", self.client.write_registers, reg.address(k),
+                       encode(reg, angle))
+
+    def heartbeat(self) -> None:
+        self._beat = (self._beat + 1) & 0xFFFF
+        self._call("heartbeat", self.client.write_register, register("HEARTBEAT").address(),
+                   self._beat)
+
+    def command(self, cmd: Command) -> None:
+        self._call(f"command {cmd.name}", self.client.write_register,
+                   register("COMMAND").address(), int(cmd))
+
+    def configure(self, *, heartbeat_timeout_s=None, soft_limits=None, stow_angles=None) -> None:
+        if heartbeat_timeout_s is not None:
+            reg = register("HEARTBEAT_TIMEOUT")
+            self._call("configure", self.client.write_registers, reg.address(),
+                       encode(reg, heartbeat_timeout_s))
+        for k, (lo, hi) in enumerate(soft_limits or ()):
+            lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
+            self._call("configure", self.client.write_registers, lo_reg.address(k),
+                       encode(lo_reg, lo) + encode(hi_reg, hi))
+        for k, angle in enumerate(stow_angles or ()):
+            reg = register("STOW_ANGLE")
+            self._call("configure", self.client.write_registers, reg.address(k), encode(reg, angle))
+
+    def read_register(self, name: str, axis: int | None = None) -> float | int:
+        reg = register(name)
+        rr = self._call(f"read {name}", self.client.read_holding_registers,
+                        reg.address(axis), count=reg.words)
+        return decode(reg, rr.registers)
+
+
+class _SharedSerialClient:
+    """One serial client per port, shared by every drive on that RS-485 line.
+
+    pymodbus locks a serial port exclusively, and a multidrop line has one master anyway;
+    the port closes when the last drive using it closes.
+    """
+
+    _open: dict[str, "_SharedSerialClient"] = {}
+
+    def __init__(self, port: str, baudrate: int, timeout_s: float):
+        self.client = ModbusSerialClient(port, baudrate=baudrate, timeout=timeout_s, retries=0)
+        self.port = port
+        self.users = 0
+
+    @classmethod
+    def acquire(cls, port: str, baudrate: int, timeout_s: float) -> "_SharedSerialClient":
+        shared = cls._open.get(port)
+        if shared is None:
+            shared = cls._open[port] = cls(port, baudrate, timeout_s)
+        shared.users += 1
+        return shared
+
+    def __getattr__(self, name):
+        return getattr(self.client, name)
+
+    def connect(self) -> bool:
+        return self.client.connected or self.client.connect()
+
+    def close(self) -> None:
+        self.users -= 1
+        if self.users <= 0:
+            self.client.close()
+            self._open.pop(self.port, None)
+
+
+def _rtu(port: str, device_id: int, baudrate: int = 115200, timeout_s: float = 0.5,
+         retries: int = 2, **_) -> ModbusDrive:
+    client = _SharedSerialClient.acquire(port, baudrate, timeout_s)
+    return ModbusDrive(client, device_id, retries, label=f"{port} id {device_id}")
+
+
+def _tcp(host: str, port: int, device_id: int, timeout_s: float = 0.5, retries: int = 2,
+         **_) -> ModbusDrive:
+    client = ModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
+    return ModbusDrive(client, device_id, retries, label=f"{host}:{port} id {device_id}")
+
+
+register_backend("modbus-rtu", _rtu)
+register_backend("modbus-tcp", _tcp)

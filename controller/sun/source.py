@@ -1,0 +1,95 @@
+"""Sun sources: anything that tells the controller where the sun is at a given time.
+
+A source returns a :class:`~controller.sun.types.SunEstimate` (or ``None`` when it has
+nothing to say, e.g. a camera with no glint).  The first implementation is astronomical:
+pvlib's SPA for the configured site.  Camera sensors and the sun-path filter plug in behind
+the same interface.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import pvlib
+
+from .types import EstimateSource, SunEstimate
+
+
+@dataclass(frozen=True)
+class Site:
+    """Geographic site.  Latitude north-positive, longitude east-positive, degrees."""
+
+    latitude: float
+    longitude: float
+    altitude: float = 0.0
+    pressure_pa: float | None = None  # None: from altitude (pvlib.atmosphere.alt2pres)
+    temperature_c: float = 12.0
+    name: str = ""
+
+    @property
+    def pressure(self) -> float:
+        if self.pressure_pa is not None:
+            return self.pressure_pa
+        return float(pvlib.atmosphere.alt2pres(self.altitude))
+
+
+def solar_position(site: Site, times) -> pd.DataFrame:
+    """pvlib SPA solar position for POSIX seconds or datetimes (UTC).
+
+    Returns pvlib's frame: ``apparent_elevation`` (refraction-corrected, deg),
+    ``azimuth`` (deg clockwise from north), ``apparent_zenith``, ...
+    """
+    idx = _to_index(times)
+    return pvlib.solarposition.get_solarposition(
+        idx, site.latitude, site.longitude, altitude=site.altitude,
+        pressure=site.pressure, temperature=site.temperature_c, method="nrel_numpy",
+    )
+
+
+def _to_index(times) -> pd.DatetimeIndex:
+    arr = np.atleast_1d(times)
+    if arr.dtype.kind in "fiu":
+        return pd.DatetimeIndex(pd.to_datetime(arr.astype(float), unit="s", utc=True))
+    return pd.DatetimeIndex(pd.to_datetime(arr, utc=True))
+
+
+class SunSource(abc.ABC):
+    """Interface of every sun source."""
+
+    name: str = "abstract"
+
+    @abc.abstractmethod
+    def estimate(self, t: float) -> SunEstimate | None:
+        """Best estimate of the sun's direction at POSIX time ``t``, or None."""
+
+
+class EphemerisSource(SunSource):
+    """The sun from the ephemeris (pvlib SPA) at a known site: exact when the clock is right.
+
+    Parameters
+    ----------
+    site : Site
+    sigma_deg : float
+        Reported one-sigma (deg); SPA itself is +-0.0003 deg, refraction near the horizon
+        dominates the real uncertainty.
+    """
+
+    name = "ephemeris"
+
+    def __init__(self, site: Site, sigma_deg: float = 0.01):
+        self.site = site
+        self.sigma_deg = sigma_deg
+
+    def estimate(self, t: float) -> SunEstimate:
+        sp = solar_position(self.site, [t]).iloc[0]
+        s2 = self.sigma_deg ** 2
+        return SunEstimate(
+            time=float(t),
+            az_deg=float(sp["azimuth"]),
+            el_deg=float(sp["apparent_elevation"]),
+            covariance=np.diag([s2, s2]),
+            source=EstimateSource.EPHEMERIS,
+        )

@@ -1,0 +1,54 @@
+"""The ``heliotrack`` console script.
+
+Each subcommand lives in its own module under :mod:`heliotrack.commands` and exposes
+``register(subparsers)``; the module adds its parser and sets ``func`` to a callable taking
+the parsed namespace and returning an exit code.  Adding a command means adding one module
+and one name to :data:`COMMAND_MODULES`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from . import __version__
+from .errors import USER_ERRORS, format_user_error
+
+#: Subcommand modules, in the order ``--help`` lists them.
+COMMAND_MODULES: tuple[str, ...] = (
+    "simulate",
+    "hil",
+    "protocol",
+    "bench",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="heliotrack",
+        description="Camera-based sun-tracker controller and its hardware-in-the-loop emulator.",
+    )
+    parser.add_argument("--version", action="version", version=f"heliotrack {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"heliotrack.commands.{name}").register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except USER_ERRORS as exc:
+        print(format_user_error(exc), file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

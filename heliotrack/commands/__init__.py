@@ -1,0 +1,1 @@
+"""One module per ``heliotrack`` subcommand (see :mod:`heliotrack.cli`)."""

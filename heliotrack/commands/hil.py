@@ -1,0 +1,75 @@
+"""``heliotrack hil drive``: a standalone emulated drive for any Modbus master."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("hil", help="run a piece of the emulated world on its own")
+    hs = p.add_subparsers(dest="hil_command", metavar="WHAT")
+    hs.required = True
+    d = hs.add_parser("drive", help="serve an emulated drive firmware in real time",
+                      description="Serve an emulated slewing drive on a pty (Modbus RTU) or "
+                                  "on 127.0.0.1 (Modbus TCP). With --link pty the first stdout "
+                                  "line is 'PTY <path>'; with --link tcp it is 'TCP <host>:<port>'. "
+                                  "Runs until SIGINT or SIGTERM.")
+    d.add_argument("--link", choices=("pty", "tcp"), default="pty")
+    d.add_argument("--protocol", choices=("modbus",), default="modbus")
+    d.add_argument("--axes", type=int, choices=(1, 2), default=2)
+    d.add_argument("--id", type=int, default=1, help="slave id (1-247)")
+    d.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
+    d.add_argument("--heartbeat-timeout", type=float, default=10.0,
+                   help="watchdog timeout in s (0 disables); masters may rewrite it")
+    d.add_argument("--max-speed", type=float, default=1.0, help="deg/s")
+    d.add_argument("--stow", type=float, nargs="*", default=None,
+                   help="stow angle per axis, deg (default 180 90 for two axes, 0 for one)")
+    d.set_defaults(func=run_drive)
+
+
+def run_drive(args: argparse.Namespace) -> int:
+    from hil.drive import AxisParams, DriveFirmware
+    from hil.errors import HilError
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+
+    if not 1 <= args.id <= 247:
+        raise HilError(f"--id must be 1..247, got {args.id}")
+    stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
+    if len(stow) != args.axes:
+        raise HilError(f"--stow needs {args.axes} value(s), got {len(stow)}")
+    if args.axes == 2:
+        limits = [(0.0, 360.0), (0.0, 90.0)]
+    else:
+        limits = [(-60.0, 60.0)]
+    axes = [AxisParams(max_speed=args.max_speed, soft_min=lo, soft_max=hi, hard_min=lo - 5,
+                       hard_max=hi + 5, stow_angle=s, initial_angle=s)
+            for (lo, hi), s in zip(limits, stow)]
+    fw = DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout)
+
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+
+    pty = None
+    try:
+        if args.link == "pty":
+            pty = PtyLink.open()
+            server = ModbusServerThread({args.id: fw}, serial_url=pty.url).start()
+            print(f"PTY {pty.path}", flush=True)
+        else:
+            server = ModbusServerThread({args.id: fw}, tcp=("127.0.0.1", args.port)).start()
+            print(f"TCP 127.0.0.1:{server.tcp_port}", flush=True)
+        print(f"drive id {args.id}, {args.axes} axis(es), heartbeat timeout "
+              f"{args.heartbeat_timeout:g} s", file=sys.stderr, flush=True)
+        while not stop.wait(0.1):
+            fw.update()  # the watchdog runs even when nobody polls
+        server.stop()
+    finally:
+        if pty:
+            pty.close()
+    return 0

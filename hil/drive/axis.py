@@ -1,0 +1,144 @@
+"""Physics of one slewing-drive axis: motor, gearbox backlash, output encoder, limits.
+
+The position loop of the firmware closes on the output-side encoder, so backlash shows
+as a short dead travel after each reversal rather than as a pointing error; what remains
+is encoder quantisation and the loop's deadband (see :class:`AxisParams`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass
+class AxisParams:
+    """Mechanical and loop parameters of an axis (degrees, seconds).
+
+    Attributes
+    ----------
+    max_speed : float
+        Speed limit, deg/s (slewing drives: 0.1-2 deg/s).
+    accel : float
+        Acceleration and deceleration, deg/s^2.
+    backlash : float
+        Total play of the gear train, deg.
+    encoder_resolution : float
+        Output encoder quantum, deg.
+    deadband : float
+        The loop stops when |target - encoder| <= deadband, deg.
+    soft_min, soft_max : float
+        Soft limits (targets are clamped to them), deg.
+    hard_min, hard_max : float
+        Limit switches: crossing one latches a HARD_LIMIT fault, deg.
+    stow_angle : float
+        Where STOW mode sends the axis, deg.
+    stall_time : float
+        Commanded without motion this long -> STALL fault, s.
+    initial_angle : float
+        Position at power-up, deg.
+    """
+
+    max_speed: float = 1.0
+    accel: float = 2.0
+    backlash: float = 0.05
+    encoder_resolution: float = 0.01
+    deadband: float = 0.02
+    soft_min: float = -180.0
+    soft_max: float = 180.0
+    hard_min: float = -185.0
+    hard_max: float = 185.0
+    stow_angle: float = 0.0
+    stall_time: float = 2.0
+    initial_angle: float = 0.0
+
+
+class AxisModel:
+    """State and dynamics of one axis; :meth:`step` integrates with a fixed small dt."""
+
+    DT = 0.02  # s, integration step while moving
+
+    def __init__(self, params: AxisParams):
+        self.p = params
+        self.motor = params.initial_angle    # gear input, in output degrees
+        self.output = params.initial_angle   # panel side
+        self.velocity = 0.0                  # motor side, deg/s
+        self.target = params.initial_angle
+        self.enabled = True
+        self.jammed = False                  # fault injection: motor cannot turn
+        self.stall_timer = 0.0
+        self.stalled = False
+        self.hard_limit = False
+
+    # -- measurements -------------------------------------------------------------
+    @property
+    def encoder(self) -> float:
+        q = self.p.encoder_resolution
+        return round(self.output / q) * q if q > 0 else self.output
+
+    @property
+    def at_target(self) -> bool:
+        return abs(self.target - self.encoder) <= self.p.deadband + 1e-9 and self.velocity == 0
+
+    @property
+    def moving(self) -> bool:
+        return self.velocity != 0.0
+
+    # -- dynamics -----------------------------------------------------------------
+    def advance(self, seconds: float) -> None:
+        """Integrate ``seconds`` of motion (returns early once at rest)."""
+        remaining = seconds
+        while remaining > 1e-12:
+            if self._at_rest():
+                return
+            dt = min(self.DT, remaining)
+            self._step(dt)
+            remaining -= dt
+
+    def _at_rest(self) -> bool:
+        if not self.enabled or self.stalled or self.hard_limit:
+            self.velocity = 0.0
+            return True
+        return self.at_target
+
+    def _step(self, dt: float) -> None:
+        p = self.p
+        error = self.target - self.encoder
+        if abs(error) <= p.deadband:
+            # Inside the deadband: brake to a stop.
+            dv = p.accel * dt
+            self.velocity = 0.0 if abs(self.velocity) <= dv else self.velocity - math.copysign(dv, self.velocity)
+        else:
+            # Braking curve: the fastest speed from which we can still stop at the target.
+            v_cmd = math.copysign(min(p.max_speed, math.sqrt(2 * p.accel * abs(error))), error)
+            dv = p.accel * dt
+            self.velocity += max(-dv, min(dv, v_cmd - self.velocity))
+        if self.jammed:
+            # Current flows but nothing turns: the firmware notices after stall_time.
+            self.velocity = 0.0
+            self.stall_timer += dt
+            if self.stall_timer >= p.stall_time:
+                self.stalled = True
+            return
+        self.stall_timer = 0.0
+        self.motor += self.velocity * dt
+        half = p.backlash / 2
+        if self.motor - self.output > half:
+            self.output = self.motor - half
+        elif self.motor - self.output < -half:
+            self.output = self.motor + half
+        if not p.hard_min <= self.output <= p.hard_max:
+            self.hard_limit = True
+            self.velocity = 0.0
+            self.output = min(max(self.output, p.hard_min), p.hard_max)
+            self.motor = self.output
+
+    def clear_faults(self) -> bool:
+        """Clear latched faults whose cause is gone; True when clear."""
+        if self.stalled and not self.jammed:
+            self.stalled = False
+            self.stall_timer = 0.0
+        if self.hard_limit and self.p.soft_min <= self.target <= self.p.soft_max:
+            # The switch is still pressed, but the new target leads back inside.
+            self.hard_limit = False
+        return not (self.stalled or self.hard_limit)

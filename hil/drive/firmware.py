@@ -1,0 +1,281 @@
+"""The drive firmware's register logic, independent of any transport.
+
+:class:`DriveFirmware` owns the register memory defined by ``firmware_protocol`` and the
+:class:`~hil.drive.axis.AxisModel` of each axis.  Transports (Modbus RTU/TCP here, CANopen
+later) call :meth:`read` and :meth:`write`; both first bring the physics up to the time
+given by the ``now`` callable, so the same firmware runs on the wall clock or on a
+simulated one.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+
+from firmware_protocol import (
+    MAGIC, PROTOCOL_VERSION, REGISTER_MAP, REGISTER_SPACE, Command, Fault, Mode, Status,
+    decode, encode, register,
+)
+from firmware_protocol.registers import Register
+
+from .axis import AxisModel, AxisParams
+
+FIRMWARE_VERSION = 0x0100
+
+
+class FirmwareReject(Exception):
+    """A request the firmware refuses; ``code`` is the Modbus exception code (2 or 3)."""
+
+    def __init__(self, code: int, why: str):
+        super().__init__(why)
+        self.code = code
+
+
+# address -> (register, axis or None, word index) for every defined word
+_WORDS: dict[int, tuple[Register, int | None, int]] = {}
+for _reg in REGISTER_MAP:
+    for _axis in (range(2) if _reg.per_axis else [None]):
+        for _w in range(_reg.words):
+            _WORDS[_reg.address(_axis) + _w] = (_reg, _axis, _w)
+
+
+class DriveFirmware:
+    """Emulated firmware of a one- or two-axis slewing drive.
+
+    Parameters
+    ----------
+    axes : sequence of AxisParams
+        One entry per axis (1 or 2).
+    now : callable
+        Returns the current time in seconds (wall clock or simulated).
+    heartbeat_timeout : float
+        Initial watchdog timeout, s (0 disables it).
+    """
+
+    def __init__(self, axes: Sequence[AxisParams], now: Callable[[], float],
+                 heartbeat_timeout: float = 10.0):
+        if not 1 <= len(axes) <= 2:
+            raise ValueError("a drive has 1 or 2 axes")
+        self.now = now
+        self.axes = [AxisModel(p) for p in axes]
+        self.modes = [Mode.AUTO for _ in axes]
+        self.clamped = [False for _ in axes]
+        self.comm_lost = False
+        self.homed = [True for _ in axes]
+        self.heartbeat = 0
+        self.heartbeat_timeout = heartbeat_timeout
+        self._t0 = now()
+        self._t = self._t0
+        self._last_heartbeat_change = self._t0
+        self._lock = threading.RLock()
+        self.transactions = 0
+
+    # -- time ---------------------------------------------------------------------
+    def update(self) -> None:
+        """Advance physics and the watchdog to ``now()``."""
+        with self._lock:
+            t = self.now()
+            dt = t - self._t
+            if dt <= 0:
+                return
+            # Watchdog first: if it expired during the interval, stow from that instant.
+            deadline = self._last_heartbeat_change + self.heartbeat_timeout
+            if self.heartbeat_timeout > 0 and not self.comm_lost and t > deadline:
+                before = max(deadline - self._t, 0.0)
+                for ax in self.axes:
+                    ax.advance(before)
+                self._enter_comm_lost()
+                dt = t - max(deadline, self._t)
+            for ax in self.axes:
+                ax.advance(dt)
+            self._t = t
+
+    def _enter_comm_lost(self) -> None:
+        self.comm_lost = True
+        for k, ax in enumerate(self.axes):
+            if self.modes[k] != Mode.MAINTENANCE:
+                self._set_mode(k, Mode.STOW)
+
+    def _set_mode(self, k: int, mode: Mode) -> None:
+        ax = self.axes[k]
+        self.modes[k] = mode
+        ax.enabled = mode != Mode.MAINTENANCE
+        if mode == Mode.STOW:
+            ax.target = ax.p.stow_angle
+
+    # -- register view ------------------------------------------------------------
+    def status(self, k: int) -> Status:
+        ax = self.axes[k]
+        s = Status(0)
+        if ax.moving:
+            s |= Status.MOVING
+        if ax.at_target:
+            s |= Status.AT_TARGET
+        if ax.encoder >= ax.p.soft_max - ax.p.deadband:
+            s |= Status.LIMIT_POS
+        if ax.encoder <= ax.p.soft_min + ax.p.deadband:
+            s |= Status.LIMIT_NEG
+        if ax.stalled:
+            s |= Status.STALLED
+        if self.fault(k) != Fault.NONE:
+            s |= Status.FAULT
+        if self.modes[k] == Mode.STOW and ax.at_target:
+            s |= Status.STOWED
+        if self.comm_lost:
+            s |= Status.COMM_LOST
+        if self.clamped[k]:
+            s |= Status.TARGET_CLAMPED
+        if self.homed[k]:
+            s |= Status.HOMED
+        return s
+
+    def fault(self, k: int) -> Fault:
+        ax = self.axes[k]
+        if ax.hard_limit:
+            return Fault.HARD_LIMIT
+        if ax.stalled:
+            return Fault.STALL
+        return Fault.NONE
+
+    def value(self, reg: Register, k: int | None) -> float | int:
+        """Current engineering value of a register."""
+        n = reg.name
+        if k is not None and k >= len(self.axes):
+            return 0
+        ax = self.axes[k] if k is not None else None
+        match n:
+            case "MAGIC": return MAGIC
+            case "PROTOCOL_VERSION": return PROTOCOL_VERSION
+            case "AXIS_COUNT": return len(self.axes)
+            case "FIRMWARE_VERSION": return FIRMWARE_VERSION
+            case "DEVICE_STATUS":
+                s = Status(0)
+                for j in range(len(self.axes)):
+                    s |= self.status(j)
+                return int(s)
+            case "COMMAND": return 0
+            case "HEARTBEAT": return self.heartbeat
+            case "HEARTBEAT_TIMEOUT": return self.heartbeat_timeout
+            case "UPTIME": return int(max(self._t - self._t0, 0))
+            case "TARGET_ANGLE": return ax.target
+            case "ACTUAL_ANGLE": return ax.encoder
+            case "VELOCITY": return max(min(ax.velocity, 32.0), -32.0)
+            case "STATUS": return int(self.status(k))
+            case "FAULT_CODE": return int(self.fault(k))
+            case "MODE": return int(self.modes[k])
+            case "SOFT_LIMIT_MIN": return ax.p.soft_min
+            case "SOFT_LIMIT_MAX": return ax.p.soft_max
+            case "MAX_SPEED": return ax.p.max_speed
+            case "STOW_ANGLE": return ax.p.stow_angle
+        raise AssertionError(f"register {n} has no value")  # pragma: no cover
+
+    def read(self, address: int, count: int) -> list[int]:
+        """Words ``address .. address+count-1``; undefined addresses read as 0.
+
+        Raises FirmwareReject(2) beyond the register space.
+        """
+        if address < 0 or count < 1 or address + count > REGISTER_SPACE:
+            raise FirmwareReject(2, f"read {address}+{count} outside 0..{REGISTER_SPACE - 1}")
+        with self._lock:
+            self.update()
+            self.transactions += 1
+            out = []
+            for a in range(address, address + count):
+                entry = _WORDS.get(a)
+                if entry is None:
+                    out.append(0)
+                    continue
+                reg, k, w = entry
+                out.append(encode(reg, self.value(reg, k))[w])
+            return out
+
+    def write(self, address: int, values: Sequence[int]) -> None:
+        """Apply a write of whole registers, or raise FirmwareReject without changing state."""
+        with self._lock:
+            self.update()
+            self.transactions += 1
+            changes = self._parse_write(address, values)
+            for reg, k, value in changes:       # validated: now apply all of them
+                self._apply(reg, k, value)
+
+    def _parse_write(self, address: int, values: Sequence[int]):
+        end = address + len(values)
+        changes = []
+        a = address
+        while a < end:
+            entry = _WORDS.get(a)
+            if entry is None:
+                raise FirmwareReject(2, f"no register at address {a}")
+            reg, k, w = entry
+            if w != 0 or a + reg.words > end:
+                raise FirmwareReject(2, f"write splits the 32-bit register {reg.name}")
+            if not reg.writable:
+                raise FirmwareReject(2, f"{reg.name} is read-only")
+            if k is not None and k >= len(self.axes):
+                raise FirmwareReject(2, f"axis {k} does not exist on this drive")
+            value = decode(reg, list(values[a - address: a - address + reg.words]))
+            self._validate(reg, k, value)
+            changes.append((reg, k, value))
+            a += reg.words
+        return changes
+
+    def _validate(self, reg: Register, k: int | None, value) -> None:
+        if reg.name == "MODE" and value not in Mode._value2member_map_:
+            raise FirmwareReject(3, f"MODE {value} is not a mode")
+        if reg.name == "COMMAND" and value not in Command._value2member_map_:
+            raise FirmwareReject(3, f"COMMAND {value} is not a command")
+        if reg.name == "MAX_SPEED" and not 0 < value <= 10:
+            raise FirmwareReject(3, "MAX_SPEED must be in (0, 10] deg/s")
+        if reg.name in ("SOFT_LIMIT_MIN", "SOFT_LIMIT_MAX"):
+            ax = self.axes[k]
+            if not ax.p.hard_min <= value <= ax.p.hard_max:
+                raise FirmwareReject(3, f"{reg.name} outside the hard limits")
+
+    def _apply(self, reg: Register, k: int | None, value) -> None:
+        ax = self.axes[k] if k is not None else None
+        match reg.name:
+            case "COMMAND": self._command(Command(value))
+            case "HEARTBEAT":
+                if value != self.heartbeat:
+                    self.heartbeat = value
+                    self._last_heartbeat_change = self._t
+                    self.comm_lost = False
+            case "HEARTBEAT_TIMEOUT":
+                self.heartbeat_timeout = value
+                self._last_heartbeat_change = self._t
+            case "TARGET_ANGLE":
+                if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
+                    clamped = min(max(value, ax.p.soft_min), ax.p.soft_max)
+                    self.clamped[k] = clamped != value
+                    ax.target = clamped
+            case "MODE":
+                self._set_mode(k, Mode(value))
+            case "SOFT_LIMIT_MIN": ax.p.soft_min = value
+            case "SOFT_LIMIT_MAX": ax.p.soft_max = value
+            case "MAX_SPEED": ax.p.max_speed = value
+            case "STOW_ANGLE":
+                ax.p.stow_angle = value
+                if self.modes[k] == Mode.STOW:
+                    ax.target = value
+
+    def _command(self, cmd: Command) -> None:
+        for k, ax in enumerate(self.axes):
+            match cmd:
+                case Command.STOW:
+                    if self.modes[k] != Mode.MAINTENANCE:
+                        self._set_mode(k, Mode.STOW)
+                case Command.RESUME:
+                    if self.modes[k] == Mode.STOW and not self.comm_lost:
+                        self._set_mode(k, Mode.AUTO)
+                        ax.target = ax.encoder
+                case Command.CLEAR_FAULT:
+                    ax.clear_faults()
+                case Command.HOME:
+                    self.homed[k] = True
+
+    # -- truth for the world (not visible on the wire) -------------------------------
+    def true_angles(self) -> list[float]:
+        """Physical output angles (deg) at ``now()``: what the panel really does."""
+        with self._lock:
+            self.update()
+            return [ax.output for ax in self.axes]

@@ -1,0 +1,1 @@
+"""pyserial URL handlers of the HIL (registered by :mod:`hil.pty`)."""

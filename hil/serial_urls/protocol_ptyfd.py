@@ -1,0 +1,41 @@
+"""pyserial handler for ``ptyfd://N``: a serial port on an already-open file descriptor.
+
+A pty's master end has no path (opening ``/dev/ptmx`` or ``/proc/self/fd/N`` makes a new
+pty), so an emulator that owns the master passes the fd to pymodbus through this URL.
+The descriptor is duplicated; closing the port leaves the original open.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import os
+
+from serial import SerialException
+from serial.serialposix import Serial as PosixSerial
+
+
+class Serial(PosixSerial):
+    def open(self):
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        try:
+            fd = int(str(self.portstr).split("://", 1)[1])
+            self.fd = os.dup(fd)
+        except (ValueError, IndexError, OSError) as exc:
+            raise SerialException(f"invalid ptyfd URL {self.portstr!r}: {exc}") from exc
+        fcntl.fcntl(self.fd, fcntl.F_SETFL, fcntl.fcntl(self.fd, fcntl.F_GETFL) | os.O_NONBLOCK)
+        self.pipe_abort_read_r, self.pipe_abort_read_w = os.pipe()
+        self.pipe_abort_write_r, self.pipe_abort_write_w = os.pipe()
+        fcntl.fcntl(self.pipe_abort_read_r, fcntl.F_SETFL, os.O_NONBLOCK)
+        fcntl.fcntl(self.pipe_abort_write_r, fcntl.F_SETFL, os.O_NONBLOCK)
+        self.is_open = True
+        try:
+            self._reconfigure_port(force_update=True)
+        except Exception:  # termios on a pty master is best effort: there is no baud rate
+            pass
+
+    def _update_dtr_state(self):  # no modem lines on a pty
+        pass
+
+    def _update_rts_state(self):
+        pass
