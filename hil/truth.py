@@ -64,8 +64,12 @@ def dual_axis_normal(az_axis_deg, el_axis_deg) -> np.ndarray:
 
 
 def row_axis(axis_azimuth: float, axis_tilt: float) -> np.ndarray:
-    """Unit vector along a single-axis row, pointing to ``axis_azimuth``, tilted up."""
-    return unit_from_azel(axis_azimuth, axis_tilt)
+    """Unit vector along a single-axis row, pointing to ``axis_azimuth``.
+
+    The row's end towards ``axis_azimuth`` is its low end: at zero rotation a tilted row
+    faces ``axis_azimuth`` (an equator-facing tilt for 180 in the north), as in pvlib.
+    """
+    return unit_from_azel(axis_azimuth, -axis_tilt)
 
 
 def row_normal(rotation_deg, axis_azimuth: float, axis_tilt: float) -> np.ndarray:
