@@ -1,12 +1,17 @@
-"""The control loop: one cycle = sun estimate -> mode -> setpoints -> drives -> record."""
+"""The control loop: one cycle = sun estimate -> mode -> setpoints -> drives -> record.
+
+All trackers are served concurrently (asyncio); each gets its own deadline, so a dead or
+slow drive costs its own row a cycle and never delays the others.
+"""
 
 from __future__ import annotations
 
+import asyncio
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from firmware_protocol import Command, Mode, Status
+from firmware_protocol import Command, Mode
 
 from .clock import Clock
 from .config import Config, TrackerConfig
@@ -41,6 +46,9 @@ class TrackerRuntime:
     drive: DriveLink
     last_targets: tuple[float, ...] = ()
     last_state: DriveState | None = None
+    last_heartbeat: float = -math.inf
+    configured: bool = False
+    start_error: str = ""
     errors: int = 0
 
 
@@ -51,66 +59,93 @@ class Controller:
     """
 
     def __init__(self, config: Config, drives: Mapping[str, DriveLink], sun: SunSource,
-                 clock: Clock):
+                 clock: Clock, realtime: bool = False):
         self.config = config
+        self.realtime = realtime
         self.sun = sun
         self.clock = clock
         self.trackers = [TrackerRuntime(t, drives[t.name]) for t in config.trackers]
         self.cycles = 0
 
     # -- start-up -----------------------------------------------------------------
-    def start(self) -> None:
-        """Connect and configure every drive (limits, stow angles, watchdog)."""
-        for tr in self.trackers:
-            tr.drive.connect()
-            if tr.drive.axis_count < tr.cfg.axes:
-                raise DriveCommError(f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
-                                     f"a {tr.cfg.type} tracker needs {tr.cfg.axes}")
-            tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
-                               soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow)
-            tr.drive.heartbeat()
-            self._resume_if_stowed(tr)
+    async def start(self) -> None:
+        """Connect and configure every drive (limits, stow angles, watchdog).
 
-    def _resume_if_stowed(self, tr: TrackerRuntime) -> None:
-        state = tr.drive.read_state()
-        tr.last_state = state
-        if any(a.mode == Mode.STOW for a in state.axes):
-            tr.drive.command(Command.RESUME)
+        A drive that fails here is recorded and retried by the next cycles; the others
+        start regardless.
+        """
+        await asyncio.gather(*(self._start_one(tr) for tr in self.trackers))
+
+    async def _start_one(self, tr: TrackerRuntime) -> None:
+        try:
+            await asyncio.wait_for(self._configure(tr), self._deadline())
+        except (DriveCommError, asyncio.TimeoutError) as exc:
+            tr.errors += 1
+            tr.start_error = str(exc) or "timeout"
+
+    async def _configure(self, tr: TrackerRuntime) -> None:
+        await tr.drive.connect()
+        if tr.drive.axis_count < tr.cfg.axes:
+            raise DriveCommError(f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
+                                 f"a {tr.cfg.type} tracker needs {tr.cfg.axes}")
+        await tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
+                                 soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow)
+        await self._heartbeat(tr, force=True)
+        tr.configured = True
+
+    def _deadline(self) -> float:
+        """Per-tracker time budget for one cycle (s of wall time)."""
+        return max(0.8 * self.config.control.period_s, 0.2) if self.realtime else 30.0
+
+    async def _heartbeat(self, tr: TrackerRuntime, force: bool = False) -> None:
+        # Three heartbeats per watchdog timeout are plenty and spare the bus.
+        t = self.clock.now()
+        timeout = self.config.control.heartbeat_timeout_s
+        if force or timeout <= 0 or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
+            await tr.drive.heartbeat()
+            tr.last_heartbeat = t
 
     # -- one cycle ----------------------------------------------------------------
-    def cycle(self) -> list[CycleRecord]:
+    async def cycle(self) -> list[CycleRecord]:
         t = self.clock.now()
         aim_t = t + self.config.control.lead_s
         est = self.sun.estimate(aim_t)
         decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg)
                     if est is not None else ModeDecision(ControlMode.STOW, "no sun estimate"))
-        records = [self._drive_one(tr, t, est, decision) for tr in self.trackers]
+        records = await asyncio.gather(*(self._drive_one(tr, t, est, decision)
+                                         for tr in self.trackers))
         self.cycles += 1
-        return records
+        return list(records)
 
-    def _drive_one(self, tr: TrackerRuntime, t: float, est: SunEstimate | None,
-                   decision: ModeDecision) -> CycleRecord:
+    async def _drive_one(self, tr: TrackerRuntime, t: float, est: SunEstimate | None,
+                         decision: ModeDecision) -> CycleRecord:
         rec = CycleRecord(
             time=t, tracker=tr.cfg.name, mode=decision.mode.value, reason=decision.reason,
             source=est.source.value if est else "none",
             sun_az_deg=est.az_deg if est else math.nan, sun_el_deg=est.el_deg if est else math.nan)
         try:
             targets, rec.backtracking = self.setpoint(tr, est, decision)
-            tr.drive.heartbeat()
-            tr.drive.write_targets(targets)
-            state = tr.drive.read_state()
-            if any(a.mode == Mode.STOW and a.status & Status.COMM_LOST for a in state.axes) \
-                    or (decision.mode != ControlMode.STOW and any(a.mode == Mode.STOW for a in state.axes)):
-                # The firmware stowed itself (watchdog); the link is alive again: resume.
-                tr.drive.command(Command.RESUME)
-            tr.last_targets, tr.last_state = tuple(targets), state
+            state = await asyncio.wait_for(self._exchange(tr, targets, decision), self._deadline())
             rec.targets_deg = tuple(targets)
             rec.actual_deg = tuple(a.actual_deg for a in state.axes)
             rec.status = int(state.device_status)
-        except DriveCommError as exc:
+        except (DriveCommError, asyncio.TimeoutError) as exc:
             tr.errors += 1
-            rec.error = str(exc)
+            rec.error = str(exc) or f"{tr.cfg.name}: no answer within {self._deadline():g} s"
         return rec
+
+    async def _exchange(self, tr: TrackerRuntime, targets: list[float],
+                        decision: ModeDecision) -> DriveState:
+        if not tr.configured:
+            await self._configure(tr)
+        await self._heartbeat(tr)
+        state = await tr.drive.exchange(targets)
+        if decision.mode != ControlMode.STOW and any(a.mode == Mode.STOW for a in state.axes):
+            # The firmware stowed itself (watchdog) and the link is alive again: resume.
+            await self._heartbeat(tr, force=True)
+            await tr.drive.command(Command.RESUME)
+        tr.last_targets, tr.last_state = tuple(targets), state
+        return state
 
     def setpoint(self, tr: TrackerRuntime, est: SunEstimate | None,
                  decision: ModeDecision) -> tuple[list[float], bool]:
@@ -136,9 +171,9 @@ class Controller:
         return {"transactions": tx, "errors": err,
                 "retries": sum(tr.drive.stats.retries for tr in self.trackers)}
 
-    def close(self) -> None:
+    async def close(self) -> None:
         for tr in self.trackers:
             try:
-                tr.drive.close()
-            except Exception:
+                await tr.drive.close()
+            except Exception:  # closing a dead link must not hide the real error
                 pass

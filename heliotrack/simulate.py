@@ -9,6 +9,7 @@ truth: the physical axis angles from the emulated drives and the sun from pvlib 
 
 from __future__ import annotations
 
+import asyncio
 import csv
 import json
 import math
@@ -129,85 +130,112 @@ def _stats(values: list[float]) -> dict:
 def run_simulation(config: Config, days: int = 1, start: date | None = None,
                    out_dir: Path | None = None, progress: bool = True) -> dict:
     """Run the HIL scenario; return the summary (and write it under ``out_dir``)."""
-    hil = parse_hil(config)
-    start = start or hil.start
-    period = config.control.period_s
-    t0 = day_start(start, config.site.longitude)
-    n_cycles = int(round(days * 86400 / period))
-    sub = hil.substeps
-    # Truth sun at every sub-sample of every cycle, in one vectorised SPA call.
-    offsets = (np.arange(sub) + 0.5) / sub * period
-    t_samples = (t0 + np.arange(n_cycles)[:, None] * period + offsets[None, :]).ravel()
-    st = truth.sun_truth(t_samples, config.site.latitude, config.site.longitude,
-                         config.site.altitude, config.site.temperature_c, hil.linke_turbidity)
-    sun_vecs = st.vectors
-
-    clock = SimClock(t0)
-    acc = {tr.name: TruthSamples([]) for tr in config.trackers}
-    sources: dict[str, int] = {}
-    wall0 = time.perf_counter()
-    log_rows = []
-    with ExitStack() as stack:
-        firmwares, endpoints = _build_world(config, hil, clock, stack)
-        drives = _open_drives(config, endpoints, stack)
-        controller = Controller(config, drives, EphemerisSource(config.site), clock)
-        stack.callback(controller.close)
-        controller.start()
-        bar = tqdm(total=n_cycles, desc="simulate", unit="cycle", disable=not progress,
-                   leave=False)
-        for i in range(n_cycles):
-            t_cycle = t0 + i * period
-            clock.advance_to(t_cycle)
-            records = controller.cycle()
-            errs = {tr.name: [] for tr in config.trackers}
-            for j in range(sub):
-                k = i * sub + j
-                clock.advance_to(t_samples[k])
-                if st.elevation[k] <= 0:
-                    continue
-                for tr in config.trackers:
-                    e = _truth_step(tr, firmwares[tr.name].true_angles(), sun_vecs[k],
-                                    float(st.dni[k]), acc[tr.name])
-                    errs[tr.name].append(e)
-            for rec in records:
-                sources[rec.source] = sources.get(rec.source, 0) + 1
-                e = [x for x in errs[rec.tracker] if not math.isnan(x)]
-                log_rows.append(_log_row(rec, float(np.mean(e)) if e else math.nan))
-            bar.update(1)
-        bar.close()
-        modbus = controller.stats()
-    wall = time.perf_counter() - wall0
-
-    all_err = [e for a in acc.values() for e in a.pointing]
-    achieved = sum(a.beam_achieved for a in acc.values())
-    ideal = sum(a.beam_ideal for a in acc.values())
-    summary = {
-        "days": days,
-        "start": start.isoformat(),
-        "site": asdict(config.site),
-        "control_period_s": period,
-        "cycles": n_cycles,
-        "wall_s": round(wall, 2),
-        "pointing_error_deg": _stats(all_err),
-        "energy_ratio": round(achieved / ideal, 6) if ideal > 0 else None,
-        "modbus": modbus,
-        "sources": sources,
-        "trackers": {
-            name: {"pointing_error_deg": _stats(a.pointing),
-                   "energy_ratio": round(a.beam_achieved / a.beam_ideal, 6) if a.beam_ideal else None}
-            for name, a in acc.items()},
-        "definitions": {
-            "pointing_error_deg": "daylight truth samples (substeps per period), outside "
-                                  "backtracking and rotation limits; dual-axis: angle between "
-                                  "panel normal and the true sun; single-axis: angle between "
-                                  "panel normal and the sun projected on the rotation plane",
-            "energy_ratio": "sum of clear-sky beam irradiance on the plane of array achieved / "
-                            "ideal tracker (exact truth angles, with backtracking)",
-        },
-    }
+    run = ScenarioRun(config, days, start, progress)
+    summary = asyncio.run(run.run())
     if out_dir is not None:
-        write_outputs(Path(out_dir), summary, log_rows)
+        write_outputs(Path(out_dir), summary, run.log_rows)
     return summary
+
+
+class ScenarioRun:
+    """One simulated run: the world, the controller, the clock and the truth tallies."""
+
+    def __init__(self, config: Config, days: int, start: date | None, progress: bool):
+        self.config = config
+        self.hil = parse_hil(config)
+        self.days = days
+        self.start = start or self.hil.start
+        self.progress = progress
+        self.period = config.control.period_s
+        self.t0 = day_start(self.start, config.site.longitude)
+        self.n_cycles = int(round(days * 86400 / self.period))
+        self.sub = self.hil.substeps
+        # Truth sun at every sub-sample of every cycle, in one vectorised SPA call.
+        offsets = (np.arange(self.sub) + 0.5) / self.sub * self.period
+        self.t_samples = (self.t0 + np.arange(self.n_cycles)[:, None] * self.period
+                          + offsets[None, :]).ravel()
+        self.sun = truth.sun_truth(self.t_samples, config.site.latitude, config.site.longitude,
+                                   config.site.altitude, config.site.temperature_c,
+                                   self.hil.linke_turbidity)
+        self.sun_vecs = self.sun.vectors
+        self.clock = SimClock(self.t0)
+        self.acc = {tr.name: TruthSamples([]) for tr in config.trackers}
+        self.sources: dict[str, int] = {}
+        self.log_rows: list[dict] = []
+
+    async def run(self) -> dict:
+        wall0 = time.perf_counter()
+        with ExitStack() as stack:
+            firmwares, endpoints = _build_world(self.config, self.hil, self.clock, stack)
+            drives = _open_drives(self.config, endpoints, stack)
+            controller = Controller(self.config, drives, EphemerisSource(self.config.site),
+                                    self.clock)
+            try:
+                await controller.start()
+                bar = tqdm(total=self.n_cycles, desc="simulate", unit="cycle",
+                           disable=not self.progress, leave=False)
+                for i in range(self.n_cycles):
+                    self.clock.advance_to(self.t0 + i * self.period)
+                    records = await controller.cycle()
+                    errors = self._sample_truth(i, firmwares)
+                    self._log(records, errors)
+                    bar.update(1)
+                bar.close()
+            finally:
+                await controller.close()
+        return self._summary(controller.stats(), time.perf_counter() - wall0)
+
+    def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware]) -> dict[str, list[float]]:
+        """Advance through the cycle's sub-samples, scoring every tracker against the sun."""
+        errs: dict[str, list[float]] = {tr.name: [] for tr in self.config.trackers}
+        for k in range(i * self.sub, (i + 1) * self.sub):
+            self.clock.advance_to(self.t_samples[k])
+            if self.sun.elevation[k] <= 0:
+                continue
+            for tr in self.config.trackers:
+                e = _truth_step(tr, firmwares[tr.name].true_angles(), self.sun_vecs[k],
+                                float(self.sun.dni[k]), self.acc[tr.name])
+                if not math.isnan(e):
+                    errs[tr.name].append(e)
+        return errs
+
+    def _log(self, records, errors: dict[str, list[float]]) -> None:
+        for rec in records:
+            self.sources[rec.source] = self.sources.get(rec.source, 0) + 1
+            e = errors[rec.tracker]
+            self.log_rows.append(_log_row(rec, float(np.mean(e)) if e else math.nan))
+
+    def _summary(self, modbus: dict, wall: float) -> dict:
+        acc = self.acc
+        all_err = [e for a in acc.values() for e in a.pointing]
+        achieved = sum(a.beam_achieved for a in acc.values())
+        ideal = sum(a.beam_ideal for a in acc.values())
+        return {
+            "days": self.days,
+            "start": self.start.isoformat(),
+            "site": asdict(self.config.site),
+            "control_period_s": self.period,
+            "cycles": self.n_cycles,
+            "wall_s": round(wall, 2),
+            "pointing_error_deg": _stats(all_err),
+            "energy_ratio": round(achieved / ideal, 6) if ideal > 0 else None,
+            "modbus": modbus,
+            "sources": self.sources,
+            "trackers": {
+                name: {"pointing_error_deg": _stats(a.pointing),
+                       "energy_ratio": round(a.beam_achieved / a.beam_ideal, 6) if a.beam_ideal else None}
+                for name, a in acc.items()},
+            "definitions": {
+                "pointing_error_deg": "daylight truth samples (substeps per period), outside "
+                                      "backtracking and rotation limits; dual-axis: angle "
+                                      "between panel normal and the true sun; single-axis: "
+                                      "angle between panel normal and the sun projected on "
+                                      "the rotation plane",
+                "energy_ratio": "sum of clear-sky beam irradiance on the plane of array "
+                                "achieved / ideal tracker (exact truth angles, with "
+                                "backtracking)",
+            },
+        }
 
 
 def _log_row(rec, interval_error: float) -> dict:

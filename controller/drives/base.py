@@ -45,47 +45,56 @@ class LinkStats:
 
 
 class DriveLink(abc.ABC):
-    """One drive (one slave id, one or two axes) behind some transport.
+    """One drive (one slave or node id, one or two axes) behind some transport.
 
-    Every call either succeeds or raises :class:`DriveCommError`; nothing is retried by
-    the caller, the backend applies the configured retries.
+    The interface is asyncio so that one controller process can keep many drives busy at
+    once (a plant has hundreds of rows); backends of blocking libraries hand their slow
+    calls to a thread.  Every call either succeeds or raises :class:`DriveCommError`; the
+    backend applies the configured retries, the caller does not.
     """
 
     stats: LinkStats
+    axis_count: int = 0
+    label: str = ""
 
     @abc.abstractmethod
-    def connect(self) -> None:
-        """Open the transport and check the drive's identification (raises on mismatch)."""
+    async def connect(self) -> None:
+        """Open the transport, check the drive's identification, set ``axis_count``."""
 
     @abc.abstractmethod
-    def close(self) -> None: ...
+    async def close(self) -> None: ...
 
     @abc.abstractmethod
-    def read_state(self) -> DriveState: ...
+    async def read_state(self) -> DriveState: ...
 
     @abc.abstractmethod
-    def write_targets(self, angles_deg: Sequence[float]) -> None:
-        """Set TARGET_ANGLE of axes 0.. (one value per axis)."""
+    async def write_targets(self, angles_deg: Sequence[float]) -> None:
+        """Set the target angle of axes 0.. (one value per axis, degrees)."""
+
+    async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
+        """Write targets, then read the state; backends may merge the two on the wire."""
+        await self.write_targets(angles_deg)
+        return await self.read_state()
 
     @abc.abstractmethod
-    def heartbeat(self) -> None:
+    async def heartbeat(self) -> None:
         """Refresh the firmware's watchdog."""
 
     @abc.abstractmethod
-    def command(self, cmd: Command) -> None: ...
+    async def command(self, cmd: Command) -> None: ...
 
     @abc.abstractmethod
-    def configure(self, *, heartbeat_timeout_s: float | None = None,
-                  soft_limits: Sequence[tuple[float, float]] | None = None,
-                  stow_angles: Sequence[float] | None = None) -> None:
-        """Write configuration registers (only those given)."""
+    async def configure(self, *, heartbeat_timeout_s: float | None = None,
+                        soft_limits: Sequence[tuple[float, float]] | None = None,
+                        stow_angles: Sequence[float] | None = None) -> None:
+        """Write configuration (only what is given)."""
 
-    def __enter__(self):
-        self.connect()
+    async def __aenter__(self):
+        await self.connect()
         return self
 
-    def __exit__(self, *exc):
-        self.close()
+    async def __aexit__(self, *exc):
+        await self.close()
 
 
 _BACKENDS: dict[str, Callable[..., DriveLink]] = {}

@@ -1,11 +1,11 @@
-"""Modbus RTU and TCP drive links over pymodbus (``modbus-rtu``, ``modbus-tcp``)."""
+"""Modbus RTU and TCP drive links over pymodbus's asyncio clients (``modbus-rtu``, ``modbus-tcp``)."""
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
 
-from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from firmware_protocol import (
@@ -17,20 +17,21 @@ from firmware_protocol.codec import axis_block_address
 from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
 
 _ID_WORDS = 3
+_TARGET = register("TARGET_ANGLE")
 
 
 class ModbusDrive(DriveLink):
-    """A drive on a pymodbus client (serial RTU or TCP).
+    """A drive on a pymodbus asyncio client (serial RTU or TCP).
 
     Parameters
     ----------
-    client : pymodbus sync client
+    client : pymodbus async client (or a shared wrapper of one)
     device_id : int
         Modbus slave id of the drive.
     retries : int
         Extra attempts after a failed transaction.
     label : str
-        Used in error messages (``"row-3 @ /dev/ttyUSB0 id 4"``).
+        Used in error messages (``"/dev/ttyUSB0 id 4"``).
     """
 
     def __init__(self, client, device_id: int, retries: int = 2, label: str = ""):
@@ -42,16 +43,15 @@ class ModbusDrive(DriveLink):
         self.stats = LinkStats()
         self._beat = 0
 
-    # -- transport ----------------------------------------------------------------
-    def _call(self, what: str, fn, *args, **kwargs):
+    async def _call(self, what: str, fn, *args, **kwargs):
         last = None
         for attempt in range(self.retries + 1):
             t0 = time.perf_counter()
             self.stats.transactions += 1
             try:
-                rr = fn(*args, device_id=self.device_id, **kwargs)
+                rr = await fn(*args, device_id=self.device_id, **kwargs)
             except (ModbusException, OSError) as exc:
-                rr, last = None, exc
+                last = exc
             else:
                 if not rr.isError():
                     self.stats.latencies_s.append(time.perf_counter() - t0)
@@ -62,85 +62,109 @@ class ModbusDrive(DriveLink):
                 self.stats.retries += 1
         raise DriveCommError(f"{self.label}: {what} failed after {self.retries + 1} attempt(s): {last}")
 
-    def connect(self) -> None:
-        if not self.client.connect():
+    async def connect(self) -> None:
+        if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
-        words = self._call("identification read", self.client.read_holding_registers,
-                           0, count=_ID_WORDS).registers
+        words = (await self._call("identification read", self.client.read_holding_registers,
+                                  0, count=_ID_WORDS)).registers
         if words[0] != MAGIC:
             raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
         if words[1] >> 8 != PROTOCOL_VERSION >> 8:
             raise DriveCommError(f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x")
+        if not 1 <= words[2] <= 2:
+            raise DriveCommError(f"{self.label}: implausible axis count {words[2]}")
         self.axis_count = words[2]
 
-    def close(self) -> None:
+    async def close(self) -> None:
         self.client.close()
 
-    # -- operations ---------------------------------------------------------------
-    def read_state(self) -> DriveState:
+    def _decode_state(self, words: Sequence[int]) -> DriveState:
         start = axis_block_address(0)
-        words = self._call("state read", self.client.read_holding_registers,
-                           start, count=AXIS_STRIDE * self.axis_count).registers
         axes = []
-        for k in range(self.axis_count):
-            v = decode_block(words, start, axis=k)
-            axes.append(AxisState(
-                actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
-                velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),
-                fault=Fault(int(v["FAULT_CODE"])), mode=Mode(int(v["MODE"]))))
+        try:
+            for k in range(self.axis_count):
+                v = decode_block(words, start, axis=k)
+                axes.append(AxisState(
+                    actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
+                    velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),
+                    fault=Fault(int(v["FAULT_CODE"])), mode=Mode(int(v["MODE"]))))
+        except (ValueError, KeyError) as exc:  # an unknown mode or fault code on the wire
+            raise DriveCommError(f"{self.label}: implausible state from the drive: {exc}") from None
         dev = Status(0)
         for a in axes:
             dev |= a.status
         return DriveState(self.axis_count, tuple(axes), dev)
 
-    def write_targets(self, angles_deg: Sequence[float]) -> None:
+    async def read_state(self) -> DriveState:
+        rr = await self._call("state read", self.client.read_holding_registers,
+                              axis_block_address(0), count=AXIS_STRIDE * self.axis_count)
+        return self._decode_state(rr.registers)
+
+    def _check(self, angles_deg: Sequence[float]) -> None:
         if len(angles_deg) != self.axis_count:
             raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
-        reg = register("TARGET_ANGLE")
+
+    async def write_targets(self, angles_deg: Sequence[float]) -> None:
+        self._check(angles_deg)
         for k, angle in enumerate(angles_deg):
-            self._call("target write", self.client.write_registers, reg.address(k),
-                       encode(reg, angle))
+            await self._call("target write", self.client.write_registers, _TARGET.address(k),
+                             encode(_TARGET, angle))
 
-    def heartbeat(self) -> None:
+    async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
+        """Axis 1's target by FC16, then axis 0's target and the state read in one FC23."""
+        self._check(angles_deg)
+        for k in range(1, self.axis_count):
+            await self._call("target write", self.client.write_registers, _TARGET.address(k),
+                             encode(_TARGET, angles_deg[k]))
+        rr = await self._call("target write + state read", self.client.readwrite_registers,
+                              read_address=axis_block_address(0),
+                              read_count=AXIS_STRIDE * self.axis_count,
+                              write_address=_TARGET.address(0),
+                              values=encode(_TARGET, angles_deg[0]))
+        return self._decode_state(rr.registers)
+
+    async def heartbeat(self) -> None:
         self._beat = (self._beat + 1) & 0xFFFF
-        self._call("heartbeat", self.client.write_register, register("HEARTBEAT").address(),
-                   self._beat)
+        await self._call("heartbeat", self.client.write_register,
+                         register("HEARTBEAT").address(), self._beat)
 
-    def command(self, cmd: Command) -> None:
-        self._call(f"command {cmd.name}", self.client.write_register,
-                   register("COMMAND").address(), int(cmd))
+    async def command(self, cmd: Command) -> None:
+        await self._call(f"command {cmd.name}", self.client.write_register,
+                         register("COMMAND").address(), int(cmd))
 
-    def configure(self, *, heartbeat_timeout_s=None, soft_limits=None, stow_angles=None) -> None:
+    async def configure(self, *, heartbeat_timeout_s=None, soft_limits=None, stow_angles=None) -> None:
         if heartbeat_timeout_s is not None:
             reg = register("HEARTBEAT_TIMEOUT")
-            self._call("configure", self.client.write_registers, reg.address(),
-                       encode(reg, heartbeat_timeout_s))
+            await self._call("configure", self.client.write_registers, reg.address(),
+                             encode(reg, heartbeat_timeout_s))
+        lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
         for k, (lo, hi) in enumerate(soft_limits or ()):
-            lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
-            self._call("configure", self.client.write_registers, lo_reg.address(k),
-                       encode(lo_reg, lo) + encode(hi_reg, hi))
+            await self._call("configure", self.client.write_registers, lo_reg.address(k),
+                             encode(lo_reg, lo) + encode(hi_reg, hi))
+        reg = register("STOW_ANGLE")
         for k, angle in enumerate(stow_angles or ()):
-            reg = register("STOW_ANGLE")
-            self._call("configure", self.client.write_registers, reg.address(k), encode(reg, angle))
+            await self._call("configure", self.client.write_registers, reg.address(k),
+                             encode(reg, angle))
 
-    def read_register(self, name: str, axis: int | None = None) -> float | int:
+    async def read_register(self, name: str, axis: int | None = None) -> float | int:
         reg = register(name)
-        rr = self._call(f"read {name}", self.client.read_holding_registers,
-                        reg.address(axis), count=reg.words)
+        rr = await self._call(f"read {name}", self.client.read_holding_registers,
+                              reg.address(axis), count=reg.words)
         return decode(reg, rr.registers)
 
 
 class _SharedSerialClient:
-    """One serial client per port, shared by every drive on that RS-485 line.
+    """One client per serial port, shared by every drive on that RS-485 line.
 
-    pymodbus locks a serial port exclusively, and a multidrop line has one master anyway;
-    the port closes when the last drive using it closes.
+    pymodbus locks a port exclusively, and a multidrop line has one master anyway; the
+    client serialises requests itself.  The port closes when its last drive closes.
     """
 
     _open: dict[str, "_SharedSerialClient"] = {}
 
     def __init__(self, port: str, baudrate: int, timeout_s: float):
-        self.client = ModbusSerialClient(port, baudrate=baudrate, timeout=timeout_s, retries=0)
+        self.client = AsyncModbusSerialClient(port, baudrate=baudrate, timeout=timeout_s,
+                                              retries=0, reconnect_delay=0)
         self.port = port
         self.users = 0
 
@@ -155,8 +179,8 @@ class _SharedSerialClient:
     def __getattr__(self, name):
         return getattr(self.client, name)
 
-    def connect(self) -> bool:
-        return self.client.connected or self.client.connect()
+    async def connect(self) -> bool:
+        return self.client.connected or await self.client.connect()
 
     def close(self) -> None:
         self.users -= 1
@@ -173,7 +197,8 @@ def _rtu(port: str, device_id: int, baudrate: int = 115200, timeout_s: float = 0
 
 def _tcp(host: str, port: int, device_id: int, timeout_s: float = 0.5, retries: int = 2,
          **_) -> ModbusDrive:
-    client = ModbusTcpClient(host, port=port, timeout=timeout_s, retries=0)
+    client = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0,
+                                  reconnect_delay=0)
     return ModbusDrive(client, device_id, retries, label=f"{host}:{port} id {device_id}")
 
 

@@ -1,5 +1,7 @@
 """The controller's Modbus client against the emulated firmware over a real pty."""
 
+import asyncio
+
 import pytest
 
 from controller.drives import DriveCommError, open_drive
@@ -10,53 +12,56 @@ from hil.pty import PtyLink
 from tests.conftest import two_axes
 
 
-@pytest.fixture
-def drive(pty_drive):
+def run(coro):
+    return asyncio.run(coro)
+
+
+def test_connect_targets_state_and_configuration(pty_drive):
     fw, path, clock = pty_drive
-    d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3, retries=1)
-    d.connect()
-    yield d, fw, clock
-    d.close()
 
+    async def scenario():
+        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3, retries=1)
+        await d.connect()
+        assert d.axis_count == 2
+        await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)],
+                          stow_angles=[180, 80])
+        assert fw.heartbeat_timeout == pytest.approx(50)
+        assert fw.axes[1].p.soft_min == pytest.approx(5) and fw.axes[1].p.stow_angle == pytest.approx(80)
+        await d.write_targets([150.0, 30.0])
+        for _ in range(8):
+            await d.heartbeat()
+            clock.sleep(10)
+        st = await d.read_state()
+        assert st.axes[0].actual_deg == pytest.approx(150.0, abs=0.03)
+        assert st.axes[1].actual_deg == pytest.approx(30.0, abs=0.03)
+        assert all(a.status & Status.AT_TARGET for a in st.axes)
+        # exchange = targets + state in fewer transactions; the state is read after the write
+        st = await d.exchange([151.0, 31.0])
+        assert st.axes[0].target_deg == pytest.approx(151.0)
+        assert st.axes[1].target_deg == pytest.approx(31.0)
+        await d.command(Command.STOW)
+        assert (await d.read_state()).axes[0].mode == Mode.STOW
+        with pytest.raises(ValueError):
+            await d.write_targets([1.0])
+        await d.close()
 
-def test_connect_reads_identification(drive):
-    d, fw, _ = drive
-    assert d.axis_count == 2
-
-
-def test_targets_state_and_configuration(drive):
-    d, fw, clock = drive
-    d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80])
-    assert fw.heartbeat_timeout == pytest.approx(50)
-    assert fw.axes[1].p.soft_min == pytest.approx(5) and fw.axes[1].p.stow_angle == pytest.approx(80)
-    d.write_targets([150.0, 30.0])
-    for _ in range(8):
-        d.heartbeat()
-        clock.sleep(10)
-    st = d.read_state()
-    assert st.axes[0].actual_deg == pytest.approx(150.0, abs=0.03)
-    assert st.axes[1].actual_deg == pytest.approx(30.0, abs=0.03)
-    assert all(a.status & Status.AT_TARGET for a in st.axes)
-    d.command(Command.STOW)
-    assert d.read_state().axes[0].mode == Mode.STOW
-
-
-def test_wrong_number_of_targets(drive):
-    d, *_ = drive
-    with pytest.raises(ValueError):
-        d.write_targets([1.0])
+    run(scenario())
 
 
 def test_timeouts_become_drive_comm_errors_with_counts(pty_drive):
     fw, path, _ = pty_drive
-    d = open_drive("modbus-rtu", port=path, device_id=5, timeout_s=0.05, retries=1)
-    with pytest.raises(DriveCommError, match="id 5"):
-        d.connect()
-    assert d.stats.errors == 2 and d.stats.retries == 1
-    d.close()
+
+    async def scenario():
+        d = open_drive("modbus-rtu", port=path, device_id=5, timeout_s=0.05, retries=1)
+        with pytest.raises(DriveCommError, match="id 5"):
+            await d.connect()
+        assert d.stats.errors == 2 and d.stats.retries == 1
+        await d.close()
+
+    run(scenario())
 
 
-def test_not_a_heliotrack_drive(sim_clock):
+def test_not_a_heliotrack_drive():
     class Other:
         def read(self, a, n):
             return [0x1234] * n
@@ -64,21 +69,43 @@ def test_not_a_heliotrack_drive(sim_clock):
         def write(self, a, v):
             pass
 
-    with PtyLink.open() as link, ModbusServerThread({1: Other()}, serial_url=link.url):
-        d = open_drive("modbus-rtu", port=link.path, device_id=1, timeout_s=0.3)
+    async def scenario(path):
+        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3)
         with pytest.raises(DriveCommError, match="not a heliotrack drive"):
-            d.connect()
-        d.close()
+            await d.connect()
+        await d.close()
+
+    with PtyLink.open() as link, ModbusServerThread({1: Other()}, serial_url=link.url):
+        run(scenario(link.path))
+
+
+def test_implausible_state_is_an_error_not_a_crash(pty_drive):
+    fw, path, _ = pty_drive
+    fw.modes[0] = 7  # a firmware bug puts an unknown mode on the wire
+
+    async def scenario():
+        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3, retries=0)
+        await d.connect()
+        with pytest.raises(DriveCommError, match="implausible"):
+            await d.read_state()
+        await d.close()
+
+    run(scenario())
 
 
 def test_modbus_tcp_backend_on_loopback(sim_clock):
     fw = DriveFirmware(two_axes(), sim_clock.now)
-    with ModbusServerThread({3: fw}, tcp=("127.0.0.1", 0)) as srv:
-        d = open_drive("modbus-tcp", host="127.0.0.1", port=srv.tcp_port, device_id=3)
-        d.connect()
-        d.write_targets([181.0, 89.0])
+
+    async def scenario(port):
+        d = open_drive("modbus-tcp", host="127.0.0.1", port=port, device_id=3)
+        await d.connect()
+        st = await d.exchange([181.0, 89.0])
         assert fw.axes[0].target == pytest.approx(181.0)
-        d.close()
+        assert st.axes[1].target_deg == pytest.approx(89.0)
+        await d.close()
+
+    with ModbusServerThread({3: fw}, tcp=("127.0.0.1", 0)) as srv:
+        run(scenario(srv.tcp_port))
 
 
 def test_unknown_backend():
