@@ -164,6 +164,12 @@ class TrackerConfig:
         return 2 if self.type == "dual-axis" else 1
 
     @property
+    def row_geometry(self):
+        from .geometry import RowGeometry
+        return RowGeometry(self.axis_azimuth, self.axis_tilt, self.max_angle, self.gcr,
+                           self.cross_axis_tilt, self.backtrack)
+
+    @property
     def soft_limits(self) -> list[tuple[float, float]]:
         if self.type == "dual-axis":
             return [self.azimuth_limits, self.elevation_limits]

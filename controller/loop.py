@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -16,7 +17,7 @@ from firmware_protocol import Command, Mode
 from .clock import Clock
 from .config import Config, TrackerConfig
 from .drives import DriveCommError, DriveLink, DriveState
-from .geometry import dual_axis_setpoint, single_axis_setpoint
+from .geometry import dual_axis_setpoint, single_axis_setpoints
 from .modes import ControlMode, ModeDecision, decide_mode
 from .sun.source import SunSource
 from .sun.types import SunEstimate
@@ -38,6 +39,7 @@ class CycleRecord:
     status: int = 0
     backtracking: bool = False
     error: str = ""
+    latency_s: float = 0.0   # wall time from the cycle's start until this row was done
 
 
 @dataclass
@@ -48,6 +50,7 @@ class TrackerRuntime:
     last_state: DriveState | None = None
     last_heartbeat: float = -math.inf
     configured: bool = False
+    index: int = 0
     start_error: str = ""
     errors: int = 0
 
@@ -74,6 +77,8 @@ class Controller:
         A drive that fails here is recorded and retried by the next cycles; the others
         start regardless.
         """
+        for index, tr in enumerate(self.trackers):
+            tr.index = index
         await asyncio.gather(*(self._start_one(tr) for tr in self.trackers))
 
     async def _start_one(self, tr: TrackerRuntime) -> None:
@@ -91,6 +96,8 @@ class Controller:
         await tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
                                  soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow)
         await self._heartbeat(tr, force=True)
+        # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
+        tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
         tr.configured = True
 
     def _deadline(self) -> float:
@@ -112,27 +119,47 @@ class Controller:
         est = self.sun.estimate(aim_t)
         decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg)
                     if est is not None else ModeDecision(ControlMode.STOW, "no sun estimate"))
-        records = await asyncio.gather(*(self._drive_one(tr, t, est, decision)
-                                         for tr in self.trackers))
+        setpoints = self.setpoints(est, decision)
+        t_wall = time.perf_counter()
+        records = [self._record(tr, t, est, decision, sp)
+                   for tr, sp in zip(self.trackers, setpoints)]
+        tasks = [asyncio.ensure_future(self._drive_one(tr, rec, sp[0], decision, t_wall))
+                 for tr, rec, sp in zip(self.trackers, records, setpoints)]
+        # One deadline for the cycle: a row still waiting then is cancelled and marked;
+        # the others have long finished, so a dead drive costs only its own row.
+        _, late = await asyncio.wait(tasks, timeout=self._deadline())
+        for task in late:
+            task.cancel()
+        if late:
+            await asyncio.wait(late)
+        for tr, rec in zip(self.trackers, records):
+            if not rec.latency_s:
+                tr.errors += 1
+                rec.error = rec.error or f"{tr.cfg.name}: no answer within {self._deadline():g} s"
+                rec.latency_s = time.perf_counter() - t_wall
         self.cycles += 1
-        return list(records)
+        return records
 
-    async def _drive_one(self, tr: TrackerRuntime, t: float, est: SunEstimate | None,
-                         decision: ModeDecision) -> CycleRecord:
-        rec = CycleRecord(
+    @staticmethod
+    def _record(tr: TrackerRuntime, t: float, est: SunEstimate | None, decision: ModeDecision,
+                setpoint: tuple[list[float], bool]) -> CycleRecord:
+        return CycleRecord(
             time=t, tracker=tr.cfg.name, mode=decision.mode.value, reason=decision.reason,
             source=est.source.value if est else "none",
-            sun_az_deg=est.az_deg if est else math.nan, sun_el_deg=est.el_deg if est else math.nan)
+            sun_az_deg=est.az_deg if est else math.nan,
+            sun_el_deg=est.el_deg if est else math.nan, backtracking=setpoint[1])
+
+    async def _drive_one(self, tr: TrackerRuntime, rec: CycleRecord, targets: list[float],
+                         decision: ModeDecision, t_wall: float) -> None:
         try:
-            targets, rec.backtracking = self.setpoint(tr, est, decision)
-            state = await asyncio.wait_for(self._exchange(tr, targets, decision), self._deadline())
+            state = await self._exchange(tr, targets, decision)
             rec.targets_deg = tuple(targets)
             rec.actual_deg = tuple(a.actual_deg for a in state.axes)
             rec.status = int(state.device_status)
-        except (DriveCommError, asyncio.TimeoutError) as exc:
+        except DriveCommError as exc:
             tr.errors += 1
-            rec.error = str(exc) or f"{tr.cfg.name}: no answer within {self._deadline():g} s"
-        return rec
+            rec.error = str(exc)
+        rec.latency_s = time.perf_counter() - t_wall
 
     async def _exchange(self, tr: TrackerRuntime, targets: list[float],
                         decision: ModeDecision) -> DriveState:
@@ -147,23 +174,56 @@ class Controller:
         tr.last_targets, tr.last_state = tuple(targets), state
         return state
 
-    def setpoint(self, tr: TrackerRuntime, est: SunEstimate | None,
-                 decision: ModeDecision) -> tuple[list[float], bool]:
-        """Axis targets (deg) for a tracker, and whether the row is backtracking."""
-        cfg = tr.cfg
+    def setpoints(self, est: SunEstimate | None, decision: ModeDecision
+                  ) -> list[tuple[list[float], bool]]:
+        """Axis targets (deg) for every tracker, and whether each row is backtracking.
+
+        Single-axis rows are computed together in one vectorised call.
+        """
+        out: list[tuple[list[float], bool]] = [(list(tr.cfg.stow), False) for tr in self.trackers]
         if decision.mode == ControlMode.STOW or est is None:
-            return list(cfg.stow), False
-        if cfg.type == "dual-axis":
-            current = tr.last_state.axes[0].actual_deg if tr.last_state else None
-            az, el = dual_axis_setpoint(est.az_deg, est.el_deg, cfg.azimuth_limits,
-                                        cfg.elevation_limits, current)
-            return [az, el], False
-        sp = single_axis_setpoint(est.az_deg, est.el_deg, axis_azimuth=cfg.axis_azimuth,
-                                  axis_tilt=cfg.axis_tilt, max_angle=cfg.max_angle, gcr=cfg.gcr,
-                                  cross_axis_tilt=cfg.cross_axis_tilt, backtrack=cfg.backtrack)
-        if math.isnan(sp.rotation_deg):  # sun below the horizon but inside the wake margin
-            return list(cfg.stow), False
-        return [sp.rotation_deg], sp.backtracking
+            return out
+        rows = [i for i, tr in enumerate(self.trackers) if tr.cfg.type == "single-axis"]
+        if rows:
+            sps = single_axis_setpoints(est.az_deg, est.el_deg,
+                                        [self.trackers[i].cfg.row_geometry for i in rows])
+            for i, sp in zip(rows, sps):
+                if not math.isnan(sp.rotation_deg):  # NaN: sun still below the horizon
+                    out[i] = ([sp.rotation_deg], sp.backtracking)
+        for i, tr in enumerate(self.trackers):
+            if tr.cfg.type == "dual-axis":
+                cfg = tr.cfg
+                current = tr.last_state.axes[0].actual_deg if tr.last_state else None
+                az, el = dual_axis_setpoint(est.az_deg, est.el_deg, cfg.azimuth_limits,
+                                            cfg.elevation_limits, current)
+                out[i] = ([az, el], False)
+        return out
+
+    async def run(self, duration_s: float, on_cycle=None) -> dict:
+        """Cycle on period boundaries of ``self.clock`` for ``duration_s``.
+
+        ``on_cycle(records)`` is called after every cycle.  A cycle that overruns its
+        period makes the loop skip to the next boundary (counted in ``overruns``) rather
+        than queue late cycles.
+        """
+        period = self.config.control.period_s
+        t_end = self.clock.now() + duration_s
+        next_t = self.clock.now()
+        overruns = 0
+        while next_t < t_end:
+            delay = max(next_t - self.clock.now(), 0.0)
+            if self.realtime:
+                await asyncio.sleep(delay)   # keep the event loop (other rows, servers) alive
+            else:
+                self.clock.sleep(delay)
+            records = await self.cycle()
+            if on_cycle is not None:
+                on_cycle(records)
+            next_t += period
+            while self.clock.now() > next_t:
+                next_t += period
+                overruns += 1
+        return {"cycles": self.cycles, "overruns": overruns}
 
     def stats(self) -> dict:
         tx = sum(tr.drive.stats.transactions for tr in self.trackers)

@@ -87,6 +87,21 @@ def decode_block(words: Sequence[int], start: int, axis: int | None = None
     return out
 
 
+_AXIS_LAYOUT = tuple((reg, reg.offset) for reg in REGISTER_MAP if reg.per_axis)
+
+
+def decode_axis(words: Sequence[int], offset: int = 0) -> dict[str, float | int]:
+    """Decode one axis block (``AXIS_STRIDE`` words starting at ``words[offset]``).
+
+    The fast path for the cyclic state read: keys are plain register names.
+    """
+    out: dict[str, float | int] = {}
+    for reg, o in _AXIS_LAYOUT:
+        i = offset + o
+        out[reg.name] = decode(reg, words[i: i + reg.words])
+    return out
+
+
 def axis_block_address(axis: int) -> int:
     """First address of an axis's block."""
     return AXIS_BASE + axis * AXIS_STRIDE

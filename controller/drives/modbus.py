@@ -9,10 +9,10 @@ from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from firmware_protocol import (
-    AXIS_STRIDE, MAGIC, PROTOCOL_VERSION, Command, Fault, Mode, Status, decode, decode_block,
-    encode, register,
+    AXIS_STRIDE, MAGIC, PROTOCOL_VERSION, Command, Fault, Mode, Status, decode, encode,
+    register,
 )
-from firmware_protocol.codec import axis_block_address
+from firmware_protocol.codec import axis_block_address, decode_axis
 
 from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
 
@@ -79,11 +79,10 @@ class ModbusDrive(DriveLink):
         self.client.close()
 
     def _decode_state(self, words: Sequence[int]) -> DriveState:
-        start = axis_block_address(0)
         axes = []
         try:
             for k in range(self.axis_count):
-                v = decode_block(words, start, axis=k)
+                v = decode_axis(words, k * AXIS_STRIDE)
                 axes.append(AxisState(
                     actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
                     velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),

@@ -1,6 +1,7 @@
 """Tracker geometry: from a sun direction to axis setpoints."""
 
 from .dual_axis import dual_axis_setpoint, wrap_into_range
-from .single_axis import SingleAxisSetpoint, single_axis_setpoint
+from .single_axis import RowGeometry, SingleAxisSetpoint, single_axis_setpoint, single_axis_setpoints
 
-__all__ = ["SingleAxisSetpoint", "dual_axis_setpoint", "single_axis_setpoint", "wrap_into_range"]
+__all__ = ["RowGeometry", "SingleAxisSetpoint", "dual_axis_setpoint", "single_axis_setpoint",
+           "single_axis_setpoints", "wrap_into_range"]

@@ -1,0 +1,116 @@
+"""Grouping observations into observing days, and the per-day result record.
+
+Without a time zone the "local" clock is a pseudo solar clock: the first day's median
+observation time is put at 12:00, so no day straddles local midnight anywhere on Earth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from datetime import datetime, timezone
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Day:
+    """Indices of one day's observations.
+
+    Attributes
+    ----------
+    date : str
+        Local calendar date ``YYYY-MM-DD`` (true local with a UTC offset, else pseudo-solar).
+    day_number : int
+        Days since 1970-01-01 on the same local clock (consecutive days differ by 1).
+    midnight : float
+        POSIX seconds of the local midnight starting the day.
+    index : ndarray of int
+        Positions of the day's observations in the input, in time order.
+    """
+
+    date: str
+    day_number: int
+    midnight: float
+    index: np.ndarray
+
+
+def local_offset_s(times, utc_offset_h: float | None) -> float:
+    """Seconds to add to UTC to get the local clock used for day boundaries.
+
+    With ``utc_offset_h`` that is the civil offset; otherwise the offset that puts the
+    median of the first 20 hours of observations at 12:00.
+    """
+    if utc_offset_h is not None:
+        return float(utc_offset_h) * 3600.0
+    t = np.sort(np.asarray(times, dtype=float))
+    first = t[t < t[0] + 20 * 3600.0]
+    med = float(np.median(first)) % 86400.0
+    return (12 * 3600.0 - med + 43200.0) % 86400.0 - 43200.0
+
+
+def split_days(times, utc_offset_h: float | None = None) -> list[Day]:
+    """Group POSIX ``times`` (s) into local days; see :func:`local_offset_s`."""
+    t = np.asarray(times, dtype=float)
+    if t.size == 0:
+        return []
+    off = local_offset_s(t, utc_offset_h)
+    num = np.floor((t + off) / 86400.0).astype(int)
+    days = []
+    for n in np.unique(num):
+        idx = np.flatnonzero(num == n)
+        idx = idx[np.argsort(t[idx], kind="stable")]
+        date = datetime.fromtimestamp(n * 86400.0, tz=timezone.utc).date().isoformat()
+        days.append(Day(date, int(n), n * 86400.0 - off, idx))
+    return days
+
+
+@dataclass(frozen=True)
+class DayResult:
+    """One row of ``heliotrack sunpath`` output: what a method learned from one day.
+
+    Attributes
+    ----------
+    date : str
+        Local date of the day.
+    noon_utc : float
+        Solar noon, POSIX s.
+    noon_el_deg : float
+        Apparent elevation at solar noon, deg.
+    declination_deg : float
+        Solar declination at noon, deg (nan when the method cannot measure it).
+    lat_deg, lon_deg : float
+        Site estimate, deg (north-, east-positive); nan when not available.
+    n_obs : int
+        Observations of the day (``n_rejected`` of them rejected as outliers).
+    method : str
+        ``"seed"`` or ``"kalman"``.
+    az_offset_deg : float
+        Sensor azimuth minus true azimuth, deg.
+    noon_sigma_s, lat_sigma_deg, lon_sigma_deg, dec_sigma_deg : float
+        One-sigma uncertainties (nan when unknown).
+    """
+
+    date: str
+    noon_utc: float
+    noon_el_deg: float
+    declination_deg: float
+    lat_deg: float
+    lon_deg: float
+    n_obs: int
+    method: str
+    az_offset_deg: float = float("nan")
+    n_rejected: int = 0
+    noon_sigma_s: float = float("nan")
+    lat_sigma_deg: float = float("nan")
+    lon_sigma_deg: float = float("nan")
+    dec_sigma_deg: float = float("nan")
+
+    def as_row(self) -> dict:
+        """Plain dict with ``noon_utc`` as ISO 8601 and floats rounded for output."""
+        row = asdict(self)
+        row["noon_utc"] = datetime.fromtimestamp(self.noon_utc, tz=timezone.utc).isoformat(
+            timespec="seconds") if np.isfinite(self.noon_utc) else ""
+        for k, v in row.items():
+            if isinstance(v, float):
+                row[k] = None if not np.isfinite(v) else round(v, 6)
+        return row

@@ -1,0 +1,173 @@
+"""``heliotrack sunpath``: learn the sun's path from observations, or predict it.
+
+Two modes, chosen by the first positional argument::
+
+    heliotrack sunpath OBS.csv [--method seed|kalman] [--lat DEG --lon DEG]
+                               [--utc-offset HOURS] [--out FILE] [--state FILE]
+    heliotrack sunpath predict [OBS.csv] [--state FILE] [--lat DEG --lon DEG]
+                               (--at TIME ... | --start TIME --end TIME [--step-min M])
+
+The first writes one row per day (date, noon_utc, noon_el_deg, declination_deg, lat_deg,
+lon_deg, n_obs, method, ...) as CSV, or as JSON lines when ``--out`` ends in .jsonl/.json
+or ``--format jsonl``.  ``predict`` runs the Kalman filter over OBS.csv and/or a saved
+state and prints time, az_deg, el_deg and one-sigma for each requested time.  (A file
+literally named ``predict`` must be given as ``./predict``.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "sunpath", help="learn the sun's path from observations (seed or Kalman), or predict",
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("inputs", nargs="+", metavar="[predict] OBS.csv",
+                   help="observation CSV (time, az_deg, el_deg[, sigma_deg]); "
+                        "'predict' first for prediction mode")
+    p.add_argument("--method", choices=("seed", "kalman"), default="kalman",
+                   help="seed: the paper's daily parabola; kalman: the sun-path EKF "
+                        "(default)")
+    p.add_argument("--lat", type=float, default=None, help="site latitude, deg north")
+    p.add_argument("--lon", type=float, default=None, help="site longitude, deg east")
+    p.add_argument("--utc-offset", type=float, default=None, metavar="HOURS",
+                   help="local civil offset used to group days (default: from the data)")
+    p.add_argument("--declination", choices=("ephemeris", "free"), default="ephemeris",
+                   help="kalman: SPA's declination plus a learnt correction (ephemeris, "
+                        "default; needs only UTC) or declination learnt from the sky alone "
+                        "(free)")
+    p.add_argument("--window-h", type=float, default=None,
+                   help="seed: fit only observations within this many hours of noon")
+    p.add_argument("--state", type=Path, default=None,
+                   help="kalman: learned state file, loaded if present and saved after")
+    p.add_argument("--out", type=Path, default=None, help="output file (default stdout)")
+    p.add_argument("--format", choices=("csv", "jsonl"), default=None,
+                   help="output format (default from --out suffix, else csv)")
+    p.add_argument("--at", action="append", default=[], metavar="TIME",
+                   help="predict: ISO 8601 time with offset (repeatable)")
+    p.add_argument("--start", default=None, help="predict: first time (ISO 8601)")
+    p.add_argument("--end", default=None, help="predict: last time (ISO 8601)")
+    p.add_argument("--step-min", type=float, default=15.0, help="predict: step, minutes")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from controller.errors import InputError
+
+    if (args.lat is None) != (args.lon is None):
+        raise InputError("sunpath: give both --lat and --lon, or neither")
+    if args.lat is not None and not (-90 <= args.lat <= 90 and -180 <= args.lon <= 360):
+        raise InputError("sunpath: --lat must be in [-90, 90] and --lon in [-180, 360]")
+    if args.inputs[0] == "predict":
+        if len(args.inputs) > 2:
+            raise InputError("sunpath predict: expected at most one OBS.csv")
+        return _predict(args, Path(args.inputs[1]) if len(args.inputs) == 2 else None)
+    if len(args.inputs) != 1:
+        raise InputError("sunpath: expected one OBS.csv (or 'predict ...')")
+    return _fit(args, Path(args.inputs[0]))
+
+
+def _site(args):
+    from controller.sun.source import Site
+
+    return None if args.lat is None else Site(args.lat, ((args.lon + 180) % 360) - 180)
+
+
+def _kalman(args, obs):
+    from controller.sunpath.kalman import KalmanConfig, SunPathKalman, run_kalman
+    from controller.sunpath.state import load_state, save_state
+
+    kf = load_state(args.state) if args.state is not None else None
+    if kf is None:
+        kf = SunPathKalman(KalmanConfig(declination=args.declination), _site(args))
+    rows, kf = run_kalman(obs or [], utc_offset_h=args.utc_offset, kf=kf)
+    if args.state is not None:
+        save_state(args.state, kf)
+    return rows, kf
+
+
+def _fit(args, path: Path) -> int:
+    from controller.sunpath.io import read_observations
+    from controller.sunpath.parabola import run_seed
+
+    obs = read_observations(path)
+    if args.method == "seed":
+        rows, _ = run_seed([o.time for o in obs], [o.az_deg for o in obs],
+                           [o.el_deg for o in obs], args.utc_offset, lat_deg=args.lat,
+                           window_h=args.window_h)
+    else:
+        rows, kf = _kalman(args, obs)
+        if not kf.initialised:
+            print("heliotrack: warning: the Kalman filter could not start from these "
+                  f"observations (need {kf.config.init_min_obs} spanning "
+                  f"{kf.config.init_min_span_h} h, or --lat/--lon)", file=sys.stderr)
+    _write([r.as_row() for r in rows], args)
+    return 0
+
+
+def _predict(args, path: Path | None) -> int:
+    import numpy as np
+
+    from controller.errors import InputError
+    from controller.sun.source import EphemerisSource
+    from controller.sunpath.io import parse_time, read_observations
+
+    times = [parse_time(s, f"--at {s!r}") for s in args.at]
+    if args.start is not None or args.end is not None:
+        if args.start is None or args.end is None or args.step_min <= 0:
+            raise InputError("sunpath predict: --start and --end go together, with "
+                             "--step-min > 0")
+        t0, t1 = parse_time(args.start, "--start"), parse_time(args.end, "--end")
+        if t1 < t0:
+            raise InputError("sunpath predict: --end is before --start")
+        times.extend(np.arange(t0, t1 + 1e-6, args.step_min * 60.0).tolist())
+    if not times:
+        raise InputError("sunpath predict: give --at TIME or --start/--end")
+    obs = read_observations(path) if path is not None else []
+    kf = None
+    if obs or args.state is not None:
+        _, kf = _kalman(args, obs)
+    rows = []
+    eph = EphemerisSource(_site(args)) if args.lat is not None else None
+    if (kf is None or not kf.initialised) and eph is None:
+        raise InputError("sunpath predict: nothing to predict from: the filter has not "
+                         "started (give more observations, --state, or --lat/--lon)")
+    for t in times:
+        if kf is not None and kf.initialised:
+            p = kf.predict(t)
+            az, el, cov, src = p.az_deg, p.el_deg, p.covariance, "predicted"
+        else:
+            e = eph.estimate(t)
+            az, el, cov, src = e.az_deg, e.el_deg, e.covariance, "ephemeris"
+        rows.append({"time": datetime.fromtimestamp(t, tz=timezone.utc).isoformat(
+                         timespec="seconds"),
+                     "az_deg": round(float(az), 6), "el_deg": round(float(el), 6),
+                     "sigma_az_deg": round(float(np.sqrt(cov[0, 0])), 6),
+                     "sigma_el_deg": round(float(np.sqrt(cov[1, 1])), 6), "source": src})
+    _write(rows, args)
+    return 0
+
+
+def _write(rows: list[dict], args) -> None:
+    fmt = args.format or ("jsonl" if args.out is not None
+                          and args.out.suffix.lower() in (".jsonl", ".json") else "csv")
+    buf = io.StringIO()
+    if fmt == "jsonl":
+        for r in rows:
+            buf.write(json.dumps(r) + "\n")
+    elif rows:
+        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ("" if v is None else v) for k, v in r.items()})
+    if args.out is None:
+        sys.stdout.write(buf.getvalue())
+    else:
+        args.out.write_text(buf.getvalue(), encoding="utf-8")

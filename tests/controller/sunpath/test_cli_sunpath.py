@@ -1,0 +1,62 @@
+import csv
+import io
+import json
+
+import pandas as pd
+import pytest
+
+from heliotrack.cli import main
+
+from ._synth import ANDIMESHK, observations, sample_times
+
+
+@pytest.fixture(scope="module")
+def obs_csv(tmp_path_factory):
+    obs, _, _ = observations(ANDIMESHK, sample_times("2024-03-10", 3, 3.5), seed=21)
+    p = tmp_path_factory.mktemp("cli") / "obs.csv"
+    with p.open("w") as f:
+        f.write("time,az_deg,el_deg,sigma_deg\n")
+        for o in obs:
+            ts = pd.Timestamp(o.time, unit="s", tz="UTC").tz_convert("Asia/Tehran").isoformat()
+            f.write(f"{ts},{o.az_deg:.4f},{o.el_deg:.4f},0.3\n")
+    return p
+
+
+def test_kalman_rows_and_state(obs_csv, tmp_path, capsys):
+    state = tmp_path / "state.json"
+    assert main(["sunpath", str(obs_csv), "--state", str(state)]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert [r["date"] for r in rows] == ["2024-03-10", "2024-03-11", "2024-03-12"]
+    for key in ("noon_utc", "noon_el_deg", "declination_deg", "lat_deg", "lon_deg", "n_obs"):
+        assert rows[-1][key] != ""
+    assert rows[-1]["method"] == "kalman"
+    assert abs(float(rows[-1]["lat_deg"]) - ANDIMESHK.latitude) < 0.3
+    assert json.loads(state.read_text())["format"] == "heliotrack.sunpath.state"
+    assert main(["sunpath", "predict", "--state", str(state),
+                 "--at", "2024-03-13T12:00:00+03:30"]) == 0
+    pred = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert len(pred) == 1 and pred[0]["source"] == "predicted"
+    assert 150 < float(pred[0]["az_deg"]) < 210
+
+
+def test_seed_jsonl(obs_csv, tmp_path):
+    out = tmp_path / "o.jsonl"
+    assert main(["sunpath", str(obs_csv), "--method", "seed", "--lat", "32.4835", "--lon",
+                 "48.3364", "--utc-offset", "3.5", "--out", str(out)]) == 0
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(rows) == 3 and rows[0]["method"] == "seed"
+    assert rows[0]["declination_deg"] is not None
+
+
+def test_predict_from_ephemeris_and_errors(tmp_path, capsys):
+    assert main(["sunpath", "predict", "--lat", "32.4835", "--lon", "48.3364",
+                 "--start", "2024-03-13T08:00:00Z", "--end", "2024-03-13T09:00:00Z",
+                 "--step-min", "30"]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert [r["source"] for r in rows] == ["ephemeris"] * 3
+    bad = tmp_path / "bad.csv"
+    bad.write_text("time,az_deg,el_deg\n2024-03-01T08:00:00Z,100,x\n")
+    assert main(["sunpath", str(bad)]) == 2
+    assert "row 2, column 'el_deg'" in capsys.readouterr().err
+    assert main(["sunpath", "predict", "--at", "2024-03-01T08:00:00Z"]) == 2
+    assert main(["sunpath", str(bad), "--lat", "10"]) == 2

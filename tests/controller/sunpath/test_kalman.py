@@ -1,0 +1,87 @@
+import numpy as np
+import pytest
+
+from controller.sun.types import SunObservation, angle_between_deg, azel_to_enu
+from controller.sunpath.ephemeris import geocentric_sun, transit_time, wrap180
+from controller.sunpath.kalman import KalmanConfig, SunPathKalman, run_kalman
+
+from ._synth import ANDIMESHK, SANTIAGO, observations, sample_times
+
+CASES = [(ANDIMESHK, 3.5), (SANTIAGO, -4.0)]
+
+
+@pytest.fixture(scope="module", params=CASES, ids=["north", "south"])
+def learnt(request):
+    site, off = request.param
+    t = sample_times("2024-04-10", 4, off)
+    obs, _, _ = observations(site, t, az_offset_deg=20.0, seed=11)
+    rows, kf = run_kalman(obs, KalmanConfig(declination="free"), utc_offset_h=off)
+    return site, rows, kf
+
+
+def test_self_localisation_both_hemispheres(learnt):
+    site, rows, kf = learnt
+    assert kf.mode == "free" and len(rows) == 4
+    last = rows[-1]
+    assert abs(last.lat_deg - site.latitude) < 0.2
+    assert abs(wrap180(last.lon_deg - site.longitude)) < 0.1
+    assert abs(wrap180(last.az_offset_deg - 20.0)) < 0.2
+    tr = transit_time(last.noon_utc, site.longitude)[0]
+    assert abs(last.noon_utc - tr) < 20.0
+    assert abs(last.declination_deg - geocentric_sun(tr).dec_deg[0]) < 0.2
+    assert last.lat_sigma_deg < rows[0].lat_sigma_deg  # it keeps learning across nights
+
+
+def test_prediction_across_gap_and_covariance(learnt):
+    site, rows, kf = learnt
+    from controller.sun.source import solar_position
+
+    t = rows[-1].noon_utc + 86400.0 + np.array([-7200.0, 0.0, 3600.0])
+    sp = solar_position(site, t)
+    preds = [kf.predict(x) for x in t]
+    a = np.array([p.az_deg for p in preds])
+    e = np.array([p.el_deg for p in preds])
+    err = angle_between_deg(azel_to_enu(a, e), azel_to_enu(sp["azimuth"], sp["apparent_elevation"]))
+    assert err.max() < 0.3
+    for p in preds:
+        assert np.all(np.linalg.eigvalsh(p.covariance) > 0)
+    near = kf.predict(kf.t + 60.0).sigma_deg
+    far = kf.predict(kf.t + 20 * 86400.0).sigma_deg
+    assert far > near
+
+
+def test_outliers_are_gated(learnt):
+    site, rows, kf = learnt
+    kf = kf.copy()
+    t = kf.t + 900.0
+    x0, _ = kf._propagated(t)  # the time update happens whatever the observation
+    p = kf.predict(t)
+    bad = SunObservation(t, (p.az_deg + 20.0 + 5.0) % 360.0, p.el_deg - 5.0, 0.3)
+    res = kf.update(bad)
+    assert not res.accepted and res.mahalanobis2 > kf.config.gate_chi2
+    assert np.allclose(kf.x, x0)
+    good = SunObservation(t + 60, (kf.predict(t + 60).az_deg + 20.0) % 360,
+                          kf.predict(t + 60).el_deg, 0.3)
+    assert kf.update(good).accepted
+
+
+def test_known_site_starts_at_once_and_learns_offset():
+    t = sample_times("2024-06-01", 1, 3.5)
+    obs, _, _ = observations(ANDIMESHK, t, az_offset_deg=243.926, seed=5)
+    kf = SunPathKalman(site=ANDIMESHK)
+    assert kf.mode == "ephemeris"
+    assert kf.update(obs[0]).initialised
+    for o in obs[1:]:
+        kf.update(o)
+    assert abs(wrap180(kf.x[4] - 243.926)) < 0.1
+    assert abs(kf.x[0] - ANDIMESHK.latitude) < 0.05
+
+
+def test_unstarted_filter_cannot_predict_and_state_round_trips(learnt):
+    with pytest.raises(RuntimeError):
+        SunPathKalman().predict(0.0)
+    _, _, kf = learnt
+    kf2 = SunPathKalman.from_dict(kf.to_dict())
+    t = kf.t + 3600.0
+    assert kf2.predict(t).az_deg == pytest.approx(kf.predict(t).az_deg, abs=1e-9)
+    assert np.allclose(kf2.P, kf.P)
