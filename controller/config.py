@@ -177,13 +177,28 @@ class TrackerConfig:
 
 
 @dataclass(frozen=True)
+class PyranometerConfig:
+    """A Modbus pyranometer on one of the links (``[pyranometer]``)."""
+
+    link: str
+    device_id: int
+
+
+@dataclass(frozen=True)
 class Config:
     site: Site
     control: ControlConfig
     links: dict[str, LinkConfig]
     trackers: tuple[TrackerConfig, ...]
+    pyranometer: PyranometerConfig | None = None
+    diffuse: "DiffuseConfig" = None  # type: ignore[assignment]
     file: str = "<config>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self):
+        if self.diffuse is None:
+            from .diffuse import DiffuseConfig
+            object.__setattr__(self, "diffuse", DiffuseConfig(enabled=False))
 
 
 def load_config(path: str | Path) -> Config:
@@ -222,7 +237,35 @@ def parse_config(data: dict, file: str | Path | None = None) -> Config:
         trackers.append(tr)
     if not trackers:
         raise ConfigError(file, "trackers", "at least one [[trackers]] table")
-    return Config(site, control, links, tuple(trackers), str(file), data)
+    pyr = None
+    if root.has("pyranometer"):
+        t = root.table("pyranometer")
+        link = t.get("link", str)
+        if link not in links:
+            raise ConfigError(file, "pyranometer.link", "the name of a [[links]] table", link)
+        pyr = PyranometerConfig(link, t.integer("device_id", lo=1, hi=247))
+        if any(tr.link == link and tr.device_id == pyr.device_id for tr in trackers):
+            raise ConfigError(file, "pyranometer.device_id", f"an id not used by a drive on {link!r}", pyr.device_id)
+    diffuse = _diffuse(root.table("diffuse", {}), pyr is not None)
+    if diffuse.enabled and control.period_s > 60:
+        raise ConfigError(file, "diffuse.enabled", "false when control.period_s > 60 s (the sky "
+                          "classifier needs a pyranometer sample at least every minute)", True)
+    return Config(site, control, links, tuple(trackers), pyr, diffuse, str(file), data)
+
+
+def _diffuse(t: TableReader, have_sensor: bool):
+    from .diffuse import DiffuseConfig
+
+    t.unknown_keys({"enabled", "window_h", "exit_window_h", "dwell_s", "method"})
+    enabled = t.get("enabled", bool, have_sensor)
+    if enabled and not have_sensor:
+        raise ConfigError(t.file, "diffuse.enabled", "false unless a [pyranometer] is configured", True)
+    return DiffuseConfig(
+        enabled=enabled,
+        window_h=t.number("window_h", 1.0, lo=0.25, hi=24, unit="h"),
+        exit_window_h=t.number("exit_window_h", 0.5, lo=0.25, hi=24, unit="h"),
+        dwell_s=t.number("dwell_s", 1800.0, lo=0, hi=86400, unit="s"),
+        method=t.choice("method", ("default", "seed"), "default"))
 
 
 def _site(t: TableReader) -> Site:

@@ -18,6 +18,7 @@ from .clock import Clock
 from .config import Config, TrackerConfig
 from .drives import DriveCommError, DriveLink, DriveState
 from .geometry import dual_axis_setpoint, single_axis_setpoints
+from .diffuse import DiffuseSwitch
 from .modes import ControlMode, ModeDecision, decide_mode
 from .sun.source import SunSource
 from .sun.types import SunEstimate
@@ -62,9 +63,12 @@ class Controller:
     """
 
     def __init__(self, config: Config, drives: Mapping[str, DriveLink], sun: SunSource,
-                 clock: Clock, realtime: bool = False):
+                 clock: Clock, realtime: bool = False, pyranometer=None):
         self.config = config
         self.realtime = realtime
+        self.pyranometer = pyranometer
+        self.diffuse = DiffuseSwitch(config.site, config.diffuse)
+        self.sensor_errors = 0
         self.sun = sun
         self.clock = clock
         self.trackers = [TrackerRuntime(t, drives[t.name]) for t in config.trackers]
@@ -117,7 +121,9 @@ class Controller:
         t = self.clock.now()
         aim_t = t + self.config.control.lead_s
         est = self.sun.estimate(aim_t)
-        decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg)
+        overcast = await self._sky(t)
+        decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg,
+                                overcast=overcast)
                     if est is not None else ModeDecision(ControlMode.STOW, "no sun estimate"))
         setpoints = self.setpoints(est, decision)
         t_wall = time.perf_counter()
@@ -139,6 +145,17 @@ class Controller:
                 rec.latency_s = time.perf_counter() - t_wall
         self.cycles += 1
         return records
+
+    async def _sky(self, t: float) -> bool:
+        """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
+        if self.pyranometer is None or not self.config.diffuse.enabled:
+            return False
+        try:
+            sample = await asyncio.wait_for(self.pyranometer.read(t), self._deadline())
+            self.diffuse.add(sample.time, sample.ghi_w_m2)
+        except (DriveCommError, asyncio.TimeoutError):
+            self.sensor_errors += 1
+        return self.diffuse.update(t)
 
     @staticmethod
     def _record(tr: TrackerRuntime, t: float, est: SunEstimate | None, decision: ModeDecision,
@@ -183,6 +200,8 @@ class Controller:
         out: list[tuple[list[float], bool]] = [(list(tr.cfg.stow), False) for tr in self.trackers]
         if decision.mode == ControlMode.STOW or est is None:
             return out
+        if decision.mode == ControlMode.DIFFUSE:
+            return [self._facing_sky(tr) for tr in self.trackers]
         rows = [i for i, tr in enumerate(self.trackers) if tr.cfg.type == "single-axis"]
         if rows:
             sps = single_axis_setpoints(est.az_deg, est.el_deg,
@@ -198,6 +217,15 @@ class Controller:
                                             cfg.elevation_limits, current)
                 out[i] = ([az, el], False)
         return out
+
+    @staticmethod
+    def _facing_sky(tr: TrackerRuntime) -> tuple[list[float], bool]:
+        """Flat: the panel faces the zenith and sees the whole overcast dome."""
+        if tr.cfg.type == "single-axis":
+            return [0.0], False
+        az = tr.last_state.axes[0].actual_deg if tr.last_state else tr.cfg.stow[0]
+        el = min(90.0, tr.cfg.elevation_limits[1])
+        return [az, el], False
 
     async def run(self, duration_s: float, on_cycle=None) -> dict:
         """Cycle on period boundaries of ``self.clock`` for ``duration_s``.
@@ -229,9 +257,12 @@ class Controller:
         tx = sum(tr.drive.stats.transactions for tr in self.trackers)
         err = sum(tr.drive.stats.errors for tr in self.trackers)
         return {"transactions": tx, "errors": err,
-                "retries": sum(tr.drive.stats.retries for tr in self.trackers)}
+                "retries": sum(tr.drive.stats.retries for tr in self.trackers),
+                "sensor_errors": self.sensor_errors}
 
     async def close(self) -> None:
+        if self.pyranometer is not None:
+            await self.pyranometer.close()
         for tr in self.trackers:
             try:
                 await tr.drive.close()

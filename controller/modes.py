@@ -1,9 +1,9 @@
 """The control mode machine: which kind of setpoint the trackers get this cycle.
 
 Priorities follow commercial practice: STOW (wind, snow, operator) > MANUAL > night
-stow > DIFFUSE (overcast) > TRACK / PREDICT.  This first version decides between TRACK and
-night STOW from the sun's elevation, with a small wake margin so that trackers are already
-on the sunrise azimuth when the sun clears the horizon.
+stow > DIFFUSE (overcast) > TRACK / PREDICT.  Night STOW comes from the sun's elevation, with a
+small wake margin so that trackers are already on the sunrise azimuth when the sun clears
+the horizon; DIFFUSE from the sky switch (:mod:`controller.diffuse`).
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ class ModeDecision:
 
 
 def decide_mode(sun_el_deg: float, min_elevation_deg: float = 0.0,
-                wake_margin_deg: float = 2.0, forced_stow: str | None = None
-                ) -> ModeDecision:
+                wake_margin_deg: float = 2.0, forced_stow: str | None = None,
+                overcast: bool = False) -> ModeDecision:
     """Pick the mode for this cycle.
 
     Parameters
@@ -41,9 +41,13 @@ def decide_mode(sun_el_deg: float, min_elevation_deg: float = 0.0,
         Start tracking this far below ``min_elevation_deg`` (pre-positioning), degrees.
     forced_stow : str, optional
         Reason for an override stow (wind, operator...); wins over everything.
+    overcast : bool
+        The sky switch says overcast: face the sky dome instead of the hidden sun.
     """
     if forced_stow:
         return ModeDecision(ControlMode.STOW, forced_stow)
     if sun_el_deg < min_elevation_deg - wake_margin_deg:
         return ModeDecision(ControlMode.STOW, "night")
+    if overcast:
+        return ModeDecision(ControlMode.DIFFUSE, "overcast")
     return ModeDecision(ControlMode.TRACK, "sun up")

@@ -23,6 +23,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "protocol",
     "bench",
     "sunpath",
+    "classify",
 )
 
 

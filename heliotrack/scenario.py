@@ -20,7 +20,8 @@ class HilConfig:
     """
 
     start: date = date(2024, 3, 20)
-    sky: str = "clear"
+    sky: tuple[str, ...] = ("clear",)   # regime per day, repeated cyclically
+    seed: int = 0
     linke_turbidity: float = 3.0
     substeps: int = 4
     drive: dict = field(default_factory=dict)
@@ -45,9 +46,20 @@ def parse_hil(config: Config) -> HilConfig:
         encoder_resolution=d.number("encoder_resolution_deg", 0.01, lo=0, hi=1, unit="deg"),
         deadband=d.number("deadband_deg", 0.02, lo=0, hi=1, unit="deg"),
     )
+    from hil.sky import SKY_KINDS
+
+    sky = t.get("sky", (str, list), "clear", expected=f"a sky kind or a list of them ({', '.join(SKY_KINDS)})")
+    sky = [sky] if isinstance(sky, str) else sky
+    for i, kind in enumerate(sky):
+        if kind not in SKY_KINDS:
+            raise ConfigError(config.file, f"hil.sky[{i}]" if len(sky) > 1 else "hil.sky",
+                              f"one of {', '.join(SKY_KINDS)}", kind)
+    if not sky:
+        raise ConfigError(config.file, "hil.sky", "at least one sky kind", sky)
     return HilConfig(
         start=start,
-        sky=t.choice("sky", ("clear",), "clear"),
+        sky=tuple(sky),
+        seed=t.integer("seed", 0, lo=0),
         linke_turbidity=t.number("linke_turbidity", 3.0, lo=1, hi=8),
         substeps=t.integer("substeps", 4, lo=1, hi=60),
         drive=drive,

@@ -15,7 +15,7 @@ import json
 import math
 import time
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from datetime import date, datetime, timedelta, timezone
 from pathlib import Path
 
@@ -25,24 +25,28 @@ from tqdm import tqdm
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
 from controller.drives import open_drive
+from controller.drives.modbus import shared_client
+from controller.errors import ConfigError
+from controller.sensors.pyranometer import ModbusPyranometer
 from controller.loop import Controller
 from controller.sun.source import EphemerisSource
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
+from hil.pyranometer import Pyranometer
+from hil.sky import sky_series
 from hil import truth
 
 from .scenario import HilConfig, axis_params, parse_hil
 
 
 @dataclass
-class TruthSamples:
-    """Per-tracker truth accumulated over the run."""
+class TruthTally:
+    """What the world saw of one tracker: its panel normal at every daylight sample."""
 
-    pointing: list[float]
-    beam_achieved: float = 0.0
-    beam_ideal: float = 0.0
-    samples: int = 0
+    samples: list[int] = field(default_factory=list)      # indices into the sample grid
+    normals: list[np.ndarray] = field(default_factory=list)
+    pointing: list[float] = field(default_factory=list)   # counted samples only
 
 
 def day_start(d: date, longitude: float) -> float:
@@ -51,8 +55,12 @@ def day_start(d: date, longitude: float) -> float:
     return (midnight_utc - timedelta(hours=longitude / 15.0)).timestamp()
 
 
-def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitStack):
-    """Firmware per tracker, a server per link; returns (firmwares, endpoints per link)."""
+def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitStack,
+                 ghi_at=None):
+    """Firmware per tracker (and the pyranometer), a server per link.
+
+    Returns (firmwares by tracker name, endpoints by link name).
+    """
     firmwares: dict[str, DriveFirmware] = {}
     endpoints: dict[str, dict] = {}
     for link in config.links.values():
@@ -64,6 +72,9 @@ def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitSta
             fw = DriveFirmware(axes, clock.now, heartbeat_timeout=config.control.heartbeat_timeout_s)
             firmwares[tr.name] = fw
             devices[tr.device_id] = fw
+        pyr = config.pyranometer
+        if pyr is not None and pyr.link == link.name and ghi_at is not None:
+            devices[pyr.device_id] = Pyranometer(ghi_at, clock.now, seed=hil.seed)
         if not devices:
             continue
         if link.kind == "modbus-rtu":
@@ -75,48 +86,51 @@ def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitSta
             srv = stack.enter_context(ModbusServerThread(devices, tcp=("127.0.0.1", 0)))
             endpoints[link.name] = dict(host="127.0.0.1", port=srv.tcp_port)
         else:
-            raise NotImplementedError(f"link kind {link.kind!r} is not emulated yet")
+            raise ConfigError(config.file, f"links.{link.name}.kind",
+                              "a link kind the simulator emulates (modbus-rtu, modbus-tcp)", link.kind)
     return firmwares, endpoints
 
 
-def _open_drives(config: Config, endpoints: dict[str, dict], stack: ExitStack):
+def _open_drives(config: Config, endpoints: dict[str, dict]):
     drives = {}
     for tr in config.trackers:
         link = config.links[tr.link]
-        ep = endpoints[link.name]
         drives[tr.name] = open_drive(link.kind, device_id=tr.device_id,
-                                     timeout_s=link.timeout_s, retries=link.retries, **ep)
+                                     timeout_s=link.timeout_s, retries=link.retries,
+                                     **endpoints[link.name])
     return drives
 
 
-def _truth_step(tr: TrackerConfig, angles: list[float], sun: np.ndarray, dni: float,
-                acc: TruthSamples) -> float:
-    """Accumulate one truth sample; return the pointing error (NaN when not counted)."""
+def _open_pyranometer(config: Config, endpoints: dict[str, dict]):
+    if config.pyranometer is None:
+        return None
+    link = config.links[config.pyranometer.link]
+    client = shared_client(link.kind, timeout_s=link.timeout_s, **endpoints[link.name])
+    return ModbusPyranometer(client, config.pyranometer.device_id)
+
+
+def _panel(tr: TrackerConfig, angles: list[float], sun: np.ndarray) -> tuple[np.ndarray, float]:
+    """The panel normal from the drive's true angles, and its pointing error (NaN when the
+    sample does not count: backtracking, or the sun outside the rotation limits)."""
     if tr.type == "dual-axis":
         n = truth.dual_axis_normal(angles[0], angles[1])
-        err = float(truth.angle_deg(n, sun))
-        achieved = dni * max(0.0, float(n @ sun))
-        ideal = dni
-        counted = True
-    else:
-        rot_ideal, _, bt = truth.row_ideal_rotation(
-            sun[None, :], tr.axis_azimuth, tr.axis_tilt, tr.max_angle, tr.gcr,
-            tr.cross_axis_tilt, tr.backtrack)
-        n = truth.row_normal(angles[0], tr.axis_azimuth, tr.axis_tilt)
-        n_ideal = truth.row_normal(rot_ideal[0], tr.axis_azimuth, tr.axis_tilt)
-        achieved = dni * max(0.0, float(n @ sun))
-        ideal = dni * max(0.0, float(n_ideal @ sun))
-        _, true_unclipped, _ = truth.row_ideal_rotation(
-            sun[None, :], tr.axis_azimuth, tr.axis_tilt, 180.0, tr.gcr, backtrack=False)
-        counted = not bt[0] and abs(true_unclipped[0]) <= tr.max_angle
-        err = float(truth.row_pointing_error(angles[0], sun, tr.axis_azimuth, tr.axis_tilt))
-    acc.beam_achieved += achieved
-    acc.beam_ideal += ideal
-    acc.samples += 1
-    if counted:
-        acc.pointing.append(err)
-        return err
-    return math.nan
+        return n, float(truth.angle_deg(n, sun))
+    n = truth.row_normal(angles[0], tr.axis_azimuth, tr.axis_tilt)
+    _, true_rot, bt = truth.row_ideal_rotation(
+        sun[None, :], tr.axis_azimuth, tr.axis_tilt, 180.0, tr.gcr, tr.cross_axis_tilt,
+        tr.backtrack)
+    if bt[0] or abs(true_rot[0]) > tr.max_angle:
+        return n, math.nan
+    return n, float(truth.row_pointing_error(angles[0], sun, tr.axis_azimuth, tr.axis_tilt))
+
+
+def _ideal_normals(tr: TrackerConfig, sun: np.ndarray) -> np.ndarray:
+    """Normals of an ideal tracker of the same kind (exact angles, exact backtracking)."""
+    if tr.type == "dual-axis":
+        return sun
+    rot, _, _ = truth.row_ideal_rotation(sun, tr.axis_azimuth, tr.axis_tilt, tr.max_angle,
+                                         tr.gcr, tr.cross_axis_tilt, tr.backtrack)
+    return truth.row_normal(rot, tr.axis_azimuth, tr.axis_tilt)
 
 
 def _stats(values: list[float]) -> dict:
@@ -150,26 +164,35 @@ class ScenarioRun:
         self.t0 = day_start(self.start, config.site.longitude)
         self.n_cycles = int(round(days * 86400 / self.period))
         self.sub = self.hil.substeps
-        # Truth sun at every sub-sample of every cycle, in one vectorised SPA call.
+        # Truth at every sub-sample of every cycle, in one vectorised call each.
         offsets = (np.arange(self.sub) + 0.5) / self.sub * self.period
         self.t_samples = (self.t0 + np.arange(self.n_cycles)[:, None] * self.period
                           + offsets[None, :]).ravel()
-        self.sun = truth.sun_truth(self.t_samples, config.site.latitude, config.site.longitude,
-                                   config.site.altitude, config.site.temperature_c,
-                                   self.hil.linke_turbidity)
+        site = config.site
+        self.sun = truth.sun_truth(self.t_samples, site.latitude, site.longitude,
+                                   site.altitude, site.temperature_c, self.hil.linke_turbidity)
         self.sun_vecs = self.sun.vectors
+        kinds = {d: self.hil.sky[d % len(self.hil.sky)] for d in range(days + 1)}
+        self.sky = sky_series(self.t_samples, site.latitude, site.longitude, site.altitude,
+                              kinds, self.hil.linke_turbidity, seed=self.hil.seed)
         self.clock = SimClock(self.t0)
-        self.acc = {tr.name: TruthSamples([]) for tr in config.trackers}
+        self.tally = {tr.name: TruthTally() for tr in config.trackers}
+        self.modes: dict[str, int] = {}
         self.sources: dict[str, int] = {}
         self.log_rows: list[dict] = []
+
+    def ghi_at(self, t: float) -> float:
+        """The sky's true GHI at ``t`` (what the emulated pyranometer sees), W/m2."""
+        return float(np.interp(t, self.t_samples, self.sky.ghi))
 
     async def run(self) -> dict:
         wall0 = time.perf_counter()
         with ExitStack() as stack:
-            firmwares, endpoints = _build_world(self.config, self.hil, self.clock, stack)
-            drives = _open_drives(self.config, endpoints, stack)
-            controller = Controller(self.config, drives, EphemerisSource(self.config.site),
-                                    self.clock)
+            firmwares, endpoints = _build_world(self.config, self.hil, self.clock, stack,
+                                                self.ghi_at)
+            controller = Controller(self.config, _open_drives(self.config, endpoints),
+                                    EphemerisSource(self.config.site), self.clock,
+                                    pyranometer=_open_pyranometer(self.config, endpoints))
             try:
                 await controller.start()
                 bar = tqdm(total=self.n_cycles, desc="simulate", unit="cycle",
@@ -177,7 +200,8 @@ class ScenarioRun:
                 for i in range(self.n_cycles):
                     self.clock.advance_to(self.t0 + i * self.period)
                     records = await controller.cycle()
-                    errors = self._sample_truth(i, firmwares)
+                    tracking = {r.tracker for r in records if r.mode == "TRACK" and not r.error}
+                    errors = self._sample_truth(i, firmwares, tracking)
                     self._log(records, errors)
                     bar.update(1)
                 bar.close()
@@ -185,55 +209,90 @@ class ScenarioRun:
                 await controller.close()
         return self._summary(controller.stats(), time.perf_counter() - wall0)
 
-    def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware]) -> dict[str, list[float]]:
-        """Advance through the cycle's sub-samples, scoring every tracker against the sun."""
+    def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware],
+                      tracking: set[str]) -> dict[str, list[float]]:
+        """Advance through the cycle's sub-samples, recording every panel's orientation.
+
+        Pointing error counts only for trackers that were commanded to follow the sun in
+        this cycle (not DIFFUSE, STOW or a failed exchange).
+        """
         errs: dict[str, list[float]] = {tr.name: [] for tr in self.config.trackers}
         for k in range(i * self.sub, (i + 1) * self.sub):
             self.clock.advance_to(self.t_samples[k])
             if self.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
-                e = _truth_step(tr, firmwares[tr.name].true_angles(), self.sun_vecs[k],
-                                float(self.sun.dni[k]), self.acc[tr.name])
-                if not math.isnan(e):
+                n, e = _panel(tr, firmwares[tr.name].true_angles(), self.sun_vecs[k])
+                tally = self.tally[tr.name]
+                tally.samples.append(k)
+                tally.normals.append(n)
+                if not math.isnan(e) and tr.name in tracking:
+                    tally.pointing.append(e)
                     errs[tr.name].append(e)
         return errs
 
     def _log(self, records, errors: dict[str, list[float]]) -> None:
         for rec in records:
             self.sources[rec.source] = self.sources.get(rec.source, 0) + 1
+            self.modes[rec.mode] = self.modes.get(rec.mode, 0) + 1
             e = errors[rec.tracker]
             self.log_rows.append(_log_row(rec, float(np.mean(e)) if e else math.nan))
 
+    def _energy(self, tr: TrackerConfig) -> dict:
+        """Beam and Perez plane-of-array irradiation of a tracker and of its ideal twin."""
+        tally = self.tally[tr.name]
+        if not tally.samples:
+            return {"energy_ratio": None, "poa_global_kwh_m2": 0.0, "beam": (0.0, 0.0)}
+        k = np.asarray(tally.samples)
+        normals = np.asarray(tally.normals)
+        sun = self.sun_vecs[k]
+        dni = self.sky.dni[k]
+        beam = float(np.sum(dni * np.clip(np.sum(normals * sun, axis=1), 0, None)))
+        ideal = float(np.sum(dni * np.clip(np.sum(_ideal_normals(tr, sun) * sun, axis=1), 0, None)))
+        poa = truth.poa_global_perez(normals, self.t_samples[k], self.sun.azimuth[k],
+                                     self.sun.elevation[k], self.sky.ghi[k], dni,
+                                     self.sky.dhi[k])
+        hours = self.period / self.sub / 3600.0
+        return {"energy_ratio": round(beam / ideal, 6) if ideal > 0 else None,
+                "poa_global_kwh_m2": round(float(np.sum(poa)) * hours / 1000.0, 5),
+                "beam": (beam, ideal)}
+
     def _summary(self, modbus: dict, wall: float) -> dict:
-        acc = self.acc
-        all_err = [e for a in acc.values() for e in a.pointing]
-        achieved = sum(a.beam_achieved for a in acc.values())
-        ideal = sum(a.beam_ideal for a in acc.values())
+        energy = {tr.name: self._energy(tr) for tr in self.config.trackers}
+        beam = sum(e["beam"][0] for e in energy.values())
+        ideal = sum(e["beam"][1] for e in energy.values())
+        all_err = [e for t in self.tally.values() for e in t.pointing]
         return {
             "days": self.days,
             "start": self.start.isoformat(),
             "site": asdict(self.config.site),
+            "sky": [self.hil.sky[d % len(self.hil.sky)] for d in range(self.days)],
             "control_period_s": self.period,
             "cycles": self.n_cycles,
             "wall_s": round(wall, 2),
             "pointing_error_deg": _stats(all_err),
-            "energy_ratio": round(achieved / ideal, 6) if ideal > 0 else None,
+            "energy_ratio": round(beam / ideal, 6) if ideal > 0 else None,
+            "poa_global_kwh_m2": round(sum(e["poa_global_kwh_m2"] for e in energy.values()), 5),
             "modbus": modbus,
+            "modes": self.modes,
             "sources": self.sources,
             "trackers": {
-                name: {"pointing_error_deg": _stats(a.pointing),
-                       "energy_ratio": round(a.beam_achieved / a.beam_ideal, 6) if a.beam_ideal else None}
-                for name, a in acc.items()},
+                tr.name: {"pointing_error_deg": _stats(self.tally[tr.name].pointing),
+                          "energy_ratio": energy[tr.name]["energy_ratio"],
+                          "poa_global_kwh_m2": energy[tr.name]["poa_global_kwh_m2"]}
+                for tr in self.config.trackers},
             "definitions": {
-                "pointing_error_deg": "daylight truth samples (substeps per period), outside "
-                                      "backtracking and rotation limits; dual-axis: angle "
+                "pointing_error_deg": "daylight truth samples (substeps per period) of cycles "
+                                      "in TRACK mode, outside backtracking and rotation "
+                                      "limits; dual-axis: angle "
                                       "between panel normal and the true sun; single-axis: "
                                       "angle between panel normal and the sun projected on "
                                       "the rotation plane",
-                "energy_ratio": "sum of clear-sky beam irradiance on the plane of array "
-                                "achieved / ideal tracker (exact truth angles, with "
-                                "backtracking)",
+                "energy_ratio": "beam irradiation on the plane of array (the sky's DNI) "
+                                "achieved / ideal tracker of the same kind (exact truth "
+                                "angles, with backtracking)",
+                "poa_global_kwh_m2": "global plane-of-array irradiation, pvlib Perez "
+                                     "transposition of the sky's GHI/DNI/DHI, albedo 0.2",
             },
         }
 
@@ -266,18 +325,21 @@ def write_outputs(out: Path, summary: dict, rows: list[dict]) -> None:
 
 def summary_table(summary: dict) -> str:
     """Plain-text table of the headline figures."""
-    lines = [f"heliotrack simulate: {summary['days']} day(s) from {summary['start']}, "
-             f"{summary['cycles']} cycles of {summary['control_period_s']:g} s, "
-             f"{summary['wall_s']} s wall",
-             f"{'tracker':<16}{'mean':>9}{'p95':>9}{'max':>9}{'energy':>10}"]
-    for name, t in summary["trackers"].items():
+    def num(v, width=9, fmt=".4f"):
+        return f"{v:{width}{fmt}}" if v is not None else f"{'-':>{width}}"
+
+    lines = [f"heliotrack simulate: {summary['days']} day(s) from {summary['start']} "
+             f"({', '.join(summary['sky'])}), {summary['cycles']} cycles of "
+             f"{summary['control_period_s']:g} s, {summary['wall_s']} s wall",
+             f"{'tracker':<16}{'mean':>9}{'p95':>9}{'max':>9}{'beam':>10}{'POA kWh/m2':>12}"]
+    rows = [(name, t) for name, t in summary["trackers"].items()] + [("all", summary)]
+    for name, t in rows:
         p = t["pointing_error_deg"]
-        fmt = lambda v: f"{v:9.4f}" if v is not None else f"{'-':>9}"
-        lines.append(f"{name:<16}{fmt(p['mean'])}{fmt(p['p95'])}{fmt(p['max'])}"
-                     f"{t['energy_ratio'] if t['energy_ratio'] is not None else '-':>10}")
-    p = summary["pointing_error_deg"]
-    lines.append(f"{'all':<16}{p['mean'] or 0:9.4f}{p['p95'] or 0:9.4f}{p['max'] or 0:9.4f}"
-                 f"{summary['energy_ratio']:>10}")
+        lines.append(f"{name:<16}{num(p['mean'])}{num(p['p95'])}{num(p['max'])}"
+                     f"{num(t['energy_ratio'], 10, '.6f')}{num(t['poa_global_kwh_m2'], 12, '.3f')}")
     m = summary["modbus"]
-    lines.append(f"modbus: {m['transactions']} transactions, {m['errors']} errors")
+    modes = ", ".join(f"{k} {v}" for k, v in sorted(summary["modes"].items()))
+    lines.append(f"modes (tracker-cycles): {modes}")
+    lines.append(f"modbus: {m['transactions']} transactions, {m['errors']} errors, "
+                 f"{m['sensor_errors']} sensor errors")
     return "\n".join(lines)

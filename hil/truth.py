@@ -118,3 +118,18 @@ def row_pointing_error(rotation_deg, sun_vec: np.ndarray, axis_azimuth: float,
     a = row_axis(axis_azimuth, axis_tilt)
     proj = sun_vec - (sun_vec @ a)[..., None] * a
     return angle_deg(row_normal(rotation_deg, axis_azimuth, axis_tilt), proj)
+
+
+def poa_global_perez(normals: np.ndarray, times_s: np.ndarray, sun_azimuth: np.ndarray,
+                     sun_elevation: np.ndarray, ghi: np.ndarray, dni: np.ndarray,
+                     dhi: np.ndarray, albedo: float = 0.2) -> np.ndarray:
+    """Global plane-of-array irradiance (W/m2) on panels with these normals, pvlib Perez."""
+    tilt = np.degrees(np.arccos(np.clip(normals[:, 2], -1, 1)))
+    azimuth = np.degrees(np.arctan2(normals[:, 0], normals[:, 1])) % 360.0
+    idx = pd.DatetimeIndex(pd.to_datetime(np.asarray(times_s, float), unit="s", utc=True))
+    zenith = 90.0 - np.asarray(sun_elevation, float)
+    poa = pvlib.irradiance.get_total_irradiance(
+        tilt, azimuth, zenith, sun_azimuth, dni, ghi, dhi,
+        dni_extra=pvlib.irradiance.get_extra_radiation(idx).to_numpy(),
+        airmass=pvlib.atmosphere.get_relative_airmass(zenith), albedo=albedo, model="perez")
+    return np.nan_to_num(np.asarray(poa["poa_global"], float))

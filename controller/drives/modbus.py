@@ -188,6 +188,17 @@ class _SharedSerialClient:
             self._open.pop(self.port, None)
 
 
+def shared_client(kind: str, *, port: str | int = "", host: str = "127.0.0.1",
+                  baudrate: int = 115200, timeout_s: float = 0.5):
+    """A pymodbus asyncio client for a sensor on a link (shared with the drives on RTU)."""
+    if kind == "modbus-rtu":
+        return _SharedSerialClient.acquire(str(port), baudrate, timeout_s)
+    if kind == "modbus-tcp":
+        return AsyncModbusTcpClient(host, port=int(port), timeout=timeout_s, retries=0,
+                                    reconnect_delay=0)
+    raise ValueError(f"no Modbus client for link kind {kind!r}")
+
+
 def _rtu(port: str, device_id: int, baudrate: int = 115200, timeout_s: float = 0.5,
          retries: int = 2, **_) -> ModbusDrive:
     client = _SharedSerialClient.acquire(port, baudrate, timeout_s)

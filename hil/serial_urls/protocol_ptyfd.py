@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import fcntl
 import os
+import termios
 
 from serial import SerialException
 from serial.serialposix import Serial as PosixSerial
@@ -29,9 +30,15 @@ class Serial(PosixSerial):
         fcntl.fcntl(self.pipe_abort_read_r, fcntl.F_SETFL, os.O_NONBLOCK)
         fcntl.fcntl(self.pipe_abort_write_r, fcntl.F_SETFL, os.O_NONBLOCK)
         self.is_open = True
+        self._reconfigure_port(force_update=True)
+
+    def _reconfigure_port(self, force_update=False):
+        # Every pty master is an open of /dev/ptmx, so an exclusive flock on one conflicts
+        # with every other process's master; the fd is private to this process anyway.
+        self._exclusive = None
         try:
-            self._reconfigure_port(force_update=True)
-        except Exception:  # termios on a pty master is best effort: there is no baud rate
+            super()._reconfigure_port(force_update)
+        except termios.error:  # line settings on a master are best effort: no baud rate
             pass
 
     def _update_dtr_state(self):  # no modem lines on a pty

@@ -51,6 +51,14 @@ def test_errors_name_file_key_and_expectation(tmp_path, mutate, key, expected):
     assert str(path) in msg and key in msg and expected in msg
 
 
+def test_diffuse_needs_a_pyranometer_and_minute_sampling(tmp_path):
+    with pytest.raises(ConfigError, match="diffuse.enabled.*pyranometer"):
+        load_config(write(tmp_path, BASE + "[diffuse]\nenabled = true\n"))
+    text = DEFAULT_CONFIG.read_text().replace("period_s = 60.0", "period_s = 120.0")
+    with pytest.raises(ConfigError, match="every minute"):
+        load_config(write(tmp_path, text))
+
+
 def test_syntax_error_and_missing_file(tmp_path):
     with pytest.raises(ConfigError, match="valid TOML"):
         load_config(write(tmp_path, "[site\nlatitude = 1"))

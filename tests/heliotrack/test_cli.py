@@ -20,6 +20,7 @@ HELIOTRACK = [sys.executable, "-m", "heliotrack.cli"]
 
 def short_config(tmp_path: Path, period: float = 300.0) -> Path:
     text = DEFAULT_CONFIG.read_text().replace("period_s = 60.0", f"period_s = {period}")
+    text = text.replace("enabled = true ", "enabled = false ")  # DIFFUSE needs 1-min samples
     p = tmp_path / "scenario.toml"
     p.write_text(text)
     return p

@@ -1,0 +1,86 @@
+"""When to leave the sun for the sky: the DIFFUSE mode's switch and orientation.
+
+Under an overcast sky the beam is gone and the radiance is spread over the dome, so a
+panel facing the zenith (seeing the whole sky) collects more than one facing the hidden
+sun.  The switch classifies a rolling window of pyranometer samples
+(:func:`controller.sky.classify_window`) and changes mode only with hysteresis (enter on
+"overcast", leave on "clear" or "partly cloudy" seen in the latest window) and after a
+minimum dwell, so broken clouds do not make the drives hunt.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sky import SkyConfig, classify_window
+from .sun.source import Site
+
+
+@dataclass(frozen=True)
+class DiffuseConfig:
+    """Settings (seconds, hours).
+
+    enabled : switch DIFFUSE on at all.
+    window_h : length of the classified window.
+    dwell_s : minimum time in a mode before switching again.
+    exit_window_h : the shorter window whose class must no longer be overcast to leave
+        DIFFUSE (reacts faster to the sun coming out than the entry window).
+    min_elevation_deg : only samples with the sun above this count, degrees.
+    """
+
+    enabled: bool = True
+    window_h: float = 1.0
+    exit_window_h: float = 0.5
+    dwell_s: float = 1800.0
+    method: str = "default"
+    min_elevation_deg: float = 10.0
+
+
+class DiffuseSwitch:
+    """Rolling-window sky classification with hysteresis and dwell."""
+
+    def __init__(self, site: Site, config: DiffuseConfig = DiffuseConfig()):
+        self.site = site
+        self.config = config
+        # Near sunrise and sunset the pyranometer's view of the sunshine is unreliable (and
+        # low beam matters little): only the part of the window with the sun above
+        # min_elevation_deg is classified, and it must fill most of the window.
+        self.sky_config = SkyConfig(method=config.method,
+                                    min_elevation_deg=config.min_elevation_deg)
+        self.samples: deque[tuple[float, float]] = deque()
+        self.active = False
+        self.since = -np.inf
+        self.last_class = 0
+
+    def add(self, t: float, ghi_w_m2: float) -> None:
+        self.samples.append((t, ghi_w_m2))
+        horizon = t - max(self.config.window_h, self.config.exit_window_h) * 3600.0
+        while self.samples and self.samples[0][0] < horizon:
+            self.samples.popleft()
+
+    def _classify(self, t: float, hours: float) -> int:
+        if len(self.samples) < 10:
+            return 0
+        arr = np.asarray(self.samples)
+        return classify_window(arr[:, 0], arr[:, 1], self.site, hours=hours, end=t,
+                               config=self.sky_config, min_daylight_s=hours * 3600 * 0.8
+                               ).sky_class
+
+    def update(self, t: float) -> bool:
+        """Decide at time ``t`` whether DIFFUSE applies; returns the new state."""
+        if not self.config.enabled:
+            return False
+        if t - self.since < self.config.dwell_s:
+            return self.active
+        if not self.active:
+            self.last_class = self._classify(t, self.config.window_h)
+            if self.last_class == 3:
+                self.active, self.since = True, t
+        else:
+            self.last_class = self._classify(t, self.config.exit_window_h)
+            if self.last_class in (1, 2):
+                self.active, self.since = False, t
+        return self.active

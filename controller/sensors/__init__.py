@@ -1,0 +1,1 @@
+"""Field sensors other than cameras (pyranometer)."""

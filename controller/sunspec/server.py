@@ -1,0 +1,288 @@
+"""The northbound SunSpec Modbus TCP server (pymodbus), for plant SCADA.
+
+Runs its own asyncio loop in a daemon thread (the controller's code stays synchronous),
+serves one pymodbus ``SimDevice`` whose registers are re-rendered from the controller's
+snapshot on every read, and turns accepted writes into :class:`OverrideCommand`.
+
+Write policy, in the order it is checked:
+
+1. writes disabled (default)          -> exception 1 (ILLEGAL FUNCTION)
+2. client address not in the allowlist -> exception 1 (same answer: a probing client
+                                          learns nothing about the allowlist)
+3. not whole writable model 601 points -> exception 2 (ILLEGAL DATA ADDRESS)
+4. bad value (angle out of range or limits, unknown Ctl) -> exception 3 (ILLEGAL DATA VALUE)
+5. ``on_override`` raised              -> exception 4 (SERVER DEVICE FAILURE), staging undone
+
+Only function codes 3 and 4 (read) and 6 and 16 (write) are served.
+
+Client address: pymodbus 3.16 passes neither the peer to the datastore nor to the
+``trace_*`` hooks, but each connection gets its own ``ServerRequestHandler`` (an asyncio
+protocol whose ``transport`` knows the peer) and each request is handled in its own task.
+A handler subclass puts the peer in a :class:`contextvars.ContextVar` for the duration of
+``handle_request``, where the SimDevice action reads it.  No pymodbus code is copied.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextvars
+import copy
+import ipaddress
+import logging
+import threading
+from typing import Callable, Iterable
+
+from pymodbus.constants import ExcCodes
+from pymodbus.exceptions import NoSuchIdException
+from pymodbus.server import ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
+from pymodbus.simulator import DataType, SimData, SimDevice
+from pymodbus.simulator.simcore import SimCore
+
+from .config import SunSpecConfig
+from .control import ControlTable, WriteRefused
+from .encode import Encoder, Identity
+from .models import SUNSPEC_BASE_ADDRESS, SunSpecMap
+from .snapshot import OverrideCommand, PlantSnapshot
+
+log = logging.getLogger("heliotrack.sunspec")
+
+_PEER: contextvars.ContextVar[str | None] = contextvars.ContextVar("sunspec_peer", default=None)
+_READ_FCS = {3, 4}
+_WRITE_FCS = {6, 16}
+
+SnapshotFn = Callable[[], PlantSnapshot]
+OverrideFn = Callable[[OverrideCommand], None]
+
+
+class SunSpecServerError(RuntimeError):
+    """The server could not start (address in use, bad snapshot...)."""
+
+
+class _PeerAwareHandler(ServerRequestHandler):
+    """Request handler that exposes the client's IP address to the datastore."""
+
+    async def handle_request(self):
+        peer = self.transport.get_extra_info("peername") if self.transport else None
+        token = _PEER.set(peer[0] if peer else None)
+        try:
+            await super().handle_request()
+        finally:
+            _PEER.reset(token)
+
+
+class _PeerAwareTcpServer(ModbusTcpServer):
+    def callback_new_connection(self):
+        return _PeerAwareHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+
+
+class _SingleUnitCore(SimCore):
+    """SimCore that answers only our unit id (others: exception 0x0B via NoSuchId),
+    instead of the KeyError -> exception 4 the stock SimCore gives."""
+
+    async def async_getValues(self, device_id, func_code, address, count=1):
+        if device_id not in self.devices:
+            raise NoSuchIdException(device_id)
+        return await super().async_getValues(device_id, func_code, address, count)
+
+    async def async_setValues(self, device_id, func_code, address, values):
+        if device_id not in self.devices:
+            raise NoSuchIdException(device_id)
+        return await super().async_setValues(device_id, func_code, address, values)
+
+
+def _networks(allow: Iterable[str]) -> tuple:
+    return tuple(ipaddress.ip_network(a, strict=False) for a in allow)
+
+
+def peer_allowed(peer: str | None, networks: tuple) -> bool:
+    """True if ``peer`` (an IP address string) is in one of ``networks``."""
+    if not peer:
+        return False
+    try:
+        ip = ipaddress.ip_address(peer.split("%")[0])
+    except ValueError:
+        return False
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
+        ip = ip.ipv4_mapped          # a dual-stack socket reports ::ffff:a.b.c.d
+    return any(ip in net for net in networks if net.version == ip.version)
+
+
+class SunSpecServer:
+    """SunSpec (model 1 + model 601) Modbus TCP server in a daemon thread.
+
+    Parameters
+    ----------
+    snapshot : callable
+        ``snapshot() -> PlantSnapshot``, called on every request (in the server thread;
+        must be thread-safe and quick).  The tracker count is fixed by the first call.
+    on_override : callable, optional
+        ``on_override(OverrideCommand)``, called in the server thread for every accepted
+        write, before the client gets its answer.  Must be quick and thread-safe (e.g. put
+        the command on a queue).  An exception refuses the write (exception 4).
+    host : str
+        Address to bind; 127.0.0.1 unless SCADA is elsewhere.
+    port : int
+        TCP port; 0 picks a free one (see :attr:`port` after :meth:`start`).
+    device_address : int
+        Modbus unit id answered (model 1 ``DA``); other ids get exception 0x0B.
+    writes_enabled : bool
+        False (default): every write is refused.
+    allow : iterable of str
+        Client addresses or networks (``"10.0.0.0/24"``) whose writes are accepted.
+    identity : Identity, optional
+        Model 1 strings.
+    base_address : int
+        Address of the ``SunS`` marker.
+    """
+
+    def __init__(self, snapshot: SnapshotFn, on_override: OverrideFn | None = None, *,
+                 host: str = "127.0.0.1", port: int = 1502, device_address: int = 1,
+                 writes_enabled: bool = False, allow: Iterable[str] = ("127.0.0.1",),
+                 identity: Identity | None = None, base_address: int = SUNSPEC_BASE_ADDRESS):
+        self.snapshot = snapshot
+        self.on_override = on_override
+        self.host = host
+        self.requested_port = int(port)
+        self.device_address = int(device_address)
+        self.writes_enabled = bool(writes_enabled)
+        self.allow = tuple(allow)
+        self._networks = _networks(self.allow)
+        self.identity = identity or Identity(device_address=self.device_address)
+        self.base_address = base_address
+        self.port: int | None = None
+        self.map: SunSpecMap | None = None
+        self.stats = {"reads": 0, "writes_accepted": 0, "writes_refused": 0, "errors": 0}
+        self._encoder: Encoder | None = None
+        self._controls: ControlTable | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._server: ModbusTcpServer | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="sunspec-server", daemon=True)
+
+    @classmethod
+    def from_config(cls, cfg: SunSpecConfig, snapshot: SnapshotFn,
+                    on_override: OverrideFn | None = None, **kw) -> "SunSpecServer":
+        """Build from a parsed ``[sunspec]`` table (see :func:`parse_sunspec`)."""
+        ident = Identity(serial_number=cfg.serial_number, device_address=cfg.device_address)
+        return cls(snapshot, on_override, host=cfg.host, port=cfg.port,
+                   device_address=cfg.device_address, writes_enabled=cfg.writes_enabled,
+                   allow=cfg.allow, identity=ident, **kw)
+
+    # -- lifecycle -------------------------------------------------------------------
+    def start(self) -> "SunSpecServer":
+        """Build the map from a first snapshot, bind, and serve; returns self."""
+        plant = self.snapshot()
+        self.map = SunSpecMap(len(plant.trackers), self.base_address)
+        self._encoder = Encoder(self.map, self.identity)
+        self._controls = ControlTable(self.map)
+        self._controls.refresh(plant)
+        self._encoder.registers(plant, self._controls.staged, self.base_address, self.map.size)
+        self._thread.start()
+        self._ready.wait(10)
+        if self._error:
+            raise SunSpecServerError(f"SunSpec server failed to start on {self.host}:"
+                                     f"{self.requested_port}: {self._error}") from self._error
+        if not self._ready.is_set():
+            raise SunSpecServerError("SunSpec server did not start within 10 s")
+        log.info("SunSpec server on %s:%d, unit %d, %d trackers, writes %s",
+                 self.host, self.port, self.device_address, self.map.n_trackers,
+                 f"enabled for {', '.join(self.allow)}" if self.writes_enabled else "disabled")
+        return self
+
+    def stop(self) -> None:
+        if self._loop and self._server and self._loop.is_running():
+            fut = asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop)
+            try:
+                fut.result(5)
+            except Exception:  # already closing; nothing left to release
+                pass
+        if self._thread.is_alive():
+            self._thread.join(5)
+
+    def __enter__(self) -> "SunSpecServer":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def _run(self) -> None:
+        self._loop = asyncio.new_event_loop()
+        asyncio.set_event_loop(self._loop)
+        try:
+            self._loop.run_until_complete(self._serve())
+        except BaseException as exc:  # reported to start()
+            self._error = exc
+            self._ready.set()
+        finally:
+            self._loop.close()
+
+    async def _serve(self) -> None:
+        device = SimDevice(
+            id=self.device_address,
+            simdata=[SimData(self.base_address, count=self.map.size, values=0,
+                             datatype=DataType.REGISTERS)],
+            action=self._action)
+        self._server = _PeerAwareTcpServer(device, address=(self.host, self.requested_port))
+        self._server.context = _SingleUnitCore(device)
+        await self._server.serve_forever(background=True)
+        transport = self._server.transport
+        sock = transport.sockets[0] if hasattr(transport, "sockets") else transport.get_extra_info("socket")
+        self.port = sock.getsockname()[1]
+        self._ready.set()
+        await self._server.serving
+
+    # -- requests --------------------------------------------------------------------
+    async def _action(self, fc, start, address, count, registers, set_values):
+        """pymodbus SimDevice action: render before reads, police writes."""
+        try:
+            if set_values is None:
+                if fc not in _READ_FCS | _WRITE_FCS:   # reads back after FC 6 are fc 6
+                    return ExcCodes.ILLEGAL_FUNCTION
+                plant = self.snapshot()
+                self._controls.refresh(plant)
+                words = self._encoder.registers(plant, self._controls.staged, address, count)
+                registers[address - start:address - start + count] = words
+                self.stats["reads"] += 1
+                return None
+            if fc not in _WRITE_FCS:
+                return ExcCodes.ILLEGAL_FUNCTION
+            return self._write(address, [int(v) for v in set_values])
+        except Exception:  # a bad snapshot must not kill the server; the client gets exc 4
+            self.stats["errors"] += 1
+            log.exception("SunSpec request fc=%s address=%s count=%s failed", fc, address, count)
+            return ExcCodes.DEVICE_FAILURE
+
+    def _write(self, address: int, words: list[int]) -> ExcCodes | None:
+        peer = _PEER.get()
+        if not self.writes_enabled:
+            return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "writes are disabled")
+        if not peer_allowed(peer, self._networks):
+            return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "client not in the allowlist")
+        plant = self.snapshot()
+        self._controls.refresh(plant)
+        backup = copy.deepcopy(self._controls.staged)
+        try:
+            commands = self._controls.apply_write(plant, address, words, peer or "")
+        except WriteRefused as exc:
+            return self._refuse(exc.code, peer, address, exc.reason)
+        try:
+            for cmd in commands:
+                if self.on_override is not None:
+                    self.on_override(cmd)
+        except Exception:
+            self._controls.staged = backup
+            self.stats["errors"] += 1
+            log.exception("on_override refused a SunSpec write from %s", peer)
+            return ExcCodes.DEVICE_FAILURE
+        self.stats["writes_accepted"] += 1
+        for cmd in commands:
+            log.info("SunSpec override from %s: %s", peer, cmd)
+        return None
+
+    def _refuse(self, code: ExcCodes, peer, address: int, reason: str) -> ExcCodes:
+        self.stats["writes_refused"] += 1
+        log.warning("SunSpec write at %d from %s refused (exception %d): %s",
+                    address, peer, int(code), reason)
+        return code

@@ -1,0 +1,81 @@
+"""``heliotrack classify FILE...``: day types of an irradiance record (paper 002 and better)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "classify", help="classify days as clear / partly cloudy / overcast from GHI",
+        description="Classify each day of a GHI record (I clear, II partly cloudy, III "
+                    "overcast) and write days.csv, the paper's tables and figures.")
+    p.add_argument("files", nargs="+", type=Path, metavar="FILE", help="input files, one station")
+    p.add_argument("--lat", type=float, help="latitude, deg north (required unless the file says)")
+    p.add_argument("--lon", type=float, help="longitude, deg east (required unless the file says)")
+    p.add_argument("--alt", type=float, default=None, help="altitude, m (default from file or 0)")
+    p.add_argument("--format", choices=("csv", "bsrn", "midc", "surfrad"), default="csv")
+    p.add_argument("--time-col", help="CSV time column (UTC); guessed if omitted")
+    p.add_argument("--ghi-col", help="GHI column; guessed if omitted")
+    p.add_argument("--dni-col", help="DNI column (adds the sunshine-duration truth)")
+    p.add_argument("--method", choices=("default", "seed"), default="default",
+                   help="rule for the class column (seed: the paper's D and K_T rule)")
+    p.add_argument("--threshold-rule", choices=("range", "tertiles", "fixed"), default="range",
+                   help="how the seed rule sets D_I, D_II per year")
+    p.add_argument("--d-thresholds", type=float, nargs=2, metavar=("D_I", "D_II"),
+                   help="fixed D_I D_II (implies --threshold-rule fixed)")
+    p.add_argument("--max-missing-min", type=float, default=60.0,
+                   help="exclude days with more daylight than this missing, min (default 60)")
+    p.add_argument("--out", type=Path, default=Path("skytype-out"), help="output directory")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import sys
+
+    from controller.errors import InputError
+    from controller.sky.classify import SkyConfig, analyse_grid
+    from controller.sky.grid import build_day_grid
+    from controller.sky.io import read_records
+    from controller.sky.report import write_figures, write_tables
+    from controller.sun.source import Site
+
+    progress = sys.stderr.isatty()
+    rec = read_records(list(args.files), args.format, args.time_col, args.ghi_col, args.dni_col,
+                       progress=progress)
+    lat = args.lat if args.lat is not None else rec.latitude
+    lon = args.lon if args.lon is not None else rec.longitude
+    if lat is None or lon is None:
+        raise InputError("--lat and --lon are required (the input files do not give the site)")
+    if not (-90 <= lat <= 90 and -180 <= lon <= 360):
+        raise InputError(f"--lat/--lon out of range: {lat}, {lon}")
+    alt = args.alt if args.alt is not None else (rec.altitude or 0.0)
+    kwargs = {}
+    if args.d_thresholds:
+        kwargs.update(threshold_rule="fixed", d_thresholds=tuple(args.d_thresholds))
+    else:
+        kwargs.update(threshold_rule=args.threshold_rule)
+    try:
+        config = SkyConfig(method=args.method, max_missing_s=60.0 * args.max_missing_min, **kwargs)
+        grid = build_day_grid(rec.times, rec.ghi, lon, dni=rec.dni)
+    except ValueError as exc:
+        raise InputError(f"{', '.join(rec.sources)}: {exc}") from None
+    site = Site(lat, lon, alt)
+    res = analyse_grid(grid, site, config, with_clearsky=rec.dni is not None, progress=progress)
+    if len(res.days) == 0:
+        raise InputError(f"{', '.join(rec.sources)}: no day could be classified "
+                         f"({len(res.excluded)} excluded, e.g. {res.excluded['reason'].iloc[0] if len(res.excluded) else 'no data'})")
+    written = write_tables(res, args.out) + write_figures(res, grid, args.out)
+    counts = res.days["class"].value_counts()
+    print(f"{len(res.days)} days classified ({config.method} rule, grid {res.step_s} s), "
+          f"{len(res.excluded)} excluded: "
+          + ", ".join(f"{c} {int(counts.get(c, 0))}" for c in ("I", "II", "III")))
+    if "truth" in res.days:
+        agr = res.days[res.days["truth"] != ""]
+        for col in ("class_default", "class_seed", "class_kt", "class_csd"):
+            if col in agr and len(agr):
+                print(f"  agreement with sunshine truth, {col[6:]}: "
+                      f"{100 * (agr[col] == agr['truth']).mean():.1f} % of {len(agr)} days")
+    print(f"wrote {len(written)} files to {args.out}")
+    return 0
