@@ -17,7 +17,7 @@ from firmware_protocol import Command, Mode
 from .clock import Clock
 from .config import Config, TrackerConfig
 from .drives import DriveCommError, DriveLink, DriveState
-from .geometry import dual_axis_setpoint, single_axis_setpoints
+from .geometry import dual_axis_setpoint, single_axis_setpoints, wrap_into_range
 from .diffuse import DiffuseSwitch
 from .modes import ControlMode, ModeDecision, decide_mode
 from .sun.source import SunSource
@@ -69,6 +69,9 @@ class Controller:
         self.pyranometer = pyranometer
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
+        #: Operator overrides by tracker index: manual axis targets (deg) in force.
+        self.overrides: dict[int, tuple[float, ...]] = {}
+        self._home_requested: set[int] = set()
         self.sun = sun
         self.clock = clock
         self.trackers = [TrackerRuntime(t, drives[t.name]) for t in config.trackers]
@@ -129,6 +132,10 @@ class Controller:
         t_wall = time.perf_counter()
         records = [self._record(tr, t, est, decision, sp)
                    for tr, sp in zip(self.trackers, setpoints)]
+        for i, targets in self.overrides.items():
+            # An operator's manual setpoint outranks tracking and night stow.
+            setpoints[i] = (list(targets), False)
+            records[i].mode, records[i].reason = ControlMode.MANUAL.value, "operator override"
         tasks = [asyncio.ensure_future(self._drive_one(tr, rec, sp[0], decision, t_wall))
                  for tr, rec, sp in zip(self.trackers, records, setpoints)]
         # One deadline for the cycle: a row still waiting then is cancelled and marked;
@@ -183,6 +190,9 @@ class Controller:
         if not tr.configured:
             await self._configure(tr)
         await self._heartbeat(tr)
+        if tr.index in self._home_requested:
+            await tr.drive.command(Command.HOME)
+            self._home_requested.discard(tr.index)
         state = await tr.drive.exchange(targets)
         if decision.mode != ControlMode.STOW and any(a.mode == Mode.STOW for a in state.axes):
             # The firmware stowed itself (watchdog) and the link is alive again: resume.
@@ -217,6 +227,37 @@ class Controller:
                                             cfg.elevation_limits, current)
                 out[i] = ([az, el], False)
         return out
+
+    def set_override(self, tracker: int | None, ctl: str, el_deg: float | None,
+                     az_deg: float | None) -> None:
+        """Apply an operator command (SunSpec model 601 semantics).
+
+        ``ctl``: "Automatic" clears the override, "Manual" holds the given setpoint
+        (dual-axis: elevation and azimuth; single-axis: the rotation in ``el_deg``; a
+        missing value keeps the axis where it is), "Calibrate" re-homes the drives.
+        ``tracker`` None applies to every tracker.
+        """
+        indices = range(len(self.trackers)) if tracker is None else [tracker]
+        for i in indices:
+            tr = self.trackers[i]
+            if ctl == "Automatic":
+                self.overrides.pop(i, None)
+            elif ctl == "Calibrate":
+                self._home_requested.add(i)
+            elif ctl == "Manual":
+                now = tr.last_state.axes if tr.last_state else None
+                if tr.cfg.type == "single-axis":
+                    rot = el_deg if el_deg is not None else (now[0].actual_deg if now else tr.cfg.stow[0])
+                    self.overrides[i] = (min(max(rot, -tr.cfg.max_angle), tr.cfg.max_angle),)
+                else:
+                    az = az_deg if az_deg is not None else (now[0].actual_deg if now else tr.cfg.stow[0])
+                    el = el_deg if el_deg is not None else (now[1].actual_deg if now else tr.cfg.stow[1])
+                    az = wrap_into_range(az, *tr.cfg.azimuth_limits,
+                                         near=now[0].actual_deg if now else None)
+                    lo, hi = tr.cfg.elevation_limits
+                    self.overrides[i] = (az, min(max(el, lo), hi))
+            else:
+                raise ValueError(f"unknown control {ctl!r}")
 
     @staticmethod
     def _facing_sky(tr: TrackerRuntime) -> tuple[list[float], bool]:

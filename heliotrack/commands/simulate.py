@@ -23,6 +23,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--start", type=str, default=None, help="first day, YYYY-MM-DD")
     p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output folder")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument("--realtime", action="store_true",
+                   help="run on the wall clock (for SCADA clients) instead of simulated days")
+    p.add_argument("--duration", type=float, default=60.0,
+                   help="with --realtime: seconds to run (default 60)")
+    p.add_argument("--sunspec", type=str, default=None, metavar="HOST:PORT",
+                   help="with --realtime: serve SunSpec (models 1 and 601) on this address; "
+                        "port 0 picks a free one (printed as 'SUNSPEC host:port')")
     p.set_defaults(func=run)
 
 
@@ -30,6 +37,10 @@ def run(args: argparse.Namespace) -> int:
     from heliotrack.simulate import run_simulation, summary_table
 
     config = load_config(args.config)
+    if args.realtime:
+        return _realtime(args, config)
+    if args.sunspec:
+        raise ConfigError(None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec)
     if args.days < 1:
         raise ConfigError(None, "--days", "a whole number >= 1", args.days)
     start = None
@@ -42,4 +53,21 @@ def run(args: argparse.Namespace) -> int:
                              progress=not args.no_progress and sys.stderr.isatty())
     print(summary_table(summary))
     print(f"wrote {args.out / 'summary.json'} and {args.out / 'cycles.csv'}")
+    return 0
+
+
+def _realtime(args: argparse.Namespace, config) -> int:
+    from heliotrack.realtime import run_realtime
+
+    if not 0 < args.duration <= 7 * 86400:
+        raise ConfigError(None, "--duration", "seconds in (0, 604800]", args.duration)
+    address = None
+    if args.sunspec:
+        host, sep, port = args.sunspec.rpartition(":")
+        if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+            raise ConfigError(None, "--sunspec", "HOST:PORT, e.g. 127.0.0.1:1502", args.sunspec)
+        address = (host, int(port))
+    counts = run_realtime(config, args.duration, address)
+    print(f"realtime: {counts['cycles']} cycles, {counts['row_errors']} row errors, "
+          f"{counts['overrides']} operator overrides")
     return 0

@@ -117,3 +117,44 @@ def test_standalone_drive_with_an_independent_master(standalone_drive):
 def test_hil_drive_rejects_bad_arguments():
     r = subprocess.run([*HELIOTRACK, "hil", "drive", "--id", "300"], capture_output=True, text=True)
     assert r.returncode == 2 and "--id" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_realtime_simulation_serves_sunspec_to_a_scada_client(tmp_path):
+    from sunspec2.modbus.client import SunSpecModbusClientDeviceTCP
+    from sunspec2.modbus.modbus import ModbusClientException
+
+    cfg = short_config(tmp_path, period=1.0)
+    proc = subprocess.Popen([*HELIOTRACK, "simulate", "--config", str(cfg), "--realtime",
+                             "--duration", "8", "--sunspec", "127.0.0.1:0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = proc.stdout.readline().strip()
+        assert first.startswith("SUNSPEC 127.0.0.1:"), first + proc.stderr.read()
+        port = int(first.rsplit(":", 1)[1])
+        proc.stdout.readline()                       # wait for a first cycle
+        dev = SunSpecModbusClientDeviceTCP(slave_id=1, ipaddr="127.0.0.1", ipport=port, timeout=2)
+        dev.scan()
+        try:
+            assert 1 in dev.models and 601 in dev.models
+            m = dev.models[601][0]
+            m.read()
+            assert [m.tracker[i].Id.value for i in range(m.N.value)] == ["dual-1", "row-1"]
+            assert m.tracker[0].ElPos.cvalue is not None
+            blk = m.tracker[0]
+            blk.Ctl.value = 1
+            with pytest.raises(ModbusClientException, match="exception: 1"):
+                blk.write()                          # writes are off unless configured
+        finally:
+            dev.close()
+        out, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0, err
+        assert "0 operator overrides" in out and "row errors" in out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_sunspec_needs_realtime(tmp_path):
+    r = subprocess.run([*HELIOTRACK, "simulate", "--sunspec", "127.0.0.1:1502"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "--realtime" in r.stderr
