@@ -18,33 +18,12 @@ import time
 
 import numpy as np
 
+from heliotrack.plant import plant_config
+
 TARGETS = {"tcp_rows_min": 1000, "cycle_p99_s_max": 1.0}
 
 
-def plant_config(n_rows: int, ports: list[int], period_s: float = 1.0,
-                 heartbeat_timeout_s: float = 15.0, seed: int = 1):
-    """A site with ``n_rows`` single-axis rows, each on its own Modbus TCP link.
-
-    Rows differ in cross-axis slope and ground coverage ratio, as on rolling terrain.
-    """
-    from controller.config import parse_config
-
-    rng = np.random.default_rng(seed)
-    data = {
-        "site": {"name": "plant", "latitude": 32.4835, "longitude": 48.3364},
-        "control": {"period_s": period_s, "heartbeat_timeout_s": heartbeat_timeout_s},
-        "links": [{"name": f"l{i}", "kind": "modbus-tcp", "host": "127.0.0.1",
-                   "tcp_port": int(p), "timeout_s": 0.8, "retries": 0}
-                  for i, p in enumerate(ports)],
-        "trackers": [{"name": f"row-{i}", "type": "single-axis", "link": f"l{i}",
-                      "device_id": 1, "gcr": float(rng.uniform(0.3, 0.5)),
-                      "cross_axis_tilt": float(rng.uniform(-5, 5))}
-                     for i in range(n_rows)],
-    }
-    return parse_config(data, "<plant benchmark>")
-
-
-async def _drive_rows(config, seconds: float) -> dict:
+async def _drive_rows(config, seconds: float, kill=None) -> dict:
     from controller.clock import RealClock
     from controller.drives import open_drive
     from controller.loop import Controller
@@ -55,12 +34,20 @@ async def _drive_rows(config, seconds: float) -> dict:
                                   timeout_s=0.8, retries=0) for tr in config.trackers}
     ctl = Controller(config, drives, EphemerisSource(config.site), RealClock(), realtime=True)
     cycle_s: list[float] = []
+    healthy_s: list[list[float]] = [[], []]    # before / after the kill
     errors = 0
+    killed = False
 
     def on_cycle(records):
-        nonlocal errors
+        nonlocal errors, killed
         cycle_s.append(max(r.latency_s for r in records))
         errors += sum(1 for r in records if r.error)
+        healthy_s[killed].append(max(r.latency_s for i, r in enumerate(records) if i != 0))
+        if kill is not None and not killed and len(cycle_s) == len_before:
+            kill(0)
+            killed = True
+
+    len_before = max(int(seconds / config.control.period_s) // 2, 1)
 
     t0 = time.perf_counter()
     await ctl.start()
@@ -68,20 +55,34 @@ async def _drive_rows(config, seconds: float) -> dict:
     run = await ctl.run(seconds, on_cycle)
     await ctl.close()
     a = np.asarray(cycle_s)
-    return {"rows": len(config.trackers), "cycles": len(a), "start_s": round(start_s, 3),
+    out = {}
+    if kill is not None:
+        pct = lambda v, q: round(float(np.percentile(v, q)), 4) if v else None
+        out = {"kill_row_0_after_cycle": len_before,
+               "healthy_rows_cycle_p50_s_before": pct(healthy_s[0], 50),
+               "healthy_rows_cycle_p99_s_before": pct(healthy_s[0], 99),
+               "healthy_rows_cycle_p50_s_after": pct(healthy_s[1], 50),
+               "healthy_rows_cycle_p99_s_after": pct(healthy_s[1], 99)}
+    return {**out, "rows": len(config.trackers), "cycles": len(a), "start_s": round(start_s, 3),
             "cycle_p50_s": round(float(np.median(a)), 4),
             "cycle_p99_s": round(float(np.percentile(a, 99)), 4),
             "cycle_max_s": round(float(a.max()), 4), "overruns": run["overruns"],
             "row_errors": errors, "transactions": ctl.stats()["transactions"]}
 
 
-def modbus_tcp(n_rows: int, seconds: float) -> dict:
+def modbus_tcp(n_rows: int, seconds: float, kill_one: bool = False) -> dict:
     proc = subprocess.Popen([sys.executable, "-m", "hil.plant", "--rows", str(n_rows)],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+
+    def kill(i: int) -> None:
+        proc.stdin.write(f"kill {i}\n")
+        proc.stdin.flush()
+        proc.stdout.readline()
+
     try:
         ports = json.loads(proc.stdout.readline())["ports"]
         config = plant_config(n_rows, ports)
-        return asyncio.run(_drive_rows(config, seconds))
+        return asyncio.run(_drive_rows(config, seconds, kill if kill_one else None))
     finally:
         proc.stdin.write("quit\n")
         proc.stdin.flush()
@@ -97,12 +98,14 @@ def run(quick: bool = False) -> dict:
     # runs leave the process with high fd numbers.
     rtu = _rtu_latency(500 if quick else 2000)
     tcp = {str(n): modbus_tcp(n, seconds) for n in sizes}
+    isolation = modbus_tcp(1000, seconds, kill_one=True)
     best = max((int(n) for n, r in tcp.items() if r["cycle_p99_s"] < TARGETS["cycle_p99_s_max"]
                 and r["overruns"] == 0 and r["row_errors"] == 0), default=0)
     return {
         "targets": TARGETS,
         "modbus_tcp": tcp,
         "modbus_tcp_rows_kept_on_1s_cycle": best,
+        "isolation_1000_rows_kill_one": isolation,
         "rtu_pty": rtu,
         "canopen_virtual": "not measured yet: the CANopen backend is not wired in",
         "sunspec_poll": "not measured yet: the SunSpec server is not wired in",

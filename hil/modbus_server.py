@@ -40,6 +40,9 @@ def sim_device(device_id: int, device: RegisterDevice, size: int = REGISTER_SPAC
     """Wrap ``device`` as a pymodbus SimDevice answering FC 3, 4, 6, 16 and 23."""
 
     async def action(fc, start, address, count, registers, set_values):
+        delay = getattr(device, "response_delay_s", 0.0)
+        if delay:  # fault injection: a slow or hung device answers late (or never)
+            await asyncio.sleep(delay)
         try:
             if fc not in _REGISTER_FCS:
                 return ExcCodes.ILLEGAL_FUNCTION

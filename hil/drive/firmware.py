@@ -69,6 +69,8 @@ class DriveFirmware:
         self._last_heartbeat_change = self._t0
         self._lock = threading.RLock()
         self.transactions = 0
+        #: Fault injection for transports: answer every request this much later (s).
+        self.response_delay_s = 0.0
 
     # -- time ---------------------------------------------------------------------
     def update(self) -> None:
