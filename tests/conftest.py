@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
+from datetime import datetime, timezone
 from pathlib import Path
 
 import pytest
@@ -43,3 +45,38 @@ def wall_pty_drive():
     fw = DriveFirmware(two_axes(), time.time, heartbeat_timeout=1.0)
     with PtyLink.open() as link, ModbusServerThread({1: fw}, serial_url=link.url):
         yield fw, link.path
+
+
+@pytest.fixture
+def default_plant():
+    """The default config's trackers driven by a Controller over one RTU pty on a
+    simulated clock (mid-morning, 1 June).
+
+    Yields (run, controller, firmwares by tracker name, clock, config); ``run`` runs a
+    coroutine on the fixture's event loop (pymodbus clients belong to their loop).
+    """
+    from controller.config import load_config
+    from controller.drives import open_drive
+    from controller.loop import Controller
+    from controller.sun.source import EphemerisSource
+
+    cfg = load_config(DEFAULT_CONFIG)
+    clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=timezone.utc))  # ~11:15 solar time
+    fws = {tr.name: DriveFirmware(
+        [AxisParams(soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5, stow_angle=s,
+                    initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow)],
+        clock.now, cfg.control.heartbeat_timeout_s) for tr in cfg.trackers}
+    loop = asyncio.new_event_loop()
+    with PtyLink.open() as link, ModbusServerThread(
+            {tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url):
+        async def make():
+            drives = {tr.name: open_drive("modbus-rtu", port=link.path, device_id=tr.device_id,
+                                          timeout_s=0.3, retries=0) for tr in cfg.trackers}
+            ctl = Controller(cfg, drives, EphemerisSource(cfg.site), clock)
+            await ctl.start()
+            return ctl
+
+        ctl = loop.run_until_complete(make())
+        yield loop.run_until_complete, ctl, fws, clock, cfg
+        loop.run_until_complete(ctl.close())
+    loop.close()

@@ -1,46 +1,15 @@
 """The controller loop against emulated drives, two trackers on one RTU line."""
 
-import asyncio
 from datetime import datetime, timezone
 
 import pytest
 
-from controller.clock import SimClock
-from controller.config import load_config
-from controller.drives import open_drive
-from controller.loop import Controller
-from controller.sun.source import EphemerisSource
-from hil.drive import AxisParams, DriveFirmware
-from hil.modbus_server import ModbusServerThread
-from hil.pty import PtyLink
 from hil import truth
-from tests.conftest import DEFAULT_CONFIG
 
 
 @pytest.fixture
-def plant():
-    """(run, controller, firmwares, clock, config) with the default config's two trackers."""
-    cfg = load_config(DEFAULT_CONFIG)
-    clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=timezone.utc))  # ~11:15 solar time
-    fws = {}
-    for tr in cfg.trackers:
-        axes = [AxisParams(soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5,
-                           stow_angle=s, initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow)]
-        fws[tr.name] = DriveFirmware(axes, clock.now, cfg.control.heartbeat_timeout_s)
-    loop = asyncio.new_event_loop()
-    with PtyLink.open() as link, ModbusServerThread(
-            {tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url):
-        async def make():  # pymodbus async clients belong to the loop that creates them
-            drives = {tr.name: open_drive("modbus-rtu", port=link.path, device_id=tr.device_id,
-                                          timeout_s=0.3, retries=0) for tr in cfg.trackers}
-            ctl = Controller(cfg, drives, EphemerisSource(cfg.site), clock)
-            await ctl.start()
-            return ctl
-
-        ctl = loop.run_until_complete(make())
-        yield loop.run_until_complete, ctl, fws, clock, cfg
-        loop.run_until_complete(ctl.close())
-    loop.close()
+def plant(default_plant):
+    return default_plant
 
 
 def test_tracks_the_true_sun(plant):

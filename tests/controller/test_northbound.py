@@ -1,47 +1,17 @@
 """SCADA sees the controller's plant and its overrides reach the drives (pysunspec2)."""
 
-import asyncio
-from datetime import datetime, timezone
 
 import pytest
 from sunspec2.modbus.client import SunSpecModbusClientDeviceTCP
 
-from controller.clock import SimClock
-from controller.config import load_config
-from controller.drives import open_drive
-from controller.loop import Controller
 from controller.northbound import Northbound
-from controller.sun.source import EphemerisSource
 from controller.sunspec import SunSpecServer
-from hil.drive import AxisParams, DriveFirmware
-from hil.modbus_server import ModbusServerThread
-from hil.pty import PtyLink
-from tests.conftest import DEFAULT_CONFIG
 
 
 @pytest.fixture
-def plant():
-    cfg = load_config(DEFAULT_CONFIG)
-    clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=timezone.utc))
-    fws = {tr.name: DriveFirmware(
-        [AxisParams(soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5, stow_angle=s,
-                    initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow)],
-        clock.now, cfg.control.heartbeat_timeout_s) for tr in cfg.trackers}
-    loop = asyncio.new_event_loop()
-    with PtyLink.open() as link, ModbusServerThread(
-            {tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url):
-        async def make():
-            drives = {tr.name: open_drive("modbus-rtu", port=link.path, device_id=tr.device_id,
-                                          timeout_s=0.3, retries=0) for tr in cfg.trackers}
-            ctl = Controller(cfg, drives, EphemerisSource(cfg.site), clock)
-            await ctl.start()
-            return ctl
-
-        ctl = loop.run_until_complete(make())
-        bridge = Northbound(ctl, "test-plant")
-        yield loop.run_until_complete, ctl, bridge, fws, clock
-        loop.run_until_complete(ctl.close())
-    loop.close()
+def plant(default_plant):
+    run, ctl, fws, clock, cfg = default_plant
+    return run, ctl, Northbound(ctl, "test-plant"), fws, clock
 
 
 def scan(port):
