@@ -18,7 +18,7 @@ from .sun.source import Site
 
 LINK_KINDS = ("modbus-rtu", "modbus-tcp", "canopen")
 TRACKER_TYPES = ("dual-axis", "single-axis")
-SUN_SOURCES = ("ephemeris",)
+SUN_SOURCES = ("ephemeris", "hotspot")
 
 
 class TableReader:
@@ -177,6 +177,32 @@ class TrackerConfig:
 
 
 @dataclass(frozen=True)
+class HotspotConfig:
+    """The convex-surface camera sensor (``[hotspot]``); paths resolved against the file.
+
+    ``frames``: "hil" (the simulator renders them), a folder of timestamped images
+    (replay), or "device:N" (OpenCV camera N).
+    """
+
+    calibration: str
+    frames: str = "hil"
+    algorithm: str = "default"
+
+
+@dataclass(frozen=True)
+class SunPathSettings:
+    """The sun-path filter behind camera sensors (``[sunpath]``).
+
+    ``state``: file where the learned state persists (None: not persisted).
+    ``site_known``: give the filter the configured site (and the ephemeris fallback);
+    false makes it learn the site from the sky alone.
+    """
+
+    state: str | None = None
+    site_known: bool = True
+
+
+@dataclass(frozen=True)
 class PyranometerConfig:
     """A Modbus pyranometer on one of the links (``[pyranometer]``)."""
 
@@ -192,6 +218,8 @@ class Config:
     trackers: tuple[TrackerConfig, ...]
     pyranometer: PyranometerConfig | None = None
     diffuse: "DiffuseConfig" = None  # type: ignore[assignment]
+    hotspot: HotspotConfig | None = None
+    sunpath: SunPathSettings = SunPathSettings()
     file: str = "<config>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 
@@ -250,7 +278,36 @@ def parse_config(data: dict, file: str | Path | None = None) -> Config:
     if diffuse.enabled and control.period_s > 60:
         raise ConfigError(file, "diffuse.enabled", "false when control.period_s > 60 s (the sky "
                           "classifier needs a pyranometer sample at least every minute)", True)
-    return Config(site, control, links, tuple(trackers), pyr, diffuse, str(file), data)
+    hotspot = _hotspot(root, file) if control.sun_source == "hotspot" or root.has("hotspot") else None
+    if control.sun_source == "hotspot" and hotspot is None:
+        raise ConfigError(file, "hotspot", "a [hotspot] table when control.sun_source = \"hotspot\"")
+    sunpath = _sunpath(root.table("sunpath", {}), file)
+    return Config(site, control, links, tuple(trackers), pyr, diffuse, hotspot, sunpath,
+                  str(file), data)
+
+
+def _relative(path: str, file) -> str:
+    base = Path(file).parent if file not in (None, "<config>") and not str(file).startswith("<") else Path.cwd()
+    return str((base / path).resolve()) if not Path(path).is_absolute() else path
+
+
+def _hotspot(root: TableReader, file) -> HotspotConfig | None:
+    if not root.has("hotspot"):
+        return None
+    t = root.table("hotspot")
+    t.unknown_keys({"calibration", "frames", "algorithm"})
+    frames = t.get("frames", str, "hil")
+    if frames not in ("hil",) and not frames.startswith("device:"):
+        frames = _relative(frames, file)
+    return HotspotConfig(calibration=_relative(t.get("calibration", str), file), frames=frames,
+                         algorithm=t.choice("algorithm", ("default", "seed"), "default"))
+
+
+def _sunpath(t: TableReader, file) -> SunPathSettings:
+    t.unknown_keys({"state", "site_known"})
+    state = t.get("state", str, None)
+    return SunPathSettings(state=_relative(state, file) if state else None,
+                           site_known=t.get("site_known", bool, True))
 
 
 def _diffuse(t: TableReader, have_sensor: bool):

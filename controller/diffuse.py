@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .sky import SkyConfig, classify_window
-from .sun.source import Site
+from .sun.source import Site, solar_position
 
 
 @dataclass(frozen=True)
@@ -62,12 +62,23 @@ class DiffuseSwitch:
             self.samples.popleft()
 
     def _classify(self, t: float, hours: float) -> int:
-        if len(self.samples) < 10:
+        if len(self.samples) < 10 or not self._sun_high(t - hours * 3600.0, t):
             return 0
         arr = np.asarray(self.samples)
         return classify_window(arr[:, 0], arr[:, 1], self.site, hours=hours, end=t,
                                config=self.sky_config, min_daylight_s=hours * 3600 * 0.8
                                ).sky_class
+
+    def _sun_high(self, t_start: float, t_end: float) -> bool:
+        """The sun stays above ``min_elevation_deg`` over the whole window.
+
+        Near the horizon a pyranometer cannot tell a clear sky from an overcast one (the
+        beam share of a low sun is small either way), so such windows are not judged.
+        Elevation has one maximum a day, so a window shorter than a day is above the
+        threshold throughout when both its ends are.
+        """
+        el = solar_position(self.site, [t_start, t_end])["apparent_elevation"].to_numpy()
+        return bool(np.all(el >= self.config.min_elevation_deg))
 
     def update(self, t: float) -> bool:
         """Decide at time ``t`` whether DIFFUSE applies; returns the new state."""

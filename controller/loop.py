@@ -63,10 +63,12 @@ class Controller:
     """
 
     def __init__(self, config: Config, drives: Mapping[str, DriveLink], sun: SunSource,
-                 clock: Clock, realtime: bool = False, pyranometer=None):
+                 clock: Clock, realtime: bool = False, pyranometer=None, sensor=None):
         self.config = config
         self.realtime = realtime
         self.pyranometer = pyranometer
+        self.sensor = sensor          # a camera sun sensor feeding ``sun`` (sun-path filter)
+        self._saved_day: int | None = None
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
@@ -123,6 +125,7 @@ class Controller:
     async def cycle(self) -> list[CycleRecord]:
         t = self.clock.now()
         aim_t = t + self.config.control.lead_s
+        await self._observe(t)
         est = self.sun.estimate(aim_t)
         overcast = await self._sky(t)
         decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg,
@@ -152,6 +155,23 @@ class Controller:
                 rec.latency_s = time.perf_counter() - t_wall
         self.cycles += 1
         return records
+
+    async def _observe(self, t: float) -> None:
+        """Feed the sun-path filter from the camera (in a thread: frames take time)."""
+        if self.sensor is None:
+            return
+        obs = await asyncio.to_thread(self.sensor.observe, t)
+        if obs is not None:
+            self.sun.observe(obs)
+        day = int(t // 86400)
+        if self._saved_day is not None and day != self._saved_day:
+            self._save_sun_state()
+        self._saved_day = day
+
+    def _save_sun_state(self) -> None:
+        save = getattr(self.sun, "save", None)
+        if save is not None:
+            save()   # atomic; once a day and at shutdown
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
@@ -302,6 +322,8 @@ class Controller:
                 "sensor_errors": self.sensor_errors}
 
     async def close(self) -> None:
+        if self.sensor is not None:
+            self._save_sun_state()
         if self.pyranometer is not None:
             await self.pyranometer.close()
         for tr in self.trackers:

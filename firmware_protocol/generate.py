@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from .canopen import EDS_NAME, eds
 from .registers import (
     AXIS_BASE, AXIS_STRIDE, ENUMS, GLOBAL_REGISTERS, AXIS_REGISTERS, MAGIC, MAX_AXES,
     PROTOCOL_MAJOR, PROTOCOL_MINOR, PROTOCOL_VERSION, REGISTER_SPACE, Register,
@@ -131,7 +132,7 @@ def _c_reg(r: Register, addr: str, per_axis: bool = False) -> list[str]:
 
 def artefacts() -> dict[str, str]:
     """File name -> content of every generated artefact."""
-    return {MARKDOWN_NAME: markdown(), HEADER_NAME: c_header()}
+    return {MARKDOWN_NAME: markdown(), HEADER_NAME: c_header(), EDS_NAME: eds()}
 
 
 def write_all(directory: Path = GENERATED_DIR) -> list[Path]:

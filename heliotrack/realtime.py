@@ -18,7 +18,7 @@ from controller.clock import RealClock
 from controller.config import Config
 from controller.loop import Controller
 from controller.northbound import Northbound
-from controller.sun.source import EphemerisSource
+from controller.sun.factory import build_sun_source
 from controller.sunspec import SunSpecServer, parse_sunspec
 from hil.sky import sky_series
 
@@ -46,8 +46,9 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
     counts = {"cycles": 0, "row_errors": 0, "overrides": 0}
     with ExitStack() as stack:
         _, endpoints = _build_world(config, hil, clock, stack, ghi_at)
-        controller = Controller(config, _open_drives(config, endpoints),
-                                EphemerisSource(config.site), clock, realtime=True,
+        sun, sensor = build_sun_source(config)
+        controller = Controller(config, _open_drives(config, endpoints), sun, clock,
+                                realtime=True, sensor=sensor,
                                 pyranometer=_open_pyranometer(config, endpoints))
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:

@@ -25,6 +25,8 @@ class HilConfig:
     linke_turbidity: float = 3.0
     substeps: int = 4
     drive: dict = field(default_factory=dict)
+    camera_profile: str = "recommended"
+    camera_noise: bool = True
 
 
 def parse_hil(config: Config) -> HilConfig:
@@ -56,7 +58,11 @@ def parse_hil(config: Config) -> HilConfig:
                               f"one of {', '.join(SKY_KINDS)}", kind)
     if not sky:
         raise ConfigError(config.file, "hil.sky", "at least one sky kind", sky)
+    cam = t.table("camera", {})
+    cam.unknown_keys({"profile", "noise"})
     return HilConfig(
+        camera_profile=cam.choice("profile", ("seed", "recommended"), "recommended"),
+        camera_noise=cam.get("noise", bool, True),
         start=start,
         sky=tuple(sky),
         seed=t.integer("seed", 0, lo=0),

@@ -29,7 +29,8 @@ from controller.drives.modbus import shared_client
 from controller.errors import ConfigError
 from controller.sensors.pyranometer import ModbusPyranometer
 from controller.loop import Controller
-from controller.sun.source import EphemerisSource
+from controller.sun.camera import CallableFrameSource
+from controller.sun.factory import build_sun_source
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
@@ -181,6 +182,23 @@ class ScenarioRun:
         self.sources: dict[str, int] = {}
         self.log_rows: list[dict] = []
 
+    def _camera_frames(self):
+        """The world's camera, when the controller looks at the sky through one."""
+        hs = self.config.hotspot
+        if self.config.control.sun_source != "hotspot" or hs is None or hs.frames != "hil":
+            return None
+        from hil.camera import Site as CameraSite, profile, render_frame
+
+        site = self.config.site
+        scn = profile(self.hil.camera_profile, noise=self.hil.camera_noise).with_(
+            site=CameraSite(site.latitude, site.longitude, site.altitude))
+
+        def render(t: float):
+            tau = float(np.interp(t, self.t_samples, self.sky.beam_transmittance))
+            return render_frame(scn, t, transmittance=tau).image
+
+        return CallableFrameSource(render)
+
     def ghi_at(self, t: float) -> float:
         """The sky's true GHI at ``t`` (what the emulated pyranometer sees), W/m2."""
         return float(np.interp(t, self.t_samples, self.sky.ghi))
@@ -190,8 +208,9 @@ class ScenarioRun:
         with ExitStack() as stack:
             firmwares, endpoints = _build_world(self.config, self.hil, self.clock, stack,
                                                 self.ghi_at)
-            controller = Controller(self.config, _open_drives(self.config, endpoints),
-                                    EphemerisSource(self.config.site), self.clock,
+            sun, sensor = build_sun_source(self.config, self._camera_frames())
+            controller = Controller(self.config, _open_drives(self.config, endpoints), sun,
+                                    self.clock, sensor=sensor,
                                     pyranometer=_open_pyranometer(self.config, endpoints))
             try:
                 await controller.start()

@@ -1,4 +1,4 @@
-"""``heliotrack hil drive``: a standalone emulated drive for any Modbus master."""
+"""``heliotrack hil drive``: a standalone emulated drive for any Modbus or CANopen master."""
 
 from __future__ import annotations
 
@@ -15,13 +15,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     hs.required = True
     d = hs.add_parser("drive", help="serve an emulated drive firmware in real time",
                       description="Serve an emulated slewing drive on a pty (Modbus RTU) or "
-                                  "on 127.0.0.1 (Modbus TCP). With --link pty the first stdout "
+                                  "on 127.0.0.1 (Modbus TCP), or as CANopen CiA 402 nodes (one "
+                                  "per axis: --id, --id + 1) behind an emulated slcan USB-CAN "
+                                  "adapter on a pty (--protocol canopen; open it with python-can "
+                                  "interface 'slcan'). With --link pty the first stdout "
                                   "line is 'PTY <path>'; with --link tcp it is 'TCP <host>:<port>'. "
                                   "Runs until SIGINT or SIGTERM.")
     d.add_argument("--link", choices=("pty", "tcp"), default="pty")
-    d.add_argument("--protocol", choices=("modbus",), default="modbus")
+    d.add_argument("--protocol", choices=("modbus", "canopen"), default="modbus")
     d.add_argument("--axes", type=int, choices=(1, 2), default=2)
-    d.add_argument("--id", type=int, default=1, help="slave id (1-247)")
+    d.add_argument("--id", type=int, default=1,
+                   help="Modbus slave id (1-247), or CANopen node id of axis 0 (1-126)")
     d.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
     d.add_argument("--heartbeat-timeout", type=float, default=10.0,
                    help="watchdog timeout in s (0 disables); masters may rewrite it")
@@ -37,7 +41,11 @@ def run_drive(args: argparse.Namespace) -> int:
     from hil.modbus_server import ModbusServerThread
     from hil.pty import PtyLink
 
-    if not 1 <= args.id <= 247:
+    if args.protocol == "canopen":
+        if args.link != "pty":
+            raise HilError("--protocol canopen serves an slcan adapter on a pty: use --link pty "
+                           "(CAN has no TCP link)")
+    elif not 1 <= args.id <= 247:
         raise HilError(f"--id must be 1..247, got {args.id}")
     stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
     if len(stow) != args.axes:
@@ -55,6 +63,8 @@ def run_drive(args: argparse.Namespace) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
 
+    if args.protocol == "canopen":
+        return _serve_canopen(args, fw, stop)
     pty = None
     try:
         if args.link == "pty":
@@ -72,4 +82,38 @@ def run_drive(args: argparse.Namespace) -> int:
     finally:
         if pty:
             pty.close()
+    return 0
+
+
+def _serve_canopen(args: argparse.Namespace, fw, stop: threading.Event) -> int:
+    """CANopen nodes on a private virtual bus, reachable through an slcan pty."""
+    import os
+
+    from firmware_protocol.canopen import check_node_id
+    from hil.canopen import CanopenNetworkEmulator, open_slcan_pty
+    from hil.errors import HilError
+
+    try:
+        check_node_id(args.id, args.axes)
+    except ValueError as exc:
+        raise HilError(f"--id: {exc}") from None
+    channel = f"heliotrack-hil-{os.getpid()}"   # private to this process
+    emulator = CanopenNetworkEmulator(channel).start()
+    link, adapter = None, None
+    try:
+        emulator.add_drive(fw, args.id)
+        link, adapter = open_slcan_pty(channel)
+        print(f"PTY {link.path}", flush=True)
+        nodes = ", ".join(str(args.id + k) for k in range(args.axes))
+        print(f"CANopen node(s) {nodes} (CiA 402 profile position), slcan adapter; "
+              f"heartbeat timeout {args.heartbeat_timeout:g} s", file=sys.stderr, flush=True)
+        while not stop.wait(0.1):
+            fw.update()  # the watchdog runs even when nobody talks
+    finally:
+        if adapter:
+            adapter.stop()
+            adapter.bus.shutdown()
+        emulator.stop()
+        if link:
+            link.close()
     return 0

@@ -1,0 +1,167 @@
+"""The controller's CANopen backend against the emulated CiA 402 drive on the virtual bus."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+
+import canopen
+import pytest
+
+import controller.drives.canopen  # noqa: F401  (registers "canopen" until __init__ does)
+from controller.drives.base import DriveCommError, open_drive
+from firmware_protocol import Command, Fault, Mode, ProtocolError, Status
+from hil.drive import DriveFirmware
+from tests.hil.canopen.rig import emulated, one_axis, two_axes
+
+
+def run(coro):
+    return asyncio.run(coro)
+
+
+async def settle(d, predicate, timeout=3.0):
+    """Poll read_state until ``predicate(state)`` (the emulator sends TPDOs on change)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        st = await d.read_state()
+        if predicate(st) or time.monotonic() > deadline:
+            return st
+        await asyncio.sleep(0.01)
+
+
+def test_connect_targets_state_and_configuration(sim_clock):
+    with emulated(axes=two_axes(), node_id=10, now=sim_clock.now) as (fw, emu, ch):
+        async def scenario():
+            d = open_drive("canopen", node_id=10, channel=ch, interface="virtual", timeout_s=0.5)
+            await d.connect()
+            try:
+                assert d.axis_count == 2
+                await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)],
+                                  stow_angles=[180, 80])
+                assert fw.heartbeat_timeout == pytest.approx(50)
+                assert fw.axes[1].p.soft_min == pytest.approx(5)
+                assert fw.axes[1].p.stow_angle == pytest.approx(80)
+                st = await d.exchange([150.0, 30.0])
+                assert st.axes[0].target_deg == pytest.approx(150.0)   # state after the write
+                assert fw.axes[1].target == pytest.approx(30.0)
+                for _ in range(10):
+                    await d.heartbeat()
+                    sim_clock.sleep(5)
+                st = await settle(d, lambda s: all(a.status & Status.AT_TARGET for a in s.axes))
+                assert st.axes[0].actual_deg == pytest.approx(150.0, abs=0.03)
+                assert st.axes[1].actual_deg == pytest.approx(30.0, abs=0.03)
+                assert st.axes[1].mode == Mode.AUTO and st.axes[1].fault == Fault.NONE
+                await d.write_targets([400.0, 30.0])                   # clamped by the drive
+                st = await settle(d, lambda s: s.axes[0].status & Status.TARGET_CLAMPED)
+                assert st.axes[0].target_deg == pytest.approx(350.0)
+                assert d.stats.errors == 0 and d.stats.transactions > 0
+            finally:
+                await d.close()
+        run(scenario())
+
+
+def test_heartbeat_loss_stows_and_resume_recovers(sim_clock):
+    with emulated(axes=one_axis(), node_id=3, now=sim_clock.now) as (fw, emu, ch):
+        async def scenario():
+            d = open_drive("canopen", node_id=3, channel=ch, timeout_s=0.5)
+            await d.connect()
+            try:
+                await d.configure(heartbeat_timeout_s=2.0)
+                await d.write_targets([20.0])
+                sim_clock.sleep(3.0)                                    # no heartbeat
+                st = await settle(d, lambda s: s.axes[0].mode == Mode.STOW)
+                assert st.axes[0].mode == Mode.STOW
+                assert st.axes[0].status & Status.COMM_LOST
+                await d.heartbeat()
+                await asyncio.sleep(0.05)
+                await d.command(Command.RESUME)
+                st = await settle(d, lambda s: s.axes[0].mode == Mode.AUTO)
+                assert st.axes[0].mode == Mode.AUTO
+                await d.write_targets([5.0])
+                assert fw.axes[0].target == pytest.approx(5.0)
+            finally:
+                await d.close()
+        run(scenario())
+
+
+def test_fault_is_reported_and_clear_fault_recovers():
+    with emulated(axes=one_axis(stall_time=0.1), node_id=4) as (fw, emu, ch):
+        async def scenario():
+            d = open_drive("canopen", node_id=4, channel=ch, timeout_s=0.5)
+            await d.connect()
+            try:
+                fw.axes[0].jammed = True
+                await d.write_targets([10.0])
+                st = await settle(d, lambda s: s.faulted)
+                assert st.faulted and st.axes[0].fault == Fault.STALL
+                await d.write_targets([0.0])        # skipped: FAULT is in the state, no error
+                fw.axes[0].jammed = False
+                await d.command(Command.CLEAR_FAULT)
+                st = await settle(d, lambda s: not s.faulted)
+                assert not st.faulted
+                await d.write_targets([2.0])
+                assert fw.axes[0].target == pytest.approx(2.0)
+            finally:
+                await d.close()
+        run(scenario())
+
+
+def test_errors_are_clear_and_nothing_unsafe_is_sent():
+    with emulated(axes=one_axis(), node_id=6) as (fw, emu, ch):
+        async def scenario():
+            ghost = open_drive("canopen", node_id=40, channel=ch, timeout_s=0.05, retries=0)
+            with pytest.raises(DriveCommError, match="node 40"):
+                await ghost.connect()
+            d = open_drive("canopen", node_id=6, channel=ch, timeout_s=0.5)
+            await d.connect()
+            try:
+                with pytest.raises(ProtocolError):
+                    await d.write_targets([math.nan])
+                with pytest.raises(ValueError):
+                    await d.write_targets([1.0, 2.0])
+                assert fw.axes[0].target == 0.0
+                # Another master disables the axis: no automatic re-enable.
+                d.axes[0].node.controlword = 0x07
+                await asyncio.sleep(0.05)
+                with pytest.raises(DriveCommError, match="not OPERATION ENABLED"):
+                    await d.write_targets([3.0])
+                assert fw.axes[0].target == 0.0
+                emu.remove_drive(emu.drives[0])                          # cable pulled
+                await asyncio.sleep(0.05)
+                d.stale_s = 0.2
+                await asyncio.sleep(0.3)
+                with pytest.raises(DriveCommError, match="TPDO|heartbeat"):
+                    await d.read_state()
+            finally:
+                await d.close()
+        run(scenario())
+
+
+def test_many_drives_share_one_network():
+    n = 24
+    with emulated(axes=one_axis(), node_id=1) as (fw0, emu, ch):
+        fws = [fw0] + [DriveFirmware(one_axis(), time.time, heartbeat_timeout=0) for _ in range(n - 1)]
+        for i, f in enumerate(fws[1:], start=2):
+            emu.add_drive(f, i)
+        net = canopen.Network()
+        net.connect(interface="virtual", channel=ch)
+
+        async def scenario():
+            drives = [open_drive("canopen", node_id=i + 1, network=net, pdo_from_eds=True)
+                      for i in range(n)]
+            await asyncio.gather(*(d.connect() for d in drives))
+            try:
+                states = await asyncio.gather(*(d.exchange([0.25 * k]) for k, d in enumerate(drives)))
+                assert [s.axes[0].target_deg for s in states] == pytest.approx([0.25 * k for k in range(n)])
+                with pytest.raises(DriveCommError, match="already in use"):
+                    await open_drive("canopen", node_id=1, network=net).connect()
+                assert net.nodes[1] is drives[0].axes[0].node     # the failed one left it alone
+                assert (await drives[0].read_state()).axes[0].target_deg == 0.0
+            finally:
+                await asyncio.gather(*(d.close() for d in drives))
+            assert not net.nodes
+        try:
+            run(scenario())
+        finally:
+            net.disconnect()
