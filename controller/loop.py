@@ -90,9 +90,13 @@ class Controller:
             tr.index = index
         await asyncio.gather(*(self._start_one(tr) for tr in self.trackers))
 
+    #: Time budget for connecting and configuring one drive at start-up (s): SDO
+    #: configuration of a hundred drives on one CAN bus takes seconds, not a cycle.
+    START_TIMEOUT_S = 60.0
+
     async def _start_one(self, tr: TrackerRuntime) -> None:
         try:
-            await asyncio.wait_for(self._configure(tr), self._deadline())
+            await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
         except (DriveCommError, asyncio.TimeoutError) as exc:
             tr.errors += 1
             tr.start_error = str(exc) or "timeout"
