@@ -4,9 +4,11 @@ State vector (degrees unless stated)::
 
     0 lat      site latitude, north-positive
     1 lon      site longitude, east-positive (equivalently the noon offset: 1 deg = 240 s)
-    2 dec      declination (``declination="free"``), or a correction added to SPA's
-               geocentric declination (``declination="ephemeris"``)
-    3 dec_rate daily rate of ``dec``, deg/day
+    2 dec      ``declination="free"``: u = sin(eps) sin(lambda) = sin(declination)
+               (dimensionless); ``declination="ephemeris"``: a correction (deg) added to
+               SPA's geocentric declination
+    3 dec_rate ``free``: v = sin(eps) cos(lambda) (dimensionless); ``ephemeris``: the
+               correction's daily drift, deg/day
     4 az_off   sensor azimuth minus true azimuth
     5 refr     refraction scale (1 = SPA's standard atmosphere)
 
@@ -17,16 +19,25 @@ latitude (:func:`~controller.sunpath.ephemeris.azel_from_hour_angle`).  The inno
 expressed in the sky's tangent plane, ``(d_az cos(el), d_el)``, so it stays well defined
 near the zenith and one isotropic sigma describes the sensor.  The Jacobian is numeric.
 
-In ``free`` mode declination and its rate evolve as a harmonic oscillator with the
-period of a tropical year (``d2 dec / dt2 = -w^2 dec``), the main term of the seasonal law,
-whose residual acceleration is below 0.001 deg/day^2 (SPA, 2024); a random walk on the
-rate covers the rest.  So after weeks without sun the predicted declination is still good
-to a few tenths of a degree without using any ephemeris for it.  In ``ephemeris`` mode
-``dec`` is a small correction to SPA's declination with a linear drift.
+In ``free`` mode (sky only: declination from the observations alone) the declination
+follows the law of the sun's orbit, ``sin(dec) = sin(eps) sin(lambda)``: the state holds the vector
+``(u, v) = sin(eps) (sin lambda, cos lambda)``, whose length is ``sin(eps)`` (obliquity)
+and whose angle is the sun's ecliptic longitude ``lambda``.  Between two times the vector
+is rotated by the advance of ``lambda``: the orbital rate, i.e. the mean motion
+0.98564736 deg/day plus Kepler's equation of centre (eccentricity 0.0167, perihelion in
+early January), or the mean motion alone (``orbit_rate="mean"``).  The rotation is linear,
+so the covariance propagates exactly.  The obliquity (23.4393 deg) enters once, as a
+pseudo-observation of the vector's length, once the data have told the sign of ``v``
+(whether the sun is moving north or south).  ``lambda`` itself, i.e. the declination, is
+never taken from an ephemeris: it is learnt from the observed elevations.  A multi-week
+break is bridged by the orbit, not by a constant rate.  In ``ephemeris`` mode ``dec`` is a
+small correction to SPA's declination with a linear drift.  Both modes use SPA's right
+ascension (the equation of time) in the hour angle, as the paper's longitude formula does.
 
 Without a site the filter starts from a batch fit (scipy least squares from a coarse grid)
-of the first few hours of observations; with a site it starts from the site and the
-ephemeris after the first observation.  Process noise is continuous in time, so a night
+of the first few hours of observations; with a site it starts from the site after the
+first observation (``ephemeris`` mode) or after three observations half an hour apart
+(``free`` mode, whose declination comes from a grid and a fit, not from the ephemeris).  Process noise is continuous in time, so a night
 or a cloudy week widens the covariance by the right amount and the state carries over.
 """
 
@@ -48,9 +59,43 @@ from .ephemeris import (GeocentricSun, azel_from_hour_angle, geocentric_sun, tra
 LAT, LON, DEC, RATE, AZOFF, REFR = range(6)
 STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg",
                "refraction_scale")
+STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg",
+                    "refraction_scale")
+#: Version tag of the ``free`` mode's declination states (u, v); older state files held
+#: (declination deg, rate deg/day) and are converted on load.
+FREE_MODEL = "orbit-uv-1"
+#: Mean obliquity of the ecliptic (deg), IAU, J2000 (drifts 0.013 deg per century).
+OBLIQUITY_DEG = 23.4393
+#: Mean motion of the sun in ecliptic longitude, deg/day (tropical year).
+MEAN_MOTION_DEG_PER_DAY = 0.98564736
 _DAY = 86400.0
 #: Angular frequency of the seasons, rad/day (tropical year 365.2422 days).
 OMEGA_YEAR = 2.0 * np.pi / 365.2422
+
+
+def orbit_advance_deg(t0, t1, rate: str = "kepler"):
+    """Advance of the sun's ecliptic longitude (deg) from POSIX ``t0`` to ``t1``.
+
+    ``"mean"``: the mean motion only.  ``"kepler"``: plus the change of Kepler's equation of
+    centre, ``C(M) = 1.914602 sin M + 0.019993 sin 2M + 0.000289 sin 3M`` with the mean
+    anomaly ``M = 357.52911 + 0.98560028 d`` (d = days from J2000), i.e. the orbital rate
+    of a Keplerian orbit with eccentricity 0.0167.  Only differences of longitude are
+    returned; the longitude itself (the date in the tropical year, hence the declination)
+    is the filter's state, learnt from the sky.
+    """
+    d0 = (np.asarray(t0, dtype=float) / _DAY) - 10957.5
+    d1 = (np.asarray(t1, dtype=float) / _DAY) - 10957.5
+    adv = MEAN_MOTION_DEG_PER_DAY * (d1 - d0)
+    if rate == "mean":
+        return adv
+    if rate != "kepler":
+        raise ValueError(f"orbit_rate must be 'kepler' or 'mean', got {rate!r}")
+
+    def centre(d):
+        m = np.radians(357.52911 + 0.98560028 * d)
+        return 1.914602 * np.sin(m) + 0.019993 * np.sin(2 * m) + 0.000289 * np.sin(3 * m)
+
+    return adv + centre(d1) - centre(d0)
 
 
 @dataclass
@@ -60,9 +105,20 @@ class KalmanConfig:
     Attributes
     ----------
     declination : str
-        ``"ephemeris"`` (default: SPA's geocentric declination, which needs only UTC, plus a
-        learnt correction) or ``"free"`` (declination learnt from the sky alone, the
-        paper's declination measurement).
+        ``"ephemeris"`` (default: SPA's geocentric declination, which needs only UTC, plus
+        a learnt correction) or ``"free"`` (sky only: declination learnt from the
+        observations through the orbit law; the mode in which declination is measured, as
+        the paper measures it).
+    orbit_rate : str
+        ``free`` mode: advance of the ecliptic longitude between two times, ``"kepler"``
+        (mean motion plus equation of centre) or ``"mean"`` (mean motion only).
+    obliquity_deg, obliquity_sigma_deg : float
+        ``free`` mode: the obliquity pseudo-observation (``sigma <= 0`` disables it).
+    q_orbit : float
+        ``free`` mode: random walk on (u, v), 1/day (covers nutation, aberration and the
+        lunar and planetary terms the orbit law leaves out).
+    iterations : int
+        Measurement-update iterations (1 = filterpy's EKF update; more = iterated EKF).
     gate_chi2 : float
         Innovation gate on the squared Mahalanobis distance (2 dof; 13.8 = 99.9 %).
     max_consecutive_rejects : int
@@ -84,11 +140,16 @@ class KalmanConfig:
     """
 
     declination: str = "ephemeris"
+    orbit_rate: str = "kepler"
+    obliquity_deg: float = OBLIQUITY_DEG
+    obliquity_sigma_deg: float = 0.01
+    q_orbit: float = 1e-9
+    iterations: int = 1
     gate_chi2: float = 13.8
     max_consecutive_rejects: int = 6
     q_site: float = 1e-8
     q_dec: float = 1e-6
-    q_rate: float = 2e-5
+    q_rate: float = 2e-5  # unused since the orbit model; kept so old state files load
     q_rate_ephemeris: float = 3e-8
     q_az_off: float = 1e-4
     q_refr: float = 1e-4
@@ -155,6 +216,7 @@ class SunPathKalman:
         self.consecutive_rejects = 0
         self.n_accepted = 0
         self.n_rejected = 0
+        self.obliquity_applied = False
 
     # ------------------------------------------------------------------ state access
     @property
@@ -170,7 +232,9 @@ class SunPathKalman:
 
     # ------------------------------------------------------------------ model
     def _dec(self, x, geo: GeocentricSun, i=0):
-        return x[DEC] + (geo.dec_deg[i] if self.mode == "ephemeris" else 0.0)
+        if self.mode == "free":
+            return float(np.degrees(np.arcsin(np.clip(x[DEC], -1.0, 1.0))))
+        return x[DEC] + geo.dec_deg[i]
 
     def _azel(self, x, geo: GeocentricSun, i=0):
         """Model (sensor azimuth, elevation) for state ``x`` at the time of ``geo[i]``."""
@@ -201,38 +265,68 @@ class SunPathKalman:
                          z[1] - hx[1]])
 
     # ------------------------------------------------------------------ time update
-    def _transition(self, dt_s: float):
-        d = dt_s / _DAY
+    def _transition(self, t0: float, t1: float):
+        """Transition matrix and process noise from POSIX ``t0`` to ``t1``."""
+        d = (t1 - t0) / _DAY
+        ad = abs(d)
         F = np.eye(6)
         c = self.config
-        if self.mode == "free":  # seasonal harmonic oscillator
-            w = OMEGA_YEAR
-            F[DEC, DEC] = F[RATE, RATE] = np.cos(w * d)
-            F[DEC, RATE] = np.sin(w * d) / w
-            F[RATE, DEC] = -w * np.sin(w * d)
-            qr = c.q_rate
+        Q = np.zeros((6, 6))
+        if self.mode == "free":  # rotate (u, v) by the advance of the ecliptic longitude
+            th = np.radians(orbit_advance_deg(t0, t1, c.orbit_rate))
+            F[DEC, DEC] = F[RATE, RATE] = np.cos(th)
+            F[DEC, RATE] = np.sin(th)
+            F[RATE, DEC] = -np.sin(th)
+            Q[DEC, DEC] = Q[RATE, RATE] = c.q_orbit * ad
         else:  # correction to SPA: constant plus slow drift
             F[DEC, RATE] = d
             qr = c.q_rate_ephemeris
-        ad = abs(d)
-        Q = np.zeros((6, 6))
+            Q[DEC, DEC] = c.q_dec * ad + qr * ad ** 3 / 3
+            Q[DEC, RATE] = Q[RATE, DEC] = qr * d * d / 2
+            Q[RATE, RATE] = qr * ad
         Q[LAT, LAT] = Q[LON, LON] = c.q_site * ad
-        Q[DEC, DEC] = c.q_dec * ad + qr * ad ** 3 / 3
-        Q[DEC, RATE] = Q[RATE, DEC] = qr * d * d / 2
-        Q[RATE, RATE] = qr * ad
         Q[AZOFF, AZOFF] = c.q_az_off * ad
         Q[REFR, REFR] = c.q_refr * ad
         return F, Q
 
     def _propagate(self, t: float) -> None:
-        F, Q = self._transition(t - self.t)
+        F, Q = self._transition(self.t, float(t))
         self.ekf.F, self.ekf.Q = F, Q
         self.ekf.predict()
         self.t = float(t)
 
     def _propagated(self, t: float):
-        F, Q = self._transition(t - self.t)
+        F, Q = self._transition(self.t, float(t))
         return F @ self.ekf.x, F @ self.ekf.P @ F.T + Q
+
+    def _apply_obliquity(self) -> None:
+        """``free`` mode: the obliquity as one pseudo-observation of ``|(u, v)|``.
+
+        Applied once, when the data have told the sign of ``v`` (sun moving north or
+        south) at three sigma; the rotation keeps the vector's length, so the information
+        is kept afterwards (apart from the small process noise).
+        """
+        c = self.config
+        if (self.mode != "free" or self.obliquity_applied or c.obliquity_sigma_deg <= 0):
+            return
+        x, P = self.ekf.x, self.ekf.P
+        if abs(x[RATE]) < 3.0 * np.sqrt(max(P[RATE, RATE], 0.0)):
+            return
+        target = np.sin(np.radians(c.obliquity_deg))
+        r_var = (np.cos(np.radians(c.obliquity_deg)) * np.radians(c.obliquity_sigma_deg)) ** 2
+        x_i = x.copy()
+        for _ in range(3):  # iterated EKF: the norm is nonlinear in (u, v)
+            n = float(np.hypot(x_i[DEC], x_i[RATE]))
+            Hc = np.zeros(6)
+            Hc[DEC], Hc[RATE] = x_i[DEC] / n, x_i[RATE] / n
+            S = float(Hc @ P @ Hc) + r_var
+            K = P @ Hc / S
+            x_i = x + K * (target - n - Hc @ (x - x_i))
+        I_KH = np.eye(6) - np.outer(K, Hc)
+        self.ekf.x = x_i
+        self.ekf.P = I_KH @ P @ I_KH.T + np.outer(K, K) * r_var
+        self._normalise()
+        self.obliquity_applied = True
 
     # ------------------------------------------------------------------ updates
     def update(self, obs: SunObservation) -> UpdateResult:
@@ -261,11 +355,40 @@ class SunPathKalman:
                 self.consecutive_rejects = 0
             return UpdateResult(False, d2, True, "gated")
         self.consecutive_rejects = 0
-        self.ekf.update(z, lambda x: self._jacobian(x, geo), lambda x: np.array(self._azel(x, geo)),
-                        R=R, residual=self._residual)
+        if self.config.iterations <= 1:
+            self.ekf.update(z, lambda x: self._jacobian(x, geo),
+                            lambda x: np.array(self._azel(x, geo)), R=R,
+                            residual=self._residual)
+        else:
+            self._iterated_update(z, R, geo, H, y)
         self._normalise()
+        self._apply_obliquity()
         self.n_accepted += 1
         return UpdateResult(True, d2, True)
+
+    def _iterated_update(self, z, R, geo, H, y):
+        """Iterated EKF measurement update (Gauss-Newton on the MAP cost).
+
+        Relinearises ``h`` at the updated state; with a wide covariance (the first days
+        without a site) this removes most of the single-step EKF's linearisation error.
+        """
+        x0, P = self.ekf.x.copy(), self.ekf.P
+        xi = x0.copy()
+        for it in range(self.config.iterations):
+            if it:
+                H = self._jacobian(xi, geo)
+                y = self._residual(z, self._azel(xi, geo))
+            S = H @ P @ H.T + R
+            K = np.linalg.solve(S, H @ P).T
+            dx = K @ (y - H @ (x0 - xi))
+            xn = x0 + dx
+            done = np.max(np.abs(xn - xi)) < 1e-7
+            xi = xn
+            if done:
+                break
+        I_KH = np.eye(6) - K @ H
+        self.ekf.x = xi
+        self.ekf.P = I_KH @ P @ I_KH.T + K @ R @ K.T
 
     def _normalise(self):
         x = self.ekf.x
@@ -295,6 +418,8 @@ class SunPathKalman:
         if not known:
             if len(obs) < c.init_min_obs or t[-1] - t[0] < c.init_min_span_h * 3600.0:
                 return False
+        elif self.mode == "free" and (len(obs) < 3 or t[-1] - t[0] < 1800.0):
+            return False  # declination from the sky: a few observations half an hour apart
         t_ref = float(t[-1])
         geo = geocentric_sun(t)
         az = np.array([o.az_deg for o in obs])
@@ -323,8 +448,6 @@ class SunPathKalman:
             return np.concatenate([r, pri])
 
         fixed = x0.copy()
-        if self.mode == "free" and known:
-            fixed[DEC] = float(np.mean(geo.dec_deg))  # ephemeris start, then learnt freely
         starts = self._grid_starts(geo, az, el, fixed, free, known)
         best = None
         for p in starts:
@@ -348,10 +471,19 @@ class SunPathKalman:
                           or ok.mean() < 0.7):
             return False
         P = np.diag(s0 ** 2)
-        if self.mode == "free" and known:
-            P[DEC, DEC] = 0.5 ** 2
         idx = np.array(free)
         P[np.ix_(idx, idx)] = cov * 4.0  # inflate: the batch fit ignored the rate and refr
+        if self.mode == "free":
+            # Declination (deg) -> u = sin(dec); v (the direction of motion) still unknown:
+            # one sigma sin(eps), i.e. a rate anywhere within the orbit's +-0.4 deg/day.
+            dd = float(x[DEC])
+            Jc = np.eye(6)
+            Jc[DEC, DEC] = np.cos(np.radians(dd)) * np.pi / 180.0
+            P = Jc @ P @ Jc.T
+            x[DEC] = np.sin(np.radians(dd))
+            x[RATE] = 0.0
+            P[RATE, :] = P[:, RATE] = 0.0
+            P[RATE, RATE] = np.sin(np.radians(c.obliquity_deg)) ** 2
         x[LON] = float(wrap180(x[LON]))
         x[AZOFF] = float(x[AZOFF] % 360.0)
         self.ekf.x = x
@@ -372,8 +504,7 @@ class SunPathKalman:
         c = self.config
         lats = [fixed[LAT]] if known else np.arange(-75.0, 76.0, 7.5)
         lons = [fixed[LON]] if known else np.arange(-180.0, 180.0, 10.0)
-        decs = ([fixed[DEC]] if (self.mode == "ephemeris" or known)
-                else np.arange(-24.0, 24.1, 6.0))
+        decs = [fixed[DEC]] if self.mode == "ephemeris" else np.arange(-24.0, 24.1, 6.0)
         L, G, D = np.meshgrid(lats, lons, decs, indexing="ij")
         L, G, D = L.ravel()[:, None], G.ravel()[:, None], D.ravel()[:, None]
         h = wrap180(geo.sidereal_deg[None, :] + G - geo.ra_deg[None, :])
@@ -420,7 +551,16 @@ class SunPathKalman:
         """Declination (deg) at POSIX ``t`` and its one-sigma."""
         x, P = self._propagated(float(t))
         geo = geocentric_sun(float(t))
-        return float(self._dec(x, geo)), float(np.sqrt(P[DEC, DEC]))
+        dec = float(self._dec(x, geo))
+        if self.mode == "free":  # sigma of asin(u)
+            return dec, float(np.degrees(np.sqrt(P[DEC, DEC]) / np.cos(np.radians(dec))))
+        return dec, float(np.sqrt(P[DEC, DEC]))
+
+    def obliquity_deg(self) -> float:
+        """``free`` mode: the obliquity implied by the state, ``asin(|(u, v)|)``, deg."""
+        if self.mode != "free":
+            return float("nan")
+        return float(np.degrees(np.arcsin(min(np.hypot(self.x[DEC], self.x[RATE]), 1.0))))
 
     def day_result(self, t_guess: float, date: str, n_obs: int, n_rejected: int) -> DayResult:
         """Summarise the current state as the row for the day around ``t_guess``."""
@@ -447,7 +587,9 @@ class SunPathKalman:
             "site": None if self.site is None else asdict(self.site),
             "initialised": self.initialised,
             "t": self.t,
-            "state_names": list(STATE_NAMES),
+            "state_names": list(STATE_NAMES_FREE if self.mode == "free" else STATE_NAMES),
+            "free_model": FREE_MODEL if self.mode == "free" else None,
+            "obliquity_applied": self.obliquity_applied,
             "x": [float(v) for v in self.ekf.x],
             "P": [[float(v) for v in row] for row in self.ekf.P],
             "buffer": [[o.time, o.az_deg, o.el_deg, o.sigma_deg] for o in self.buffer],
@@ -469,7 +611,10 @@ class SunPathKalman:
         if x.shape != (6,) or P.shape != (6, 6) or not (np.all(np.isfinite(x))
                                                          and np.all(np.isfinite(P))):
             raise ValueError("state vector must have 6 finite values and P 6x6")
+        if kf.mode == "free" and d.get("free_model") != FREE_MODEL:
+            x, P = _free_state_from_dec_rate(x, P)  # state file from before the orbit model
         kf.ekf.x, kf.ekf.P = x, P
+        kf.obliquity_applied = bool(d.get("obliquity_applied", False))
         kf.t = None if d["t"] is None else float(d["t"])
         kf.initialised = bool(d["initialised"])
         kf.buffer = [SunObservation(float(a), float(b), float(c), float(s))
@@ -477,6 +622,19 @@ class SunPathKalman:
         kf.n_accepted = int(d.get("n_accepted", 0))
         kf.n_rejected = int(d.get("n_rejected", 0))
         return kf
+
+
+def _free_state_from_dec_rate(x, P):
+    """Convert an old ``free`` state (dec deg, rate deg/day) to the orbit's (u, v)."""
+    x = x.copy()
+    d, r = np.radians(x[DEC]), np.radians(x[RATE])
+    n = np.radians(MEAN_MOTION_DEG_PER_DAY)
+    J = np.eye(6)
+    J[DEC, DEC] = np.cos(d) * np.pi / 180.0
+    J[RATE, DEC] = -np.sin(d) * r / n * np.pi / 180.0
+    J[RATE, RATE] = np.cos(d) / n * np.pi / 180.0
+    x[DEC], x[RATE] = np.sin(d), np.cos(d) * r / n
+    return x, J @ P @ J.T
 
 
 def run_kalman(observations: list[SunObservation], config: KalmanConfig | None = None,

@@ -150,7 +150,7 @@ def azimuth_offset_at_culmination(az_deg, el_deg, culmination: str = "south") ->
 
 def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
              lat_deg: float | None = None, use_prior: bool = True,
-             window_h: float | None = None
+             window_h: float | None = None, noon_elevation: str = "vertex"
              ) -> tuple[list[DayResult], list[ParabolaFit]]:
     """The paper's method over a series of observations, one result per local day.
 
@@ -164,6 +164,11 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
     ``window_h`` (not in the paper) keeps only observations within that many hours of
     noon (located by a first fit of the whole day): elevation is a parabola of time only
     near noon, and a whole-day fit biases the extremum (see docs/sunpath.md).
+
+    ``noon_elevation`` (``"vertex"``, the paper's formula: the parabola's extremum value) or
+    ``"nearest"`` (a labelled variant, not the paper's method as written: the observed
+    elevation nearest in time to the fitted noon, i.e. "the elevation measured at the
+    meridian transit" read literally).  It feeds the declination and latitude formulas.
 
     Returns
     -------
@@ -193,8 +198,15 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
         noon = fit.noon_utc
         side = culmination_side(_az_near(t[idx], az[idx], noon))
         dec_eph = float(geocentric_sun(noon).dec_deg[0])
-        lat = float(latitude_from_noon(fit.noon_el_deg, dec_eph, side))
-        dec = (float(declination_from_noon(fit.noon_el_deg, lat_deg, side))
+        if noon_elevation == "vertex":
+            el_n = fit.noon_el_deg
+        elif noon_elevation == "nearest":
+            el_n = float(el[idx][int(np.argmin(np.abs(t[idx] - noon)))])
+        else:
+            raise ValueError(f"noon_elevation must be 'vertex' or 'nearest', got "
+                             f"{noon_elevation!r}")
+        lat = float(latitude_from_noon(el_n, dec_eph, side))
+        dec = (float(declination_from_noon(el_n, lat_deg, side))
                if lat_deg is not None else float("nan"))
         try:
             off = azimuth_offset_at_culmination(az[idx], el[idx], side) if idx.size >= 3 \
@@ -202,7 +214,7 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
         except np.linalg.LinAlgError:
             off = float("nan")
         results.append(DayResult(
-            date=day.date, noon_utc=noon, noon_el_deg=fit.noon_el_deg, declination_deg=dec,
+            date=day.date, noon_utc=noon, noon_el_deg=el_n, declination_deg=dec,
             lat_deg=lat, lon_deg=float(longitude_from_noon(noon)[0]), n_obs=int(idx.size),
             method="seed", az_offset_deg=off, noon_sigma_s=fit.noon_sigma_s))
         fits.append(fit)

@@ -39,10 +39,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--lon", type=float, default=None, help="site longitude, deg east")
     p.add_argument("--utc-offset", type=float, default=None, metavar="HOURS",
                    help="local civil offset used to group days (default: from the data)")
-    p.add_argument("--declination", choices=("ephemeris", "free"), default="ephemeris",
+    p.add_argument("--declination", choices=("ephemeris", "free"),
+                   default="ephemeris",  # = KalmanConfig().declination (tested)
                    help="kalman: SPA's declination plus a learnt correction (ephemeris, "
                         "default; needs only UTC) or declination learnt from the sky alone "
-                        "(free)")
+                        "through the orbit law (free; the mode that measures declination)")
+    p.add_argument("--noon-elevation", choices=("vertex", "nearest"), default="vertex",
+                   help="seed: noon elevation from the parabola's vertex (the paper's "
+                        "formula, default) or the observation nearest the fitted noon (a "
+                        "labelled variant)")
     p.add_argument("--window-h", type=float, default=None,
                    help="seed: fit only observations within this many hours of noon")
     p.add_argument("--state", type=Path, default=None,
@@ -101,7 +106,7 @@ def _fit(args, path: Path) -> int:
     if args.method == "seed":
         rows, _ = run_seed([o.time for o in obs], [o.az_deg for o in obs],
                            [o.el_deg for o in obs], args.utc_offset, lat_deg=args.lat,
-                           window_h=args.window_h)
+                           window_h=args.window_h, noon_elevation=args.noon_elevation)
     else:
         rows, kf = _kalman(args, obs)
         if not kf.initialised:

@@ -60,3 +60,27 @@ def test_predict_from_ephemeris_and_errors(tmp_path, capsys):
     assert "row 2, column 'el_deg'" in capsys.readouterr().err
     assert main(["sunpath", "predict", "--at", "2024-03-01T08:00:00Z"]) == 2
     assert main(["sunpath", str(bad), "--lat", "10"]) == 2
+
+
+def test_cli_default_declination_mode_is_the_filter_default():
+    import argparse
+
+    from controller.sunpath.kalman import KalmanConfig
+    from heliotrack.commands import sunpath
+
+    p = argparse.ArgumentParser()
+    sub = p.add_subparsers()
+    sunpath.register(sub)
+    args = p.parse_args(["sunpath", "obs.csv"])
+    assert args.declination == KalmanConfig().declination == "ephemeris"
+    assert args.noon_elevation == "vertex"
+
+
+def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):
+    assert main(["sunpath", str(obs_csv), "--declination", "free", "--utc-offset", "3.5"]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert len(rows) == 3 and abs(float(rows[-1]["lat_deg"]) - ANDIMESHK.latitude) < 0.3
+    assert main(["sunpath", str(obs_csv), "--method", "seed", "--lat", "32.4835", "--lon",
+                 "48.3364", "--utc-offset", "3.5", "--noon-elevation", "nearest"]) == 0
+    rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+    assert len(rows) == 3 and rows[0]["method"] == "seed"

@@ -45,9 +45,12 @@ def test_prediction_across_gap_and_covariance(learnt):
     assert err.max() < 0.3
     for p in preds:
         assert np.all(np.linalg.eigvalsh(p.covariance) > 0)
-    near = kf.predict(kf.t + 60.0).sigma_deg
-    far = kf.predict(kf.t + 20 * 86400.0).sigma_deg
-    assert far > near
+    # Process noise widens the covariance across nights (site, azimuth offset); the
+    # direction's sigma need not grow: the orbit maps a longitude error onto declination
+    # less and less as the sun nears a solstice.
+    _, P_far = kf._propagated(kf.t + 20 * 86400.0)
+    assert np.all(np.diag(P_far)[[0, 1, 4, 5]] > np.diag(kf.P)[[0, 1, 4, 5]])
+    assert kf.predict(kf.t + 20 * 86400.0).sigma_deg < 0.3
 
 
 def test_outliers_are_gated(learnt):
@@ -68,7 +71,7 @@ def test_outliers_are_gated(learnt):
 def test_known_site_starts_at_once_and_learns_offset():
     t = sample_times("2024-06-01", 1, 3.5)
     obs, _, _ = observations(ANDIMESHK, t, az_offset_deg=243.926, seed=5)
-    kf = SunPathKalman(site=ANDIMESHK)
+    kf = SunPathKalman(KalmanConfig(declination="ephemeris"), site=ANDIMESHK)
     assert kf.mode == "ephemeris"
     assert kf.update(obs[0]).initialised
     for o in obs[1:]:

@@ -60,3 +60,36 @@ def test_seed_noon_windowed_near_transit(site, off):
         assert abs(r.noon_utc - tr) < 60.0
         assert abs(r.lat_deg - site.latitude) < 0.6
         assert abs(r.lon_deg - site.longitude) < 0.3
+
+
+def test_time_origin_does_not_change_the_fit_or_the_prior():
+    # T in hours since midnight or from 12:00: the same parabola (an affine change of T),
+    # with and without yesterday's prior; so the paper's choice of T cannot explain its
+    # figures.
+    rng = np.random.default_rng(8)
+    T = 8.0 + 0.25 * np.arange(36)
+    el = 70.0 - 0.9 * (T - 12.3) ** 2 + 0.01 * (T - 12.3) ** 4 + rng.normal(0, 0.3, T.size)
+    a0, b0 = fit_parabola(T, el), fit_parabola(T - 12.0, el)
+    assert a0.noon_hours == pytest.approx(b0.noon_hours + 12.0, abs=1e-9)
+    assert a0.noon_el_deg == pytest.approx(b0.noon_el_deg, abs=1e-9)
+    a1 = fit_parabola(T[:5], el[:5] + 0.2, prior=a0)
+    b1 = fit_parabola(T[:5] - 12.0, el[:5] + 0.2, prior=b0)
+    assert a1.noon_hours == pytest.approx(b1.noon_hours + 12.0, abs=1e-7)
+
+
+def test_whole_day_vertex_is_biased_and_nearest_variant_is_not():
+    # The paper's sampling (08:00-16:45 local, 36 a day), no noise: the whole-day vertex
+    # underestimates the noon elevation by degrees (elevation is not a parabola of time
+    # over 8.75 h), the labelled "nearest observation" variant by < 0.2 deg.
+    t = sample_times("2024-06-03", 1, 3.5, start_h=8.0, n_per_day=36)
+    obs, az, el = observations(ANDIMESHK, t, noise_deg=0.0)
+    tt = [o.time for o in obs]
+    (r_v,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
+    (r_n,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude, noon_elevation="nearest")
+    from controller.sunpath.ephemeris import geocentric_sun
+    dec = geocentric_sun(transit_time(r_v.noon_utc, ANDIMESHK.longitude)[0]).dec_deg[0]
+    assert r_v.declination_deg - dec < -2.0
+    assert abs(r_n.declination_deg - dec) < 0.2
+    assert r_n.noon_utc == r_v.noon_utc
+    with pytest.raises(ValueError):
+        run_seed(tt, az, el, 3.5, noon_elevation="top")
