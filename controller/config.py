@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .diffuse import DiffuseConfig
 from .errors import ConfigError
 from .sun.source import Site
 
@@ -217,16 +218,11 @@ class Config:
     links: dict[str, LinkConfig]
     trackers: tuple[TrackerConfig, ...]
     pyranometer: PyranometerConfig | None = None
-    diffuse: "DiffuseConfig" = None  # type: ignore[assignment]
+    diffuse: DiffuseConfig = field(default_factory=lambda: DiffuseConfig(enabled=False))
     hotspot: HotspotConfig | None = None
     sunpath: SunPathSettings = SunPathSettings()
     file: str = "<config>"
     raw: dict = field(default_factory=dict, repr=False, compare=False)
-
-    def __post_init__(self):
-        if self.diffuse is None:
-            from .diffuse import DiffuseConfig
-            object.__setattr__(self, "diffuse", DiffuseConfig(enabled=False))
 
 
 def load_config(path: str | Path) -> Config:
@@ -310,18 +306,16 @@ def _sunpath(t: TableReader, file) -> SunPathSettings:
                            site_known=t.get("site_known", bool, True))
 
 
-def _diffuse(t: TableReader, have_sensor: bool):
-    from .diffuse import DiffuseConfig
-
+def _diffuse(t: TableReader, have_sensor: bool) -> DiffuseConfig:
     t.unknown_keys({"enabled", "window_h", "exit_window_h", "dwell_s", "method"})
     enabled = t.get("enabled", bool, have_sensor)
     if enabled and not have_sensor:
         raise ConfigError(t.file, "diffuse.enabled", "false unless a [pyranometer] is configured", True)
     return DiffuseConfig(
         enabled=enabled,
-        window_h=t.number("window_h", 1.0, lo=0.25, hi=24, unit="h"),
-        exit_window_h=t.number("exit_window_h", 0.5, lo=0.25, hi=24, unit="h"),
-        dwell_s=t.number("dwell_s", 1800.0, lo=0, hi=86400, unit="s"),
+        window_h=t.number("window_h", 2.0, lo=0.25, hi=24, unit="h"),
+        exit_window_h=t.number("exit_window_h", 0.25, lo=0.25, hi=24, unit="h"),
+        dwell_s=t.number("dwell_s", 900.0, lo=0, hi=86400, unit="s"),
         method=t.choice("method", ("default", "seed"), "default"))
 
 

@@ -130,7 +130,7 @@ class Controller:
         t = self.clock.now()
         aim_t = t + self.config.control.lead_s
         await self._observe(t)
-        est = self.sun.estimate(aim_t)
+        est = self.sun.estimate(aim_t, now=t)
         overcast = await self._sky(t)
         decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg,
                                 overcast=overcast)

@@ -142,10 +142,15 @@ def _stats(values: list[float]) -> dict:
             "max": round(float(a.max()), 5), "n": int(a.size)}
 
 
-def run_simulation(config: Config, days: int = 1, start: date | None = None,
-                   out_dir: Path | None = None, progress: bool = True) -> dict:
-    """Run the HIL scenario; return the summary (and write it under ``out_dir``)."""
-    run = ScenarioRun(config, days, start, progress)
+def run_simulation(config: Config, days: int = 1, start: date | datetime | None = None,
+                   out_dir: Path | None = None, progress: bool = True,
+                   hours: float | None = None) -> dict:
+    """Run the HIL scenario; return the summary (and write it under ``out_dir``).
+
+    ``start``: a date (the run begins at local mean midnight) or an aware datetime.
+    ``hours``: run this long instead of ``days`` whole days.
+    """
+    run = ScenarioRun(config, days, start, progress, hours)
     summary = asyncio.run(run.run())
     if out_dir is not None:
         write_outputs(Path(out_dir), summary, run.log_rows)
@@ -155,15 +160,20 @@ def run_simulation(config: Config, days: int = 1, start: date | None = None,
 class ScenarioRun:
     """One simulated run: the world, the controller, the clock and the truth tallies."""
 
-    def __init__(self, config: Config, days: int, start: date | None, progress: bool):
+    def __init__(self, config: Config, days: int, start: date | datetime | None,
+                 progress: bool, hours: float | None = None):
         self.config = config
         self.hil = parse_hil(config)
-        self.days = days
+        self.days = days if hours is None else max(1, math.ceil(hours / 24))
         self.start = start or self.hil.start
         self.progress = progress
         self.period = config.control.period_s
-        self.t0 = day_start(self.start, config.site.longitude)
-        self.n_cycles = int(round(days * 86400 / self.period))
+        if isinstance(self.start, datetime):
+            self.t0 = self.start.timestamp()
+        else:
+            self.t0 = day_start(self.start, config.site.longitude)
+        seconds = days * 86400 if hours is None else hours * 3600
+        self.n_cycles = max(1, int(round(seconds / self.period)))
         self.sub = self.hil.substeps
         # Truth at every sub-sample of every cycle, in one vectorised call each.
         offsets = (np.arange(self.sub) + 0.5) / self.sub * self.period
@@ -283,6 +293,7 @@ class ScenarioRun:
         all_err = [e for t in self.tally.values() for e in t.pointing]
         return {
             "days": self.days,
+            "hours": round(self.n_cycles * self.period / 3600, 4),
             "start": self.start.isoformat(),
             "site": asdict(self.config.site),
             "sky": [self.hil.sky[d % len(self.hil.sky)] for d in range(self.days)],

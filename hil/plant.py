@@ -71,6 +71,11 @@ class RowFarm:
         async def all_down():
             for s in self.servers:
                 await s.shutdown()
+            # Requests still being answered late (fault injection) die with the farm.
+            pending = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
+            for t in pending:
+                t.cancel()
+            await asyncio.gather(*pending, return_exceptions=True)
         if self._loop.is_running():
             asyncio.run_coroutine_threadsafe(all_down(), self._loop).result(30)
             self._loop.call_soon_threadsafe(self._loop.stop)

@@ -62,8 +62,11 @@ class SunSource(abc.ABC):
     name: str = "abstract"
 
     @abc.abstractmethod
-    def estimate(self, t: float) -> SunEstimate | None:
-        """Best estimate of the sun's direction at POSIX time ``t``, or None."""
+    def estimate(self, t: float, now: float | None = None) -> SunEstimate | None:
+        """Best estimate of the sun's direction at POSIX time ``t``, or None.
+
+        ``now`` is the present when ``t`` is ahead of it (setpoints aim at mid-period).
+        """
 
 
 class EphemerisSource(SunSource):
@@ -83,7 +86,7 @@ class EphemerisSource(SunSource):
         self.site = site
         self.sigma_deg = sigma_deg
 
-    def estimate(self, t: float) -> SunEstimate:
+    def estimate(self, t: float, now: float | None = None) -> SunEstimate:
         sp = solar_position(self.site, [t]).iloc[0]
         s2 = self.sigma_deg ** 2
         return SunEstimate(

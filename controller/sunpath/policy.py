@@ -72,16 +72,20 @@ def fuse(estimates: list[SunEstimate], source: EstimateSource, t: float) -> SunE
 
 def select_estimate(t: float, fresh_observation: SunObservation | None,
                     prediction: SunEstimate | None, ephemeris: SunEstimate | None,
-                    config: PolicyConfig = PolicyConfig()) -> SunEstimate | None:
+                    config: PolicyConfig = PolicyConfig(), now: float | None = None
+                    ) -> SunEstimate | None:
     """The policy as a pure function (see module docstring).
 
     ``prediction`` is the filter's estimate at ``t`` (already including any accepted
-    observation); ``fresh_observation`` is the last accepted one, or None.
+    observation); ``fresh_observation`` is the last accepted one, or None.  ``now`` is
+    the present when ``t`` lies ahead (a setpoint aimed at mid-period): an observation's
+    freshness is judged against the present, not against the aim time.
     """
     if prediction is not None and prediction.sigma_deg > config.max_predicted_sigma_deg:
         prediction = None
     fresh = (fresh_observation is not None
-             and 0.0 <= t - fresh_observation.time <= config.max_obs_age_s)
+             and 0.0 <= (t if now is None else now) - fresh_observation.time
+             <= config.max_obs_age_s)
     if prediction is not None:
         if fresh:
             return SunEstimate(t, prediction.az_deg, prediction.el_deg, prediction.covariance,
@@ -145,13 +149,13 @@ class SunPathSource(SunSource):
         return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance,
                            EstimateSource.PREDICTED)
 
-    def estimate(self, t: float) -> SunEstimate | None:
+    def estimate(self, t: float, now: float | None = None) -> SunEstimate | None:
         eph = self.ephemeris.estimate(t) if self.ephemeris is not None else None
         obs = self.last_accepted
         if obs is not None and not self.kf.initialised:
             # before the filter starts, a raw sensor azimuth is only usable in ENU
             obs = obs if obs.frame == "enu" else None
-        return select_estimate(float(t), obs, self.prediction(t), eph, self.policy)
+        return select_estimate(float(t), obs, self.prediction(t), eph, self.policy, now=now)
 
     def save(self) -> None:
         """Persist the learned state atomically (no-op without ``state_path``)."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import date
+from datetime import date, datetime
 from pathlib import Path
 
 from controller.config import load_config
@@ -20,7 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
                    help="scenario TOML (default: the embedded config/hil-default.toml)")
     p.add_argument("--days", type=int, default=1, help="days to simulate (default 1)")
-    p.add_argument("--start", type=str, default=None, help="first day, YYYY-MM-DD")
+    p.add_argument("--start", type=str, default=None,
+                   help="first day, YYYY-MM-DD (from local mean midnight), or an ISO time "
+                        "with offset, e.g. 2024-03-20T06:00+00:00")
+    p.add_argument("--hours", type=float, default=None,
+                   help="run this many hours instead of --days whole days")
     p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output folder")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--realtime", action="store_true",
@@ -43,17 +47,29 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec)
     if args.days < 1:
         raise ConfigError(None, "--days", "a whole number >= 1", args.days)
-    start = None
-    if args.start:
-        try:
-            start = date.fromisoformat(args.start)
-        except ValueError:
-            raise ConfigError(None, "--start", "a date YYYY-MM-DD", args.start) from None
+    start = _parse_start(args.start) if args.start else None
+    if args.hours is not None and not 0 < args.hours <= 24 * 366:
+        raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
     summary = run_simulation(config, days=args.days, start=start, out_dir=args.out,
-                             progress=not args.no_progress and sys.stderr.isatty())
+                             progress=not args.no_progress and sys.stderr.isatty(),
+                             hours=args.hours)
     print(summary_table(summary))
     print(f"wrote {args.out / 'summary.json'} and {args.out / 'cycles.csv'}")
     return 0
+
+
+def _parse_start(text: str):
+    try:
+        return date.fromisoformat(text)
+    except ValueError:
+        pass
+    try:
+        t = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        t = None
+    if t is None or t.tzinfo is None:
+        raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text)
+    return t
 
 
 def _realtime(args: argparse.Namespace, config) -> int:
