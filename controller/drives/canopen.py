@@ -410,6 +410,30 @@ class CanopenDrive(DriveLink):
                                      "OPERATION ENABLED; not re-enabled automatically")
             await self._set_point(k, axis, raw)
 
+    async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
+        """Write targets, then read the state once it reflects them (like Modbus FC23).
+
+        The effective target travels back in a TPDO; wait (at most ``timeout_s``) until
+        each axis's TPDO shows the requested value or a TPDO mapping it has arrived since
+        the write (the drive may have clamped the value).
+        """
+        await self.write_targets(angles_deg)
+        t_written = time.monotonic()
+        raws = [to_raw(_TARGET, a) for a in angles_deg]
+
+        def reflected() -> bool:
+            for axis, raw in zip(self.axes, raws):
+                if axis.node.tpdo_values.get(_IDX_EFFECTIVE_TARGET) == raw:
+                    continue
+                numbers = [n for n, t in axis.node.tpdo.items() if t.enabled and
+                           any(v.index == _IDX_EFFECTIVE_TARGET for v in t.map)]
+                if not all(axis.tpdo_time.get(n, 0.0) > t_written for n in numbers):
+                    return False
+            return True
+
+        await self._wait(reflected, self.timeout_s)
+        return await self.read_state()
+
     async def _set_point(self, k: int, axis: _Axis, raw: int) -> None:
         node = axis.node
         ack = lambda: bool(axis.statusword & Statusword.SET_POINT_ACK)  # noqa: E731
