@@ -17,7 +17,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 #: Registered benchmarks (module names under ``benchmarks``).
-BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse")
+BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot")
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 

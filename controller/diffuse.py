@@ -3,9 +3,9 @@
 Under an overcast sky the beam is gone and the radiance is spread over the dome, so a
 panel facing the zenith (seeing the whole sky) collects more than one facing the hidden
 sun.  The switch classifies a rolling window of pyranometer samples
-(:func:`controller.sky.classify_window`) and changes mode only with hysteresis (enter on
-"overcast", leave on "clear" or "partly cloudy" seen in the latest window) and after a
-minimum dwell, so broken clouds do not make the drives hunt.
+(:func:`controller.sky.classify_window`) and changes mode only with hysteresis: it enters
+after a long window judged overcast, leaves as soon as a short window is not, and waits a
+dwell time before entering again, so broken clouds do not make the drives hunt.
 """
 
 from __future__ import annotations
@@ -25,16 +25,16 @@ class DiffuseConfig:
 
     enabled : switch DIFFUSE on at all.
     window_h : length of the classified window.
-    dwell_s : minimum time in a mode before switching again.
+    dwell_s : after leaving DIFFUSE, the minimum time before entering it again.
     exit_window_h : the shorter window whose class must no longer be overcast to leave
         DIFFUSE (reacts faster to the sun coming out than the entry window).
     min_elevation_deg : only samples with the sun above this count, degrees.
     """
 
     enabled: bool = True
-    window_h: float = 1.0
-    exit_window_h: float = 0.5
-    dwell_s: float = 1800.0
+    window_h: float = 2.0
+    exit_window_h: float = 0.25
+    dwell_s: float = 900.0
     method: str = "default"
     min_elevation_deg: float = 10.0
 
@@ -81,12 +81,18 @@ class DiffuseSwitch:
         return bool(np.all(el >= self.config.min_elevation_deg))
 
     def update(self, t: float) -> bool:
-        """Decide at time ``t`` whether DIFFUSE applies; returns the new state."""
+        """Decide at time ``t`` whether DIFFUSE applies; returns the new state.
+
+        Entering needs the whole entry window overcast and, after a previous exit, the
+        dwell time.  Leaving happens as soon as the short exit window is no longer
+        overcast: the beam is worth far more than the diffuse gain, and re-entry needs a
+        full overcast window again, so leaving early cannot make the drives hunt.
+        """
         if not self.config.enabled:
             return False
-        if t - self.since < self.config.dwell_s:
-            return self.active
         if not self.active:
+            if t - self.since < self.config.dwell_s:
+                return False
             self.last_class = self._classify(t, self.config.window_h)
             if self.last_class == 3:
                 self.active, self.since = True, t

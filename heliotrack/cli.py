@@ -24,6 +24,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "bench",
     "sunpath",
     "classify",
+    "estimate",
+    "calibrate",
 )
 
 

@@ -27,6 +27,7 @@ class HilConfig:
     drive: dict = field(default_factory=dict)
     camera_profile: str = "recommended"
     camera_noise: bool = True
+    camera_tilt_deg: float = 0.3   # the installation the shipped bundles were calibrated on
 
 
 def parse_hil(config: Config) -> HilConfig:
@@ -59,10 +60,11 @@ def parse_hil(config: Config) -> HilConfig:
     if not sky:
         raise ConfigError(config.file, "hil.sky", "at least one sky kind", sky)
     cam = t.table("camera", {})
-    cam.unknown_keys({"profile", "noise"})
+    cam.unknown_keys({"profile", "noise", "tilt_deg"})
     return HilConfig(
         camera_profile=cam.choice("profile", ("seed", "recommended"), "recommended"),
         camera_noise=cam.get("noise", bool, True),
+        camera_tilt_deg=cam.number("tilt_deg", 0.3, lo=0, hi=10, unit="deg"),
         start=start,
         sky=tuple(sky),
         seed=t.integer("seed", 0, lo=0),

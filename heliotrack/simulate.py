@@ -200,7 +200,8 @@ class ScenarioRun:
         from hil.camera import Site as CameraSite, profile, render_frame
 
         site = self.config.site
-        scn = profile(self.hil.camera_profile, noise=self.hil.camera_noise).with_(
+        scn = profile(self.hil.camera_profile, noise=self.hil.camera_noise,
+                      tilt_deg=self.hil.camera_tilt_deg).with_(
             site=CameraSite(site.latitude, site.longitude, site.altitude))
 
         def render(t: float):

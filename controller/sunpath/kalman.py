@@ -590,7 +590,8 @@ class SunPathKalman:
             "state_names": list(STATE_NAMES_FREE if self.mode == "free" else STATE_NAMES),
             "free_model": FREE_MODEL if self.mode == "free" else None,
             "obliquity_applied": self.obliquity_applied,
-            "x": [float(v) for v in self.ekf.x],
+            # ravel: filterpy starts with a column vector until the filter initialises
+            "x": [float(v) for v in np.asarray(self.ekf.x, float).ravel()],
             "P": [[float(v) for v in row] for row in self.ekf.P],
             "buffer": [[o.time, o.az_deg, o.el_deg, o.sigma_deg] for o in self.buffer],
             "n_accepted": self.n_accepted,

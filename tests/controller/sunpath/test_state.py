@@ -42,3 +42,16 @@ def test_corrupt_file_is_reported_and_kept(tmp_path, content):
     assert path.read_text() == content
     save_state(path, _kf(), overwrite_corrupt=True)
     assert load_state(path).initialised
+
+
+def test_a_filter_that_never_saw_the_sun_saves_and_loads(tmp_path):
+    # An overcast first day: the controller still saves at shutdown.
+    from controller.sunpath.kalman import SunPathKalman
+    from controller.sunpath.state import load_state, save_state
+
+    kf = SunPathKalman()
+    assert not kf.initialised
+    path = tmp_path / "state.json"
+    save_state(path, kf)
+    back = load_state(path)
+    assert back is not None and not back.initialised

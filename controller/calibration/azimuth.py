@@ -1,0 +1,102 @@
+"""Azimuth alignment after levelling: the paper's noon-culmination parabola, and a direct fit
+against the ephemeris when site and times are known.  Convention:
+az_enu = (az_levelled - offset_deg) mod 360."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+
+
+def _unwrap_around(az, ref):
+    return (np.asarray(az, float) - ref + 180.0) % 360.0 - 180.0 + ref
+
+
+def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
+    """Fit el = c0 + c1 az + c2 az^2 to a day; its extremum is the true south (180) or north (0)."""
+    az = np.asarray(az_levelled, float)
+    el = np.asarray(el_levelled, float)
+    if az.size < 3:
+        raise InputError(f"the noon method needs >= 3 observations over a day, got {az.size}")
+    ref = float(np.degrees(np.arctan2(np.mean(np.sin(np.radians(az[el.argmax()]))),
+                                      np.mean(np.cos(np.radians(az[el.argmax()]))))))
+    a = _unwrap_around(az, ref)
+    c2, c1, _ = np.polyfit(a, el, 2)
+    if c2 >= 0:
+        raise InputError("elevation vs azimuth has no maximum: observations do not span noon")
+    apex = -c1 / (2 * c2)
+    true = 180.0 if culminates == "south" else 0.0
+    return float((apex - true) % 360.0)
+
+
+def ephemeris_offset(az_levelled, el_levelled, az_true) -> float:
+    """Weighted circular mean of (az_levelled - az_true), weights cos(el)."""
+    d = np.radians(np.asarray(az_levelled, float) - np.asarray(az_true, float))
+    w = np.cos(np.radians(np.asarray(el_levelled, float)))
+    if d.size < 1:
+        raise InputError("the ephemeris method needs >= 1 observation")
+    return float(np.degrees(np.arctan2((w * np.sin(d)).sum(), (w * np.cos(d)).sum())) % 360.0)
+
+
+def ephemeris_rotation(s_model, s_enu, weights=None):
+    """Full model -> ENU rotation by a weighted least-squares fit (Wahba / Kabsch) of the
+    measured model-frame sun vectors to the ephemeris' ENU vectors.  Returns
+    (zenith_model, offset_deg) in the bundle's parametrisation."""
+    import cv2
+
+    a = np.asarray(s_model, float)
+    b = np.asarray(s_enu, float)
+    if a.shape[0] < 2:
+        raise InputError("the full ephemeris fit needs >= 2 observations")
+    w = np.ones(len(a)) if weights is None else np.asarray(weights, float)
+    Hm = (w[:, None] * a).T @ b
+    U, _, Vt = np.linalg.svd(Hm)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T  # v_enu = R v_model
+    zen = R.T @ np.array([0.0, 0.0, 1.0])
+    # offset: az_enu = az_levelled - offset with the levelling rotation of the estimator
+    z = zen / np.linalg.norm(zen)
+    k = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, k)
+    s = np.linalg.norm(axis)
+    L = np.eye(3) if s < 1e-15 else cv2.Rodrigues(axis / s * np.arctan2(s, z @ k))[0]
+    x_model = R.T @ np.array([0.0, 1.0, 0.0])  # true north in the model frame
+    xl = L @ x_model
+    az_l = np.degrees(np.arctan2(xl[0], xl[1]))
+    return zen, float(az_l % 360.0)
+
+
+def fit_lobe_coeff(s_meas, vbar, s_ref) -> float:
+    """Least-squares coefficient (deg) of the lobe-offset model: the in-plane-of-incidence
+    error of the measured directions against reference directions, proportional to tan(theta_i)."""
+    from ..vision.estimator import _incidence_frame
+
+    num = den = 0.0
+    for s, vb, r in zip(np.asarray(s_meas, float), np.asarray(vbar, float), np.asarray(s_ref, float)):
+        t, inc = _incidence_frame(s, vb)
+        e = float(np.degrees((s - r) @ inc))
+        num += t * e
+        den += t * t
+    return num / den if den > 0 else 0.0
+
+
+def fit_rotation_and_lobe(s_meas, vbar, s_enu, iters: int = 4):
+    """Alternate the full ephemeris rotation fit and the lobe coefficient fit.
+    Returns (zenith_model, offset_deg, coeff_deg)."""
+    from ..vision.estimator import lobe_correct, level_rotation
+
+    s_meas = np.asarray(s_meas, float)
+    s_enu = np.asarray(s_enu, float)
+    k = 0.0
+    for _ in range(iters):
+        sc = np.array([lobe_correct(s, vb, k) for s, vb in zip(s_meas, vbar)]) if k else s_meas
+        zen, off = ephemeris_rotation(sc, s_enu)
+        # model-frame reference directions from the fitted rotation
+        L = level_rotation(zen)
+        a = np.radians(off)
+        Rz = np.array([[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1.0]])
+        R = Rz @ L  # v_enu = R v_model  (az_enu = az_lev - off)
+        s_ref = s_enu @ R  # R^T v
+        k = fit_lobe_coeff(s_meas, vbar, s_ref)
+    return zen, off, k

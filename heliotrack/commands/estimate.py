@@ -1,0 +1,64 @@
+"""``heliotrack estimate``: sun direction from images of the hotspot sensor, one JSON per line.
+
+The image's time comes from ``--time``, else from an ISO timestamp in the file name
+(``2025-06-21T10:15:00Z``, ``20250621T101500Z``, ``2025-06-21_10-15-00``), else it is
+omitted.  Frames that cannot be used print ``"found": false`` with a ``reason``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+def time_from_name(name: str) -> float | None:
+    """POSIX seconds from an ISO-like timestamp in a file name (see controller.vision.imageio)."""
+    from controller.vision.imageio import time_from_name as _t
+
+    return _t(name)
+
+
+def parse_time(text: str) -> float:
+    from controller.errors import InputError
+
+    try:
+        dt = datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise InputError(f"--time: expected an ISO 8601 time like 2025-06-21T10:15:00Z, got {text!r}") from None
+    if dt.tzinfo is None:
+        dt = dt.replace(tzinfo=timezone.utc)
+    return dt.timestamp()
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("estimate", help="estimate the sun's direction from sensor images (JSON lines)")
+    p.add_argument("--sensor", choices=("hotspot",), default="hotspot",
+                   help="sensor type (the convex-surface hotspot sensor)")
+    p.add_argument("--calib", required=True, type=Path, help="calibration bundle (TOML)")
+    p.add_argument("--time", default=None, help="ISO time of the image(s), UTC unless an offset is given")
+    p.add_argument("--algorithm", choices=("default", "seed"), default="default",
+                   help="hotspot segmentation: fast default or the paper's Algorithm 1 literally")
+    p.add_argument("--method", choices=("subpixel", "paper"), default="subpixel",
+                   help="direction from the hotspot: sub-pixel (default) or the paper's weights")
+    p.add_argument("images", nargs="+", type=Path, metavar="IMAGE")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from controller.calibration.bundle import load_bundle
+    from controller.vision import HotspotEstimator
+
+    bundle = load_bundle(args.calib)
+    est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method)
+    t_cli = parse_time(args.time) if args.time else None
+    for path in args.images:
+        t = t_cli if t_cli is not None else time_from_name(str(path))
+        res = est.estimate_file(path, t)
+        d = res.to_json()
+        if t is not None:
+            d["time"] = datetime.fromtimestamp(t, timezone.utc).isoformat().replace("+00:00", "Z")
+        sys.stdout.write(json.dumps(d) + "\n")
+        sys.stdout.flush()
+    return 0
