@@ -1,7 +1,7 @@
 """The control loop: one cycle = sun estimate -> mode -> setpoints -> drives -> record.
 
-All trackers are served concurrently (asyncio); each gets its own deadline, so a dead or
-slow drive costs its own row a cycle and never delays the others.
+All trackers are served concurrently (asyncio) under one deadline per cycle, so a dead
+or slow drive costs its own row that cycle and never delays the others.
 """
 
 from __future__ import annotations
@@ -69,6 +69,7 @@ class Controller:
         self.pyranometer = pyranometer
         self.sensor = sensor          # a camera sun sensor feeding ``sun`` (sun-path filter)
         self._saved_day: int | None = None
+        self._last_el_deg = math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
@@ -131,6 +132,7 @@ class Controller:
         aim_t = t + self.config.control.lead_s
         await self._observe(t)
         est = self.sun.estimate(aim_t, now=t)
+        self._last_el_deg = est.el_deg if est is not None else math.inf
         overcast = await self._sky(t)
         decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg,
                                 overcast=overcast)
@@ -139,8 +141,11 @@ class Controller:
         t_wall = time.perf_counter()
         records = [self._record(tr, t, est, decision, sp)
                    for tr, sp in zip(self.trackers, setpoints)]
-        for i, targets in self.overrides.items():
-            # An operator's manual setpoint outranks tracking and night stow.
+        safety_stow = (decision.mode == ControlMode.STOW
+                       and decision.reason not in ("night", "no sun estimate"))
+        for i, targets in ({} if safety_stow else self.overrides).items():
+            # An operator's manual setpoint outranks tracking, DIFFUSE and night stow,
+            # never a safety stow.
             setpoints[i] = (list(targets), False)
             records[i].mode, records[i].reason = ControlMode.MANUAL.value, "operator override"
         tasks = [asyncio.ensure_future(self._drive_one(tr, rec, sp[0], decision, t_wall))
@@ -152,17 +157,26 @@ class Controller:
             task.cancel()
         if late:
             await asyncio.wait(late)
-        for tr, rec in zip(self.trackers, records):
-            if not rec.latency_s:
+        for tr, rec, task in zip(self.trackers, records, tasks):
+            if not task.cancelled() and task.exception() is not None:
+                # A bug or an unexpected library error: recorded for this row, not hidden.
+                exc = task.exception()
                 tr.errors += 1
-                rec.error = rec.error or f"{tr.cfg.name}: no answer within {self._deadline():g} s"
+                rec.error = f"{tr.cfg.name}: {type(exc).__name__}: {exc}"
+                rec.latency_s = time.perf_counter() - t_wall
+            elif not rec.latency_s:
+                tr.errors += 1
+                rec.error = f"{tr.cfg.name}: no answer within {self._deadline():g} s"
                 rec.latency_s = time.perf_counter() - t_wall
         self.cycles += 1
         return records
 
     async def _observe(self, t: float) -> None:
-        """Feed the sun-path filter from the camera (in a thread: frames take time)."""
-        if self.sensor is None:
+        """Feed the sun-path filter from the camera (in a thread: frames take time).
+
+        Skipped while the last estimate put the sun well below the horizon.
+        """
+        if self.sensor is None or self._last_el_deg < -5.0:
             return
         obs = await asyncio.to_thread(self.sensor.observe, t)
         if obs is not None:

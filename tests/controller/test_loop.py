@@ -61,3 +61,24 @@ def test_heartbeat_is_rate_limited(plant):
     clock.sleep(cfg.control.heartbeat_timeout_s / 3)
     run(ctl.cycle())
     assert fws["dual-1"].heartbeat != before
+
+
+def test_an_unexpected_error_in_one_row_is_recorded_not_hidden(plant):
+    run, ctl, fws, clock, cfg = plant
+
+    async def broken(targets):
+        raise RuntimeError("library bug")
+
+    ctl.trackers[1].drive.exchange = broken
+    recs = run(ctl.cycle())
+    assert "RuntimeError: library bug" in recs[1].error
+    assert not recs[0].error and recs[0].targets_deg
+
+
+def test_manual_override_outranks_night_stow(plant):
+    run, ctl, fws, clock, cfg = plant
+    clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=timezone.utc).timestamp())
+    ctl.set_override(1, "Manual", 30.0, None)         # e.g. turned for cleaning at night
+    recs = run(ctl.cycle())
+    assert recs[1].mode == "MANUAL" and recs[1].targets_deg == (30.0,)
+    assert recs[0].mode == "STOW"
