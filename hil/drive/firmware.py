@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 
 from firmware_protocol import (
     MAGIC, PROTOCOL_VERSION, REGISTER_MAP, REGISTER_SPACE, Command, Fault, Mode, Status,
-    decode, encode, register,
+    decode, encode,
 )
 from firmware_protocol.registers import Register
 

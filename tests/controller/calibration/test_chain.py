@@ -3,7 +3,6 @@ camera (fast); the truth is used only to check the result."""
 
 import json
 
-import numpy as np
 import pytest
 
 from controller.calibration.bundle import load_bundle

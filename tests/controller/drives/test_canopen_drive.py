@@ -9,8 +9,7 @@ import time
 import canopen
 import pytest
 
-import controller.drives.canopen  # noqa: F401  (registers "canopen" until __init__ does)
-from controller.drives.base import DriveCommError, open_drive
+from controller.drives import DriveCommError, open_drive
 from firmware_protocol import Command, Fault, Mode, ProtocolError, Status
 from hil.drive import DriveFirmware
 from tests.hil.canopen.rig import emulated, one_axis, two_axes

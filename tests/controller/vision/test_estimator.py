@@ -137,6 +137,6 @@ def test_hotspot_sun_source_in_enu(scn):
     assert e.source == EstimateSource.OBSERVED
     assert angle_between_deg(azel_to_enu(e.az_deg, e.el_deg), truth) < 0.5
     assert src.estimate(utc(2025, 6, 21, 20, 0)) is None  # night: no glint
-    model_only = HotspotSunSource(est_model := HotspotEstimator(truth_bundle(scn, level=False)),
+    model_only = HotspotSunSource(HotspotEstimator(truth_bundle(scn, level=False)),
                                   frames=lambda t: render_frame(scn, t).image)
     assert model_only.estimate(T_MORNING) is None and model_only.last.found

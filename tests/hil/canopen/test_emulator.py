@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import time
 
-import can
 import pytest
 from canopen.sdo import SdoAbortedError
 
