@@ -7,12 +7,13 @@ API for the loop::
     est = HotspotEstimator(load_bundle("config/calibration/recommended.toml"))
     res = est.estimate_image(image_uint8, t)     # HotspotResult
     obs = res.observation()                      # SunObservation or None
-    src = HotspotSunSource(est, frames=lambda t: image_at(t))   # a SunSource
+
+In the control loop, :class:`controller.sun.camera.CameraSunSensor` runs the estimator on
+each frame and feeds the sun-path filter (:mod:`controller.sun.factory`).
 """
 
 from .estimator import HotspotEstimator, HotspotResult, level_rotation, mirror_sun_direction
 from .hotspot import segment_fast, segment_seed
-from .source import HotspotSunSource
 
 __all__ = ["HotspotEstimator", "HotspotResult", "mirror_sun_direction", "level_rotation",
-           "segment_fast", "segment_seed", "HotspotSunSource"]
+           "segment_fast", "segment_seed"]

@@ -124,19 +124,22 @@ def test_cli_estimate_prints_json_lines(scn, tmp_path, capsys):
     assert "time" not in lines[1]
 
 
-def test_hotspot_sun_source_in_enu(scn):
-    from controller.sun.types import EstimateSource, azel_to_enu, enu_to_azel
-    from controller.vision import HotspotSunSource, level_rotation
+def test_camera_sun_sensor_observes_in_enu(scn):
+    """The loop's camera sensor (controller.sun.camera) on rendered frames."""
+    from controller.sun.camera import CallableFrameSource, CameraSunSensor
+    from controller.sun.types import azel_to_enu, enu_to_azel
+    from controller.vision import level_rotation
 
+    frames = CallableFrameSource(lambda t: render_frame(scn, t).image)
     s = scn.R_model_to_enu.T @ np.array([0.0, 0.6, 0.8])
     az_l, _ = enu_to_azel(level_rotation(scn.zenith_model) @ s)
-    src = HotspotSunSource(HotspotEstimator(truth_bundle(scn, offset=float(az_l % 360))),
-                           frames=lambda t: render_frame(scn, t).image)
-    e = src.estimate(T_MORNING)
+    sensor = CameraSunSensor(frames, HotspotEstimator(truth_bundle(scn, offset=float(az_l % 360))))
+    obs = sensor.observe(T_MORNING)
     truth = scn.sun([T_MORNING])["enu"][0]
-    assert e.source == EstimateSource.OBSERVED
-    assert angle_between_deg(azel_to_enu(e.az_deg, e.el_deg), truth) < 0.5
-    assert src.estimate(utc(2025, 6, 21, 20, 0)) is None  # night: no glint
-    model_only = HotspotSunSource(HotspotEstimator(truth_bundle(scn, level=False)),
-                                  frames=lambda t: render_frame(scn, t).image)
-    assert model_only.estimate(T_MORNING) is None and model_only.last.found
+    assert obs is not None and obs.frame == "enu" and obs.sensor == "hotspot"
+    assert angle_between_deg(azel_to_enu(obs.az_deg, obs.el_deg), truth) < 0.5
+    assert sensor.observe(utc(2025, 6, 21, 20, 0)) is None  # night: no glint
+    assert sensor.outcomes["found"] == 1 and sum(sensor.outcomes.values()) == 2
+    # Without levelling and azimuth alignment the direction stays in the model frame.
+    model_only = CameraSunSensor(frames, HotspotEstimator(truth_bundle(scn, level=False)))
+    assert model_only.observe(T_MORNING).frame == "model"
