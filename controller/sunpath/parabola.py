@@ -150,7 +150,8 @@ def azimuth_offset_at_culmination(az_deg, el_deg, culmination: str = "south") ->
 
 def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
              lat_deg: float | None = None, use_prior: bool = True,
-             window_h: float | None = None, noon_elevation: str = "vertex"
+             window_h: float | None = None, noon_elevation: str = "measured",
+             transit_tolerance_s: float | None = None
              ) -> tuple[list[DayResult], list[ParabolaFit]]:
     """The paper's method over a series of observations, one result per local day.
 
@@ -165,16 +166,25 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
     noon (located by a first fit of the whole day): elevation is a parabola of time only
     near noon, and a whole-day fit biases the extremum (see docs/sunpath.md).
 
-    ``noon_elevation`` (``"vertex"``, the paper's formula: the parabola's extremum value) or
-    ``"nearest"`` (a labelled variant, not the paper's method as written: the observed
-    elevation nearest in time to the fitted noon, i.e. "the elevation measured at the
-    meridian transit" read literally).  It feeds the declination and latitude formulas.
+    ``noon_elevation`` is the ``Elv_n`` of the declination and latitude formulas:
+
+    * ``"measured"`` (default, the paper's section 3-2: "the sun's elevation measured at
+      the moment it crosses the meridian"): the observation nearest the fitted noon, if it
+      is within ``transit_tolerance_s`` of it (default: half the day's median sampling
+      interval, i.e. the frame at the transit).  Without one (clouds at noon) the day has
+      no measured ``Elv_n``, and its declination and latitude are nan.
+    * ``"vertex"`` (a labelled variant): the parabola's extremum value.  Over a whole day
+      the elevation is not a parabola of time and this value lies 1-6 deg below the true
+      noon elevation (docs/sunpath.md).
 
     Returns
     -------
     results : list of DayResult
     fits : list of ParabolaFit (same order)
     """
+    if noon_elevation not in ("measured", "vertex"):
+        raise ValueError(f"noon_elevation must be 'measured' or 'vertex', got "
+                         f"{noon_elevation!r}")
     t = np.asarray(times, dtype=float)
     az = np.asarray(az_deg, dtype=float)
     el = np.asarray(el_deg, dtype=float)
@@ -200,11 +210,8 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
         dec_eph = float(geocentric_sun(noon).dec_deg[0])
         if noon_elevation == "vertex":
             el_n = fit.noon_el_deg
-        elif noon_elevation == "nearest":
-            el_n = float(el[idx][int(np.argmin(np.abs(t[idx] - noon)))])
         else:
-            raise ValueError(f"noon_elevation must be 'vertex' or 'nearest', got "
-                             f"{noon_elevation!r}")
+            el_n = _measured_at_transit(t[idx], el[idx], noon, transit_tolerance_s)
         lat = float(latitude_from_noon(el_n, dec_eph, side))
         dec = (float(declination_from_noon(el_n, lat_deg, side))
                if lat_deg is not None else float("nan"))
@@ -220,6 +227,20 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
         fits.append(fit)
         prev_fit, prev_num = fit, day.day_number
     return results, fits
+
+
+def _measured_at_transit(t, el, noon: float, tolerance_s: float | None) -> float:
+    """Observed elevation at the transit ``noon``: the nearest observation, if close enough.
+
+    The default tolerance is half the median interval between the day's observations: the
+    frame taken at the transit on a regular schedule.  nan when no observation is that
+    close (the sun was hidden around noon).
+    """
+    if tolerance_s is None:
+        dt = np.diff(np.sort(t))
+        tolerance_s = 0.5 * float(np.median(dt)) if dt.size else 0.0
+    i = int(np.argmin(np.abs(t - noon)))
+    return float(el[i]) if abs(t[i] - noon) <= tolerance_s else float("nan")
 
 
 def _az_near(t, az, t0) -> float:

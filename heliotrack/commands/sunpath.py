@@ -44,10 +44,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="kalman: SPA's declination plus a learnt correction (ephemeris, "
                         "default; needs only UTC) or declination learnt from the sky alone "
                         "through the orbit law (free; the mode that measures declination)")
-    p.add_argument("--noon-elevation", choices=("vertex", "nearest"), default="vertex",
-                   help="seed: noon elevation from the parabola's vertex (the paper's "
-                        "formula, default) or the observation nearest the fitted noon (a "
-                        "labelled variant)")
+    p.add_argument("--noon-elevation", choices=("measured", "vertex"), default="measured",
+                   help="seed: Elv_n is the elevation measured at the transit (the paper, "
+                        "default: the observation within half a sampling interval of the "
+                        "fitted noon, else none that day) or the parabola's vertex value "
+                        "(a labelled variant, biased by degrees over a whole day)")
     p.add_argument("--window-h", type=float, default=None,
                    help="seed: fit only observations within this many hours of noon")
     p.add_argument("--state", type=Path, default=None,

@@ -73,7 +73,7 @@ def test_cli_default_declination_mode_is_the_filter_default():
     sunpath.register(sub)
     args = p.parse_args(["sunpath", "obs.csv"])
     assert args.declination == KalmanConfig().declination == "ephemeris"
-    assert args.noon_elevation == "vertex"
+    assert args.noon_elevation == "measured"
 
 
 def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):
@@ -81,6 +81,6 @@ def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(rows) == 3 and abs(float(rows[-1]["lat_deg"]) - ANDIMESHK.latitude) < 0.3
     assert main(["sunpath", str(obs_csv), "--method", "seed", "--lat", "32.4835", "--lon",
-                 "48.3364", "--utc-offset", "3.5", "--noon-elevation", "nearest"]) == 0
+                 "48.3364", "--utc-offset", "3.5", "--noon-elevation", "vertex"]) == 0
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(rows) == 3 and rows[0]["method"] == "seed"

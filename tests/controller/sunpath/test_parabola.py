@@ -77,19 +77,39 @@ def test_time_origin_does_not_change_the_fit_or_the_prior():
     assert a1.noon_hours == pytest.approx(b1.noon_hours + 12.0, abs=1e-7)
 
 
-def test_whole_day_vertex_is_biased_and_nearest_variant_is_not():
+def test_whole_day_vertex_is_biased_and_measured_elevation_is_not():
     # The paper's sampling (08:00-16:45 local, 36 a day), no noise: the whole-day vertex
     # underestimates the noon elevation by degrees (elevation is not a parabola of time
-    # over 8.75 h), the labelled "nearest observation" variant by < 0.2 deg.
+    # over 8.75 h); the elevation measured at the transit (the paper's Elv_n, default) is
+    # within 0.2 deg.
     t = sample_times("2024-06-03", 1, 3.5, start_h=8.0, n_per_day=36)
     obs, az, el = observations(ANDIMESHK, t, noise_deg=0.0)
     tt = [o.time for o in obs]
-    (r_v,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
-    (r_n,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude, noon_elevation="nearest")
+    (r_v,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude, noon_elevation="vertex")
+    (r_n,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
     from controller.sunpath.ephemeris import geocentric_sun
     dec = geocentric_sun(transit_time(r_v.noon_utc, ANDIMESHK.longitude)[0]).dec_deg[0]
     assert r_v.declination_deg - dec < -2.0
     assert abs(r_n.declination_deg - dec) < 0.2
+    assert abs(r_n.lat_deg - ANDIMESHK.latitude) < 0.2
     assert r_n.noon_utc == r_v.noon_utc
     with pytest.raises(ValueError):
         run_seed(tt, az, el, 3.5, noon_elevation="top")
+
+
+def test_no_measured_noon_elevation_when_the_sun_is_hidden_at_noon():
+    # A cloud over the transit: the frames within 7.5 min of noon are missing, so the day
+    # has a noon time and longitude but no measured Elv_n, hence no declination or latitude
+    # (never a far-off observation passed off as the transit's).
+    t = sample_times("2024-06-03", 1, 3.5, start_h=8.0, n_per_day=36)
+    obs, az, el = observations(ANDIMESHK, t, noise_deg=0.0)
+    tt = np.array([o.time for o in obs])
+    (r,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
+    keep = np.abs(tt - r.noon_utc) > 1800.0
+    (rc,), _ = run_seed(tt[keep], np.asarray(az)[keep], np.asarray(el)[keep], 3.5,
+                        lat_deg=ANDIMESHK.latitude)
+    assert np.isnan(rc.declination_deg) and np.isnan(rc.lat_deg) and np.isnan(rc.noon_el_deg)
+    assert np.isfinite(rc.noon_utc) and abs(rc.lon_deg - ANDIMESHK.longitude) < 1.0
+    (rt,), _ = run_seed(tt[keep], np.asarray(az)[keep], np.asarray(el)[keep], 3.5,
+                        lat_deg=ANDIMESHK.latitude, transit_tolerance_s=3600.0)
+    assert np.isfinite(rt.declination_deg)
