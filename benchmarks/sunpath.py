@@ -47,12 +47,15 @@ class Dataset:
     el_true: np.ndarray
     az_obs: np.ndarray     # with noise
     el_obs: np.ndarray
-    clear: np.ndarray      # bool: not hidden by a cloud
+    clear: np.ndarray      # bool: observed (not hidden by a cloud, found by the sensor)
+    sigma: np.ndarray | None = None  # per-sample sigma, deg (None: the synthetic 0.3)
+    sensor: str = "synthetic"
 
     def observations(self, mask=None) -> list[SunObservation]:
         m = self.clear if mask is None else (self.clear & mask)
-        return [SunObservation(float(a), float(b), float(c), 0.3, sensor="synthetic")
-                for a, b, c in zip(self.t[m], self.az_obs[m], self.el_obs[m])]
+        sig = np.full(self.t.size, 0.3) if self.sigma is None else self.sigma
+        return [SunObservation(float(a), float(b), float(c), float(s), sensor=self.sensor)
+                for a, b, c, s in zip(self.t[m], self.az_obs[m], self.el_obs[m], sig[m])]
 
 
 #: The paper's 36 observing days (Table 3, Persian calendar 21 Bahman 1402 to 25 Tir 1403;
@@ -127,18 +130,24 @@ def _day_table(site, results) -> dict:
     lon = np.array([r.lon_deg for r in results])
     dlat, dlon = lat - site.latitude, wrap180(lon - site.longitude)
     loc = np.hypot(dlat, dlon * np.cos(np.radians(site.latitude)))
+    has_site = np.isfinite(lat) & np.isfinite(lon)
+    last = np.flatnonzero(has_site)[-1] if has_site.any() else None
+    later = np.abs(np.where(has_site, dlat, np.nan)[1:]), np.abs(np.where(
+        has_site, dlon, np.nan)[1:])
     return {
         "days": len(results),
+        "days_with_site": int(has_site.sum()),
         "noon_error_s": _stats(noon - tr),
         "declination_error_deg": _stats(dec - dec_true),
         "lat_error_deg": _stats(dlat),
         "lon_error_deg": _stats(dlon),
         "location_error_deg": _stats(loc),
-        "final": {"lat_error_deg": float(dlat[-1]), "lon_error_deg": float(dlon[-1])},
-        "after_day_1": {"max_abs_lat_error_deg": float(np.abs(dlat[1:]).max()) if len(dlat) > 1
-                        else None,
-                        "max_abs_lon_error_deg": float(np.abs(dlon[1:]).max()) if len(dlon) > 1
-                        else None},
+        "final": {"lat_error_deg": float(dlat[last]) if last is not None else None,
+                  "lon_error_deg": float(dlon[last]) if last is not None else None},
+        "after_day_1": {"max_abs_lat_error_deg": float(np.nanmax(later[0]))
+                        if np.isfinite(later[0]).any() else None,
+                        "max_abs_lon_error_deg": float(np.nanmax(later[1]))
+                        if np.isfinite(later[1]).any() else None},
     }
 
 
@@ -174,12 +183,16 @@ PAPER_RANGES = {
     "location_error_mean_deg": (0.25, 0.75),
 }
 SEED_VARIANTS = (
-    ("seed", {}, "the paper's method as the digest states it: whole-day parabola, "
-                 "yesterday's prior, declination and latitude from the parabola's vertex"),
-    ("variant_nearest_obs_noon_el", {"noon_elevation": "nearest"},
-     "labelled variant: as seed, but Elv_n is the observed elevation nearest the fitted noon"),
-    ("variant_window_2h", {"window_h": 2.0}, "labelled variant: fit within +-2 h of noon"),
-    ("variant_window_1.5h", {"window_h": 1.5}, "labelled variant: fit within +-1.5 h of noon"),
+    ("seed", {}, "the paper's method: whole-day parabola with yesterday's prior, noon at its "
+                 "extremum, Elv_n the elevation measured at the transit (section 3-2; the "
+                 "frame within half a sampling interval of noon, else no declination or "
+                 "latitude that day)"),
+    ("variant_vertex_noon_el", {"noon_elevation": "vertex"},
+     "labelled variant: as seed, but Elv_n is the parabola's extremum value"),
+    ("variant_window_2h", {"window_h": 2.0, "noon_elevation": "vertex"},
+     "labelled variant: vertex of a fit within +-2 h of noon"),
+    ("variant_window_1.5h", {"window_h": 1.5, "noon_elevation": "vertex"},
+     "labelled variant: vertex of a fit within +-1.5 h of noon"),
 )
 
 
@@ -406,6 +419,14 @@ def run(quick: bool = False) -> dict:
                 "all_pass": r["acceptance"][mode]["all_pass"]}
     pc = res_n["paper_comparison"]["seed"]
     summary["north_seed_reproduces_paper"] = {k: v["within"] for k, v in pc.items()}
+    hotspot = _hotspot_blocks(north, None if quick else south)
+    for name in ("north", "south"):
+        if isinstance(hotspot[name], dict):
+            for mode in ("kalman_free", "kalman_ephemeris"):
+                acc = hotspot[name]["acceptance"][mode]
+                summary[f"hotspot_{name}_{mode}"] = {k: v["pass"] for k, v in acc.items()
+                                                     if k != "all_pass"} | {
+                    "all_pass": acc["all_pass"]}
     return {
         "data": {"dates": list(dates), "first_sample_local_h": PAPER_FIRST_SAMPLE_H,
                  "samples_per_day": "35 in February (08:00-16:30), 36 after (08:00-16:45)",
@@ -417,6 +438,26 @@ def run(quick: bool = False) -> dict:
         "summary": summary,
         "north": res_n,
         "south": res_s,
-        "hil_hotspot_sensor": "not run: the project's hotspot sensor and its HIL loop do not "
-                              "exist yet; no figures are given for it",
+        "hil_hotspot_sensor": hotspot,
     }
+
+
+def _hotspot_blocks(north: Dataset, south: Dataset | None) -> dict:
+    """The same tables with the project's hotspot sensor in the HIL (rendered frames)."""
+    from .sunpath_hotspot import BUNDLE, CLOUD_TRANSMITTANCE, PROFILE, TILT_DEG, \
+        hotspot_dataset, sensor_errors
+
+    out = {"camera": {"profile": PROFILE, "base_tilt_deg": TILT_DEG,
+                      "calibration": BUNDLE.name, "cloud_transmittance": CLOUD_TRANSMITTANCE},
+           "note": "same sample times and cloud gaps as the synthetic data; each frame is "
+                   "rendered by hil.camera and measured by controller.vision.HotspotEstimator"}
+    for name, ds in (("north", north), ("south", south)):
+        if ds is None:
+            out[name] = "not run in the quick benchmark"
+            continue
+        hds, reasons = hotspot_dataset(ds)
+        block = _site_block(hds)
+        block["sensor_error_vs_spa"] = sensor_errors(hds)
+        block["frames_without_observation"] = reasons
+        out[name] = block
+    return out
