@@ -182,12 +182,15 @@ class HotspotConfig:
     """The convex-surface camera sensor (``[hotspot]``); paths resolved against the file.
 
     ``frames``: "hil" (the simulator renders them), a folder of timestamped images
-    (replay), or "device:N" (OpenCV camera N).
+    (replay), or "device:N" (OpenCV camera N).  ``interval_s``: seconds between frames
+    the controller measures (0: one every control cycle); the sun-path filter predicts in
+    between, as it does through cloud gaps.
     """
 
     calibration: str
     frames: str = "hil"
     algorithm: str = "default"
+    interval_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -291,12 +294,13 @@ def _hotspot(root: TableReader, file) -> HotspotConfig | None:
     if not root.has("hotspot"):
         return None
     t = root.table("hotspot")
-    t.unknown_keys({"calibration", "frames", "algorithm"})
+    t.unknown_keys({"calibration", "frames", "algorithm", "interval_s"})
     frames = t.get("frames", str, "hil")
     if frames not in ("hil",) and not frames.startswith("device:"):
         frames = _relative(frames, file)
     return HotspotConfig(calibration=_relative(t.get("calibration", str), file), frames=frames,
-                         algorithm=t.choice("algorithm", ("default", "seed"), "default"))
+                         algorithm=t.choice("algorithm", ("default", "seed"), "default"),
+                         interval_s=t.number("interval_s", 0.0, lo=0.0, hi=86400.0, unit="s"))
 
 
 def _sunpath(t: TableReader, file) -> SunPathSettings:

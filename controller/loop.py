@@ -70,6 +70,7 @@ class Controller:
         self.sensor = sensor          # a camera sun sensor feeding ``sun`` (sun-path filter)
         self._saved_day: int | None = None
         self._last_el_deg = math.inf
+        self._last_frame_t = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
@@ -174,13 +175,17 @@ class Controller:
     async def _observe(self, t: float) -> None:
         """Feed the sun-path filter from the camera (in a thread: frames take time).
 
-        Skipped while the last estimate put the sun well below the horizon.
+        One frame per ``[hotspot] interval_s`` (every cycle when 0); skipped while the last
+        estimate put the sun well below the horizon.
         """
-        if self.sensor is None or self._last_el_deg < -5.0:
+        if self.sensor is None:
             return
-        obs = await asyncio.to_thread(self.sensor.observe, t)
-        if obs is not None:
-            self.sun.observe(obs)
+        interval = self.config.hotspot.interval_s if self.config.hotspot is not None else 0.0
+        if self._last_el_deg >= -5.0 and t - self._last_frame_t >= interval - 1e-6:
+            self._last_frame_t = t
+            obs = await asyncio.to_thread(self.sensor.observe, t)
+            if obs is not None:
+                self.sun.observe(obs)
         day = int(t // 86400)
         if self._saved_day is not None and day != self._saved_day:
             self._save_sun_state()

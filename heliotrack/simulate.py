@@ -191,6 +191,7 @@ class ScenarioRun:
         self.modes: dict[str, int] = {}
         self.sources: dict[str, int] = {}
         self.log_rows: list[dict] = []
+        self._sun = self._sensor = None
 
     def _camera_frames(self):
         """The world's camera, when the controller looks at the sky through one."""
@@ -220,6 +221,7 @@ class ScenarioRun:
             firmwares, endpoints = _build_world(self.config, self.hil, self.clock, stack,
                                                 self.ghi_at)
             sun, sensor = build_sun_source(self.config, self._camera_frames())
+            self._sun, self._sensor = sun, sensor
             controller = Controller(self.config, _open_drives(self.config, endpoints), sun,
                                     self.clock, sensor=sensor,
                                     pyranometer=_open_pyranometer(self.config, endpoints))
@@ -287,6 +289,21 @@ class ScenarioRun:
                 "poa_global_kwh_m2": round(float(np.sum(poa)) * hours / 1000.0, 5),
                 "beam": (beam, ideal)}
 
+    def _sun_path_summary(self) -> dict:
+        """The camera's frame outcomes and what the sun-path filter learned (camera runs)."""
+        if self._sensor is None:
+            return {}
+        out = {"camera_frames": dict(self._sensor.outcomes)}
+        learned = getattr(self._sun, "summary", None)
+        if learned is not None:
+            sp = learned()
+            if "lat_deg" in sp:
+                site = self.config.site
+                sp["lat_error_deg"] = sp["lat_deg"] - site.latitude
+                sp["lon_error_deg"] = (sp["lon_deg"] - site.longitude + 180.0) % 360.0 - 180.0
+            out["sun_path"] = sp
+        return out
+
     def _summary(self, modbus: dict, wall: float) -> dict:
         energy = {tr.name: self._energy(tr) for tr in self.config.trackers}
         beam = sum(e["beam"][0] for e in energy.values())
@@ -307,6 +324,7 @@ class ScenarioRun:
             "modbus": modbus,
             "modes": self.modes,
             "sources": self.sources,
+            **self._sun_path_summary(),
             "trackers": {
                 tr.name: {"pointing_error_deg": _stats(self.tally[tr.name].pointing),
                           "energy_ratio": energy[tr.name]["energy_ratio"],

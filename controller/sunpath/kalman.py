@@ -492,6 +492,7 @@ class SunPathKalman:
         self.initialised = True
         self.buffer = []
         if known:  # the site gave the geometry: now assimilate every buffered observation
+            self.n_accepted += 1  # the first one started the filter
             rest = obs[1:] if len(obs) > 1 else []
             for o in rest:
                 self.update(o)

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from ..sun.source import EphemerisSource, Site, SunSource
-from ..sun.types import EstimateSource, SunEstimate, SunObservation
-from .kalman import KalmanConfig, SunPathKalman
+from ..sun.types import EstimateSource, SunEstimate, SunObservation, azel_to_enu, enu_to_azel
+from .ephemeris import wrap180
+from .kalman import AZOFF, LAT, LON, KalmanConfig, SunPathKalman
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,49 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
     return ephemeris
 
 
+#: Longest gap between, and age after, the two observations :func:`extrapolate_two` uses, s.
+EXTRAPOLATE_MAX_S = 3600.0
+#: ``tan(obliquity) (15 deg/h in rad)^2 / 2`` in deg/h^2: the largest departure rate of the
+#: sun's small circle from a great circle (at the solstices).
+CURVATURE_DEG_PER_H2 = float(np.tan(np.radians(23.44)) * np.radians(15.0) ** 2 / 2.0
+                             * 180.0 / np.pi)
+
+
+def extrapolate_two(o1: SunObservation, o2: SunObservation, t: float) -> SunEstimate | None:
+    """The sun at ``t`` from two ENU observations, by rotation along their great circle.
+
+    The sun moves at a constant rate on a small circle of geodesic curvature
+    ``tan |dec|``; the great circle through two of its points departs from it by about
+    ``tan |dec| w^2 tau (tau + dt) / 2`` (``w`` = 15 deg/h).  Without a site the
+    declination is unknown, so its bound (23.44 deg) sets that term: 0.85 deg h^-2 times
+    ``tau (tau + dt)``, 0.11 deg for 15 min ahead of frames 15 min apart.  The one-sigma
+    per axis is ``s sqrt(1 + 2 (tau / dt)^2)`` (``s`` the larger observation sigma, ``dt``
+    their separation, ``tau = t - t2``) plus that bound.  None when the observations are
+    too close, too far apart or too old.
+    """
+    dt, tau = o2.time - o1.time, t - o2.time
+    if not (60.0 <= dt <= EXTRAPOLATE_MAX_S and -dt <= tau <= EXTRAPOLATE_MAX_S):
+        return None
+    v1 = azel_to_enu(o1.az_deg, o1.el_deg)
+    v2 = azel_to_enu(o2.az_deg, o2.el_deg)
+    axis = np.cross(v1, v2)
+    sin_a = float(np.linalg.norm(axis))
+    if sin_a < 1e-9:
+        return None
+    axis /= sin_a
+    rate = float(np.arctan2(sin_a, float(v1 @ v2))) / dt       # rad/s
+    ang = rate * tau
+    v = (v2 * np.cos(ang) + np.cross(axis, v2) * np.sin(ang)
+         + axis * float(axis @ v2) * (1.0 - np.cos(ang)))        # Rodrigues
+    az, el = enu_to_azel(v)
+    tau_h, dt_h = abs(tau) / 3600.0, dt / 3600.0
+    sig = max(o1.sigma_deg, o2.sigma_deg) * np.sqrt(1.0 + 2.0 * (tau / dt) ** 2) \
+        + CURVATURE_DEG_PER_H2 * tau_h * (tau_h + dt_h)
+    c = max(np.cos(np.radians(float(el))), 1e-6)
+    return SunEstimate(float(t), float(az) % 360.0, float(el),
+                       np.diag([sig * sig / (c * c), sig * sig]), EstimateSource.PREDICTED)
+
+
 class SunPathSource(SunSource):
     """Sun source backed by the sun-path filter, with ephemeris fallback and persistence.
 
@@ -142,9 +186,16 @@ class SunPathSource(SunSource):
         return res.accepted
 
     def prediction(self, t: float) -> SunEstimate | None:
-        """The filter's estimate at ``t`` as a PREDICTED SunEstimate (None before start)."""
+        """The filter's estimate at ``t`` as a PREDICTED SunEstimate.
+
+        Before the filter has started (site unknown, fewer than a few hours of frames),
+        the last two ENU observations are extrapolated along their great circle instead
+        (:func:`extrapolate_two`), so sparse frames do not leave the trackers without a sun
+        between frames; None when there are not two recent ones.
+        """
         if not self.kf.initialised:
-            return None
+            enu = [o for o in self.kf.buffer if o.frame == "enu"]
+            return extrapolate_two(enu[-2], enu[-1], t) if len(enu) >= 2 else None
         p = self.kf.predict(t)
         return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance,
                            EstimateSource.PREDICTED)
@@ -156,6 +207,20 @@ class SunPathSource(SunSource):
             # before the filter starts, a raw sensor azimuth is only usable in ENU
             obs = obs if obs.frame == "enu" else None
         return select_estimate(float(t), obs, self.prediction(t), eph, self.policy, now=now)
+
+    def summary(self) -> dict:
+        """What the filter has learned so far: site (deg, north/east-positive) with one-sigma,
+        sensor azimuth offset, and counts of accepted and rejected observations."""
+        kf = self.kf
+        out = {"mode": kf.mode, "site_given": self.site is not None,
+               "initialised": kf.initialised, "accepted": kf.n_accepted,
+               "rejected": kf.n_rejected}
+        if kf.initialised:
+            x = kf.x
+            out.update({"lat_deg": float(x[LAT]), "lon_deg": float(wrap180(x[LON])),
+                        "lat_sigma_deg": kf.sigma(LAT), "lon_sigma_deg": kf.sigma(LON),
+                        "az_offset_deg": float(wrap180(x[AZOFF]))})
+        return out
 
     def save(self) -> None:
         """Persist the learned state atomically (no-op without ``state_path``)."""

@@ -42,6 +42,8 @@ device_id = 1
     (lambda s: s + "[control]\nperiod_s = 60\nheartbeat_timeout_s = 30\n", "control.heartbeat_timeout_s", "more than"),
     (lambda s: s + "[control]\nperiod = 60\n", "control.period", "known keys"),
     (lambda s: s.replace("[site]\nlatitude = 10\n", "[site]\n"), "site.latitude", "missing"),
+    (lambda s: s + '[hotspot]\ncalibration = "b.toml"\ninterval_s = -5\n', "hotspot.interval_s",
+     "[0, 86400] s"),
 ])
 def test_errors_name_file_key_and_expectation(tmp_path, mutate, key, expected):
     path = write(tmp_path, mutate(BASE))

@@ -38,6 +38,21 @@ def test_clear_sky_tracks_on_camera_observations(tmp_path):
     assert state.exists()                            # learned state persisted at shutdown
 
 
+def test_frame_interval_leaves_the_filter_to_predict_between_frames(tmp_path):
+    # One frame per 30 min, a setpoint every 10 min: the camera is read twice in the hour.
+    # In between, the policy blends prediction and ephemeris; with the site given, the
+    # ephemeris is the more certain and labels the other four cycles (two trackers each).
+    cfg, _ = scenario(tmp_path)
+    cfg.write_text(cfg.read_text().replace("interval_s = 0.0", "interval_s = 1800.0"))
+    s = simulate(tmp_path, cfg)
+    assert s["camera_frames"] == {"found": 2}
+    assert s["sources"] == {"observed": 4, "ephemeris": 8}
+    sp = s["sun_path"]
+    assert sp["initialised"] and sp["accepted"] == 2 and sp["site_given"]
+    assert abs(sp["lat_error_deg"]) < 0.05 and abs(sp["lon_error_deg"]) < 0.05
+    assert s["trackers"]["row-1"]["pointing_error_deg"]["p95"] < 1.5
+
+
 def test_overcast_sky_falls_back_without_a_camera_fix(tmp_path):
     cfg, _ = scenario(tmp_path, sky="overcast")
     s = simulate(tmp_path, cfg)
