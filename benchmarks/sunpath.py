@@ -445,7 +445,7 @@ def run(quick: bool = False) -> dict:
 def _hotspot_blocks(north: Dataset, south: Dataset | None) -> dict:
     """The same tables with the project's hotspot sensor in the HIL (rendered frames)."""
     from .sunpath_hotspot import BUNDLE, CLOUD_TRANSMITTANCE, PROFILE, TILT_DEG, \
-        hotspot_dataset, sensor_errors
+        hil_loop, hotspot_dataset, sensor_errors
 
     out = {"camera": {"profile": PROFILE, "base_tilt_deg": TILT_DEG,
                       "calibration": BUNDLE.name, "cloud_transmittance": CLOUD_TRANSMITTANCE},
@@ -460,4 +460,5 @@ def _hotspot_blocks(north: Dataset, south: Dataset | None) -> dict:
         block["sensor_error_vs_spa"] = sensor_errors(hds)
         block["frames_without_observation"] = reasons
         out[name] = block
+    out["loop"] = hil_loop(days=2 if south is None else 5)
     return out

@@ -110,3 +110,41 @@ def sensor_errors(hds) -> dict:
             "p95_deg": float(np.percentile(err, 95)), "max_deg": float(err.max()),
             "el_error_mean_deg": float(np.mean(hds.el_obs[m] - hds.el_true[m])),
             "sigma_reported_median_deg": float(np.median(hds.sigma[m]))}
+
+
+#: The paper's five consecutive days (Table 3: 8-12 Farvardin 1403), with cloud on two.
+LOOP_START = "2024-03-27"
+LOOP_SKIES = ("clear", "partly-cloudy", "clear", "partly-cloudy", "clear")
+
+
+def hil_loop(days: int = len(LOOP_SKIES), interval_s: float = 900.0) -> dict:
+    """``heliotrack simulate`` on config/hil-hotspot.toml with the site unknown to the filter.
+
+    The paper's sampling (one frame per ``interval_s``) while the controller sends a
+    setpoint every minute: between frames and through clouds the sun-path filter predicts.
+    Until the filter has started (12 observations over 3 h on day 1) there is no sun
+    estimate and the trackers stow: that is the cost of not being told the site.
+    """
+    import tomllib
+    from datetime import date
+
+    from controller.config import parse_config
+    from heliotrack.simulate import run_simulation
+
+    path = Path(__file__).resolve().parents[1] / "config" / "hil-hotspot.toml"
+    data = tomllib.loads(path.read_text())
+    data["hotspot"]["interval_s"] = interval_s
+    data["sunpath"]["site_known"] = False
+    data["hil"]["sky"] = list(LOOP_SKIES[:days])
+    cfg = parse_config(data, path)
+    s = run_simulation(cfg, days=days, start=date.fromisoformat(LOOP_START), progress=False)
+    return {
+        "config": "config/hil-hotspot.toml with [hotspot] interval_s = "
+                  f"{interval_s:g} and [sunpath] site_known = false",
+        "start": LOOP_START, "days": days, "skies": list(LOOP_SKIES[:days]),
+        "control_period_s": s["control_period_s"], "wall_s": s["wall_s"],
+        "pointing_error_deg": s["pointing_error_deg"], "energy_ratio": s["energy_ratio"],
+        "trackers": s["trackers"], "modes_tracker_cycles": s["modes"],
+        "sources_tracker_cycles": s["sources"], "camera_frames": s.get("camera_frames"),
+        "sun_path_learned": s.get("sun_path"), "modbus": s["modbus"],
+    }
