@@ -122,8 +122,8 @@ def hil_loop(days: int = len(LOOP_SKIES), interval_s: float = 900.0) -> dict:
 
     The paper's sampling (one frame per ``interval_s``) while the controller sends a
     setpoint every minute: between frames and through clouds the sun-path filter predicts.
-    Until the filter has started (12 observations over 3 h on day 1) there is no sun
-    estimate and the trackers stow: that is the cost of not being told the site.
+    Until the filter has started (12 observations over 3 h on day 1) the estimate is the
+    last two frames extrapolated; before the first two frames the trackers stay in stow.
     """
     import tomllib
     from datetime import date

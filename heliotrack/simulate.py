@@ -31,6 +31,7 @@ from controller.sensors.pyranometer import ModbusPyranometer
 from controller.loop import Controller
 from controller.sun.camera import CallableFrameSource
 from controller.sun.factory import build_sun_source
+from controller.sunpath.ephemeris import wrap180
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
@@ -300,7 +301,7 @@ class ScenarioRun:
             if "lat_deg" in sp:
                 site = self.config.site
                 sp["lat_error_deg"] = sp["lat_deg"] - site.latitude
-                sp["lon_error_deg"] = (sp["lon_deg"] - site.longitude + 180.0) % 360.0 - 180.0
+                sp["lon_error_deg"] = float(wrap180(sp["lon_deg"] - site.longitude))
             out["sun_path"] = sp
         return out
 
