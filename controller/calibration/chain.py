@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..timestamps import time_from_name
 from .bundle import CalibrationBundle, LevelCal, PoseCal, SurfaceCal, save_bundle
 
 
@@ -68,8 +69,6 @@ def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: f
     log({"step": "level", "lines": zr.n_lines, "rms_line_deg": round(zr.rms_line_deg, 4)})
     b = replace(b, level=LevelCal(zenith_model=tuple(map(float, zr.zenith_model))))
     # a day of frames, levelled but not yet aligned in azimuth
-    from ..vision.imageio import time_from_name
-
     est = HotspotEstimator(b)
     az, el, ts, sm, vb = [], [], [], [], []
     for p in sorted((folder / "day").glob("*.png")):

@@ -181,7 +181,9 @@ def _azimuth(args) -> int:
             raise InputError("the ephemeris method needs --lat, --lon and times in the observations")
         from ..sun.source import Site, solar_position
 
-        tt = [datetime.fromisoformat(t.replace("Z", "+00:00")).timestamp() for t in ts]
+        from ..timestamps import parse_timestamp
+
+        tt = [parse_timestamp(t, f"{args.observations}: time") for t in ts]
         sp = solar_position(Site(args.lat, args.lon), tt)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
     update_bundle(args.bundle, azimuth_offset_deg=off)

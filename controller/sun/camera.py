@@ -10,20 +10,17 @@ gave nothing.
 from __future__ import annotations
 
 import abc
-import re
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..timestamps import CANONICAL_EXAMPLE, time_from_name
 from .types import SunObservation
 
-_ISO_IN_NAME = re.compile(
-    r"(\d{4}-?\d{2}-?\d{2})[T_ ]?(\d{2})[:\-]?(\d{2})[:\-]?(\d{2})(?:[.,](\d+))?(Z|[+-]\d{2}:?\d{2})?")
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm"}
 
 
@@ -50,23 +47,6 @@ class CallableFrameSource(FrameSource):
         return CameraFrame(self.render(t), float(t), "rendered")
 
 
-def time_from_name(name: str) -> float | None:
-    """POSIX time from an ISO-8601 timestamp in a file name (UTC unless an offset is given)."""
-    m = _ISO_IN_NAME.search(name)
-    if not m:
-        return None
-    date, hh, mm, ss, frac, tz = m.groups()
-    date = date.replace("-", "")
-    tz = tz or "Z"
-    tz = "+00:00" if tz == "Z" else (tz if ":" in tz else tz[:3] + ":" + tz[3:])
-    try:
-        dt = datetime.fromisoformat(f"{date[:4]}-{date[4:6]}-{date[6:]}T{hh}:{mm}:{ss}"
-                                    f"{'.' + frac[:6] if frac else ''}{tz}")
-    except ValueError:
-        return None
-    return dt.astimezone(timezone.utc).timestamp()
-
-
 class FolderFrameSource(FrameSource):
     """Replay a folder of images whose names carry ISO timestamps.
 
@@ -86,7 +66,7 @@ class FolderFrameSource(FrameSource):
         bad = [p.name for ts, p in stamped if ts is None]
         if bad:
             raise ConfigError(None, "hotspot.frames",
-                              "image names with an ISO timestamp (e.g. 2024-03-20T09:15:00Z.png)",
+                              f"image names with a timestamp (e.g. {CANONICAL_EXAMPLE}.png)",
                               ", ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""))
         self.frames = sorted((ts, p) for ts, p in stamped)
         self.times = np.array([ts for ts, _ in self.frames])

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import csv
 import math
-from datetime import datetime
 from pathlib import Path
 
 from ..errors import InputError
+from ..timestamps import parse_timestamp
 from ..sun.types import SunObservation
 
 REQUIRED = ("time", "az_deg", "el_deg")
@@ -20,17 +20,8 @@ DEFAULT_SIGMA_DEG = 0.3
 
 
 def parse_time(text: str, where: str) -> float:
-    """ISO 8601 time with an offset -> POSIX seconds; ``where`` prefixes the error."""
-    s = text.strip()
-    try:
-        dt = datetime.fromisoformat(s[:-1] + "+00:00" if s.endswith(("Z", "z")) else s)
-    except ValueError:
-        raise InputError(f"{where}: expected an ISO 8601 time such as "
-                         f"2024-03-01T08:15:00+03:30, got {text!r}") from None
-    if dt.tzinfo is None:
-        raise InputError(f"{where}: time {text!r} has no UTC offset; add one "
-                         f"(e.g. +03:30 or Z)")
-    return dt.timestamp()
+    """Time with a zone -> POSIX seconds (:func:`controller.timestamps.parse_timestamp`)."""
+    return parse_timestamp(text, where, require_zone=True)
 
 
 def _number(text: str, where: str, lo: float, hi: float, what: str) -> float:

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import re
-from datetime import datetime, timezone
 from pathlib import Path
 
 import cv2
@@ -43,26 +41,3 @@ def load_grey(path: str | Path) -> tuple[np.ndarray | None, str | None]:
     if img.dtype != np.uint8 or img.ndim != 2:
         return None, "unsupported_image_format"
     return np.ascontiguousarray(img), None
-
-
-_TS = re.compile(
-    r"(\d{4})-?(\d{2})-?(\d{2})[T_ -]?(\d{2})[:\-]?(\d{2})[:\-]?(\d{2})(?:[.,](\d+))?"
-    r"(Z|[+-]\d{2}:?\d{2})?")
-
-
-def time_from_name(name: str) -> float | None:
-    """POSIX seconds from an ISO-like timestamp in ``name`` (UTC unless an offset is given)."""
-    m = _TS.search(Path(name).name)
-    if not m:
-        return None
-    y, mo, d, h, mi, s, frac, tz = m.groups()
-    try:
-        dt = datetime(int(y), int(mo), int(d), int(h), int(mi), int(s), tzinfo=timezone.utc)
-    except ValueError:
-        return None
-    t = dt.timestamp() + (float("0." + frac) if frac else 0.0)
-    if tz and tz != "Z":
-        sign = 1 if tz[0] == "+" else -1
-        hh, mm = int(tz[1:3]), int(tz[-2:])
-        t -= sign * (hh * 3600 + mm * 60)
-    return t

@@ -1,8 +1,8 @@
 """``heliotrack estimate``: sun direction from images of the hotspot sensor, one JSON per line.
 
 The image's time comes from ``--time``, else from an ISO timestamp in the file name
-(``2025-06-21T10:15:00Z``, ``20250621T101500Z``, ``2025-06-21_10-15-00``), else it is
-omitted.  Frames that cannot be used print ``"found": false`` with a ``reason``.
+in one of the forms of :mod:`controller.timestamps` (canonical: ``2025-06-21T10-15-00Z``),
+else it is omitted.  Frames that cannot be used print ``"found": false`` with a ``reason``.
 """
 
 from __future__ import annotations
@@ -10,26 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
-
-def time_from_name(name: str) -> float | None:
-    """POSIX seconds from an ISO-like timestamp in a file name (see controller.vision.imageio)."""
-    from controller.vision.imageio import time_from_name as _t
-
-    return _t(name)
-
-
-def parse_time(text: str) -> float:
-    from controller.errors import InputError
-
-    try:
-        dt = datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        raise InputError(f"--time: expected an ISO 8601 time like 2025-06-21T10:15:00Z, got {text!r}") from None
-    if dt.tzinfo is None:
-        dt = dt.replace(tzinfo=timezone.utc)
-    return dt.timestamp()
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,17 +29,18 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from controller.calibration.bundle import load_bundle
+    from controller.timestamps import parse_timestamp, time_from_name, to_iso
     from controller.vision import HotspotEstimator
 
     bundle = load_bundle(args.calib)
     est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method)
-    t_cli = parse_time(args.time) if args.time else None
+    t_cli = parse_timestamp(args.time, "--time") if args.time else None
     for path in args.images:
         t = t_cli if t_cli is not None else time_from_name(str(path))
         res = est.estimate_file(path, t)
         d = res.to_json()
         if t is not None:
-            d["time"] = datetime.fromtimestamp(t, timezone.utc).isoformat().replace("+00:00", "Z")
+            d["time"] = to_iso(t)
         sys.stdout.write(json.dumps(d) + "\n")
         sys.stdout.flush()
     return 0

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import date, datetime
+from datetime import date, datetime, timezone
 from pathlib import Path
 
 from controller.config import load_config
@@ -59,17 +59,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _parse_start(text: str):
+    """``--start``: a date (the run starts at local mean midnight) or a time with a zone."""
+    from controller.errors import InputError
+    from controller.timestamps import parse_timestamp
+
     try:
         return date.fromisoformat(text)
     except ValueError:
         pass
     try:
-        t = datetime.fromisoformat(text.replace("Z", "+00:00"))
-    except ValueError:
-        t = None
-    if t is None or t.tzinfo is None:
-        raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text)
-    return t
+        t = parse_timestamp(text, "--start", require_zone=True)
+    except InputError:
+        raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text) from None
+    return datetime.fromtimestamp(t, timezone.utc)
 
 
 def _realtime(args: argparse.Namespace, config) -> int:

@@ -25,7 +25,7 @@ def test_reads_sorted_with_default_sigma(tmp_path):
     ("time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,2\n2024-03-01T09:15:00Z,1,abc\n",
      "row 3, column 'el_deg'"),
     ("time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,95\n", "between -90 and 90"),
-    ("time,az_deg,el_deg\n2024-03-01 09:00,1,2\n", "no UTC offset"),
+    ("time,az_deg,el_deg\n2024-03-01 09:00,1,2\n", "no zone"),
     ("time,az_deg,el_deg\nyesterday,1,2\n", "row 2, column 'time'"),
     ("time,az_deg,el_deg,sigma_deg\n2024-03-01T09:00:00Z,1,2,-1\n", "column 'sigma_deg'"),
     ("time,az_deg,el_deg\n", "no observations"),
