@@ -159,7 +159,7 @@ def _azimuth(args) -> int:
     from datetime import datetime
 
     from .azimuth import ephemeris_offset, noon_offset
-    from .bundle import update_bundle
+    from .bundle import AzimuthCal, update_bundle
 
     az, el, ts = [], [], []
     for ln, line in enumerate(args.observations.read_text().splitlines(), 1):
@@ -186,7 +186,7 @@ def _azimuth(args) -> int:
         tt = [parse_timestamp(t, f"{args.observations}: time") for t in ts]
         sp = solar_position(Site(args.lat, args.lon), tt)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
-    update_bundle(args.bundle, azimuth_offset_deg=off)
+    update_bundle(args.bundle, azimuth=AzimuthCal(off))
     print(json.dumps({"step": "azimuth", "method": args.method, "observations": len(az),
                       "offset_deg": round(off, 4), "bundle": str(args.bundle)}))
     return 0

@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pvlib
 
+from ..schema import setting
 from .types import EstimateSource, SunEstimate
 
 
@@ -22,12 +23,15 @@ from .types import EstimateSource, SunEstimate
 class Site:
     """Geographic site.  Latitude north-positive, longitude east-positive, degrees."""
 
-    latitude: float
-    longitude: float
-    altitude: float = 0.0
-    pressure_pa: float | None = None  # None: from altitude (pvlib.atmosphere.alt2pres)
-    temperature_c: float = 12.0
-    name: str = ""
+    latitude: float = setting(doc="Latitude, north positive.", unit="deg", ge=-90, le=90)
+    longitude: float = setting(doc="Longitude, east positive.", unit="deg", ge=-180, le=180)
+    altitude: float = setting(0.0, doc="Height above sea level.", unit="m", ge=-500, le=9000)
+    pressure_pa: float | None = setting(None, doc="Mean air pressure (none: from the "
+                                        "altitude) for refraction.", unit="Pa",
+                                        ge=30000, le=110000)
+    temperature_c: float = setting(12.0, doc="Mean air temperature, for refraction.",
+                                   unit="degC", ge=-60, le=60)
+    name: str = setting("", doc="Name (reports, SunSpec).")
 
     @property
     def pressure(self) -> float:
