@@ -192,9 +192,7 @@ class Controller:
         self._saved_day = day
 
     def _save_sun_state(self) -> None:
-        save = getattr(self.sun, "save", None)
-        if save is not None:
-            save()   # atomic; once a day and at shutdown
+        self.sun.save()   # atomic; once a day and at shutdown
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""

@@ -19,11 +19,11 @@ from controller.clock import RealClock
 from controller.config import Config
 from controller.loop import Controller
 from controller.northbound import Northbound
-from controller.sun.factory import build_sun_source
 from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
 from .scenario import as_scenario
+from .sun_sources import build_sun_source
 from .simulate import _build_world, _open_drives, _open_pyranometer
 
 

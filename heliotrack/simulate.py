@@ -31,7 +31,6 @@ from controller.errors import ConfigError
 from controller.sensors.pyranometer import ModbusPyranometer
 from controller.loop import Controller
 from controller.sun.camera import CallableFrameSource
-from controller.sun.factory import build_sun_source
 from controller.sunpath.ephemeris import wrap180
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
@@ -41,6 +40,7 @@ from hil.sky import sky_series
 from hil import truth
 
 from .scenario import HilConfig, as_scenario, axis_params
+from .sun_sources import build_sun_source
 
 
 @dataclass
@@ -301,9 +301,8 @@ class ScenarioRun:
         if self._sensor is None:
             return {}
         out = {"camera_frames": dict(self._sensor.outcomes)}
-        learned = getattr(self._sun, "summary", None)
-        if learned is not None:
-            sp = learned()
+        sp = self._sun.summary() if self._sun is not None else {}
+        if sp:
             if "lat_deg" in sp:
                 site = self.config.site
                 sp["lat_error_deg"] = sp["lat_deg"] - site.latitude

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pvlib
 
 from ..schema import setting
-from .types import EstimateSource, SunEstimate
+from .types import EstimateSource, SunEstimate, SunObservation
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,18 @@ class SunSource(abc.ABC):
 
         ``now`` is the present when ``t`` is ahead of it (setpoints aim at mid-period).
         """
+
+    def observe(self, obs: SunObservation) -> bool:
+        """Take a sensor's observation; True when it was used.  Sources that learn nothing
+        from observations (the ephemeris) ignore it."""
+        return False
+
+    def save(self) -> None:
+        """Persist what the source has learned (atomically); a no-op for stateless sources."""
+
+    def summary(self) -> dict[str, Any]:
+        """What the source has learned, for reports (empty for stateless sources)."""
+        return {}
 
 
 class EphemerisSource(SunSource):

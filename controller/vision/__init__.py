@@ -9,7 +9,7 @@ API for the loop::
     obs = res.observation()                      # SunObservation or None
 
 In the control loop, :class:`controller.sun.camera.CameraSunSensor` runs the estimator on
-each frame and feeds the sun-path filter (:mod:`controller.sun.factory`).
+each frame and feeds the sun-path filter (built by `heliotrack.sun_sources`).
 """
 
 from .estimator import HotspotEstimator, HotspotResult, level_rotation, mirror_sun_direction
