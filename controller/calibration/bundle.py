@@ -38,7 +38,7 @@ mask = "mask.png"   # optional (top level); relative paths resolve against this 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
 
