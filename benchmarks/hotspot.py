@@ -54,7 +54,7 @@ def _bundle(scn, zenith=None):
 
 
 def _measured_zenith(scn):
-    from hil.camera.render import render_plumb_view
+    from hil.camera.views import render_plumb_view
     from controller.calibration import CameraCal
     from controller.calibration.level import detect_plumb_lines, zenith_from_lines
 

@@ -12,8 +12,10 @@ In the control loop, :class:`controller.sun.camera.CameraSunSensor` runs the est
 each frame and feeds the sun-path filter (built by `heliotrack.sun_sources`).
 """
 
-from .estimator import HotspotEstimator, HotspotResult, level_rotation, mirror_sun_direction
+from .estimator import HotspotEstimator
 from .hotspot import segment_fast, segment_seed
+from .mirror import level_rotation, mirror_sun_direction
+from .result import HotspotResult
 
 __all__ = ["HotspotEstimator", "HotspotResult", "mirror_sun_direction", "level_rotation",
            "segment_fast", "segment_seed"]
