@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     from controller.sky.classify import SkyConfig, SkySettings, analyse_grid
     from controller.sky.grid import build_day_grid
     from controller.sky.io import read_records
-    from controller.sky.report import write_figures, write_tables
+    from heliotrack.reports.skytype import write_figures, write_tables
     from controller.sun.source import Site
 
     progress = sys.stderr.isatty()
