@@ -21,7 +21,6 @@ from .schema import DERIVED, Where, internal, load, load_file, setting, variants
 from .sun.source import Site
 from .sunspec.config import SunSpecConfig
 
-TRACKER_TYPES = ("dual-axis", "single-axis")
 SunSourceKind = Literal["ephemeris", "hotspot"]
 C = TypeVar("C", bound="Config")
 
@@ -215,9 +214,6 @@ class Config:
     @property
     def links_by_name(self) -> dict[str, LinkConfig]:
         return {link.name: link for link in self.links}
-
-    def link_of(self, tracker: TrackerConfig) -> LinkConfig:
-        return self.links_by_name[tracker.link]
 
     def __schema_check__(self, at: Where) -> Config:
         links: dict[str, LinkConfig] = {}

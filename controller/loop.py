@@ -16,9 +16,9 @@ from firmware_protocol import Command, Mode
 
 from .clock import Clock
 from .config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
+from .diffuse import DiffuseSwitch
 from .drives import DriveCommError, DriveLink, DriveState
 from .geometry import dual_axis_setpoint, single_axis_setpoints, wrap_into_range
-from .diffuse import DiffuseSwitch
 from .modes import ControlMode, ModeDecision, decide_mode
 from .sun.source import SunSource
 from .sun.types import SunEstimate
@@ -52,7 +52,6 @@ class TrackerRuntime:
     last_heartbeat: float = -math.inf
     configured: bool = False
     index: int = 0
-    start_error: str = ""
     errors: int = 0
 
 
@@ -99,9 +98,8 @@ class Controller:
     async def _start_one(self, tr: TrackerRuntime) -> None:
         try:
             await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
-        except (DriveCommError, asyncio.TimeoutError) as exc:
+        except (DriveCommError, asyncio.TimeoutError):
             tr.errors += 1
-            tr.start_error = str(exc) or "timeout"
 
     async def _configure(self, tr: TrackerRuntime) -> None:
         await tr.drive.connect()
