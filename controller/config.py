@@ -38,8 +38,9 @@ class ControlConfig:
                             "the panel leads then lags it by the same amount.", unit="s",
                             ge=0, le=3600, derived="period_s / 2")
     heartbeat_timeout_s: float = setting(doc="Drive watchdog: a drive that hears nothing "
-                                         "for this long stows itself (0 disables it; must "
-                                         "exceed period_s).", unit="s", ge=0, le=6553,
+                                         "for this long stows itself (must exceed "
+                                         "period_s; the drives refuse to switch it off "
+                                         "outside MAINTENANCE).", unit="s", gt=0, le=6553,
                                          derived="3 x period_s, at least 5")
     sun_source: SunSourceKind = setting("ephemeris", doc="Where the sun's direction comes "
                                         "from: the ephemeris at the configured site, or the "
@@ -51,10 +52,9 @@ class ControlConfig:
             c = replace(c, lead_s=c.period_s / 2)
         if c.heartbeat_timeout_s != c.heartbeat_timeout_s:
             c = replace(c, heartbeat_timeout_s=max(3 * c.period_s, 5.0))
-        if 0 < c.heartbeat_timeout_s <= c.period_s:
+        if c.heartbeat_timeout_s <= c.period_s:
             raise at.child("heartbeat_timeout_s").error(
-                f"more than control.period_s ({c.period_s:g} s), or 0 to disable",
-                c.heartbeat_timeout_s)
+                f"more than control.period_s ({c.period_s:g} s)", c.heartbeat_timeout_s)
         return c
 
 
