@@ -20,6 +20,7 @@ from .geometry.single_axis import RowGeometry
 from .schema import DERIVED, Where, internal, load, load_file, setting, variants
 from .sun.source import Site
 from .sunspec.config import SunSpecConfig
+from .weather import StowConfig, WindConfig
 
 SunSourceKind = Literal["ephemeris", "hotspot"]
 C = TypeVar("C", bound="Config")
@@ -209,6 +210,8 @@ class Config:
     hotspot: HotspotConfig | None = setting(None, doc="Hotspot camera sensor.")
     sunpath: SunPathSettings = setting(default_factory=SunPathSettings, doc="Sun-path filter.")
     sunspec: SunSpecConfig = setting(default_factory=SunSpecConfig, doc="SunSpec server.")
+    wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
+    stow: StowConfig = setting(default_factory=StowConfig, doc="Snow and hail stow.")
     file: str = internal("<config>")
 
     @property
@@ -263,9 +266,38 @@ class Config:
             raise at.child("diffuse").child("enabled").error(
                 "false when control.period_s > 60 s (the sky classifier needs a pyranometer "
                 "sample at least every minute)", True)
+        if self.wind is not None:
+            self._check_wind(at.child("wind"), links, used)
         if self.control.sun_source == "hotspot" and self.hotspot is None:
             raise at.child("hotspot").error('a [hotspot] table when control.sun_source = "hotspot"')
         return c
+
+
+    def _check_wind(self, at: Where, links: dict[str, LinkConfig],
+                    used: dict[tuple[str, int], str]) -> None:
+        wind = self.wind
+        assert wind is not None
+        if wind.link not in links:
+            raise at.child("link").error("the name of a [[links]] table", wind.link)
+        if not isinstance(links[wind.link], (ModbusRtuLink, ModbusTcpLink)):
+            raise at.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", wind.link)
+        pyr = self.pyranometer
+        if (wind.link, wind.device_id) in used or (
+                pyr is not None and (pyr.link, pyr.device_id) == (wind.link, wind.device_id)):
+            raise at.child("device_id").error(f"an id not used on {wind.link!r} already",
+                                              wind.device_id)
+        # the wind stow angle becomes each drive's STOW_ANGLE: it must be reachable
+        for tr in self.trackers:
+            if isinstance(tr, SingleAxisTracker) and abs(wind.single_axis_deg) > tr.max_angle:
+                raise at.child("single_axis_deg").error(
+                    f"a rotation within every row's max_angle ({tr.name}: {tr.max_angle:g} deg)",
+                    wind.single_axis_deg)
+            if isinstance(tr, DualAxisTracker):
+                lo, hi = tr.elevation_limits
+                if not lo <= wind.dual_axis_elevation_deg <= hi:
+                    raise at.child("dual_axis_elevation_deg").error(
+                        f"an elevation within every tracker's limits ({tr.name}: [{lo:g}, {hi:g}])",
+                        wind.dual_axis_elevation_deg)
 
 
 def _addresses(link: LinkConfig, device_id: int, axes: int) -> range:
