@@ -444,8 +444,15 @@ def run(quick: bool = False) -> dict:
 
 def _hotspot_blocks(north: Dataset, south: Dataset | None) -> dict:
     """The same tables with the project's hotspot sensor in the HIL (rendered frames)."""
-    from .sunpath_hotspot import BUNDLE, CLOUD_TRANSMITTANCE, PROFILE, TILT_DEG, \
-        hil_loop, hotspot_dataset, sensor_errors
+    from .sunpath_hotspot import (
+        BUNDLE,
+        CLOUD_TRANSMITTANCE,
+        PROFILE,
+        TILT_DEG,
+        hil_loop,
+        hotspot_dataset,
+        sensor_errors,
+    )
 
     out = {"camera": {"profile": PROFILE, "base_tilt_deg": TILT_DEG,
                       "calibration": BUNDLE.name, "cloud_transmittance": CLOUD_TRANSMITTANCE},

@@ -15,8 +15,7 @@ import numpy as np
 
 from .days import DayResult, split_days
 from .ephemeris import geocentric_sun, wrap180
-from .localisation import (culmination_side, declination_from_noon, latitude_from_noon,
-                           longitude_from_noon)
+from .localisation import culmination_side, declination_from_noon, latitude_from_noon, longitude_from_noon
 
 #: Variance (deg^2) of one elevation observation assumed when no fit can tell it.
 DEFAULT_VARIANCE = 0.3 ** 2
@@ -53,7 +52,7 @@ class ParabolaFit:
     @property
     def noon_hours(self) -> float:
         """Extremum ``T = -c1 / (2 c2)`` (local hours)."""
-        c0, c1, c2 = self.coef
+        _, c1, c2 = self.coef
         return float(-c1 / (2.0 * c2))
 
     @property
@@ -70,7 +69,7 @@ class ParabolaFit:
     @property
     def noon_sigma_s(self) -> float:
         """One-sigma of the noon time (s), first-order propagation of ``cov``."""
-        c0, c1, c2 = self.coef
+        _, c1, c2 = self.coef
         g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])
         return float(3600.0 * np.sqrt(max(g @ self.cov @ g, 0.0)))
 

@@ -21,7 +21,7 @@ import csv
 import io
 import json
 import sys
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 
@@ -150,9 +150,10 @@ def _predict(args, path: Path | None) -> int:
             p = kf.predict(t)
             az, el, cov, src = p.az_deg, p.el_deg, p.covariance, "predicted"
         else:
+            assert eph is not None  # checked above: no filter means a site was given
             e = eph.estimate(t)
             az, el, cov, src = e.az_deg, e.el_deg, e.covariance, "ephemeris"
-        rows.append({"time": datetime.fromtimestamp(t, tz=timezone.utc).isoformat(
+        rows.append({"time": datetime.fromtimestamp(t, tz=UTC).isoformat(
                          timespec="seconds"),
                      "az_deg": round(float(az), 6), "el_deg": round(float(el), 6),
                      "sigma_az_deg": round(float(np.sqrt(cov[0, 0])), 6),
