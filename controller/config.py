@@ -68,6 +68,9 @@ class TrackerConfig:
     link: str = setting(doc="Name of the `[[links]]` table the drive is on.")
     device_id: int = setting(doc="Modbus slave id, or CANopen node id of axis 0 (axis k "
                              "is node id + k).", ge=1, le=247)
+    safe_position: Literal["stow", "hold"] = setting(
+        "stow", doc="Where `heliotrack run` leaves the drive when it stops (SIGTERM, "
+        "SIGINT): its stow position, or holding where it is.")
 
     axes: ClassVar[int] = 0
 
