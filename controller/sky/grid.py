@@ -147,12 +147,10 @@ def build_day_grid(times, ghi, longitude: float, *, dni=None, step_s: int | None
         day_index = day[new_day]
         row = np.cumsum(new_day) - 1
     else:
-        # unordered input: number the days present through a dense table over the span
-        # (no sort; bincount below averages whatever lands in a slot, in any order)
-        d0 = int(day.min())
-        present = np.bincount(day - d0) > 0
-        day_index = np.flatnonzero(present) + d0
-        row = (np.cumsum(present) - 1)[day - d0]
+        # unordered input: number the days present (bincount below averages whatever
+        # lands in a slot, in any order); np.unique, not a dense table over the span, so a
+        # stray far-off time costs one day, not memory for every day in between
+        day_index, row = np.unique(day, return_inverse=True)
     flat = row * n_slots + slot
     size = day_index.size * n_slots
 

@@ -38,6 +38,8 @@ DNI_NAMES = ("dni", "dni_wm2", "direct", "direct_normal", "beam")
 MIN_IRRADIANCE = -20.0
 #: Largest plausible irradiance (above any cloud enhancement at the ground), W/m2.
 MAX_IRRADIANCE = 2000.0
+#: Plausible sample times, POSIX s (1900-01-01 .. 2200-01-01).
+TIME_RANGE = (-2208988800.0, 7258118400.0)
 
 
 @dataclass(frozen=True)
@@ -124,6 +126,13 @@ def _times(values: pd.Series, path: Path, column: str, row_offset: int) -> np.nd
         i = int(np.flatnonzero(bad)[0])
         raise InputError(f"{path}: row {i + row_offset}, column {column!r}: expected a UTC time "
                          f"(e.g. 2016-06-01T12:00:00Z), got {values.iloc[i]!r}")
+    far = (t < TIME_RANGE[0]) | (t > TIME_RANGE[1])
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        v = values.iloc[i]
+        got = repr(v) if isinstance(v, str) else f"{float(v):g}"
+        raise InputError(f"{path}: row {i + row_offset}, column {column!r}: expected a time "
+                         f"between the years 1900 and 2200 (POSIX seconds or ISO 8601), got {got}")
     return t
 
 
