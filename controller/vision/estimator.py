@@ -118,6 +118,11 @@ class HotspotEstimator:
             out.reason = "saturated_blob_too_large"
             out.quality = tuple(flags + ["saturated_blob_too_large"])
             return out
+        distinct = self._distinct(image, seg)
+        if distinct:
+            out.reason = distinct
+            out.quality = tuple(flags + [distinct])
+            return out
         r0, r1, c0, c1 = seg.roi
         hm = seg.roi_mask
         # at the mask's edge: the grown hotspot leaves the mask
@@ -165,6 +170,36 @@ class HotspotEstimator:
         out.centre_uv = centre
         out.extra["i_opt"] = seg.i_opt
         return out
+
+    #: A glint must stand out of the painted surface around it by this many robust sigmas
+    #: of that surface, and by ``MIN_CONTRAST_DN`` at least: a specular image of the sun is
+    #: orders of magnitude brighter than the diffuse black paint, noise is not.
+    MIN_CONTRAST_SIGMAS = 6.0
+    MIN_CONTRAST_DN = 20.0
+    #: More separate bright components than this is not one glint (noise, a lit surface).
+    MAX_CANDIDATES = 8
+
+    def _distinct(self, image: np.ndarray, seg) -> str | None:
+        """Reason to refuse a segmentation that is not a glint on a dark surface, or None."""
+        if seg.n_candidates > self.MAX_CANDIDATES:
+            return "ambiguous_bright_spots"
+        r0, r1, c0, c1 = seg.roi
+        H, W = self.shape
+        pad = 24
+        R0, R1, C0, C1 = max(r0 - pad, 0), min(r1 + pad, H), max(c0 - pad, 0), min(c1 + pad, W)
+        blob = np.zeros((R1 - R0, C1 - C0), np.uint8)
+        blob[r0 - R0:r1 - R0, c0 - C0:c1 - C0] = seg.roi_mask
+        near = cv2.dilate(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11)))
+        far = cv2.dilate(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (41, 41)))
+        ring = (far > 0) & (near == 0) & (self.mask[R0:R1, C0:C1] > 0)
+        if ring.sum() < 20:
+            return None                      # no surface around to compare with
+        around = image[R0:R1, C0:C1][ring].astype(np.float64)
+        med = float(np.median(around))
+        sigma = max(1.4826 * float(np.median(np.abs(around - med))), 1.0)
+        if seg.i_max - med < max(self.MIN_CONTRAST_SIGMAS * sigma, self.MIN_CONTRAST_DN):
+            return "no_distinct_glint"
+        return None
 
     @staticmethod
     def _halfvector_centre(n, v, w, s, iters: int = 8):

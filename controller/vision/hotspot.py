@@ -67,11 +67,14 @@ def _candidate(labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray,
         a = areas[best]
         best = best[a == a.max()]
     if best.size > 1:
-        firsts = []
-        for k in best:
-            r, c = np.argwhere(labels == k + 1)[0]
-            firsts.append((r + offset[0]) * full_width + (c + offset[1]))
-        best = best[[int(np.argmin(firsts))]]
+        # the tied component whose first pixel comes first in raster order (one pass)
+        flat = labels.ravel()
+        first = np.full(n, flat.size, np.int64)
+        np.minimum.at(first, flat, np.arange(flat.size))
+        h, w = labels.shape
+        rows, cols = np.divmod(first[best + 1], w)
+        raster = (rows + offset[0]) * full_width + (cols + offset[1])
+        best = best[[int(np.argmin(raster))]]
     return int(best[0]) + 1
 
 
@@ -135,9 +138,19 @@ def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
                         roi_mask=h)
 
 
+#: More separate saturated spots than this is not one glint (hot pixels, noise, a lit
+#: surface): :func:`segment_fast` gives up before the threshold sweep.
+MAX_SATURATED_SPOTS = 8
+
+
 def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode",
                  glint_level: int = 230, full_mask: bool = True) -> Segmentation:
-    """Same H as :func:`segment_seed`, computed on the window that can hold it."""
+    """Same H as :func:`segment_seed`, computed on the window that can hold it.
+
+    A frame with more than :data:`MAX_SATURATED_SPOTS` separate spots above
+    ``glint_level`` is refused at once (``ambiguous_bright_spots``): the sweep would have to
+    label the whole frame at every threshold to find no glint in it.
+    """
     img = np.ascontiguousarray(image)
     m8 = mask if mask.dtype == np.uint8 else (mask > 0).astype(np.uint8)
     imin, imax = _minmax(img, m8)
@@ -145,6 +158,11 @@ def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
         return Segmentation(False, "empty_mask")
     if imax < glint_level:
         return Segmentation(False, "no_glint", i_max=imax, i_min=imin)
+    _, hi = cv2.threshold(img, glint_level - 1, 1, cv2.THRESH_BINARY)
+    spots = cv2.connectedComponents(cv2.bitwise_and(hi, m8), connectivity=8)[0] - 1
+    if spots > MAX_SATURATED_SPOTS:
+        return Segmentation(False, "ambiguous_bright_spots", i_max=imax, i_min=imin,
+                            n_candidates=spots)
     i_end = _end_threshold(imax, imin, end_rule)
     _, b = cv2.threshold(img, i_end, 1, cv2.THRESH_BINARY)
     b = cv2.bitwise_and(b, m8)
