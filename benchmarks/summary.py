@@ -121,10 +121,10 @@ def _hotspot(r: dict) -> list[Headline]:
     acc = r["acceptance"]
     kc = r["known_calibration"]
     out = [Headline("hotspot", "recommended camera, realistic noise: RMS",
-                    _f(kc["recommended"]["noise"].get("rms_deg"), 3, " deg"), "<= 0.1 deg",
+                    _f(kc["recommended"]["noise"]["default"]["rms_deg"], 3, " deg"), "<= 0.1 deg",
                     ok=acc.get("recommended_noise_rms_le_0.1")),
            Headline("hotspot", "paper's camera, realistic noise: RMS",
-                    _f(kc["seed"]["noise"].get("rms_deg"), 3, " deg"), "<= 0.3 deg",
+                    _f(kc["seed"]["noise"]["default"]["rms_deg"], 3, " deg"), "<= 0.3 deg",
                     "paper: about 0.3 deg", ok=acc.get("seed_noise_rms_le_0.3")),
            Headline("hotspot", "default segmentation per frame", _f(r["timing"]["default_median_ms"], 3, " ms"),
                     "<= 20 ms", f"Algorithm 1: {r['timing']['seed_median_ms']:.0f} ms",
