@@ -1,0 +1,183 @@
+"""Modbus RTU and TCP drive links over pymodbus's asyncio clients (``modbus-rtu``, ``modbus-tcp``)."""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable, Sequence
+from typing import Any
+
+from firmware_protocol import (
+    AXIS_STRIDE,
+    MAGIC,
+    PROTOCOL_VERSION,
+    Command,
+    Fault,
+    Mode,
+    Status,
+    decode,
+    encode,
+    register,
+)
+from firmware_protocol.codec import axis_block_address, decode_axis
+
+from ..base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats
+from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from .client import checked, endpoint, modbus_client, retry_policy
+
+_ID_WORDS = 3
+_TARGET = register("TARGET_ANGLE")
+
+
+class ModbusDrive(DriveLink):
+    """A drive on a pymodbus asyncio client (serial RTU or TCP).
+
+    Parameters
+    ----------
+    client : pymodbus async client
+        Or the :class:`~controller.drives.modbus.client.SharedSerialClient` of a port.
+    device_id : int
+        Modbus slave id of the drive.
+    retries : int
+        Extra attempts after a failed transaction.
+    label : str
+        Used in error messages (``"/dev/ttyUSB0 id 4"``).
+    """
+
+    def __init__(self, client: Any, device_id: int, retries: int = 2, label: str = ""):
+        self.client = client
+        self.device_id = device_id
+        self.retries = retries
+        self.policy = retry_policy(retries)
+        self.label = label or f"id {device_id}"
+        self.axis_count = 0
+        self.stats = LinkStats()
+        self._beat = 0
+        self._closed = False
+
+    async def _call(self, what: str, request: Callable[..., Awaitable[Any]], *args: Any,
+                    **kwargs: Any) -> Any:
+        """One request to this slave under the link's retry policy."""
+        return await self.policy.run(
+            lambda: checked(request, *args, device_id=self.device_id, **kwargs),
+            what=what, label=self.label, stats=self.stats)
+
+    async def connect(self) -> None:
+        if not await self.client.connect():
+            raise DriveCommError(f"{self.label}: cannot open the link")
+        words = (await self._call("identification read", self.client.read_holding_registers,
+                                  0, count=_ID_WORDS)).registers
+        if words[0] != MAGIC:
+            raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
+        if words[1] >> 8 != PROTOCOL_VERSION >> 8:
+            raise DriveCommError(f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x")
+        if not 1 <= words[2] <= 2:
+            raise DriveCommError(f"{self.label}: implausible axis count {words[2]}")
+        self.axis_count = words[2]
+
+    async def close(self) -> None:
+        if not self._closed:     # once: a shared line's client counts its users
+            self._closed = True
+            self.client.close()
+
+    def _decode_state(self, words: Sequence[int]) -> DriveState:
+        axes = []
+        try:
+            for k in range(self.axis_count):
+                v = decode_axis(words, k * AXIS_STRIDE)
+                axes.append(AxisState(
+                    actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
+                    velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),
+                    fault=Fault(int(v["FAULT_CODE"])), mode=Mode(int(v["MODE"]))))
+        except (ValueError, KeyError) as exc:  # an unknown mode or fault code on the wire
+            raise DriveCommError(f"{self.label}: implausible state from the drive: {exc}") from None
+        dev = Status(0)
+        for a in axes:
+            dev |= a.status
+        return DriveState(self.axis_count, tuple(axes), dev)
+
+    async def read_state(self) -> DriveState:
+        rr = await self._call("state read", self.client.read_holding_registers,
+                              axis_block_address(0), count=AXIS_STRIDE * self.axis_count)
+        return self._decode_state(rr.registers)
+
+    def _check(self, angles_deg: Sequence[float]) -> None:
+        if len(angles_deg) != self.axis_count:
+            raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
+
+    async def write_targets(self, angles_deg: Sequence[float]) -> None:
+        self._check(angles_deg)
+        for k, angle in enumerate(angles_deg):
+            await self._call("target write", self.client.write_registers, _TARGET.address(k),
+                             encode(_TARGET, angle))
+
+    async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
+        """Axis 1's target by FC16, then axis 0's target and the state read in one FC23."""
+        self._check(angles_deg)
+        for k in range(1, self.axis_count):
+            await self._call("target write", self.client.write_registers, _TARGET.address(k),
+                             encode(_TARGET, angles_deg[k]))
+        rr = await self._call("target write + state read", self.client.readwrite_registers,
+                              read_address=axis_block_address(0),
+                              read_count=AXIS_STRIDE * self.axis_count,
+                              write_address=_TARGET.address(0),
+                              values=encode(_TARGET, angles_deg[0]))
+        return self._decode_state(rr.registers)
+
+    async def heartbeat(self) -> None:
+        self._beat = (self._beat + 1) & 0xFFFF
+        await self._call("heartbeat", self.client.write_register,
+                         register("HEARTBEAT").address(), self._beat)
+
+    async def command(self, cmd: Command) -> None:
+        await self._call(f"command {cmd.name}", self.client.write_register,
+                         register("COMMAND").address(), int(cmd))
+
+    async def configure(self, *, heartbeat_timeout_s: float | None = None,
+                        soft_limits: Sequence[tuple[float, float]] | None = None,
+                        stow_angles: Sequence[float] | None = None) -> None:
+        if heartbeat_timeout_s is not None:
+            reg = register("HEARTBEAT_TIMEOUT")
+            await self._call("configure", self.client.write_registers, reg.address(),
+                             encode(reg, heartbeat_timeout_s))
+        lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
+        for k, (lo, hi) in enumerate(soft_limits or ()):
+            await self._call("configure", self.client.write_registers, lo_reg.address(k),
+                             encode(lo_reg, lo) + encode(hi_reg, hi))
+        reg = register("STOW_ANGLE")
+        for k, angle in enumerate(stow_angles or ()):
+            await self._call("configure", self.client.write_registers, reg.address(k),
+                             encode(reg, angle))
+
+    async def read_register(self, name: str, axis: int | None = None) -> float | int:
+        reg = register(name)
+        rr = await self._call(f"read {name}", self.client.read_holding_registers,
+                              reg.address(axis), count=reg.words)
+        return decode(reg, rr.registers)
+
+
+class ModbusRtuDrive(ModbusDrive):
+    """A drive on a Modbus RTU line (link kind ``modbus-rtu``)."""
+
+    config_type = ModbusRtuLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusRtuDrive:
+        """Slave ``device_id`` on the line's shared client (see
+        :func:`~controller.drives.modbus.client.modbus_client`)."""
+        if not isinstance(link, ModbusRtuLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
+        return cls(modbus_client(link), device_id, link.retries,
+                   label=f"{endpoint(link)} id {device_id}")
+
+
+class ModbusTcpDrive(ModbusDrive):
+    """A drive behind Modbus TCP (link kind ``modbus-tcp``)."""
+
+    config_type = ModbusTcpLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusTcpDrive:
+        """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
+        if not isinstance(link, ModbusTcpLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
+        return cls(modbus_client(link), device_id, link.retries,
+                   label=f"{endpoint(link)} id {device_id}")
