@@ -166,13 +166,13 @@ def canopen_virtual(n: int, seconds: float) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    from benchmarks.loop import _rtu_latency
+    from benchmarks.loop import rtu_latency
 
     seconds = 10.0 if quick else 60.0
     sizes = [1000] if quick else [250, 1000, 1500]
     # RTU first: pyserial uses select(), which cannot watch fds above 1024, and the TCP
     # runs leave the process with high fd numbers.
-    rtu = _rtu_latency(500 if quick else 2000)
+    rtu = rtu_latency(500 if quick else 2000)
     tcp = {str(n): modbus_tcp(n, seconds) for n in sizes}
     isolation = modbus_tcp(1000, seconds, kill_one=True)
     with_scada = modbus_tcp(1000, seconds, sunspec_polls=100 if quick else 500)

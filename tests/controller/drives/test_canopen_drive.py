@@ -176,3 +176,31 @@ def test_a_bus_only_the_simulator_provides_is_refused():
 
     with pytest.raises(LinkSettingsError, match='channel = "hil"'):
         open_drive(CanopenLink(name="can-1"), 1)
+
+
+def test_the_master_heartbeat_is_one_frame_per_round_of_drives():
+    from tests.hil.canopen.rig import wait_for
+
+    with emulated(axes=one_axis(), node_id=1) as (_fw, emu, ch):
+        for i in range(2, 5):
+            emu.add_drive(DriveFirmware(one_axis(), time.time, heartbeat_timeout=0), i)
+        seen = []
+        emu.network.subscribe(0x77F, lambda *frame: seen.append(frame))
+
+        async def scenario():
+            drives = [open_drive(can(ch, pdo_mapping="eds"), i) for i in range(1, 5)]
+            await asyncio.gather(*(d.connect() for d in drives))
+            try:
+                before = sum(d.stats.transactions for d in drives)
+                # Two rounds back to back, as two control cycles of a fast simulated clock:
+                # every round reaches the bus (four drives, one frame each round).
+                for _ in range(2):
+                    await asyncio.gather(*(d.heartbeat() for d in drives))
+                    await asyncio.sleep(0)
+                assert sum(d.stats.transactions for d in drives) - before == 2
+            finally:
+                await asyncio.gather(*(d.close() for d in drives))
+
+        run(scenario())
+        assert wait_for(lambda: len(seen) >= 2)
+        assert all(frame[1] == bytearray(b"\x05") for frame in seen)
