@@ -201,6 +201,13 @@ class CanopenDrive(DriveLink):
 
     # -- connection ---------------------------------------------------------------------
     async def connect(self) -> None:
+        """Identify the drive, start its nodes and enable them (see the module docstring).
+
+        Connecting again (the loop does, after a failed configuration) starts afresh:
+        the drive's nodes are forgotten first, never reported as "in use" by itself.
+        """
+        if self._added or self._shared is not None:
+            await self.close()
         self._loop = asyncio.get_running_loop()
         self._tpdo_event = asyncio.Event()
         if self.network is None:

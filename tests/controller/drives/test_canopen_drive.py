@@ -204,3 +204,18 @@ def test_the_master_heartbeat_is_one_frame_per_round_of_drives():
         run(scenario())
         assert wait_for(lambda: len(seen) >= 2)
         assert all(frame[1] == bytearray(b"\x05") for frame in seen)
+
+
+def test_connecting_again_starts_afresh():
+    with emulated(axes=one_axis(), node_id=9) as (fw, _emu, ch):
+        async def scenario():
+            d = open_drive(can(ch), 9)
+            await d.connect()
+            try:
+                await d.connect()        # as the loop does after a failed configuration
+                assert d.axis_count == 1
+                await d.write_targets([4.0])
+                assert fw.axes[0].target == pytest.approx(4.0)
+            finally:
+                await d.close()
+        run(scenario())
