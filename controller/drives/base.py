@@ -121,3 +121,35 @@ class DriveLink(abc.ABC):
 
     async def __aexit__(self, *exc):
         await self.close()
+
+
+def soft_limit_steps(current: tuple[float, float], limits: tuple[float, float] | None,
+                     stow: float | None) -> list[tuple[float, float] | float]:
+    """The writes that take one axis to new soft limits and stow angle (degrees) through
+    states a firmware accepts: limits in order, the stow angle within them.
+
+    A step is a ``(min, max)`` pair (written min first where a backend needs two writes)
+    or a stow angle.  With both given, the limits first widen to the union of the current
+    and the new ones, then the stow angle moves, then the limits narrow, so every state
+    on the way holds the stow angle of its moment whatever the order of old and new.
+
+    Parameters
+    ----------
+    current : (float, float)
+        The axis's soft limits now (read from the drive; ignored unless both of the
+        others are given).
+    limits : (float, float), optional
+        New soft limits.
+    stow : float, optional
+        New stow angle, within ``limits``.
+    """
+    if limits is None:
+        return [] if stow is None else [stow]
+    if stow is None:
+        return [limits]
+    union = (min(limits[0], current[0]), max(limits[1], current[1]))
+    steps: list[tuple[float, float] | float] = [] if union == tuple(current) else [union]
+    steps.append(stow)
+    if limits != union:
+        steps.append(limits)
+    return steps

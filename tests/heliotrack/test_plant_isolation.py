@@ -32,7 +32,7 @@ def farm():
 
 def _controller(farm):
     cfg = plant_config(N, farm.ports, period_s=1.0)
-    drives = {tr.name: open_drive(replace(cfg.link_of(tr), timeout_s=TIMEOUT_S), tr.device_id)
+    drives = {tr.name: open_drive(replace(cfg.links_by_name[tr.link], timeout_s=TIMEOUT_S), tr.device_id)
               for tr in cfg.trackers}
     return Controller(cfg, drives, EphemerisSource(cfg.site), RealClock(), realtime=True)
 

@@ -47,7 +47,14 @@ from firmware_protocol.canopen import (
 )
 from firmware_protocol.codec import to_raw
 
-from ..base import DriveCommError, DriveLink, DriveState, LinkSettingsError, LinkStats
+from ..base import (
+    DriveCommError,
+    DriveLink,
+    DriveState,
+    LinkSettingsError,
+    LinkStats,
+    soft_limit_steps,
+)
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
 from .axis import Axis402, load_od
@@ -441,18 +448,26 @@ class CanopenDrive(DriveLink):
             for axis in self.axes:
                 await self._sdo("consumer heartbeat write",
                                 partial(setattr, axis.node.sdo[0x1016][1], "raw", value))
-        for k, (lo, hi) in enumerate(soft_limits or ()):
-            node = self.axes[k].node
-            lo_raw, hi_raw = to_raw(_LIMIT_MIN, lo), to_raw(_LIMIT_MAX, hi)
-            if lo_raw > hi_raw:
+        limits, stows = list(soft_limits or ()), list(stow_angles or ())
+        for k, (lo, hi) in enumerate(limits):
+            if to_raw(_LIMIT_MIN, lo) > to_raw(_LIMIT_MAX, hi):
                 raise ValueError(f"soft limits of axis {k}: min {lo} > max {hi}")
-            await self._sdo("soft limit write",
-                            partial(setattr, node.sdo[0x607D][1], "raw", lo_raw))
-            await self._sdo("soft limit write",
-                            partial(setattr, node.sdo[0x607D][2], "raw", hi_raw))
-        for k, angle in enumerate(stow_angles or ()):
+        for k in range(max(len(limits), len(stows))):
             node = self.axes[k].node
-            raw = to_raw(_STOW, angle)
-            await self._sdo("stow angle write",
-                            partial(setattr, node.sdo[mirror_index(_STOW)], "raw", raw))
+            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+            stow = stows[k] if k < len(stows) else None
+            current = (0.0, 0.0)
+            if new is not None and stow is not None:
+                lo_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][1], "raw"))
+                hi_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][2], "raw"))
+                current = (lo_raw * _LIMIT_MIN.scale, hi_raw * _LIMIT_MAX.scale)
+            for step in soft_limit_steps(current, new, stow):
+                if isinstance(step, tuple):   # min first: valid on the way (see the steps)
+                    await self._sdo("soft limit write", partial(
+                        setattr, node.sdo[0x607D][1], "raw", to_raw(_LIMIT_MIN, step[0])))
+                    await self._sdo("soft limit write", partial(
+                        setattr, node.sdo[0x607D][2], "raw", to_raw(_LIMIT_MAX, step[1])))
+                else:
+                    await self._sdo("stow angle write", partial(
+                        setattr, node.sdo[mirror_index(_STOW)], "raw", to_raw(_STOW, step)))
 

@@ -19,12 +19,14 @@ from firmware_protocol import (
 )
 from firmware_protocol.codec import axis_block_address, decode_axis
 
-from ..base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats
+from ..base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, soft_limit_steps
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .client import checked, endpoint, modbus_client, retry_policy
 
 _ID_WORDS = 3
 _TARGET = register("TARGET_ANGLE")
+_LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
+_STOW = register("STOW_ANGLE")
 
 
 class ModbusDrive(DriveLink):
@@ -138,14 +140,28 @@ class ModbusDrive(DriveLink):
             reg = register("HEARTBEAT_TIMEOUT")
             await self._call("configure", self.client.write_registers, reg.address(),
                              encode(reg, heartbeat_timeout_s))
-        lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
-        for k, (lo, hi) in enumerate(soft_limits or ()):
-            await self._call("configure", self.client.write_registers, lo_reg.address(k),
-                             encode(lo_reg, lo) + encode(hi_reg, hi))
-        reg = register("STOW_ANGLE")
-        for k, angle in enumerate(stow_angles or ()):
-            await self._call("configure", self.client.write_registers, reg.address(k),
-                             encode(reg, angle))
+        limits, stows = list(soft_limits or ()), list(stow_angles or ())
+        for k in range(max(len(limits), len(stows))):
+            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+            stow = stows[k] if k < len(stows) else None
+            current = await self._soft_limits(k) if new is not None and stow is not None \
+                else (0.0, 0.0)
+            for step in soft_limit_steps(current, new, stow):
+                if isinstance(step, tuple):
+                    await self._call("configure", self.client.write_registers,
+                                     _LIMIT_MIN.address(k),
+                                     encode(_LIMIT_MIN, step[0]) + encode(_LIMIT_MAX, step[1]))
+                else:
+                    await self._call("configure", self.client.write_registers,
+                                     _STOW.address(k), encode(_STOW, step))
+
+    async def _soft_limits(self, k: int) -> tuple[float, float]:
+        """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
+        rr = await self._call("soft limit read", self.client.read_holding_registers,
+                              _LIMIT_MIN.address(k), count=_LIMIT_MIN.words + _LIMIT_MAX.words)
+        words = rr.registers
+        return (float(decode(_LIMIT_MIN, words[:_LIMIT_MIN.words])),
+                float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words:])))
 
     async def read_register(self, name: str, axis: int | None = None) -> float | int:
         reg = register(name)
