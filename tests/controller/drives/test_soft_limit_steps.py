@@ -22,9 +22,9 @@ def apply(state, step):
     (a pair is written min first, as the CANopen backend must)."""
     (lo, hi), stow = state
     if isinstance(step, tuple):
-        for lo, hi in ((step[0], hi), step):
-            assert lo < hi and lo <= stow <= hi, (lo, hi, stow)
-        return (lo, hi), stow
+        for a, b in ((step[0], hi), step):
+            assert a < b and a <= stow <= b, (a, b, stow)
+        return step, stow
     assert lo <= step <= hi, (lo, hi, step)
     return (lo, hi), step
 
