@@ -42,10 +42,15 @@ class ModbusDrive(DriveLink):
         Extra attempts after a failed transaction.
     label : str
         Used in error messages (``"/dev/ttyUSB0 id 4"``).
+    reopen : callable, optional
+        Returns the client again after :meth:`close` (a shared line's client is released
+        on close; connecting again must take the line's current one, not keep its own).
     """
 
-    def __init__(self, client: Any, device_id: int, retries: int = 2, label: str = ""):
+    def __init__(self, client: Any, device_id: int, retries: int = 2, label: str = "",
+                 reopen: Callable[[], Any] | None = None):
         self.client = client
+        self.reopen = reopen
         self.device_id = device_id
         self.retries = retries
         self.policy = retry_policy(retries)
@@ -63,6 +68,10 @@ class ModbusDrive(DriveLink):
             what=what, label=self.label, stats=self.stats)
 
     async def connect(self) -> None:
+        if self._closed:         # connected again after close (the loop's reconnection)
+            self._closed = False
+            if self.reopen is not None:
+                self.client = self.reopen()
         if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
         words = (await self._call("identification read", self.client.read_holding_registers,
@@ -182,7 +191,7 @@ class ModbusRtuDrive(ModbusDrive):
         if not isinstance(link, ModbusRtuLink):
             raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
         return cls(modbus_client(link), device_id, link.retries,
-                   label=f"{endpoint(link)} id {device_id}")
+                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))
 
 
 class ModbusTcpDrive(ModbusDrive):
@@ -196,4 +205,4 @@ class ModbusTcpDrive(ModbusDrive):
         if not isinstance(link, ModbusTcpLink):
             raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
         return cls(modbus_client(link), device_id, link.retries,
-                   label=f"{endpoint(link)} id {device_id}")
+                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))

@@ -170,3 +170,26 @@ def test_pyranometer_on_modbus_tcp_connects_by_itself(sim_clock):
 
     with ModbusServerThread({10: sensor}, tcp=("127.0.0.1", 0)) as srv:
         run(scenario(srv.tcp_port))
+
+
+def test_a_drive_closed_and_connected_again_rejoins_its_lines_client(sim_clock):
+    fws = {i: DriveFirmware(two_axes(), sim_clock.now) for i in (1, 2)}
+    with PtyLink.open() as pty, ModbusServerThread(fws, serial_url=pty.url):
+        async def scenario():
+            link = ModbusRtuLink(name="rs485", port=pty.path)
+            a, b = open_drive(link, 1), open_drive(link, 2)
+            await a.connect()
+            await b.connect()
+            await a.close()                  # as the loop does before reconnecting
+            await a.connect()
+            try:
+                assert a.client is b.client and a.client.users == 2   # one client per line
+                await a.exchange([11.0, 12.0])
+                await b.exchange([21.0, 22.0])
+                assert (fws[1].axes[0].target, fws[2].axes[0].target) == (11.0, 21.0)
+            finally:
+                await a.close()
+                await b.close()
+            assert pty.path not in SharedSerialClient._open
+
+        run(scenario())
