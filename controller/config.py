@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
-from .drives.registry import known_kinds, link_config_type
+from .drives.registry import link_config_types
 from .errors import ConfigError
 from .geometry.single_axis import RowGeometry
 from .schema import DERIVED, Where, internal, load, load_file, setting, variants
@@ -194,10 +194,6 @@ class PyranometerConfig:
     device_id: int = setting(doc="Modbus slave id.", ge=1, le=247)
 
 
-def _link_classes() -> dict[str, type]:
-    return {kind: cls for kind in known_kinds() if (cls := link_config_type(kind)) is not None}
-
-
 @dataclass(frozen=True, kw_only=True)
 class Config:
     """A plant: its site, its links and trackers, its sensors and control settings."""
@@ -205,7 +201,7 @@ class Config:
     site: Site = setting(doc="Geographic site.")
     control: ControlConfig = setting(default_factory=ControlConfig, doc="Control loop.")
     links: tuple[LinkConfig, ...] = setting((), doc="Links to the drives and sensors.",
-                                            variants=variants("kind", _link_classes))
+                                            variants=variants("kind", link_config_types))
     trackers: tuple[TrackerConfig, ...] = setting(doc="Trackers and rows.",
                                                   variants=variants("type", TRACKER_CLASSES))
     pyranometer: PyranometerConfig | None = setting(None, doc="Pyranometer (enables DIFFUSE).")
@@ -245,9 +241,15 @@ class Config:
                         f"an id not used on link {tr.link!r} already (by {used[tr.link, address]})",
                         tr.device_id)
                 used[tr.link, address] = tr.name
-            if links[tr.link].kind == "canopen" and tr.device_id + tr.axes - 1 > 127:
+            if links[tr.link].kind == "canopen" and tr.device_id + tr.axes - 1 > 126:
                 raise here.child("device_id").error(
-                    f"a CANopen node id with all {tr.axes} axes within 1..127", tr.device_id)
+                    f"a CANopen node id with all {tr.axes} axes within 1..126 (127 is the "
+                    "master's)", tr.device_id)
+            if links[tr.link].kind == "canopen" and self.control.heartbeat_timeout_s > 65.535:
+                raise at.child("control").child("heartbeat_timeout_s").error(
+                    f"at most 65.535 s with drives on CANopen link {tr.link!r} (the consumer "
+                    "heartbeat time 0x1016 counts 16-bit milliseconds; the default is 3 x "
+                    "period_s)", self.control.heartbeat_timeout_s)
         c = self
         pyr = self.pyranometer
         if pyr is not None:

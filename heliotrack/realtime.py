@@ -22,9 +22,10 @@ from controller.northbound import Northbound
 from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
+from .devices import open_drives, open_pyranometer
 from .scenario import as_scenario
 from .sun_sources import build_sun_source
-from .simulate import _build_world, _open_drives, _open_pyranometer
+from .world import build_world
 
 
 def run_realtime(config: Config, duration_s: float, sunspec: tuple[str, int] | None = None,
@@ -47,11 +48,11 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
 
     counts = {"cycles": 0, "row_errors": 0, "overrides": 0}
     with ExitStack() as stack:
-        _, endpoints = _build_world(config, hil, clock, stack, ghi_at)
+        world = build_world(config, hil, clock, stack, ghi_at)
         sun, sensor = build_sun_source(config)
-        controller = Controller(config, _open_drives(config, endpoints), sun, clock,
+        controller = Controller(config, open_drives(config, world.links), sun, clock,
                                 realtime=True, sensor=sensor,
-                                pyranometer=_open_pyranometer(config, endpoints))
+                                pyranometer=open_pyranometer(config, world.links))
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:
             cfg = replace(config.sunspec, enabled=True, host=sunspec[0], port=sunspec[1])

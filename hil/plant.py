@@ -20,7 +20,7 @@ import time
 from pymodbus.server import ModbusTcpServer
 
 from .drive import AxisParams, DriveFirmware
-from .modbus_server import _MultidropCore, sim_device
+from .modbus_device import MultidropCore, sim_device
 
 
 def row_firmware(now=time.time, max_angle: float = 55.0) -> DriveFirmware:
@@ -41,7 +41,7 @@ class RowFarm:
         self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="row-farm")
 
-    def start(self) -> "RowFarm":
+    def start(self) -> RowFarm:
         self._thread.start()
         if not self._ready.wait(60):
             raise RuntimeError("row farm did not start")
@@ -57,10 +57,11 @@ class RowFarm:
         for fw in self.firmwares:
             dev = sim_device(self.device_id, fw)
             srv = ModbusTcpServer([dev], address=("127.0.0.1", 0), ignore_missing_devices=True)
-            srv.context = _MultidropCore([dev])
+            srv.context = MultidropCore([dev])
             await srv.serve_forever(background=True)
             self.servers.append(srv)
-            self.ports.append(srv.transport.sockets[0].getsockname()[1])
+            listener = srv.transport    # a TCP server's transport is the asyncio.Server
+            self.ports.append(listener.sockets[0].getsockname()[1])  # type: ignore[attr-defined]
 
     def kill(self, i: int) -> None:
         """Stop row ``i``'s server and drop its connections: the row goes silent."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from ..schema import setting
+from ..schema import Where, setting
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -72,7 +72,19 @@ class CanopenLink(LinkConfig):
                            '`PCAN_USBBUS1`); "hil": a bus the simulator provides.', nonempty=True)
     bitrate: int = setting(250_000, doc="CAN bit rate (ignored by `virtual`).", unit="bit/s",
                            ge=10_000, le=1_000_000)
+    pdo_mapping: Literal["read", "eds"] = setting(
+        "read", doc="Where the master learns each drive's PDO mapping: read by SDO at connect, "
+        'or "eds": taken from the EDS (faster start-up of many drives that keep the default '
+        "mapping).")
 
     @property
     def is_hil(self) -> bool:
         return self.channel == "hil"
+
+    def __schema_check__(self, at: Where) -> CanopenLink:
+        from can.interfaces import VALID_INTERFACES  # python-can's own list, plug-ins too
+
+        if self.interface not in VALID_INTERFACES:
+            raise at.child("interface").error(
+                f"a python-can interface ({', '.join(sorted(VALID_INTERFACES))})", self.interface)
+        return self

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import date, datetime, timezone
+from datetime import UTC, date, datetime
 from pathlib import Path
 
 from controller.errors import ConfigError
@@ -37,9 +37,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from heliotrack.simulate import run_simulation, summary_table
-
     from heliotrack.scenario import load_scenario
+    from heliotrack.simulate import run_simulation, summary_table
 
     config = load_scenario(args.config)
     if args.realtime:
@@ -72,7 +71,7 @@ def _parse_start(text: str):
         t = parse_timestamp(text, "--start", require_zone=True)
     except InputError:
         raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text) from None
-    return datetime.fromtimestamp(t, timezone.utc)
+    return datetime.fromtimestamp(t, UTC)
 
 
 def _realtime(args: argparse.Namespace, config) -> int:

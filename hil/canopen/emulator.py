@@ -13,12 +13,12 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Self
 
 import can
 import canopen
 
 from firmware_protocol.canopen import axis_node_id, check_node_id
-
 from hil.drive.firmware import DriveFirmware
 from hil.errors import HilError
 
@@ -42,7 +42,7 @@ class SafeNetwork(canopen.Network):
         for callback in list(self.subscribers.get(can_id, ())):
             try:
                 callback(can_id, data, timestamp)
-            except Exception as exc:  # bad wire data must not kill the bus
+            except Exception as exc:  # noqa: BLE001 - bad wire data must not kill the bus
                 log.warning("frame 0x%03X %s dropped: %s", can_id, bytes(data).hex(), exc)
         self.scanner.on_message_received(can_id)
 
@@ -153,7 +153,7 @@ class CanopenNetworkEmulator:
                 self.service_errors += 1
                 log.exception("drive %s: service failed", d.node_ids)
 
-    def start(self) -> "CanopenNetworkEmulator":
+    def start(self) -> Self:
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="canopen-emulator", daemon=True)
         self._thread.start()
@@ -180,7 +180,7 @@ class CanopenNetworkEmulator:
         self.drives.clear()
         self.network.disconnect()
 
-    def __enter__(self) -> "CanopenNetworkEmulator":
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:

@@ -26,12 +26,18 @@ from canopen.sdo import SdoAbortedError
 
 from firmware_protocol import Command, Fault, Mode, ProtocolError, Status, encode, register
 from firmware_protocol.canopen import (
-    AXIS_INDEX_OBJECT, FAULT_ERROR_CODES, MASTER_NODE_ID, PROFILE_POSITION,
-    Controlword, State402, Statusword, eds, entry,
+    AXIS_INDEX_OBJECT,
+    FAULT_ERROR_CODES,
+    MASTER_NODE_ID,
+    PROFILE_POSITION,
+    Controlword,
+    State402,
+    Statusword,
+    eds,
+    entry,
 )
 from firmware_protocol.codec import raw_to_words, words_to_raw
 from firmware_protocol.registers import AXIS_BASE, AXIS_REGISTERS, AXIS_STRIDE
-
 from hil.drive.firmware import DriveFirmware, FirmwareReject
 
 from .cia402 import Cia402StateMachine
@@ -92,6 +98,7 @@ class AxisNode:
         self.drive = drive
         self.fw = drive.fw
         self.axis = axis
+        self.node_id = node_id
         self.node = canopen.LocalNode(node_id, object_dictionary(node_id))
         self.sm = Cia402StateMachine()
         self.wall = wall
@@ -107,7 +114,7 @@ class AxisNode:
 
     @property
     def id(self) -> int:
-        return self.node.id
+        return self.node_id
 
     # -- wiring ------------------------------------------------------------------------
     def attach(self, network: canopen.Network) -> None:
@@ -373,7 +380,7 @@ class AxisNode:
                              index, value, exc)
             self._service_locked(self.wall())
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:
             if self.node.nmt.state != "OPERATIONAL":
                 return
@@ -388,7 +395,7 @@ class AxisNode:
                     continue
                 self._send(no, pdo, snap, self.wall())
 
-    def _on_master_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:
             self.drive.beat()
 
@@ -436,7 +443,7 @@ class AxisNode:
             for var, value in zip(pdo, values):
                 var.raw = value
             pdo.transmit()
-        except Exception as exc:   # a value that does not fit its mapping, a closed bus
+        except Exception as exc:  # noqa: BLE001 - a value that does not fit its mapping, a closed bus
             log.warning("node %d: TPDO%d not sent: %s", self.id, no, exc)
             return
         self._last_tx[no] = (values, t)

@@ -25,6 +25,7 @@ import select
 import termios
 import threading
 import time
+from typing import Self
 
 import can
 
@@ -72,7 +73,7 @@ class SlcanAdapter:
                          threading.Thread(target=self._bus_loop, name="slcan-bus", daemon=True)]
 
     # -- lifecycle ----------------------------------------------------------------------
-    def start(self) -> "SlcanAdapter":
+    def start(self) -> Self:
         for t in self._threads:
             t.start()
         return self
@@ -82,7 +83,7 @@ class SlcanAdapter:
         for t in self._threads:
             t.join(2)
 
-    def __enter__(self) -> "SlcanAdapter":
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:

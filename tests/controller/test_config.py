@@ -101,7 +101,7 @@ def test_every_link_kind_from_toml():
 
 
 def test_canopen_drives_occupy_one_node_per_axis():
-    doc = {"site": {"latitude": 10, "longitude": 20},
+    doc = {"site": {"latitude": 10, "longitude": 20}, "control": {"period_s": 10},
            "links": [{"name": "can", "kind": "canopen"}],
            "trackers": [{"name": "d", "type": "dual-axis", "link": "can", "device_id": 4},
                         {"name": "r", "type": "single-axis", "link": "can", "device_id": 5}]}
@@ -109,8 +109,8 @@ def test_canopen_drives_occupy_one_node_per_axis():
         parse_config(doc)
     doc["trackers"][1]["device_id"] = 6
     assert len(parse_config(doc).trackers) == 2
-    doc["trackers"][0]["device_id"] = 127
-    with pytest.raises(ConfigError, match="within 1..127"):
+    doc["trackers"][0]["device_id"] = 126
+    with pytest.raises(ConfigError, match="within 1..126"):
         parse_config(doc)
 
 

@@ -49,7 +49,7 @@ def test_foreign_slave_id_gets_no_answer(client):
 
 
 def test_independent_master_minimalmodbus(pty_drive):
-    fw, path, clock = pty_drive
+    fw, path, _clock = pty_drive
     inst = minimalmodbus.Instrument(path, 1)
     inst.serial.baudrate = 115200
     inst.serial.timeout = 0.5

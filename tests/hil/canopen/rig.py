@@ -13,8 +13,8 @@ from hil.drive import AxisParams, DriveFirmware
 
 
 def one_axis(**kw) -> list[AxisParams]:
-    base = dict(max_speed=10.0, accel=50.0, soft_min=-60.0, soft_max=60.0, hard_min=-65.0, hard_max=65.0,
-                stow_angle=0.0, initial_angle=0.0)
+    base = {"max_speed": 10.0, "accel": 50.0, "soft_min": -60.0, "soft_max": 60.0, "hard_min": -65.0, "hard_max": 65.0,
+                "stow_angle": 0.0, "initial_angle": 0.0}
     base.update(kw)
     return [AxisParams(**base)]
 

@@ -2,7 +2,8 @@
 
 import pytest
 
-from firmware_protocol.canopen import STATE_BITS, State402 as S, state_from_statusword
+from firmware_protocol.canopen import STATE_BITS, state_from_statusword
+from firmware_protocol.canopen import State402 as S
 from hil.canopen.cia402 import Cia402StateMachine, command_of
 
 

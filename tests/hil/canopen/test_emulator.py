@@ -31,7 +31,7 @@ def _set_point(node, deg: float, cw: int = 0x3F) -> bool:
 
 
 def test_402_state_machine_and_profile_position_reach_the_target():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         assert wait_for(lambda: node.state == "SWITCH ON DISABLED")
         assert node.sdo[0x1000].raw & 0xFFFF == 0x192
@@ -45,7 +45,7 @@ def test_402_state_machine_and_profile_position_reach_the_target():
 
 
 def test_set_point_is_not_taken_unless_operation_enabled():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         node.state = "SWITCHED ON"
         assert not _set_point(node, 10.0, cw=0x37)      # new set-point, operation disabled
@@ -62,7 +62,7 @@ def test_set_point_is_not_taken_unless_operation_enabled():
 
 
 def test_leaving_operation_enabled_halts_the_axis():
-    with emulated(axes=one_axis(max_speed=2.0, accel=20.0)) as (fw, emu, ch), master(ch) as net:
+    with emulated(axes=one_axis(max_speed=2.0, accel=20.0)) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         assert _set_point(node, 50.0)
@@ -73,7 +73,7 @@ def test_leaving_operation_enabled_halts_the_axis():
 
 
 def test_out_of_limit_set_point_is_clamped_and_flagged():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         assert _set_point(node, 500.0)
@@ -83,7 +83,7 @@ def test_out_of_limit_set_point_is_clamped_and_flagged():
 
 
 def test_fault_reaction_emcy_and_fault_reset():
-    with emulated(axes=one_axis(stall_time=0.2)) as (fw, emu, ch), master(ch) as net:
+    with emulated(axes=one_axis(stall_time=0.2)) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         fw.axes[0].jammed = True
@@ -104,7 +104,7 @@ def test_fault_reaction_emcy_and_fault_reset():
 
 
 def test_heartbeat_consumer_stows_on_loss(sim_clock):
-    with emulated(now=sim_clock.now) as (fw, emu, ch), master(ch) as net:
+    with emulated(now=sim_clock.now) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         node.sdo[0x1016][1].raw = (MASTER_NODE_ID << 16) | 1500
@@ -124,7 +124,7 @@ def test_heartbeat_consumer_stows_on_loss(sim_clock):
 
 
 def test_sync_triggers_synchronous_tpdos():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         node.nmt.state = "PRE-OPERATIONAL"
         node.tpdo[1].trans_type = 1
@@ -139,7 +139,7 @@ def test_sync_triggers_synchronous_tpdos():
 
 
 def test_bad_wire_data_is_refused():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         with pytest.raises(SdoAbortedError):
@@ -159,7 +159,7 @@ def test_bad_wire_data_is_refused():
 
 
 def test_nmt_reset_reboots_the_node():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         states = []
@@ -183,7 +183,7 @@ def test_two_axes_are_two_nodes_of_one_drive():
 
 def test_many_drives_share_one_virtual_bus():
     from hil.drive import DriveFirmware
-    with emulated(node_id=1) as (fw, emu, ch), master(ch) as net:
+    with emulated(node_id=1) as (_fw, emu, ch), master(ch) as net:
         fws = [DriveFirmware(one_axis(), time.time, heartbeat_timeout=0) for _ in range(12)]
         for i, f in enumerate(fws):
             emu.add_drive(f, 2 + i)

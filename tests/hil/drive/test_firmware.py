@@ -1,6 +1,6 @@
 import pytest
 
-from firmware_protocol import Command, Fault, MAGIC, Mode, Status, decode, encode, register
+from firmware_protocol import MAGIC, Command, Fault, Mode, Status, decode, encode, register
 from hil.drive import DriveFirmware, FirmwareReject
 from tests.conftest import two_axes
 

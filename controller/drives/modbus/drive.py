@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
-import time
-from collections.abc import Sequence
-
-from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
-from pymodbus.exceptions import ModbusException
+from collections.abc import Awaitable, Callable, Sequence
+from typing import Any
 
 from firmware_protocol import (
-    AXIS_STRIDE, MAGIC, PROTOCOL_VERSION, Command, Fault, Mode, Status, decode, encode,
+    AXIS_STRIDE,
+    MAGIC,
+    PROTOCOL_VERSION,
+    Command,
+    Fault,
+    Mode,
+    Status,
+    decode,
+    encode,
     register,
 )
 from firmware_protocol.codec import axis_block_address, decode_axis
 
-from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
-from .links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from ..base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, soft_limit_steps
+from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from .client import checked, endpoint, modbus_client, retry_policy
 
 _ID_WORDS = 3
 _TARGET = register("TARGET_ANGLE")
+_LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
+_STOW = register("STOW_ANGLE")
 
 
 class ModbusDrive(DriveLink):
@@ -26,44 +34,44 @@ class ModbusDrive(DriveLink):
 
     Parameters
     ----------
-    client : pymodbus async client (or a shared wrapper of one)
+    client : pymodbus async client
+        Or the :class:`~controller.drives.modbus.client.SharedSerialClient` of a port.
     device_id : int
         Modbus slave id of the drive.
     retries : int
         Extra attempts after a failed transaction.
     label : str
         Used in error messages (``"/dev/ttyUSB0 id 4"``).
+    reopen : callable, optional
+        Returns the client again after :meth:`close` (a shared line's client is released
+        on close; connecting again must take the line's current one, not keep its own).
     """
 
-    def __init__(self, client, device_id: int, retries: int = 2, label: str = ""):
+    def __init__(self, client: Any, device_id: int, retries: int = 2, label: str = "",
+                 reopen: Callable[[], Any] | None = None):
         self.client = client
+        self.reopen = reopen
         self.device_id = device_id
         self.retries = retries
+        self.policy = retry_policy(retries)
         self.label = label or f"id {device_id}"
         self.axis_count = 0
         self.stats = LinkStats()
         self._beat = 0
+        self._closed = False
 
-    async def _call(self, what: str, fn, *args, **kwargs):
-        last = None
-        for attempt in range(self.retries + 1):
-            t0 = time.perf_counter()
-            self.stats.transactions += 1
-            try:
-                rr = await fn(*args, device_id=self.device_id, **kwargs)
-            except (ModbusException, OSError) as exc:
-                last = exc
-            else:
-                if not rr.isError():
-                    self.stats.latencies_s.append(time.perf_counter() - t0)
-                    return rr
-                last = rr
-            self.stats.errors += 1
-            if attempt < self.retries:
-                self.stats.retries += 1
-        raise DriveCommError(f"{self.label}: {what} failed after {self.retries + 1} attempt(s): {last}")
+    async def _call(self, what: str, request: Callable[..., Awaitable[Any]], *args: Any,
+                    **kwargs: Any) -> Any:
+        """One request to this slave under the link's retry policy."""
+        return await self.policy.run(
+            lambda: checked(request, *args, device_id=self.device_id, **kwargs),
+            what=what, label=self.label, stats=self.stats)
 
     async def connect(self) -> None:
+        if self._closed:         # connected again after close (the loop's reconnection)
+            self._closed = False
+            if self.reopen is not None:
+                self.client = self.reopen()
         if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
         words = (await self._call("identification read", self.client.read_holding_registers,
@@ -77,7 +85,9 @@ class ModbusDrive(DriveLink):
         self.axis_count = words[2]
 
     async def close(self) -> None:
-        self.client.close()
+        if not self._closed:     # once: a shared line's client counts its users
+            self._closed = True
+            self.client.close()
 
     def _decode_state(self, words: Sequence[int]) -> DriveState:
         axes = []
@@ -132,19 +142,35 @@ class ModbusDrive(DriveLink):
         await self._call(f"command {cmd.name}", self.client.write_register,
                          register("COMMAND").address(), int(cmd))
 
-    async def configure(self, *, heartbeat_timeout_s=None, soft_limits=None, stow_angles=None) -> None:
+    async def configure(self, *, heartbeat_timeout_s: float | None = None,
+                        soft_limits: Sequence[tuple[float, float]] | None = None,
+                        stow_angles: Sequence[float] | None = None) -> None:
         if heartbeat_timeout_s is not None:
             reg = register("HEARTBEAT_TIMEOUT")
             await self._call("configure", self.client.write_registers, reg.address(),
                              encode(reg, heartbeat_timeout_s))
-        lo_reg, hi_reg = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
-        for k, (lo, hi) in enumerate(soft_limits or ()):
-            await self._call("configure", self.client.write_registers, lo_reg.address(k),
-                             encode(lo_reg, lo) + encode(hi_reg, hi))
-        reg = register("STOW_ANGLE")
-        for k, angle in enumerate(stow_angles or ()):
-            await self._call("configure", self.client.write_registers, reg.address(k),
-                             encode(reg, angle))
+        limits, stows = list(soft_limits or ()), list(stow_angles or ())
+        for k in range(max(len(limits), len(stows))):
+            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+            stow = stows[k] if k < len(stows) else None
+            current = await self._soft_limits(k) if new is not None and stow is not None \
+                else (0.0, 0.0)
+            for step in soft_limit_steps(current, new, stow):
+                if isinstance(step, tuple):
+                    await self._call("configure", self.client.write_registers,
+                                     _LIMIT_MIN.address(k),
+                                     encode(_LIMIT_MIN, step[0]) + encode(_LIMIT_MAX, step[1]))
+                else:
+                    await self._call("configure", self.client.write_registers,
+                                     _STOW.address(k), encode(_STOW, step))
+
+    async def _soft_limits(self, k: int) -> tuple[float, float]:
+        """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
+        rr = await self._call("soft limit read", self.client.read_holding_registers,
+                              _LIMIT_MIN.address(k), count=_LIMIT_MIN.words + _LIMIT_MAX.words)
+        words = rr.registers
+        return (float(decode(_LIMIT_MIN, words[:_LIMIT_MIN.words])),
+                float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words:])))
 
     async def read_register(self, name: str, axis: int | None = None) -> float | int:
         reg = register(name)
@@ -153,76 +179,19 @@ class ModbusDrive(DriveLink):
         return decode(reg, rr.registers)
 
 
-class _SharedSerialClient:
-    """One client per serial port, shared by every drive on that RS-485 line.
-
-    pymodbus locks a port exclusively, and a multidrop line has one master anyway; the
-    client serialises requests itself.  The port closes when its last drive closes.
-    """
-
-    _open: dict[str, "_SharedSerialClient"] = {}
-
-    def __init__(self, port: str, baudrate: int, timeout_s: float):
-        self.client = AsyncModbusSerialClient(port, baudrate=baudrate, timeout=timeout_s,
-                                              retries=0, reconnect_delay=0)
-        self.port = port
-        self.users = 0
-
-    @classmethod
-    def acquire(cls, port: str, baudrate: int, timeout_s: float) -> "_SharedSerialClient":
-        shared = cls._open.get(port)
-        if shared is None:
-            shared = cls._open[port] = cls(port, baudrate, timeout_s)
-        shared.users += 1
-        return shared
-
-    def __getattr__(self, name):
-        return getattr(self.client, name)
-
-    async def connect(self) -> bool:
-        return self.client.connected or await self.client.connect()
-
-    def close(self) -> None:
-        self.users -= 1
-        if self.users <= 0:
-            self.client.close()
-            self._open.pop(self.port, None)
-
-
-def shared_client(kind: str, *, port: str | int = "", host: str = "127.0.0.1",
-                  baudrate: int = 115200, timeout_s: float = 0.5):
-    """A pymodbus asyncio client for a sensor on a link (shared with the drives on RTU)."""
-    if kind == "modbus-rtu":
-        return _SharedSerialClient.acquire(str(port), baudrate, timeout_s)
-    if kind == "modbus-tcp":
-        return AsyncModbusTcpClient(host, port=int(port), timeout=timeout_s, retries=0,
-                                    reconnect_delay=0)
-    raise ValueError(f"no Modbus client for link kind {kind!r}")
-
-
-def _rtu(port: str, device_id: int, baudrate: int = 115200, timeout_s: float = 0.5,
-         retries: int = 2, **_) -> ModbusDrive:
-    client = _SharedSerialClient.acquire(port, baudrate, timeout_s)
-    return ModbusDrive(client, device_id, retries, label=f"{port} id {device_id}")
-
-
-def _tcp(host: str, port: int, device_id: int, timeout_s: float = 0.5, retries: int = 2,
-         **_) -> ModbusDrive:
-    client = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0,
-                                  reconnect_delay=0)
-    return ModbusDrive(client, device_id, retries, label=f"{host}:{port} id {device_id}")
-
-
 class ModbusRtuDrive(ModbusDrive):
     """A drive on a Modbus RTU line (link kind ``modbus-rtu``)."""
 
     config_type = ModbusRtuLink
 
     @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> "ModbusRtuDrive":
-        assert isinstance(link, ModbusRtuLink)
-        client = _SharedSerialClient.acquire(link.port, link.baudrate, link.timeout_s)
-        return cls(client, device_id, link.retries, label=f"{link.port} id {device_id}")
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusRtuDrive:
+        """Slave ``device_id`` on the line's shared client (see
+        :func:`~controller.drives.modbus.client.modbus_client`)."""
+        if not isinstance(link, ModbusRtuLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
+        return cls(modbus_client(link), device_id, link.retries,
+                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))
 
 
 class ModbusTcpDrive(ModbusDrive):
@@ -231,13 +200,9 @@ class ModbusTcpDrive(ModbusDrive):
     config_type = ModbusTcpLink
 
     @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> "ModbusTcpDrive":
-        assert isinstance(link, ModbusTcpLink)
-        client = AsyncModbusTcpClient(link.host, port=link.tcp_port, timeout=link.timeout_s,
-                                      retries=0, reconnect_delay=0)
-        return cls(client, device_id, link.retries,
-                   label=f"{link.host}:{link.tcp_port} id {device_id}")
-
-
-register_backend("modbus-rtu", _rtu)
-register_backend("modbus-tcp", _tcp)
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusTcpDrive:
+        """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
+        if not isinstance(link, ModbusTcpLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
+        return cls(modbus_client(link), device_id, link.retries,
+                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))

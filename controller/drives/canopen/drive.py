@@ -1,4 +1,4 @@
-"""CANopen CiA 402 drive link (``canopen``), on python-can through the canopen library.
+"""The CANopen CiA 402 drive (link kind ``canopen``), on python-can through canopen.
 
 One heliotrack drive is one CANopen node per axis (axis ``k`` at ``node_id + k``; see
 ``docs/canopen.md``).  Each axis is a canopen ``BaseNode402``: the library runs the power
@@ -23,104 +23,58 @@ helpers run in worker threads (``asyncio.to_thread``).
 from __future__ import annotations
 
 import asyncio
-import io
+import contextlib
 import logging
-import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
+from typing import Any
 
 import canopen
-from canopen.objectdictionary import eds as eds_format
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from firmware_protocol import MAGIC, PROTOCOL_VERSION, Command, Fault, Mode, Status, register
+from firmware_protocol import MAGIC, PROTOCOL_VERSION, Command, Status, register
 from firmware_protocol.canopen import (
-    AXIS_INDEX_OBJECT, CW_ENABLE_OPERATION, CW_NEW_SET_POINT, MASTER_NODE_ID, State402, Statusword, check_node_id, eds, mirror_index, state_from_statusword,
+    AXIS_INDEX_OBJECT,
+    CW_ENABLE_OPERATION,
+    CW_NEW_SET_POINT,
+    MASTER_NODE_ID,
+    State402,
+    Statusword,
+    check_node_id,
+    mirror_index,
 )
 from firmware_protocol.codec import to_raw
 
-from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
-from .links import CanopenLink, LinkConfig
+from ..base import (
+    DriveCommError,
+    DriveLink,
+    DriveState,
+    LinkSettingsError,
+    LinkStats,
+    soft_limit_steps,
+)
+from ..links import CanopenLink, LinkConfig
+from ..retry import RetryPolicy
+from .axis import Axis402, load_od
+from .network import SharedNetwork, send_master_heartbeat
 
 log = logging.getLogger(__name__)
 
 _TARGET = register("TARGET_ANGLE")
-_ACTUAL = register("ACTUAL_ANGLE")
-_VELOCITY = register("VELOCITY")
 _LIMIT_MIN = register("SOFT_LIMIT_MIN")
 _LIMIT_MAX = register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
-_IDX_STATUS = mirror_index(register("STATUS"))
-_IDX_FAULT = mirror_index(register("FAULT_CODE"))
-_IDX_MODE = mirror_index(register("MODE"))
-_IDX_EFFECTIVE_TARGET = mirror_index(_TARGET)
 _IDX_COMMAND = mirror_index(register("COMMAND"))
 _IDX_MAGIC, _IDX_PROTOCOL, _IDX_AXES = (mirror_index(register(n)) for n in
                                          ("MAGIC", "PROTOCOL_VERSION", "AXIS_COUNT"))
-_HEARTBEAT_MIN_INTERVAL_S = 0.05    # many drives on one network share one master heartbeat
-_SDO_ERRORS = (SdoAbortedError, SdoCommunicationError, canopen.nmt.NmtError, OSError,
-               RuntimeError)
+#: SDO failures worth another attempt; an abort is the drive's answer and final.
+_SDO_RETRY_ON = (SdoCommunicationError, canopen.nmt.NmtError, OSError, RuntimeError)
 
 
-def _load_od(eds_path: str | Path | None, node_id: int) -> canopen.ObjectDictionary:
-    if eds_path is None:
-        return eds_format.import_eds(io.StringIO(eds()), node_id)
-    return canopen.import_od(str(eds_path), node_id)
-
-
-class _SharedNetwork:
-    """One canopen Network per (interface, channel), shared by every drive on that bus.
-
-    A USB-CAN adapter (slcan) can be opened once; a virtual channel could be opened many
-    times, but one network per bus keeps one notifier thread instead of hundreds.
-    """
-
-    _open: dict[tuple[str, str], "_SharedNetwork"] = {}
-    _lock = threading.Lock()
-
-    def __init__(self, interface: str, channel: str, bus_kwargs: dict):
-        self.key = (interface, channel)
-        self.network = canopen.Network()
-        self.network.NOTIFIER_CYCLE = 0.1   # closing waits for one notifier cycle
-        self.network.connect(interface=interface, channel=channel, **bus_kwargs)
-        self.users = 0
-
-    @classmethod
-    def acquire(cls, interface: str, channel: str, bus_kwargs: dict) -> "_SharedNetwork":
-        with cls._lock:
-            shared = cls._open.get((interface, channel))
-            if shared is None:
-                shared = cls._open[(interface, channel)] = cls(interface, channel, bus_kwargs)
-            shared.users += 1
-            return shared
-
-    def release(self) -> None:
-        with self._lock:
-            self.users -= 1
-            if self.users <= 0:
-                self._open.pop(self.key, None)
-                self.network.disconnect()
-
-
-_last_master_beat: dict[int, float] = {}
-
-
-class _Axis:
-    """Per-axis bookkeeping: the 402 node, TPDO reception times, heartbeat time."""
-
-    def __init__(self, node: canopen.BaseNode402):
-        self.node = node
-        self.tpdo_time: dict[int, float] = {}      # TPDO number -> monotonic reception
-        self.heartbeat_time: float | None = None
-
-    @property
-    def statusword(self) -> int:
-        return int(self.node.tpdo_values.get(0x6041, 0))
-
-    @property
-    def state(self) -> State402 | None:
-        return state_from_statusword(self.statusword)
+class SetPointNotAcknowledged(Exception):
+    """The drive did not raise statusword bit 12 for a new set-point in time."""
 
 
 class CanopenDrive(DriveLink):
@@ -161,18 +115,26 @@ class CanopenDrive(DriveLink):
     config_type = CanopenLink
 
     @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> "CanopenDrive":
-        assert isinstance(link, CanopenLink)
+    def from_config(cls, link: LinkConfig, device_id: int) -> CanopenDrive:
+        """The drive whose axis 0 is node ``device_id`` on ``link``'s bus (shared with every
+        other drive on it), not yet connected."""
+        if not isinstance(link, CanopenLink):
+            raise TypeError(f"{cls.__name__} needs a CanopenLink, got {type(link).__name__}")
+        if link.is_hil:
+            raise LinkSettingsError(f'link {link.name!r}: channel = "hil" names a bus that only '
+                                    "`heliotrack simulate` provides; give the real one")
         return cls(device_id, channel=link.channel, interface=link.interface,
                    bitrate=link.bitrate if link.interface != "virtual" else None,
-                   timeout_s=link.timeout_s, retries=link.retries)
+                   timeout_s=link.timeout_s, retries=link.retries,
+                   pdo_from_eds=link.pdo_mapping == "eds",
+                   label=f"{link.name} ({link.interface}:{link.channel}) node {device_id}")
 
     def __init__(self, node_id: int, *, channel: str | None = None, interface: str = "virtual",
                  bitrate: int | None = None, eds: str | Path | None = None,
                  timeout_s: float = 0.5, retries: int = 2,
                  network: canopen.Network | None = None, master_node_id: int = MASTER_NODE_ID,
                  producer_heartbeat_ms: int = 1000, stale_s: float | None = None,
-                 pdo_from_eds: bool = False, label: str = "", **bus_kwargs):
+                 pdo_from_eds: bool = False, label: str = "", **bus_kwargs: Any):
         try:
             check_node_id(node_id)
         except ValueError as exc:
@@ -183,6 +145,8 @@ class CanopenDrive(DriveLink):
         self.channel, self.interface, self.bitrate = channel, interface, bitrate
         self.eds = eds
         self.timeout_s, self.retries = timeout_s, retries
+        self.sdo_policy = RetryPolicy(retries, retry_on=_SDO_RETRY_ON, final=(SdoAbortedError,))
+        self.set_point_policy = RetryPolicy(retries, retry_on=(SetPointNotAcknowledged,))
         self.master_node_id = master_node_id
         self.producer_heartbeat_ms = producer_heartbeat_ms
         self.stale_s = stale_s if stale_s is not None else max(1.0, 3 * producer_heartbeat_ms / 1000)
@@ -194,8 +158,8 @@ class CanopenDrive(DriveLink):
         if bitrate is not None:
             self.bus_kwargs["bitrate"] = bitrate
         self.network = network
-        self._shared: _SharedNetwork | None = None
-        self.axes: list[_Axis] = []
+        self._shared: SharedNetwork | None = None
+        self.axes: list[Axis402] = []
         self._added: list[canopen.BaseNode402] = []
         self.axis_count = 0
         self.stats = LinkStats()
@@ -203,36 +167,30 @@ class CanopenDrive(DriveLink):
         self._tpdo_event: asyncio.Event | None = None
 
     # -- helpers ------------------------------------------------------------------------
-    async def _sdo(self, what: str, fn, *args):
-        """Run a blocking SDO operation in a thread, with retries."""
-        last: BaseException | None = None
-        for attempt in range(self.retries + 1):
-            t0 = time.perf_counter()
-            self.stats.transactions += 1
-            try:
-                result = await asyncio.to_thread(fn, *args)
-            except SdoAbortedError as exc:   # the drive refused: retrying will not help
-                self.stats.errors += 1
-                raise DriveCommError(f"{self.label}: {what} refused by the drive: {exc}") from None
-            except _SDO_ERRORS as exc:
-                last = exc
-                self.stats.errors += 1
-                if attempt < self.retries:
-                    self.stats.retries += 1
-                continue
-            self.stats.latencies_s.append(time.perf_counter() - t0)
-            return result
-        raise DriveCommError(f"{self.label}: {what} failed after {self.retries + 1} attempt(s): {last}")
+    @property
+    def _net(self) -> canopen.Network:
+        if self.network is None:
+            raise DriveCommError(f"{self.label}: not connected")
+        return self.network
 
-    def _on_tpdo(self, axis: _Axis, number: int):
-        def callback(_pdo) -> None:   # canopen's receive thread
+    async def _sdo(self, what: str, fn: Callable[[], Any]) -> Any:
+        """Run a blocking SDO operation in a thread, under the SDO retry policy."""
+        return await self.sdo_policy.run(lambda: asyncio.to_thread(fn), what=what,
+                                         label=self.label, stats=self.stats)
+
+    def _on_tpdo(self, axis: Axis402, number: int) -> Callable[[Any], None]:
+        def callback(_pdo: Any) -> None:   # canopen's receive thread
             axis.tpdo_time[number] = time.monotonic()
             loop, event = self._loop, self._tpdo_event
             if loop is not None and event is not None and not loop.is_closed():
                 loop.call_soon_threadsafe(event.set)
         return callback
 
-    async def _wait(self, predicate, timeout: float) -> bool:
+    @staticmethod
+    def _heard(axis: Axis402, _state: int) -> None:   # canopen's receive thread
+        axis.heartbeat_time = time.monotonic()
+
+    async def _wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` holds, re-checking whenever a TPDO arrives."""
         assert self._tpdo_event is not None
         deadline = time.monotonic() + timeout
@@ -245,20 +203,28 @@ class CanopenDrive(DriveLink):
                 return False
             try:
                 await asyncio.wait_for(self._tpdo_event.wait(), left)
-            except asyncio.TimeoutError:
+            except TimeoutError:
                 return predicate()
 
     # -- connection ---------------------------------------------------------------------
     async def connect(self) -> None:
+        """Identify the drive, start its nodes and enable them (see the module docstring).
+
+        Connecting again (the loop does, after a failed configuration) starts afresh:
+        the drive's nodes are forgotten first, never reported as "in use" by itself.
+        """
+        if self._added or self._shared is not None:
+            await self.close()
         self._loop = asyncio.get_running_loop()
         self._tpdo_event = asyncio.Event()
         if self.network is None:
+            assert self.channel is not None         # checked in __init__
             try:
-                self._shared = await asyncio.to_thread(
-                    _SharedNetwork.acquire, self.interface, self.channel, self.bus_kwargs)
-            except Exception as exc:   # python-can raises many kinds on a bad channel
+                shared = await asyncio.to_thread(
+                    SharedNetwork.acquire, self.interface, self.channel, self.bus_kwargs)
+            except Exception as exc:  # noqa: BLE001 - python-can raises many kinds on a bad channel
                 raise DriveCommError(f"{self.label}: cannot open the CAN bus: {exc}") from None
-            self.network = self._shared.network
+            self._shared, self.network = shared, shared.network
         try:
             first = self._add_node(self.node_id)
             magic = await self._sdo("identification read", lambda: first.sdo[_IDX_MAGIC].raw)
@@ -271,12 +237,12 @@ class CanopenDrive(DriveLink):
             if not 1 <= count <= 2:
                 raise DriveCommError(f"{self.label}: implausible axis count {count}")
             check_node_id(self.node_id, count)
-            self.axes = [_Axis(first)]
+            self.axes = [Axis402(first)]
             for k in range(1, count):
-                self.axes.append(_Axis(self._add_node(self.node_id + k)))
+                self.axes.append(Axis402(self._add_node(self.node_id + k)))
             for k, axis in enumerate(self.axes):
                 index = await self._sdo("axis index read",
-                                        lambda n=axis.node: n.sdo[AXIS_INDEX_OBJECT].raw)
+                                        partial(getattr, axis.node.sdo[AXIS_INDEX_OBJECT], "raw"))
                 if index != k:
                     raise DriveCommError(f"{self.label}: node {axis.node.id} is axis {index}, expected {k}")
                 await self._start_axis(axis)
@@ -286,15 +252,15 @@ class CanopenDrive(DriveLink):
             raise
 
     def _add_node(self, node_id: int) -> canopen.BaseNode402:
-        if node_id in self.network.nodes:
+        if node_id in self._net.nodes:
             raise DriveCommError(f"{self.label}: node {node_id} is already in use on this network")
-        node = canopen.BaseNode402(node_id, _load_od(self.eds, node_id))
+        node = canopen.BaseNode402(node_id, load_od(self.eds, node_id))
         node.sdo.RESPONSE_TIMEOUT = self.timeout_s
-        self.network.add_node(node)
+        self._net.add_node(node)
         self._added.append(node)
         return node
 
-    async def _start_axis(self, axis: _Axis) -> None:
+    async def _start_axis(self, axis: Axis402) -> None:
         node = axis.node
 
         def read_pdos() -> None:
@@ -306,7 +272,7 @@ class CanopenDrive(DriveLink):
         for number, tpdo in node.tpdo.items():
             if tpdo.enabled:
                 tpdo.add_callback(self._on_tpdo(axis, number))
-        node.nmt.add_heartbeat_callback(lambda _state, a=axis: setattr(a, "heartbeat_time", time.monotonic()))
+        node.nmt.add_heartbeat_callback(partial(self._heard, axis))
         if self.producer_heartbeat_ms:
             await self._sdo("producer heartbeat write",
                             lambda: setattr(node.sdo[0x1017], "raw", self.producer_heartbeat_ms))
@@ -314,14 +280,15 @@ class CanopenDrive(DriveLink):
         # Every TPDO goes out once after NMT start; waiting for them means the state is
         # known before the 402 helper starts switching (a drive that stays silent fails
         # in _enable with a clear timeout).
-        await self._wait(lambda: all(n in axis.tpdo_time for n, p in node.tpdo.items()
-                                     if p.enabled), self.timeout_s * 2)
+        await self._wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()),
+                         self.timeout_s * 2)
         actual = await self._sdo("position read", lambda: node.sdo[0x6064].raw)
         if 0x607A in node.rpdo_pointers:
-            node.rpdo_pointers[0x607A].raw = actual   # no jump if a set-point slips through
+            target: Any = node.rpdo_pointers[0x607A]
+            target.raw = actual       # no jump if a set-point slips through
         await self._enable(axis)
 
-    async def _enable(self, axis: _Axis) -> None:
+    async def _enable(self, axis: Axis402) -> None:
         """Profile position mode and OPERATION ENABLED (the 402 helper's blocking calls)."""
         node = axis.node
 
@@ -341,15 +308,16 @@ class CanopenDrive(DriveLink):
 
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""
+        network = self.network
         for node in self._added:   # only the nodes this drive added: the network is shared
+            if network is None:
+                break
             for tpdo in node.tpdo.values():
                 if tpdo.enabled and tpdo.cob_id:
-                    try:
-                        self.network.unsubscribe(tpdo.cob_id, tpdo.on_message)
-                    except (KeyError, ValueError):
-                        pass
+                    with contextlib.suppress(KeyError, ValueError):
+                        network.unsubscribe(tpdo.cob_id, tpdo.on_message)
             node.remove_network()
-            self.network.nodes.pop(node.id, None)
+            network.nodes.pop(node.id, None)  # type: ignore[arg-type]  # set in _add_node
         self._added = []
         self.axes = []
         self.axis_count = 0
@@ -359,46 +327,14 @@ class CanopenDrive(DriveLink):
             self.network = None
 
     # -- state --------------------------------------------------------------------------
-    def _fresh(self, axis: _Axis, now: float) -> None:
-        node = axis.node
-        if axis.heartbeat_time is not None and \
-                now - axis.heartbeat_time > 3 * self.producer_heartbeat_ms / 1000 > 0:
-            raise DriveCommError(f"{self.label}: heartbeat of node {node.id} lost")
-        if node.nmt.state not in ("OPERATIONAL", "INITIALISING") and axis.heartbeat_time:
-            raise DriveCommError(f"{self.label}: node {node.id} left OPERATIONAL "
-                                 f"(NMT {node.nmt.state}); reconnect")
-        for number, tpdo in node.tpdo.items():
-            if not tpdo.enabled:
-                continue
-            t = axis.tpdo_time.get(number)
-            if t is None or now - t > self.stale_s:
-                raise DriveCommError(f"{self.label}: no TPDO{number} from node {node.id} "
-                                     f"for {self.stale_s:g} s")
-
-    def _axis_state(self, axis: _Axis) -> AxisState:
-        v = axis.node.tpdo_values
-        try:
-            return AxisState(
-                actual_deg=v[0x6064] * _ACTUAL.scale,
-                target_deg=v[_IDX_EFFECTIVE_TARGET] * _TARGET.scale,
-                velocity_dps=v[0x606C] * _VELOCITY.scale,
-                status=Status(int(v[_IDX_STATUS])),
-                fault=Fault(int(v[_IDX_FAULT])),
-                mode=Mode(int(v[_IDX_MODE])))
-        except KeyError as exc:
-            raise DriveCommError(f"{self.label}: node {axis.node.id} does not map "
-                                 f"0x{exc.args[0]:04X} in a TPDO") from None
-        except ValueError as exc:   # an unknown fault or mode code on the wire
-            raise DriveCommError(f"{self.label}: implausible state from node {axis.node.id}: {exc}") from None
-
     async def read_state(self) -> DriveState:
         if not self.axes:
             raise DriveCommError(f"{self.label}: not connected")
         now = time.monotonic()
         axes = []
         for axis in self.axes:
-            self._fresh(axis, now)
-            axes.append(self._axis_state(axis))
+            axis.check_fresh(now, self.stale_s, self.producer_heartbeat_ms, self.label)
+            axes.append(axis.axis_state(self.label))
         dev = Status(0)
         for a in axes:
             dev |= a.status
@@ -431,48 +367,39 @@ class CanopenDrive(DriveLink):
         t_written = time.monotonic()
         raws = [to_raw(_TARGET, a) for a in angles_deg]
 
-        def reflected() -> bool:
-            for axis, raw in zip(self.axes, raws):
-                if axis.node.tpdo_values.get(_IDX_EFFECTIVE_TARGET) == raw:
-                    continue
-                numbers = [n for n, t in axis.node.tpdo.items() if t.enabled and
-                           any(v.index == _IDX_EFFECTIVE_TARGET for v in t.map)]
-                if not all(axis.tpdo_time.get(n, 0.0) > t_written for n in numbers):
-                    return False
-            return True
-
-        await self._wait(reflected, self.timeout_s)
+        await self._wait(lambda: all(axis.reflects_target(raw, t_written)
+                                     for axis, raw in zip(self.axes, raws)), self.timeout_s)
         return await self.read_state()
 
-    async def _set_point(self, k: int, axis: _Axis, raw: int) -> None:
+    async def _set_point(self, k: int, axis: Axis402, raw: int) -> None:
+        """Profile-position handshake: target, controlword bit 4 up, wait for statusword
+        bit 12, bit 4 down; an attempt without the acknowledge is retried."""
         node = axis.node
-        ack = lambda: bool(axis.statusword & Statusword.SET_POINT_ACK)  # noqa: E731
-        for attempt in range(self.retries + 1):
-            t0 = time.perf_counter()
-            self.stats.transactions += 1
-            # Handshake: the previous set-point's acknowledge must be down first.
+
+        def ack() -> bool:
+            return bool(axis.statusword & Statusword.SET_POINT_ACK)
+
+        async def attempt() -> None:
+            # The previous set-point's acknowledge must be down first.
             if ack():
                 self._controlword(node, CW_ENABLE_OPERATION)
                 await self._wait(lambda: not ack(), self.timeout_s)
-            if 0x607A in node.rpdo_pointers:
-                node.rpdo_pointers[0x607A].raw = raw
-                target_pdo = node.rpdo_pointers[0x607A].pdo_parent
-                if 0x6040 not in node.rpdo_pointers or \
-                        node.rpdo_pointers[0x6040].pdo_parent is not target_pdo:
+            pointers: dict[int, Any] = node.rpdo_pointers
+            if 0x607A in pointers:
+                pointers[0x607A].raw = raw
+                target_pdo = pointers[0x607A].pdo_parent
+                if 0x6040 not in pointers or pointers[0x6040].pdo_parent is not target_pdo:
                     target_pdo.transmit()
             else:
                 await self._sdo("target write", lambda: setattr(node.sdo[0x607A], "raw", raw))
             self._controlword(node, CW_NEW_SET_POINT)
             taken = await self._wait(ack, self.timeout_s)
             self._controlword(node, CW_ENABLE_OPERATION)
-            if taken:
-                self.stats.latencies_s.append(time.perf_counter() - t0)
-                return
-            self.stats.errors += 1
-            if attempt < self.retries:
-                self.stats.retries += 1
-        raise DriveCommError(f"{self.label}: axis {k} did not acknowledge the set-point "
-                             f"within {self.timeout_s:g} s ({self.retries + 1} attempt(s))")
+            if not taken:
+                raise SetPointNotAcknowledged(f"not acknowledged within {self.timeout_s:g} s")
+
+        await self.set_point_policy.run(attempt, what=f"axis {k} set-point", label=self.label,
+                                        stats=self.stats)
 
     @staticmethod
     def _controlword(node: canopen.BaseNode402, cw: int) -> None:
@@ -480,19 +407,15 @@ class CanopenDrive(DriveLink):
 
     # -- heartbeat, commands, configuration -------------------------------------------------
     async def heartbeat(self) -> None:
-        if self.network is None:
-            raise DriveCommError(f"{self.label}: not connected")
-        now = time.monotonic()
-        key = id(self.network)
-        if now - _last_master_beat.get(key, -1e9) < _HEARTBEAT_MIN_INTERVAL_S:
-            return
-        _last_master_beat[key] = now
+        """Send the master's heartbeat (one frame per bus however many drives ask at once)."""
+        network = self._net
         try:
-            self.network.send_message(0x700 + self.master_node_id, bytes([0x05]))
-        except Exception as exc:   # python-can CanError, OSError on a pulled adapter
+            sent = send_master_heartbeat(network, self.master_node_id)
+        except Exception as exc:  # noqa: BLE001 - python-can CanError, OSError on a pulled adapter
             self.stats.errors += 1
             raise DriveCommError(f"{self.label}: heartbeat not sent: {exc}") from None
-        self.stats.transactions += 1
+        if sent:
+            self.stats.transactions += 1
 
     async def command(self, cmd: Command) -> None:
         if not self.axes:
@@ -507,37 +430,44 @@ class CanopenDrive(DriveLink):
                 if axis.state != State402.OPERATION_ENABLED:
                     if axis.state == State402.FAULT:
                         self._controlword(axis.node, 0)   # bit 7 low, so the next is an edge
-                    await self._sdo("re-enable", lambda n=axis.node: setattr(n, "state", "OPERATION ENABLED"))
+                    await self._sdo("re-enable",
+                                    partial(setattr, axis.node, "state", "OPERATION ENABLED"))
 
-    async def configure(self, *, heartbeat_timeout_s=None, soft_limits=None, stow_angles=None) -> None:
+    async def configure(self, *, heartbeat_timeout_s: float | None = None,
+                        soft_limits: Sequence[tuple[float, float]] | None = None,
+                        stow_angles: Sequence[float] | None = None) -> None:
         if not self.axes:
             raise DriveCommError(f"{self.label}: not connected")
         if heartbeat_timeout_s is not None:
             ms = round(heartbeat_timeout_s * 1000)
             if not 0 <= ms <= 0xFFFF:
-                raise ValueError(f"heartbeat timeout {heartbeat_timeout_s} s outside 0..65.535 s")
+                raise LinkSettingsError(f"{self.label}: heartbeat timeout {heartbeat_timeout_s:g} s "
+                                        "outside the 0..65.535 s a CANopen consumer heartbeat "
+                                        "time holds")
             value = (self.master_node_id << 16) | ms
             for axis in self.axes:
                 await self._sdo("consumer heartbeat write",
-                                lambda n=axis.node: setattr(n.sdo[0x1016][1], "raw", value))
-        for k, (lo, hi) in enumerate(soft_limits or ()):
-            node = self.axes[k].node
-            lo_raw, hi_raw = to_raw(_LIMIT_MIN, lo), to_raw(_LIMIT_MAX, hi)
-            if lo_raw > hi_raw:
+                                partial(setattr, axis.node.sdo[0x1016][1], "raw", value))
+        limits, stows = list(soft_limits or ()), list(stow_angles or ())
+        for k, (lo, hi) in enumerate(limits):
+            if to_raw(_LIMIT_MIN, lo) > to_raw(_LIMIT_MAX, hi):
                 raise ValueError(f"soft limits of axis {k}: min {lo} > max {hi}")
-            await self._sdo("soft limit write", lambda n=node: setattr(n.sdo[0x607D][1], "raw", lo_raw))
-            await self._sdo("soft limit write", lambda n=node: setattr(n.sdo[0x607D][2], "raw", hi_raw))
-        for k, angle in enumerate(stow_angles or ()):
+        for k in range(max(len(limits), len(stows))):
             node = self.axes[k].node
-            raw = to_raw(_STOW, angle)
-            await self._sdo("stow angle write",
-                            lambda n=node: setattr(n.sdo[mirror_index(_STOW)], "raw", raw))
+            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+            stow = stows[k] if k < len(stows) else None
+            current = (0.0, 0.0)
+            if new is not None and stow is not None:
+                lo_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][1], "raw"))
+                hi_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][2], "raw"))
+                current = (lo_raw * _LIMIT_MIN.scale, hi_raw * _LIMIT_MAX.scale)
+            for step in soft_limit_steps(current, new, stow):
+                if isinstance(step, tuple):   # min first: valid on the way (see the steps)
+                    await self._sdo("soft limit write", partial(
+                        setattr, node.sdo[0x607D][1], "raw", to_raw(_LIMIT_MIN, step[0])))
+                    await self._sdo("soft limit write", partial(
+                        setattr, node.sdo[0x607D][2], "raw", to_raw(_LIMIT_MAX, step[1])))
+                else:
+                    await self._sdo("stow angle write", partial(
+                        setattr, node.sdo[mirror_index(_STOW)], "raw", to_raw(_STOW, step)))
 
-
-def _factory(node_id: int, **kwargs) -> CanopenDrive:
-    return CanopenDrive(node_id, **kwargs)
-
-
-register_backend("canopen", _factory)
-
-__all__ = ["CanopenDrive"]
