@@ -66,7 +66,7 @@ async def _drive_rows(config, seconds: float, kill=None, sunspec_polls: int = 0)
     await ctl.start()
     start_s = time.perf_counter() - t0
     if server is not None:
-        from controller.sunspec import poll_latency
+        from heliotrack.sunspec_latency import poll_latency
 
         # SCADA polls from its own thread while the controller keeps cycling.
         assert server.port is not None

@@ -25,7 +25,7 @@ from controller.sunpath.ephemeris import transit_time
 from controller.sunpath.kalman import KalmanConfig, run_kalman
 from controller.sunpath.parabola import run_seed
 
-from .sunpath import (
+from .sunpath_common import (
     ANDIMESHK,
     N0_LIST,
     PAPER,
