@@ -241,6 +241,11 @@ class Controller:
         return self.diffuse.update(t)
 
     # -- weather between cycles ------------------------------------------------------------
+    @property
+    def next_weather_poll(self) -> float:
+        """When the anemometer is read next (the clock's monotonic time; inf without one)."""
+        return self._next_wind_poll if self.anemometer is not None else math.inf
+
     def weather_due(self) -> bool:
         """True when the anemometer should be read now (every ``[wind] poll_s``)."""
         return self.anemometer is not None and self.clock.monotonic() >= self._next_wind_poll

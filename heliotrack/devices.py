@@ -1,5 +1,5 @@
-"""The controller's field devices, opened from the configuration: a drive link per tracker
-and the pyranometer, each through its link (the drive-link registry and
+"""The controller's field devices, opened from the configuration: a drive link per tracker,
+the pyranometer and the anemometer, each through its link (the drive-link registry and
 :func:`~controller.drives.modbus.client.modbus_client`).
 
 Call these inside the event loop that will use the devices (pymodbus clients belong to
@@ -14,6 +14,7 @@ from controller.config import Config
 from controller.drives import DriveLink
 from controller.drives.links import LinkConfig
 from controller.drives.registry import open_drive
+from controller.sensors.anemometer import ModbusAnemometer
 from controller.sensors.pyranometer import ModbusPyranometer
 
 
@@ -39,3 +40,12 @@ def open_pyranometer(config: Config, links: Mapping[str, LinkConfig] | None = No
         return None
     link = _links(config, links)[config.pyranometer.link]
     return ModbusPyranometer.from_config(link, config.pyranometer.device_id)
+
+
+def open_anemometer(config: Config, links: Mapping[str, LinkConfig] | None = None
+                    ) -> ModbusAnemometer | None:
+    """The anemometer of ``[wind]`` (None without one)."""
+    if config.wind is None:
+        return None
+    link = _links(config, links)[config.wind.link]
+    return ModbusAnemometer.from_config(link, config.wind.device_id)

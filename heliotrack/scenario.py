@@ -10,9 +10,11 @@ from typing import Any, Literal
 
 from controller.config import Config, load_config, parse_config
 from controller.schema import Where, setting
+from controller.timestamps import parse_timestamp
 from hil.drive import AxisParams
 
 SkyKind = Literal["clear", "overcast", "partly-cloudy"]
+WindKind = Literal["calm", "gusty", "storm"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,6 +47,51 @@ class HilCamera:
 
 
 @dataclass(frozen=True, kw_only=True)
+class HilStorm:
+    """A storm in the scenario: the mean wind ramps up, holds its peak, ramps down."""
+
+    start: str = setting(doc="When the ramp starts (a time with a zone).",
+                         example="2024-03-20T11:00:00Z")
+    peak_m_s: float = setting(19.0, doc="Peak 10-min mean wind (3-s gusts run about 1.4 x "
+                              "higher).", unit="m/s", ge=1, le=60)
+    ramp_s: float = setting(1800.0, doc="Ramp up (and down) time.", unit="s", ge=1, le=86400)
+    hold_s: float = setting(3600.0, doc="Time at the peak.", unit="s", ge=0, le=864000)
+
+    def __schema_check__(self, at: Where) -> HilStorm:
+        from controller.errors import InputError
+
+        try:
+            parse_timestamp(self.start, "start", require_zone=True)
+        except InputError as exc:
+            raise at.child("start").error("a time with a zone, e.g. 2024-03-20T11:00:00Z",
+                                          self.start) from exc
+        return self
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilWind:
+    """The world's wind (read by the emulated anemometer of ``[wind]``)."""
+
+    days: WindKind | tuple[WindKind, ...] = setting("calm", doc="Wind of each day, repeated "
+                                                    "cyclically; a storm day has a storm "
+                                                    "from 13:00 after its start.")
+    storms: tuple[HilStorm, ...] = setting((), doc="Storms at given times.")
+    seed: int = setting(0, doc="Random seed of the turbulence.", ge=0)
+
+    @property
+    def kinds(self) -> tuple[str, ...]:
+        return (self.days,) if isinstance(self.days, str) else self.days
+
+    def script(self, t0: float):
+        """The :class:`hil.wind.WindScript` of this table, days counted from ``t0``."""
+        from hil.wind import Storm, WindScript
+
+        storms = tuple(Storm(parse_timestamp(s.start, "storm start", require_zone=True),
+                             s.peak_m_s, s.ramp_s, s.hold_s) for s in self.storms)
+        return WindScript(t0, self.kinds, storms, seed=self.seed)
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilConfig:
     """The emulated world.  Each day runs from local mean midnight (UTC - longitude/15 h)."""
 
@@ -57,6 +104,7 @@ class HilConfig:
                             "and energy figures.", ge=1, le=60)
     drive: HilDrive = setting(default_factory=HilDrive, doc="Drive mechanics.")
     camera: HilCamera = setting(default_factory=HilCamera, doc="Hotspot camera.")
+    wind: HilWind = setting(default_factory=HilWind, doc="Wind.")
 
     @property
     def skies(self) -> tuple[str, ...]:

@@ -33,11 +33,12 @@ from hil import truth
 from hil.drive import DriveFirmware
 from hil.sky import sky_series
 
-from .devices import open_drives, open_pyranometer
+from .devices import open_anemometer, open_drives, open_pyranometer
 from .output import log_row, summary_table, write_outputs
 from .scenario import as_scenario
 from .scoring import DEFINITIONS, TruthGrid, TruthTally, energy, panel, stats
 from .sun_sources import build_sun_source
+from .weather_truth import WeatherTruth
 from .world import build_world
 
 __all__ = ["ScenarioRun", "day_start", "run_simulation", "summary_table", "write_outputs"]
@@ -102,6 +103,10 @@ class ScenarioRun:
         self.log_rows: list[dict] = []
         self._sun: SunSource | None = None
         self._sensor: CameraSunSensor | None = None
+        wind = config.wind
+        self.wind = self.hil.wind.script(self.t0) if wind is not None else None
+        self.weather = (WeatherTruth(self.wind, wind.gust_stow_m_s)
+                        if self.wind is not None and wind is not None else None)
 
     def _camera_frames(self) -> CallableFrameSource | None:
         """The world's camera, when the controller looks at the sky through one."""
@@ -129,12 +134,13 @@ class ScenarioRun:
     async def run(self) -> dict:
         wall0 = time.perf_counter()
         with ExitStack() as stack:
-            world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at)
+            world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames())
             self._sun, self._sensor = sun, sensor
             controller = Controller(self.config, open_drives(self.config, world.links), sun,
                                     self.clock, sensor=sensor,
-                                    pyranometer=open_pyranometer(self.config, world.links))
+                                    pyranometer=open_pyranometer(self.config, world.links),
+                                    anemometer=open_anemometer(self.config, world.links))
             try:
                 await controller.start()
                 bar = tqdm(total=self.n_cycles, desc="simulate", unit="cycle",
@@ -143,7 +149,7 @@ class ScenarioRun:
                     self.clock.advance_to(self.t0 + i * self.period)
                     records = await controller.cycle()
                     tracking = {r.tracker for r in records if r.mode == "TRACK" and not r.error}
-                    errors = self._sample_truth(i, world.firmwares, tracking)
+                    errors = await self._sample_truth(i, world.firmwares, tracking, controller)
                     self._log(records, errors)
                     bar.update(1)
                 bar.close()
@@ -151,8 +157,20 @@ class ScenarioRun:
                 await controller.close()
         return self._summary(controller, time.perf_counter() - wall0)
 
-    def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware],
-                      tracking: set[str]) -> dict[str, list[float]]:
+    async def _weather_until(self, t: float, controller: Controller,
+                             firmwares: dict[str, DriveFirmware]) -> None:
+        """Step the clock through the anemometer polls due before ``t``: the controller
+        reads the wind between cycles, and the world notes when the drives obey."""
+        if self.weather is None:
+            return
+        while controller.next_weather_poll <= t:
+            self.clock.advance_to(max(controller.next_weather_poll, self.clock.monotonic()))
+            self.weather.sample(self.clock.monotonic(), firmwares)
+            await controller.poll_weather()
+            self.weather.sample(self.clock.monotonic(), firmwares)
+
+    async def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware],
+                            tracking: set[str], controller: Controller) -> dict[str, list[float]]:
         """Advance through the cycle's sub-samples, recording every panel's orientation.
 
         Pointing error counts only for trackers that were commanded to follow the sun in
@@ -160,7 +178,10 @@ class ScenarioRun:
         """
         errs: dict[str, list[float]] = {tr.name: [] for tr in self.config.trackers}
         for k in range(i * self.sub, (i + 1) * self.sub):
+            await self._weather_until(self.t_samples[k], controller, firmwares)
             self.clock.advance_to(self.t_samples[k])
+            if self.weather is not None:
+                self.weather.sample(self.t_samples[k], firmwares)
             if self.grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
@@ -235,6 +256,9 @@ class ScenarioRun:
             "modes": self.modes,
             "sources": self.sources,
             **self._sun_path_summary(),
+            **({"weather": {**self.weather.summary(),
+                            "alarms": sum(1 for e in controller.events if e["kind"] == "wind_alarm")}}
+               if self.weather is not None else {}),
             "trackers": {
                 tr.name: {"pointing_error_deg": stats(self.tally[tr.name].pointing),
                           "energy_ratio": energies[tr.name]["energy_ratio"],

@@ -30,7 +30,9 @@ from hil.drive import DriveFirmware
 from hil.modbus_device import RegisterDevice
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
+from hil.anemometer import Anemometer
 from hil.pyranometer import Pyranometer
+from hil.wind import WindScript
 
 from .scenario import HilConfig, axis_params
 
@@ -48,10 +50,13 @@ class World:
     links: dict[str, LinkConfig] = field(default_factory=dict)
     #: The emulated pyranometer, when one is configured.
     pyranometer: Pyranometer | None = None
+    #: The emulated anemometer, when ``[wind]`` is configured.
+    anemometer: Anemometer | None = None
 
 
 def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
-                ghi_at: Callable[[float], float] | None = None) -> World:
+                ghi_at: Callable[[float], float] | None = None,
+                wind: WindScript | None = None) -> World:
     """Emulate every device of ``config`` on its link.
 
     Parameters
@@ -66,6 +71,8 @@ def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
         Servers, ptys and buses are entered on it.
     ghi_at : callable, optional
         POSIX time -> true GHI, W/m2: the pyranometer's sky (no pyranometer without it).
+    wind : WindScript, optional
+        The anemometer's wind (no anemometer without it).
 
     Raises
     ------
@@ -81,12 +88,18 @@ def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
                 continue
             axes = [axis_params(hil, soft, stow)
                     for soft, stow in zip(tr.soft_limits, tr.stow_angles)]
-            fw = DriveFirmware(axes, clock.now, heartbeat_timeout=config.control.heartbeat_timeout_s)
+            # the firmware counts its own time: a step of the controller's wall clock must
+            # not fire or delay its watchdog
+            fw = DriveFirmware(axes, clock.monotonic,
+                               heartbeat_timeout=config.control.heartbeat_timeout_s)
             world.firmwares[tr.name] = drives[tr.device_id] = devices[tr.device_id] = fw
         pyr = config.pyranometer
         if pyr is not None and pyr.link == link.name and ghi_at is not None:
-            world.pyranometer = Pyranometer(ghi_at, clock.now, seed=hil.seed)
+            world.pyranometer = Pyranometer(ghi_at, clock.monotonic, seed=hil.seed)
             devices[pyr.device_id] = world.pyranometer
+        if config.wind is not None and config.wind.link == link.name and wind is not None:
+            world.anemometer = Anemometer(wind, clock.monotonic)
+            devices[config.wind.device_id] = world.anemometer
         if not devices:
             continue
         if isinstance(link, ModbusRtuLink):
