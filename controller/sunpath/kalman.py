@@ -102,7 +102,11 @@ class SunPathKalman:
         self.buffer: list[SunObservation] = []
         self.consecutive_rejects = 0
         self.n_accepted = 0
-        self.n_rejected = 0
+        self.n_rejected = 0  # every observation not used, whatever the reason
+        self.n_older = 0     # of which: older than the state
+        self.n_invalid = 0   # of which: not an observation of the sun (NaN, el > 90, ...)
+        self.n_reinit = 0    # restarts from a self-consistent run of rejections
+        self.n_rebase = 0    # states carried back to a clock that stepped back
         self.obliquity_applied = False
 
     # ------------------------------------------------------------------ state access
@@ -370,9 +374,13 @@ class SunPathKalman:
         return kalman_to_dict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> SunPathKalman:
-        """Inverse of :meth:`to_dict`; raises ValueError/KeyError/TypeError when malformed."""
-        return kalman_from_dict(d, cls)
+    def from_dict(cls, d: dict, now: float | None = None) -> SunPathKalman:
+        """Inverse of :meth:`to_dict`, validated (:func:`.persistence.kalman_from_dict`).
+
+        Raises :class:`~controller.sunpath.persistence.SnapshotError` (a ValueError) naming
+        the field when the snapshot is malformed, not physical or not plausible.
+        """
+        return kalman_from_dict(d, cls, now=now)
 
 
 

@@ -58,6 +58,9 @@ class KalmanConfig:
     max_consecutive_rejects : int
         After this many gated observations in a row the covariance is inflated, so a
         filter that has drifted cannot lock itself out.
+    site_mismatch_deg : float
+        With a site given, a learned state whose site lies further than this from it is
+        not used (deg).
     q_site, q_dec, q_rate, q_az_off, q_refr : float
         Process noise densities: random walks on site (deg^2/day), declination
         (deg^2/day), declination rate (deg^2/day^3, integrated random walk), azimuth
@@ -81,6 +84,7 @@ class KalmanConfig:
     iterations: int = 1
     gate_chi2: float = 13.8
     max_consecutive_rejects: int = 6
+    site_mismatch_deg: float = 1.0
     q_site: float = 1e-8
     q_dec: float = 1e-6
     q_rate: float = 2e-5  # unused since the orbit model; kept so old state files load
