@@ -160,8 +160,9 @@ class SunPathSource(SunSource):
     Parameters
     ----------
     site : Site, optional
-        Known site: seeds the filter and enables the ephemeris fallback; a learned state
-        whose site lies more than ``site_mismatch_deg`` from it is not used.
+        Known site: seeds the filter, enables the ephemeris fallback, and stays the prior
+        of every restart (a sky that puts the site more than ``site_mismatch_deg`` away is
+        reported in :meth:`summary`, not followed).
     state_path : path, optional
         Learned state is loaded from here at start (if the file exists) and written by
         :meth:`save`.  A file that cannot be used (corrupt, or a state that is not physical
@@ -277,13 +278,20 @@ class SunPathSource(SunSource):
         """What the filter has learned so far, and how it got there.
 
         Site (deg, north/east-positive) with one-sigma, sensor azimuth offset, counts of
-        accepted and rejected observations.  ``state_note``: why the state file was not
-        used, when it was not.
+        accepted and rejected observations (of the rejected: ``older`` than the state,
+        ``invalid``), restarts from a self-consistent run (``reinitialised``) and re-bases
+        after a clock step back (``rebased``).  With a site given: the learned site's
+        offset from it and ``site_mismatch``, true when the learned site or a
+        self-consistent sky lies more than ``site_mismatch_deg`` from it (then
+        ``site_mismatch_lat_deg`` / ``site_mismatch_lon_deg`` give the sky's offset): the
+        loop should raise an alarm, as the site or the clock is wrong.  ``state_note``: why
+        the state file was not used, when it was not.
         """
         kf = self.kf
         out: dict = {"mode": kf.mode, "site_given": self.site is not None,
                      "initialised": kf.initialised, "accepted": kf.n_accepted,
-                     "rejected": kf.n_rejected}
+                     "rejected": kf.n_rejected, "older": kf.n_older, "invalid": kf.n_invalid,
+                     "reinitialised": kf.n_reinit, "rebased": kf.n_rebase}
         if self.state_note is not None:
             out["state_note"] = self.state_note
         if kf.initialised:
@@ -291,6 +299,19 @@ class SunPathSource(SunSource):
             out.update({"lat_deg": float(x[LAT]), "lon_deg": float(wrap180(x[LON])),
                         "lat_sigma_deg": kf.sigma(LAT), "lon_sigma_deg": kf.sigma(LON),
                         "az_offset_deg": float(wrap180(x[AZOFF]))})
+        if self.site is not None:
+            limit = kf.config.site_mismatch_deg
+            far = False
+            if kf.initialised:
+                dlat = float(kf.x[LAT] - self.site.latitude)
+                dlon = float(wrap180(kf.x[LON] - self.site.longitude))
+                out.update({"site_offset_lat_deg": dlat, "site_offset_lon_deg": dlon})
+                far = max(abs(dlat), abs(dlon)) > limit
+            m = kf.site_mismatch
+            out["site_mismatch"] = far or m is not None
+            if m is not None:
+                out.update({"site_mismatch_lat_deg": m.lat_offset_deg,
+                            "site_mismatch_lon_deg": m.lon_offset_deg})
         return out
 
     def save(self) -> None:
