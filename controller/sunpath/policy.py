@@ -204,7 +204,11 @@ class SunPathSource(SunSource):
         path = self.state_path
         try:
             kf = load_state(path, now=now)
-            if kf is not None and self.site is not None:
+            if kf is None:
+                log.info(f"{path}: no learned sun-path state yet; starting "
+                         + ("from the ephemeris at the configured site" if self.site
+                            else "without one"))
+            elif self.site is not None:
                 self._check_site(path, kf)
                 kf.site = kf.site or self.site  # the configured site is the prior from now on
             return kf
@@ -247,8 +251,8 @@ class SunPathSource(SunSource):
     def observe(self, obs: SunObservation) -> bool:
         """Give the filter one observation (ENU or sensor frame); True when accepted."""
         res = self.kf.update(obs)
-        if res.accepted or not self.kf.initialised:  # buffered for the filter's start
-            self.last_accepted = obs
+        if res.accepted or res.reason == "waiting to initialise":  # buffered for the start
+            self.last_accepted = obs   # never one the filter refused (NaN, past the zenith)
         return res.accepted
 
     def prediction(self, t: float) -> SunEstimate | None:

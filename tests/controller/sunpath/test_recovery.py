@@ -231,3 +231,17 @@ def test_a_state_from_the_future_that_slipped_in_is_rebased():
         assert_physical(kf)
     assert kf.t == obs[-1].time and kf.n_accepted >= 0.8 * len(obs)
     assert kf.n_rebase == 1
+
+
+def test_an_invalid_observation_before_the_filter_starts_is_not_the_sun_either():
+    # Before the filter starts, the source answers with the last raw observation: it must
+    # never be one the filter refused (a NaN would be sent to the drives as a target).
+    src = SunPathSource()
+    t0 = pd.Timestamp("2024-04-10T08:00:00Z").timestamp()
+    assert not src.observe(SunObservation(t0, float("nan"), 40.0, 0.3))
+    assert src.estimate(t0 + 10.0) is None
+    good = SunObservation(t0 + 60.0, 120.0, 40.0, 0.3)
+    src.observe(good)
+    src.observe(SunObservation(t0 + 70.0, 120.0, 140.0, 0.3))   # past the zenith
+    e = src.estimate(t0 + 80.0)
+    assert e is not None and (e.az_deg, e.el_deg) == (120.0, 40.0)

@@ -187,3 +187,15 @@ def test_a_state_path_that_cannot_be_read_is_left_alone_and_save_does_not_crash(
     assert src.estimate(NOW).source is EstimateSource.EPHEMERIS
     assert len(caplog.records) == 1 and "will not be saved" in caplog.records[0].getMessage()
     assert (path / "keep.txt").read_text() == "mine"
+
+
+def test_a_missing_state_file_is_one_line_and_a_safe_start(tmp_path, caplog):
+    path = tmp_path / "sunpath.json"
+    with caplog.at_level(logging.INFO, logger="heliotrack.sunpath"):
+        src = SunPathSource(site=ANDIMESHK, state_path=path, now=NOW)
+    msgs = [r.getMessage() for r in caplog.records]
+    assert len(msgs) == 1 and str(path) in msgs[0] and "\n" not in msgs[0]
+    assert caplog.records[0].levelno == logging.INFO       # a first start is not a fault
+    assert src.estimate(NOW).source is EstimateSource.EPHEMERIS
+    src.save()
+    assert load_state(path) is not None
