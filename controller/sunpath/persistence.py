@@ -8,8 +8,9 @@ deg/day instead of the orbit's ``(u, v)``) is converted on load.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, fields
-from typing import TYPE_CHECKING
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -27,14 +28,33 @@ from .kalman_config import (
 )
 from .orbit import MEAN_MOTION_DEG_PER_DAY, ORBIT_RATES
 
-if TYPE_CHECKING:
-    from .kalman import SunPathKalman
+
+class KalmanFilterLike(Protocol):
+    """What a snapshot reads and writes of :class:`~controller.sunpath.kalman.SunPathKalman`.
+
+    A protocol rather than an import, so that :mod:`.kalman` (which uses this module) and
+    this module do not import each other.
+    """
+
+    mode: str
+    config: KalmanConfig
+    site: Site | None
+    ekf: Any  # filterpy's ExtendedKalmanFilter (x, P)
+    initialised: bool
+    t: float | None
+    obliquity_applied: bool
+    buffer: list[SunObservation]
+    n_accepted: int
+    n_rejected: int
+
+
+F = TypeVar("F", bound=KalmanFilterLike)
 
 #: ``kind`` of a Kalman snapshot.
 KIND = "sunpath-kalman"
 
 
-def kalman_to_dict(kf: SunPathKalman) -> dict:
+def kalman_to_dict(kf: KalmanFilterLike) -> dict:
     """JSON-ready snapshot of ``kf`` (state, covariance, config, site, buffer, counters)."""
     return {
         "kind": KIND,
@@ -75,15 +95,16 @@ class SnapshotError(ValueError):
 COUNTERS = ("n_accepted", "n_rejected", "n_older", "n_invalid", "n_reinit", "n_rebase")
 
 
-def kalman_from_dict(d: dict, cls: type[SunPathKalman], now: float | None = None
-                     ) -> SunPathKalman:
+def kalman_from_dict(d: dict, cls: Callable[[KalmanConfig, Site | None], F],
+                     now: float | None = None) -> F:
     """Inverse of :func:`kalman_to_dict`, building an instance of ``cls``; validated.
 
     Parameters
     ----------
     d : dict
         The snapshot.
-    cls : type
+    cls : callable
+        ``cls(config, site)`` builds the filter:
         :class:`~controller.sunpath.kalman.SunPathKalman` (passed in to avoid a cycle).
     now : float, optional
         The present, POSIX s: a state or buffered observation more than a day after it is
