@@ -39,13 +39,17 @@ class InitialFit:
         POSIX seconds the state refers to: the last observation without a site, the first
         one with a site (the others are then assimilated one by one).
     n_used : int
-        Observations the fit accepted (residual under 5 deg).
+        Observations the fit accepted (residual under 5 sigma).
+    rms_sigma : float
+        RMS residual per axis over every observation, in units of their sigma (about 1
+        for a self-consistent sky; much more for garbage).
     """
 
     x: np.ndarray
     P: np.ndarray
     t: float
     n_used: int
+    rms_sigma: float = float("nan")
 
 
 def prior_mean_sigma(config: KalmanConfig, mode: str, site: Site | None
@@ -159,7 +163,7 @@ def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: 
     x[LON] = float(wrap180(x[LON]))
     x[AZOFF] = float(x[AZOFF] % 360.0)
     return InitialFit(x, 0.5 * (P + P.T), t_ref if not known else float(t[0]),
-                      int(ok.sum()))
+                      int(ok.sum()), float(np.sqrt(np.mean(r ** 2))))
 
 
 def grid_starts(geo: GeocentricSun, az: np.ndarray, el: np.ndarray, fixed: np.ndarray,

@@ -44,6 +44,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from ..sun.source import Site
 from ..sun.types import SunObservation
+from .bounds import bound_covariance, max_sigma, observation_problem, state_problem
 from .days import DayResult, split_days
 from .ephemeris import GeocentricSun, azel_from_hour_angle, geocentric_sun, transit_time, wrap180
 from .initial_fit import initial_fit
@@ -71,6 +72,7 @@ from .orbit import (
     orbit_rotation,
 )
 from .persistence import kalman_from_dict, kalman_to_dict
+from .recovery import SiteMismatch, add_older, add_to_run, assess_run, inflate, inflation_caps
 
 # Callers import the filter's records and the orbit law from here too.
 __all__ = ["AZOFF", "DEC", "FREE_MODEL", "LAT", "LON", "MEAN_MOTION_DEG_PER_DAY",
@@ -102,8 +104,18 @@ class SunPathKalman:
         self.buffer: list[SunObservation] = []
         self.consecutive_rejects = 0
         self.n_accepted = 0
-        self.n_rejected = 0
+        self.n_rejected = 0  # every observation not used, whatever the reason
+        self.n_older = 0     # of which: older than the state
+        self.n_invalid = 0   # of which: not an observation of the sun (NaN, el > 90, ...)
+        self.n_reinit = 0    # restarts from a self-consistent run of rejections
+        self.n_rebase = 0    # states carried back to a clock that stepped back
         self.obliquity_applied = False
+        # Transient (not saved): the runs :mod:`.recovery` judges, and what it found.
+        self.rejected_run: list[SunObservation] = []
+        self.older_run: list[SunObservation] = []
+        self.site_mismatch: SiteMismatch | None = None
+        self._run_judged_at = float("nan")  # last run member judged (judge once per member)
+        self._consecutive_accepts = 0
 
     # ------------------------------------------------------------------ state access
     @property
@@ -169,7 +181,7 @@ class SunPathKalman:
             F[DEC, RATE] = d
             qr = c.q_rate_ephemeris
             Q[DEC, DEC] = c.q_dec * ad + qr * ad ** 3 / 3
-            Q[DEC, RATE] = Q[RATE, DEC] = qr * d * d / 2
+            Q[DEC, RATE] = Q[RATE, DEC] = qr * d * ad / 2  # sign of d: also backwards
             Q[RATE, RATE] = qr * ad
         Q[LAT, LAT] = Q[LON, LON] = c.q_site * ad
         Q[AZOFF, AZOFF] = c.q_az_off * ad
@@ -186,6 +198,8 @@ class SunPathKalman:
         F, Q = self._transition(self._state_time(), float(t))
         self.ekf.F, self.ekf.Q = F, Q
         self.ekf.predict()
+        # years without an observation must not leave a variance that means nothing
+        self.ekf.P = bound_covariance(self.ekf.P, max_sigma(self.mode))
         self.t = float(t)
 
     def _propagated(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -223,14 +237,27 @@ class SunPathKalman:
 
     # ------------------------------------------------------------------ updates
     def update(self, obs: SunObservation) -> UpdateResult:
-        """Assimilate one observation (sensor-frame azimuth, elevation, sigma)."""
+        """Assimilate one observation (sensor-frame azimuth, elevation, sigma).
+
+        An observation that is not one of the sun, one older than the state and one the
+        innovation gate refuses are rejected and counted; an update that would leave the
+        state unphysical (:func:`.bounds.state_problem`) is refused likewise.  Runs of
+        them are handled by :mod:`.recovery`.
+        """
+        bad = observation_problem(obs)
+        if bad is not None:
+            self.n_invalid += 1
+            self.n_rejected += 1
+            return UpdateResult(False, float("nan"), self.initialised,
+                                f"invalid observation: {bad}")
         if not self.initialised:
             self.buffer.append(obs)
             if self._try_initialise():
                 return UpdateResult(True, 0.0, True, "initialised")
             return UpdateResult(False, float("nan"), False, "waiting to initialise")
         if obs.time < self._state_time() - 1e-6:
-            return UpdateResult(False, float("nan"), True, "older than the state")
+            return self._older(obs)
+        self.older_run = []
         self._propagate(obs.time)
         geo = geocentric_sun(obs.time)
         z = np.array([obs.az_deg, obs.el_deg])
@@ -239,15 +266,9 @@ class SunPathKalman:
         y = self._residual(z, self._azel(self.ekf.x, geo))
         S = H @ self.ekf.P @ H.T + R
         d2 = float(y @ np.linalg.solve(S, y))
-        if d2 > self.config.gate_chi2:
-            self.consecutive_rejects += 1
-            self.n_rejected += 1
-            if self.consecutive_rejects >= self.config.max_consecutive_rejects:
-                # A run of rejections means the filter, not the sky, is wrong.
-                self.ekf.P = self.ekf.P * 25.0
-                self.consecutive_rejects = 0
-            return UpdateResult(False, d2, True, "gated")
-        self.consecutive_rejects = 0
+        if not d2 <= self.config.gate_chi2:  # also NaN
+            return self._rejected(obs, d2, "gated")
+        x0, P0, obliquity0 = self.ekf.x.copy(), self.ekf.P.copy(), self.obliquity_applied
         if self.config.iterations <= 1:
             self.ekf.update(z, lambda x: self._jacobian(x, geo),
                             lambda x: np.array(self._azel(x, geo)), R=R,
@@ -256,8 +277,66 @@ class SunPathKalman:
             self._iterated_update(z, R, geo, H, y)
         self._normalise()
         self._apply_obliquity()
+        bad_state = state_problem(self.ekf.x, self.ekf.P, self.mode)
+        if bad_state is not None:  # keep the prior: the linearisation failed, not the sky
+            self.ekf.x, self.ekf.P, self.obliquity_applied = x0, P0, obliquity0
+            return self._rejected(obs, d2, "non-physical update ({}: {})".format(*bad_state))
+        self.consecutive_rejects = 0
+        self.rejected_run = []
+        self._consecutive_accepts += 1
+        if self._consecutive_accepts >= self.config.max_consecutive_rejects:
+            self.site_mismatch = None  # the sky agrees with the state again
         self.n_accepted += 1
         return UpdateResult(True, d2, True)
+
+    def _rejected(self, obs: SunObservation, d2: float, reason: str) -> UpdateResult:
+        """Count a rejection and, every ``max_consecutive_rejects`` in a row, recover."""
+        c = self.config
+        self.consecutive_rejects += 1
+        self.n_rejected += 1
+        self._consecutive_accepts = 0
+        add_to_run(self.rejected_run, obs, c)
+        if self.consecutive_rejects % c.max_consecutive_rejects:
+            return UpdateResult(False, d2, True, reason)
+        run = self.rejected_run
+        verdict = None
+        if run and run[-1].time != self._run_judged_at:
+            self._run_judged_at = run[-1].time
+            verdict = assess_run(run, c, self.mode, self.site)
+        if verdict is not None and verdict.action == "restart" and verdict.fit is not None:
+            self._restart(verdict.fit, run if verdict.site_fixed else [])
+            return UpdateResult(True, d2, True, "re-initialised from the rejected run")
+        if verdict is not None and verdict.mismatch is not None:
+            self.site_mismatch = verdict.mismatch
+        if self.consecutive_rejects == c.max_consecutive_rejects:
+            # The filter may have drifted just past the gate: widen once per run, boundedly.
+            # A run that goes on is judged as a whole instead (above): widening again would
+            # only let garbage in.
+            self.ekf.P = inflate(self.ekf.P, inflation_caps(c, self.mode, self.site))
+        return UpdateResult(False, d2, True, reason)
+
+    def _restart(self, fit, run: list[SunObservation]) -> None:
+        """Start again from ``fit``; with a site fixed, assimilate the rest of ``run``."""
+        self.ekf.x, self.ekf.P, self.t = fit.x.copy(), fit.P.copy(), fit.t
+        self.obliquity_applied = False
+        self.consecutive_rejects = 0
+        self.rejected_run = []
+        self.n_reinit += 1
+        for o in sorted(run, key=lambda o: o.time)[1:]:
+            self.update(o)
+
+    def _older(self, obs: SunObservation) -> UpdateResult:
+        """Reject (and count) an observation older than the state; re-base on a clock step."""
+        self.n_older += 1
+        self.n_rejected += 1
+        if not add_older(self.older_run, obs, self.config):
+            return UpdateResult(False, float("nan"), True, "older than the state")
+        run, self.older_run = self.older_run, []
+        self.n_rebase += 1
+        self._propagate(run[0].time)  # carried back: process noise of the whole step
+        for o in run:
+            res = self.update(o)
+        return UpdateResult(res.accepted, res.mahalanobis2, True, f"re-based; {res.reason}")
 
     def _iterated_update(self, z, R, geo, H, y):
         """Iterated EKF measurement update (Gauss-Newton on the MAP cost).
@@ -294,7 +373,7 @@ class SunPathKalman:
         """Start from the batch fit of the buffer (:mod:`.initial_fit`) once it can."""
         obs = sorted(self.buffer, key=lambda o: o.time)
         fit = initial_fit(obs, self.config, self.mode, self.site)
-        if fit is None:
+        if fit is None or state_problem(fit.x, fit.P, self.mode) is not None:
             return False
         self.ekf.x = fit.x
         self.ekf.P = fit.P
@@ -370,9 +449,13 @@ class SunPathKalman:
         return kalman_to_dict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> SunPathKalman:
-        """Inverse of :meth:`to_dict`; raises ValueError/KeyError/TypeError when malformed."""
-        return kalman_from_dict(d, cls)
+    def from_dict(cls, d: dict, now: float | None = None) -> SunPathKalman:
+        """Inverse of :meth:`to_dict`, validated (:func:`.persistence.kalman_from_dict`).
+
+        Raises :class:`~controller.sunpath.persistence.SnapshotError` (a ValueError) naming
+        the field when the snapshot is malformed, not physical or not plausible.
+        """
+        return kalman_from_dict(d, cls, now=now)
 
 
 
