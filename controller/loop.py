@@ -76,6 +76,7 @@ class Controller:
         self._next_wind_poll = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
+        self.sun_alarm = ""
         self.safety = SafetyState(config.wind, config.stow, clock.now(), warn=log.warning)
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
         self.overrides: dict[int, tuple[float, ...]] = {}
@@ -158,7 +159,7 @@ class Controller:
         decision = self.decide(est, overcast, order)
         targets = self.targets(est, decision, order)
         t_wall = time.perf_counter()
-        alarms = tuple(self.safety.alarms)
+        alarms = tuple(self.safety.alarms) + ((self.sun_alarm,) if self.sun_alarm else ())
         records = [self._record(tr, t, est, decision, s, alarms)
                    for tr, s in zip(self.trackers, targets)]
         if order is None:
@@ -223,10 +224,27 @@ class Controller:
             obs = await asyncio.to_thread(self.sensor.observe, t)
             if obs is not None:
                 self.sun.observe(obs)
+                self._check_sun_site()
         day = int(t // 86400)
         if self._saved_day is not None and day != self._saved_day:
             self.sun.save()   # atomic; once a day and at shutdown
         self._saved_day = day
+
+    def _check_sun_site(self) -> None:
+        """Alarm once when the sky and the configured site disagree by more than the sun-path
+        filter allows (a wrong site, or a wall clock off by a time step): the filter keeps the
+        configured site and rejects the camera, and only an operator can tell which is wrong."""
+        learned = self.sun.summary()
+        mismatch = bool(learned.get("site_mismatch"))
+        if mismatch and not self.sun_alarm:
+            self.sun_alarm = (f"sky and configured site disagree (latitude "
+                              f"{learned.get('site_mismatch_lat_deg', 0.0):+.2f} deg, longitude "
+                              f"{learned.get('site_mismatch_lon_deg', 0.0):+.2f} deg): check "
+                              f"the site and the clock")
+            log.warning("SUN ALARM: %s", self.sun_alarm)
+            self._event("sun_alarm", reason=self.sun_alarm)
+        elif not mismatch:
+            self.sun_alarm = ""
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""

@@ -135,7 +135,7 @@ class ScenarioRun:
         wall0 = time.perf_counter()
         with ExitStack() as stack:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
-            sun, sensor = build_sun_source(self.config, self._camera_frames())
+            sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
             controller = Controller(self.config, open_drives(self.config, world.links), sun,
                                     self.clock, sensor=sensor,
