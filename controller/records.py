@@ -33,7 +33,7 @@ class CycleRecord:
     axis_modes: tuple[str, ...] = ()
     backtracking: bool = False
     error: str = ""
-    latency_s: float = 0.0   # wall time from the cycle's start until this row was done
+    latency_s: float = 0.0  # wall time from the cycle's start until this row was done
     health: str = "ok"
     health_reason: str = ""
     alarms: tuple[str, ...] = ()

@@ -40,8 +40,13 @@ class ServerThread:
         How long :meth:`start` waits for the server to listen, s.
     """
 
-    def __init__(self, factory: Callable[[], ModbusBaseServer], *, name: str = "modbus-server",
-                 start_timeout_s: float = 10.0):
+    def __init__(
+        self,
+        factory: Callable[[], ModbusBaseServer],
+        *,
+        name: str = "modbus-server",
+        start_timeout_s: float = 10.0,
+    ):
         self.factory = factory
         self.start_timeout_s = start_timeout_s
         #: The TCP port the server listens on (after :meth:`start`; None for serial).
@@ -64,8 +69,7 @@ class ServerThread:
         self._thread.start()
         self._ready.wait(self.start_timeout_s)
         if self._error is not None:
-            raise ServerThreadError(str(self._error) or type(self._error).__name__) \
-                from self._error
+            raise ServerThreadError(str(self._error) or type(self._error).__name__) from self._error
         if not self._ready.is_set():
             raise ServerThreadError(f"not listening within {self.start_timeout_s:g} s")
         return self
@@ -74,7 +78,7 @@ class ServerThread:
         """Shut the server down and end the thread (quietly if it never started)."""
         if self._loop is not None and self.server is not None and self._loop.is_running():
             fut = asyncio.run_coroutine_threadsafe(self.server.shutdown(), self._loop)
-            with contextlib.suppress(Exception):   # already closing: nothing left to release
+            with contextlib.suppress(Exception):  # already closing: nothing left to release
                 fut.result(5)
         if self._thread.is_alive():
             self._thread.join(5)
@@ -101,8 +105,9 @@ class ServerThread:
         await server.serve_forever(background=True)
         if isinstance(server, ModbusTcpServer):
             transport = server.transport
-            sock = (transport.sockets[0] if hasattr(transport, "sockets")
-                    else transport.get_extra_info("socket"))
+            sock = (
+                transport.sockets[0] if hasattr(transport, "sockets") else transport.get_extra_info("socket")
+            )
             self.port = sock.getsockname()[1]
         self._ready.set()
         await server.serving

@@ -22,8 +22,7 @@ def _links(config: Config, links: Mapping[str, LinkConfig] | None) -> Mapping[st
     return config.links_by_name if links is None else {**config.links_by_name, **links}
 
 
-def open_drives(config: Config, links: Mapping[str, LinkConfig] | None = None
-                ) -> dict[str, DriveLink]:
+def open_drives(config: Config, links: Mapping[str, LinkConfig] | None = None) -> dict[str, DriveLink]:
     """A drive link (not yet connected) per tracker, by tracker name.
 
     ``links`` replaces configured links by name (the simulator's endpoints).
@@ -32,8 +31,9 @@ def open_drives(config: Config, links: Mapping[str, LinkConfig] | None = None
     return {tr.name: open_drive(by_name[tr.link], tr.device_id) for tr in config.trackers}
 
 
-def open_pyranometer(config: Config, links: Mapping[str, LinkConfig] | None = None
-                     ) -> ModbusPyranometer | None:
+def open_pyranometer(
+    config: Config, links: Mapping[str, LinkConfig] | None = None
+) -> ModbusPyranometer | None:
     """The configured pyranometer (None without a ``[pyranometer]`` table); it shares the
     client of an RS-485 line with the drives on it."""
     if config.pyranometer is None:
@@ -42,8 +42,7 @@ def open_pyranometer(config: Config, links: Mapping[str, LinkConfig] | None = No
     return ModbusPyranometer.from_config(link, config.pyranometer.device_id)
 
 
-def open_anemometer(config: Config, links: Mapping[str, LinkConfig] | None = None
-                    ) -> ModbusAnemometer | None:
+def open_anemometer(config: Config, links: Mapping[str, LinkConfig] | None = None) -> ModbusAnemometer | None:
     """The anemometer of ``[wind]`` (None without one)."""
     if config.wind is None:
         return None

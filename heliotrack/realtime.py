@@ -28,8 +28,9 @@ from .sun_sources import build_sun_source
 from .world import build_world
 
 
-def run_realtime(config: Config, duration_s: float, sunspec: tuple[str, int] | None = None,
-                 out=sys.stdout) -> dict:
+def run_realtime(
+    config: Config, duration_s: float, sunspec: tuple[str, int] | None = None, out=sys.stdout
+) -> dict:
     """Run for ``duration_s`` seconds of wall time; returns counts of what happened."""
     return asyncio.run(_run(config, duration_s, sunspec, out))
 
@@ -40,8 +41,15 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
     clock = RealClock()
     t0 = clock.now()
     grid = t0 + np.arange(0.0, duration_s + 120.0, 15.0)
-    sky = sky_series(grid, config.site.latitude, config.site.longitude, config.site.altitude,
-                     {0: hil.skies[0]}, hil.linke_turbidity, seed=hil.seed)
+    sky = sky_series(
+        grid,
+        config.site.latitude,
+        config.site.longitude,
+        config.site.altitude,
+        {0: hil.skies[0]},
+        hil.linke_turbidity,
+        seed=hil.seed,
+    )
 
     def ghi_at(t: float) -> float:
         return float(np.interp(t, grid, sky.ghi))
@@ -50,9 +58,15 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
     with ExitStack() as stack:
         world = build_world(config, hil, clock, stack, ghi_at)
         sun, sensor = build_sun_source(config)
-        controller = Controller(config, open_drives(config, world.links), sun, clock,
-                                realtime=True, sensor=sensor,
-                                pyranometer=open_pyranometer(config, world.links))
+        controller = Controller(
+            config,
+            open_drives(config, world.links),
+            sun,
+            clock,
+            realtime=True,
+            sensor=sensor,
+            pyranometer=open_pyranometer(config, world.links),
+        )
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:
             cfg = replace(config.sunspec, enabled=True, host=sunspec[0], port=sunspec[1])
@@ -66,8 +80,11 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
             bridge.publish(records)
             counts["overrides"] += bridge.apply_pending()
             modes = ",".join(sorted({r.mode for r in records}))
-            print(f"cycle {counts['cycles']} {time.strftime('%H:%M:%S')} {modes} "
-                  f"errors={counts['row_errors']}", file=out, flush=True)
+            print(
+                f"cycle {counts['cycles']} {time.strftime('%H:%M:%S')} {modes} errors={counts['row_errors']}",
+                file=out,
+                flush=True,
+            )
 
         try:
             await controller.start()

@@ -50,9 +50,14 @@ def day_start(d: date, longitude: float) -> float:
     return (midnight_utc - timedelta(hours=longitude / 15.0)).timestamp()
 
 
-def run_simulation(config: Config, days: int = 1, start: date | datetime | None = None,
-                   out_dir: Path | None = None, progress: bool = True,
-                   hours: float | None = None) -> dict:
+def run_simulation(
+    config: Config,
+    days: int = 1,
+    start: date | datetime | None = None,
+    out_dir: Path | None = None,
+    progress: bool = True,
+    hours: float | None = None,
+) -> dict:
     """Run the HIL scenario; return the summary (and write it under ``out_dir``).
 
     ``start``: a date (the run begins at local mean midnight) or an aware datetime.
@@ -68,8 +73,14 @@ def run_simulation(config: Config, days: int = 1, start: date | datetime | None 
 class ScenarioRun:
     """One simulated run: the world, the controller, the clock and the truth tallies."""
 
-    def __init__(self, config: Config, days: int, start: date | datetime | None,
-                 progress: bool, hours: float | None = None):
+    def __init__(
+        self,
+        config: Config,
+        days: int,
+        start: date | datetime | None,
+        progress: bool,
+        hours: float | None = None,
+    ):
         self.config = config = as_scenario(config)
         self.hil = config.hil
         self.days = days if hours is None else max(1, math.ceil(hours / 24))
@@ -85,15 +96,29 @@ class ScenarioRun:
         self.sub = self.hil.substeps
         # Truth at every sub-sample of every cycle, in one vectorised call each.
         offsets = (np.arange(self.sub) + 0.5) / self.sub * self.period
-        self.t_samples = (self.t0 + np.arange(self.n_cycles)[:, None] * self.period
-                          + offsets[None, :]).ravel()
+        self.t_samples = (
+            self.t0 + np.arange(self.n_cycles)[:, None] * self.period + offsets[None, :]
+        ).ravel()
         site = config.site
-        sun = truth.sun_truth(self.t_samples, site.latitude, site.longitude,
-                              site.altitude, site.temperature_c, self.hil.linke_turbidity)
+        sun = truth.sun_truth(
+            self.t_samples,
+            site.latitude,
+            site.longitude,
+            site.altitude,
+            site.temperature_c,
+            self.hil.linke_turbidity,
+        )
         skies = self.hil.skies
         kinds = {d: skies[d % len(skies)] for d in range(days + 1)}
-        sky = sky_series(self.t_samples, site.latitude, site.longitude, site.altitude,
-                         kinds, self.hil.linke_turbidity, seed=self.hil.seed)
+        sky = sky_series(
+            self.t_samples,
+            site.latitude,
+            site.longitude,
+            site.altitude,
+            kinds,
+            self.hil.linke_turbidity,
+            seed=self.hil.seed,
+        )
         self.grid = TruthGrid(self.t_samples, sun, sun.vectors, sky)
         self.clock = SimClock(self.t0)
         self.tally = {tr.name: TruthTally() for tr in config.trackers}
@@ -105,8 +130,11 @@ class ScenarioRun:
         self._sensor: CameraSunSensor | None = None
         wind = config.wind
         self.wind = self.hil.wind.script(self.t0) if wind is not None else None
-        self.weather = (WeatherTruth(self.wind, wind.gust_stow_m_s)
-                        if self.wind is not None and wind is not None else None)
+        self.weather = (
+            WeatherTruth(self.wind, wind.gust_stow_m_s)
+            if self.wind is not None and wind is not None
+            else None
+        )
 
     def _camera_frames(self) -> CallableFrameSource | None:
         """The world's camera, when the controller looks at the sky through one."""
@@ -119,7 +147,8 @@ class ScenarioRun:
         site = self.config.site
         cam = self.hil.camera
         scn = profile(cam.profile, noise=cam.noise, tilt_deg=cam.tilt_deg).with_(
-            site=CameraSite(site.latitude, site.longitude, site.altitude))
+            site=CameraSite(site.latitude, site.longitude, site.altitude)
+        )
 
         def render(t: float) -> np.ndarray:
             tau = float(np.interp(t, self.t_samples, self.grid.sky.beam_transmittance))
@@ -137,14 +166,20 @@ class ScenarioRun:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
-            controller = Controller(self.config, open_drives(self.config, world.links), sun,
-                                    self.clock, sensor=sensor,
-                                    pyranometer=open_pyranometer(self.config, world.links),
-                                    anemometer=open_anemometer(self.config, world.links))
+            controller = Controller(
+                self.config,
+                open_drives(self.config, world.links),
+                sun,
+                self.clock,
+                sensor=sensor,
+                pyranometer=open_pyranometer(self.config, world.links),
+                anemometer=open_anemometer(self.config, world.links),
+            )
             try:
                 await controller.start()
-                bar = tqdm(total=self.n_cycles, desc="simulate", unit="cycle",
-                           disable=not self.progress, leave=False)
+                bar = tqdm(
+                    total=self.n_cycles, desc="simulate", unit="cycle", disable=not self.progress, leave=False
+                )
                 for i in range(self.n_cycles):
                     self.clock.advance_to(self.t0 + i * self.period)
                     records = await controller.cycle()
@@ -157,8 +192,9 @@ class ScenarioRun:
                 await controller.close()
         return self._summary(controller, time.perf_counter() - wall0)
 
-    async def _weather_until(self, t: float, controller: Controller,
-                             firmwares: dict[str, DriveFirmware]) -> None:
+    async def _weather_until(
+        self, t: float, controller: Controller, firmwares: dict[str, DriveFirmware]
+    ) -> None:
         """Step the clock through the anemometer polls due before ``t``: the controller
         reads the wind between cycles, and the world notes when the drives obey."""
         if self.weather is None:
@@ -169,8 +205,9 @@ class ScenarioRun:
             await controller.poll_weather()
             self.weather.sample(self.clock.monotonic(), firmwares)
 
-    async def _sample_truth(self, i: int, firmwares: dict[str, DriveFirmware],
-                            tracking: set[str], controller: Controller) -> dict[str, list[float]]:
+    async def _sample_truth(
+        self, i: int, firmwares: dict[str, DriveFirmware], tracking: set[str], controller: Controller
+    ) -> dict[str, list[float]]:
         """Advance through the cycle's sub-samples, recording every panel's orientation.
 
         Pointing error counts only for trackers that were commanded to follow the sun in
@@ -231,7 +268,8 @@ class ScenarioRun:
                     "kind": link.kind,
                     "transactions": sum(d.stats.transactions for d in drives),
                     "errors": sum(d.stats.errors for d in drives),
-                    "retries": sum(d.stats.retries for d in drives)}
+                    "retries": sum(d.stats.retries for d in drives),
+                }
         return out
 
     def _summary(self, controller: Controller, wall: float) -> dict:
@@ -256,19 +294,30 @@ class ScenarioRun:
             "modes": self.modes,
             "sources": self.sources,
             **self._sun_path_summary(),
-            **({"weather": {**self.weather.summary(),
-                            "alarms": sum(1 for e in controller.events if e["kind"] == "wind_alarm")}}
-               if self.weather is not None else {}),
+            **(
+                {
+                    "weather": {
+                        **self.weather.summary(),
+                        "alarms": sum(1 for e in controller.events if e["kind"] == "wind_alarm"),
+                    }
+                }
+                if self.weather is not None
+                else {}
+            ),
             "trackers": {
-                tr.name: {"pointing_error_deg": stats(self.tally[tr.name].pointing),
-                          "energy_ratio": energies[tr.name]["energy_ratio"],
-                          "poa_global_kwh_m2": energies[tr.name]["poa_global_kwh_m2"],
-                          "link": tr.link, "errors": self.row_errors[tr.name]}
-                for tr in self.config.trackers},
+                tr.name: {
+                    "pointing_error_deg": stats(self.tally[tr.name].pointing),
+                    "energy_ratio": energies[tr.name]["energy_ratio"],
+                    "poa_global_kwh_m2": energies[tr.name]["poa_global_kwh_m2"],
+                    "link": tr.link,
+                    "errors": self.row_errors[tr.name],
+                }
+                for tr in self.config.trackers
+            },
             "definitions": {
                 **DEFINITIONS,
                 "modbus": "transactions, errors and retries of every drive link (Modbus and "
-                          "CANopen; the key is historical) and pyranometer read errors",
+                "CANopen; the key is historical) and pyranometer read errors",
                 "errors": "per tracker: control cycles whose exchange with the drive failed",
             },
         }

@@ -27,20 +27,25 @@ def _hotspot(config: Config, frames: FrameSource | None, now: float | None) -> B
     from controller.vision import HotspotEstimator
 
     hs = config.hotspot
-    assert hs is not None        # the schema requires [hotspot] for this source
+    assert hs is not None  # the schema requires [hotspot] for this source
     if hs.frames == "hil":
         if frames is None:
-            raise ConfigError(config.file, "hotspot.frames",
-                              "a folder or device:N outside the simulator", hs.frames)
+            raise ConfigError(
+                config.file, "hotspot.frames", "a folder or device:N outside the simulator", hs.frames
+            )
     elif hs.frames.startswith("device:"):
-        raise ConfigError(config.file, "hotspot.frames",
-                          "a folder of timestamped images (live devices are not supported yet)",
-                          hs.frames)
+        raise ConfigError(
+            config.file,
+            "hotspot.frames",
+            "a folder of timestamped images (live devices are not supported yet)",
+            hs.frames,
+        )
     else:
         frames = FolderFrameSource(hs.frames)
     estimator = HotspotEstimator(load_bundle(hs.calibration), algorithm=hs.algorithm)
-    source = SunPathSource(config.site if config.sunpath.site_known else None,
-                           state_path=config.sunpath.state, now=now)
+    source = SunPathSource(
+        config.site if config.sunpath.site_known else None, state_path=config.sunpath.state, now=now
+    )
     return source, CameraSunSensor(frames, estimator)
 
 
@@ -51,8 +56,7 @@ BUILDERS: dict[str, Callable[[Config, FrameSource | None, float | None], Built]]
 }
 
 
-def build_sun_source(config: Config, frames: FrameSource | None = None,
-                     now: float | None = None) -> Built:
+def build_sun_source(config: Config, frames: FrameSource | None = None, now: float | None = None) -> Built:
     """(sun source, camera sensor or None) for ``config.control.sun_source``.
 
     ``frames`` supplies images when a camera's ``frames = "hil"`` (the simulator's renderer);

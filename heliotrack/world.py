@@ -25,12 +25,12 @@ from controller.clock import Clock
 from controller.config import Config
 from controller.drives.links import CanopenLink, LinkConfig, ModbusRtuLink, ModbusTcpLink
 from controller.errors import ConfigError
+from hil.anemometer import Anemometer
 from hil.canopen import CanopenNetworkEmulator
 from hil.drive import DriveFirmware
 from hil.modbus_device import RegisterDevice
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
-from hil.anemometer import Anemometer
 from hil.pyranometer import Pyranometer
 from hil.wind import WindScript
 
@@ -54,9 +54,14 @@ class World:
     anemometer: Anemometer | None = None
 
 
-def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
-                ghi_at: Callable[[float], float] | None = None,
-                wind: WindScript | None = None) -> World:
+def build_world(
+    config: Config,
+    hil: HilConfig,
+    clock: Clock,
+    stack: ExitStack,
+    ghi_at: Callable[[float], float] | None = None,
+    wind: WindScript | None = None,
+) -> World:
     """Emulate every device of ``config`` on its link.
 
     Parameters
@@ -86,12 +91,10 @@ def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
         for tr in config.trackers:
             if tr.link != link.name:
                 continue
-            axes = [axis_params(hil, soft, stow)
-                    for soft, stow in zip(tr.soft_limits, tr.stow_angles)]
+            axes = [axis_params(hil, soft, stow) for soft, stow in zip(tr.soft_limits, tr.stow_angles)]
             # the firmware counts its own time: a step of the controller's wall clock must
             # not fire or delay its watchdog
-            fw = DriveFirmware(axes, clock.monotonic,
-                               heartbeat_timeout=config.control.heartbeat_timeout_s)
+            fw = DriveFirmware(axes, clock.monotonic, heartbeat_timeout=config.control.heartbeat_timeout_s)
             world.firmwares[tr.name] = drives[tr.device_id] = devices[tr.device_id] = fw
         pyr = config.pyranometer
         if pyr is not None and pyr.link == link.name and ghi_at is not None:
@@ -109,14 +112,16 @@ def build_world(config: Config, hil: HilConfig, clock: Clock, stack: ExitStack,
         elif isinstance(link, CanopenLink):
             world.links[link.name] = _serve_canopen(link, drives, stack)
         else:
-            raise ConfigError(config.file, f"links[{i}].kind",
-                              f"a link kind the simulator emulates ({', '.join(EMULATED_KINDS)})",
-                              link.kind)
+            raise ConfigError(
+                config.file,
+                f"links[{i}].kind",
+                f"a link kind the simulator emulates ({', '.join(EMULATED_KINDS)})",
+                link.kind,
+            )
     return world
 
 
-def _serve_rtu(link: ModbusRtuLink, devices: dict[int, RegisterDevice],
-               stack: ExitStack) -> ModbusRtuLink:
+def _serve_rtu(link: ModbusRtuLink, devices: dict[int, RegisterDevice], stack: ExitStack) -> ModbusRtuLink:
     """The line on a pty, served with the link's own line settings.
 
     The controller opens the pty's slave path, as it would ``/dev/ttyUSB0``; with parity,
@@ -124,21 +129,22 @@ def _serve_rtu(link: ModbusRtuLink, devices: dict[int, RegisterDevice],
     takes the link's settings, the pty applies what it can).
     """
     pty = stack.enter_context(PtyLink.open())
-    stack.enter_context(ModbusServerThread(devices, serial_url=pty.url, baudrate=link.baudrate,
-                                           parity=link.parity, stopbits=link.stopbits))
+    stack.enter_context(
+        ModbusServerThread(
+            devices, serial_url=pty.url, baudrate=link.baudrate, parity=link.parity, stopbits=link.stopbits
+        )
+    )
     return replace(link, port=pty.path if link.parity == "N" else pty.slave_url)
 
 
-def _serve_tcp(link: ModbusTcpLink, devices: dict[int, RegisterDevice],
-               stack: ExitStack) -> ModbusTcpLink:
+def _serve_tcp(link: ModbusTcpLink, devices: dict[int, RegisterDevice], stack: ExitStack) -> ModbusTcpLink:
     """A gateway on 127.0.0.1, on a free port."""
     srv = stack.enter_context(ModbusServerThread(devices, tcp=("127.0.0.1", 0)))
     assert srv.tcp_port is not None
     return replace(link, host="127.0.0.1", tcp_port=srv.tcp_port)
 
 
-def _serve_canopen(link: CanopenLink, drives: dict[int, DriveFirmware],
-                   stack: ExitStack) -> CanopenLink:
+def _serve_canopen(link: CanopenLink, drives: dict[int, DriveFirmware], stack: ExitStack) -> CanopenLink:
     """The drives as CiA 402 nodes on a virtual bus of this run's own."""
     channel = f"heliotrack-sim-{os.getpid()}-{link.name}-{uuid.uuid4().hex[:8]}"
     emulator = CanopenNetworkEmulator(channel, interface="virtual")

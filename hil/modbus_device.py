@@ -40,17 +40,18 @@ def sim_device(device_id: int, device: RegisterDevice, size: int = REGISTER_SPAC
     injection: a slow or hung device).
     """
 
-    async def action(fc: int, start: int, address: int, count: int, registers: Any,
-                     set_values: Any) -> ExcCodes | None:
+    async def action(
+        fc: int, start: int, address: int, count: int, registers: Any, set_values: Any
+    ) -> ExcCodes | None:
         delay = getattr(device, "response_delay_s", 0.0)
         if delay:
             await asyncio.sleep(delay)
         try:
             if fc not in _REGISTER_FCS:
                 return ExcCodes.ILLEGAL_FUNCTION
-            if set_values is None:   # a read, or the read-back pymodbus does for a write
+            if set_values is None:  # a read, or the read-back pymodbus does for a write
                 words = device.read(address, count)
-                registers[address - start: address - start + count] = words
+                registers[address - start : address - start + count] = words
             else:
                 device.write(address, [int(v) for v in set_values])
         except FirmwareReject as exc:

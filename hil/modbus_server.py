@@ -43,9 +43,16 @@ class ModbusServerThread(ServerThread):
         Stop bits (RTU).
     """
 
-    def __init__(self, devices: dict[int, RegisterDevice], *, serial_url: str | None = None,
-                 tcp: tuple[str, int] | None = None, baudrate: int = 115200,
-                 parity: str = "N", stopbits: int = 1):
+    def __init__(
+        self,
+        devices: dict[int, RegisterDevice],
+        *,
+        serial_url: str | None = None,
+        tcp: tuple[str, int] | None = None,
+        baudrate: int = 115200,
+        parity: str = "N",
+        stopbits: int = 1,
+    ):
         if (serial_url is None) == (tcp is None):
             raise HilError("serve either on a serial URL or on TCP, not both")
         super().__init__(self._make_server, name="modbus-server")
@@ -73,9 +80,14 @@ class ModbusServerThread(ServerThread):
         sims = [sim_device(i, d) for i, d in self.devices.items()]
         server: ModbusBaseServer
         if self.serial_url is not None:
-            server = ModbusSerialServer(sims, port=self.serial_url, baudrate=self.baudrate,
-                                        parity=self.parity, stopbits=self.stopbits,
-                                        ignore_missing_devices=True)
+            server = ModbusSerialServer(
+                sims,
+                port=self.serial_url,
+                baudrate=self.baudrate,
+                parity=self.parity,
+                stopbits=self.stopbits,
+                ignore_missing_devices=True,
+            )
         else:
             assert self.tcp is not None
             server = ModbusTcpServer(sims, address=self.tcp, ignore_missing_devices=True)

@@ -24,9 +24,15 @@ from .modbus_device import MultidropCore, sim_device
 
 
 def row_firmware(now=time.time, max_angle: float = 55.0) -> DriveFirmware:
-    return DriveFirmware([AxisParams(soft_min=-max_angle, soft_max=max_angle,
-                                     hard_min=-max_angle - 5, hard_max=max_angle + 5)],
-                         now, heartbeat_timeout=0)
+    return DriveFirmware(
+        [
+            AxisParams(
+                soft_min=-max_angle, soft_max=max_angle, hard_min=-max_angle - 5, hard_max=max_angle + 5
+            )
+        ],
+        now,
+        heartbeat_timeout=0,
+    )
 
 
 class RowFarm:
@@ -60,7 +66,7 @@ class RowFarm:
             srv.context = MultidropCore([dev])
             await srv.serve_forever(background=True)
             self.servers.append(srv)
-            listener = srv.transport    # a TCP server's transport is the asyncio.Server
+            listener = srv.transport  # a TCP server's transport is the asyncio.Server
             self.ports.append(listener.sockets[0].getsockname()[1])  # type: ignore[attr-defined]
 
     def kill(self, i: int) -> None:
@@ -77,6 +83,7 @@ class RowFarm:
             for t in pending:
                 t.cancel()
             await asyncio.gather(*pending, return_exceptions=True)
+
         if self._loop.is_running():
             asyncio.run_coroutine_threadsafe(all_down(), self._loop).result(30)
             self._loop.call_soon_threadsafe(self._loop.stop)

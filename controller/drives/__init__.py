@@ -10,5 +10,12 @@ builds the drive with ``Backend.from_config``.  Importing this package imports n
 from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkSettingsError, LinkStats
 from .registry import open_drive
 
-__all__ = ["AxisState", "DriveCommError", "DriveLink", "DriveState", "LinkSettingsError",
-           "LinkStats", "open_drive"]
+__all__ = [
+    "AxisState",
+    "DriveCommError",
+    "DriveLink",
+    "DriveState",
+    "LinkSettingsError",
+    "LinkStats",
+    "open_drive",
+]

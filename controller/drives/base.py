@@ -110,9 +110,13 @@ class DriveLink(abc.ABC):
     async def command(self, cmd: Command) -> None: ...
 
     @abc.abstractmethod
-    async def configure(self, *, heartbeat_timeout_s: float | None = None,
-                        soft_limits: Sequence[tuple[float, float]] | None = None,
-                        stow_angles: Sequence[float] | None = None) -> None:
+    async def configure(
+        self,
+        *,
+        heartbeat_timeout_s: float | None = None,
+        soft_limits: Sequence[tuple[float, float]] | None = None,
+        stow_angles: Sequence[float] | None = None,
+    ) -> None:
         """Write configuration (only what is given)."""
 
     async def __aenter__(self):
@@ -123,8 +127,9 @@ class DriveLink(abc.ABC):
         await self.close()
 
 
-def soft_limit_steps(current: tuple[float, float], limits: tuple[float, float] | None,
-                     stow: float | None) -> list[tuple[float, float] | float]:
+def soft_limit_steps(
+    current: tuple[float, float], limits: tuple[float, float] | None, stow: float | None
+) -> list[tuple[float, float] | float]:
     """The writes that take one axis to new soft limits and stow angle (degrees) through
     states a firmware accepts: limits in order, the stow angle within them.
 

@@ -74,14 +74,21 @@ def backend_class(kind: str) -> type[DriveLink]:
     module, _, name = target.partition(":")
     try:
         cls = getattr(importlib.import_module(module), name)
-    except Exception as exc:   # a broken plug-in: any import-time error
-        raise BackendLoadError(f"link kind {kind!r}: cannot load its backend {target!r} "
-                               f"({origin}): {type(exc).__name__}: {exc}") from exc
+    except Exception as exc:  # a broken plug-in: any import-time error
+        raise BackendLoadError(
+            f"link kind {kind!r}: cannot load its backend {target!r} ({origin}): {type(exc).__name__}: {exc}"
+        ) from exc
     config_type = getattr(cls, "config_type", None)
-    if not (isinstance(cls, type) and issubclass(cls, DriveLink) and isinstance(config_type, type)
-            and issubclass(config_type, LinkConfig)):
-        raise BackendLoadError(f"link kind {kind!r}: {target!r} ({origin}) is not a DriveLink "
-                               "subclass with a LinkConfig subclass as config_type")
+    if not (
+        isinstance(cls, type)
+        and issubclass(cls, DriveLink)
+        and isinstance(config_type, type)
+        and issubclass(config_type, LinkConfig)
+    ):
+        raise BackendLoadError(
+            f"link kind {kind!r}: {target!r} ({origin}) is not a DriveLink "
+            "subclass with a LinkConfig subclass as config_type"
+        )
     return cls
 
 
@@ -123,6 +130,5 @@ def open_drive(link: LinkConfig, device_id: int) -> DriveLink:
     """
     kinds = known_kinds()
     if link.kind not in kinds:
-        raise ConfigError(None, f"links[{link.name!r}].kind",
-                          f"one of {', '.join(sorted(kinds))}", link.kind)
+        raise ConfigError(None, f"links[{link.name!r}].kind", f"one of {', '.join(sorted(kinds))}", link.kind)
     return backend_class(link.kind).from_config(link, device_id)

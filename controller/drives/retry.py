@@ -44,8 +44,7 @@ class RetryPolicy:
         """Attempts at most per transaction."""
         return self.retries + 1
 
-    async def run(self, attempt: Callable[[], Awaitable[T]], *, what: str, label: str,
-                  stats: LinkStats) -> T:
+    async def run(self, attempt: Callable[[], Awaitable[T]], *, what: str, label: str, stats: LinkStats) -> T:
         """Run ``attempt()`` until it succeeds, fails finally, or the attempts run out.
 
         Every attempt counts as a transaction in ``stats``; a failed one as an error, and

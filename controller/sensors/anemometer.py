@@ -38,30 +38,40 @@ class ModbusAnemometer:
 
     @classmethod
     def from_config(cls, link: LinkConfig, device_id: int) -> ModbusAnemometer:
-        return cls(modbus_client(link), device_id,
-                   label=f"anemometer {endpoint(link)} id {device_id}", retries=link.retries)
+        return cls(
+            modbus_client(link),
+            device_id,
+            label=f"anemometer {endpoint(link)} id {device_id}",
+            retries=link.retries,
+        )
 
     async def read(self, t: float) -> WindSample:
         """The wind now, stamped ``t`` (POSIX s, the controller's clock)."""
         if not self.client.connected and not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
         rr = await self.policy.run(
-            lambda: checked(self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1,
-                            device_id=self.device_id),
-            what="wind read", label=self.label, stats=self.stats)
+            lambda: checked(
+                self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1, device_id=self.device_id
+            ),
+            what="wind read",
+            label=self.label,
+            stats=self.stats,
+        )
         words = rr.registers
 
         def value(name: str) -> float:
             reg = ANE[name]
-            return float(decode(reg, words[reg.offset - _FIRST: reg.offset - _FIRST + reg.words]))
+            return float(decode(reg, words[reg.offset - _FIRST : reg.offset - _FIRST + reg.words]))
 
         status = int(value("ANE_STATUS"))
         if status & ANE_STATUS_BAD:
             raise DriveCommError(f"{self.label}: sensor reports status {status:#06x}")
         speed, gust, mean = value("ANE_SPEED"), value("ANE_GUST"), value("ANE_MEAN_10MIN")
         if not all(0.0 <= v <= MAX_PLAUSIBLE_M_S for v in (speed, gust, mean)):
-            raise DriveCommError(f"{self.label}: implausible wind {speed:g} / {gust:g} / "
-                                 f"{mean:g} m/s (speed / gust / 10-min mean)")
+            raise DriveCommError(
+                f"{self.label}: implausible wind {speed:g} / {gust:g} / "
+                f"{mean:g} m/s (speed / gust / 10-min mean)"
+            )
         count = int(value("ANE_SAMPLE_COUNT"))
         last = self._last_count
         self._last_count = (t, count)

@@ -58,8 +58,12 @@ class ModbusPyranometer:
     def from_config(cls, link: LinkConfig, device_id: int) -> ModbusPyranometer:
         """The pyranometer ``device_id`` on a Modbus ``link`` (must run in the event loop
         that will read it: pymodbus clients belong to their loop)."""
-        return cls(modbus_client(link), device_id,
-                   label=f"pyranometer {endpoint(link)} id {device_id}", retries=link.retries)
+        return cls(
+            modbus_client(link),
+            device_id,
+            label=f"pyranometer {endpoint(link)} id {device_id}",
+            retries=link.retries,
+        )
 
     async def connect(self) -> None:
         """Open the link if it is not open (``read`` does this by itself)."""
@@ -70,9 +74,13 @@ class ModbusPyranometer:
         """The irradiance now, stamped ``t`` (POSIX s)."""
         await self.connect()
         rr = await self.policy.run(
-            lambda: checked(self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1,
-                            device_id=self.device_id),
-            what="irradiance read", label=self.label, stats=self.stats)
+            lambda: checked(
+                self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1, device_id=self.device_id
+            ),
+            what="irradiance read",
+            label=self.label,
+            stats=self.stats,
+        )
         words = rr.registers
         status = int(decode(PYR["PYR_STATUS"], [words[_LAST - _FIRST]]))
         if status & 0b11:
@@ -83,6 +91,6 @@ class ModbusPyranometer:
         return IrradianceSample(t, max(ghi, 0.0))
 
     async def close(self) -> None:
-        if not self._closed:     # once: a shared line's client counts its users
+        if not self._closed:  # once: a shared line's client counts its users
             self._closed = True
             self.client.close()

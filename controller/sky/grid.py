@@ -171,5 +171,6 @@ def build_day_grid(times, ghi, longitude: float, *, dni=None, step_s: int | None
     ghi_grid, n_samples = binned(g)
     dni_grid = None if dn is None else binned(dn)[0]
     t0 = day_index * SECONDS_PER_DAY - longitude * 240.0
-    return DayGrid(step_s=step, day_index=day_index, t0_posix=t0, ghi=ghi_grid, dni=dni_grid,
-                   n_samples=n_samples)
+    return DayGrid(
+        step_s=step, day_index=day_index, t0_posix=t0, ghi=ghi_grid, dni=dni_grid, n_samples=n_samples
+    )

@@ -159,6 +159,8 @@ def time_problem(t: float, now: float | None) -> str | None:
     if t < EPOCH_MIN_S:
         return f"{t:.0f} is before 2000-01-01"
     if now is not None and now >= EPOCH_MIN_S and t > now + FUTURE_SLACK_S:
-        return (f"{t:.0f} is {(t - now) / 86400.0:.1f} days after the present "
-                f"({now:.0f}); at most {FUTURE_SLACK_S / 86400.0:g} allowed")
+        return (
+            f"{t:.0f} is {(t - now) / 86400.0:.1f} days after the present "
+            f"({now:.0f}); at most {FUTURE_SLACK_S / 86400.0:g} allowed"
+        )
     return None

@@ -37,9 +37,10 @@ def read_text_strict(path: Path, what: str) -> str:
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        line = data[:exc.start].count(b"\n") + 1
-        raise InputError(f"{path}: row {line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); "
-                         f"save the file as UTF-8") from None
+        line = data[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"{path}: row {line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); save the file as UTF-8"
+        ) from None
 
 
 def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]:
@@ -59,15 +60,20 @@ def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]
             skipped += 1
             continue
         if d.get("time") is None:
-            raise InputError(f"{w}: found but without a time (give estimate --time, or name "
-                             f"frames by their time)")
+            raise InputError(
+                f"{w}: found but without a time (give estimate --time, or name frames by their time)"
+            )
         t = parse_time(str(d["time"]), f"{w}, key 'time'")
         az = _number(d.get("az_deg"), f"{w}, key 'az_deg'", -360.0, 720.0, "an azimuth in degrees")
-        el = _number(d.get("el_deg"), f"{w}, key 'el_deg'", -90.0, 90.0,
-                     "an elevation in degrees between -90 and 90")
+        el = _number(
+            d.get("el_deg"), f"{w}, key 'el_deg'", -90.0, 90.0, "an elevation in degrees between -90 and 90"
+        )
         sig = d.get("sigma_deg")
-        sig = DEFAULT_SIGMA_DEG if sig is None else _number(
-            sig, f"{w}, key 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
+        sig = (
+            DEFAULT_SIGMA_DEG
+            if sig is None
+            else _number(sig, f"{w}, key 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
+        )
         frame = d.get("frame", "enu")
         if frame not in ("enu", "model"):
             raise InputError(f"{w}, key 'frame': expected enu or model, got {frame!r}")
@@ -112,21 +118,30 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
         reader.fieldnames = header
         missing = [c for c in REQUIRED if c not in header]
         if missing:
-            raise InputError(f"{path}: row 1 (header): missing column(s) {', '.join(missing)};"
-                             f" expected time, az_deg, el_deg[, sigma_deg], got "
-                             f"{', '.join(header) or 'nothing'}")
+            raise InputError(
+                f"{path}: row 1 (header): missing column(s) {', '.join(missing)};"
+                f" expected time, az_deg, el_deg[, sigma_deg], got "
+                f"{', '.join(header) or 'nothing'}"
+            )
         for row_no, row in enumerate(reader, start=2):
             if not any((v or "").strip() for v in row.values() if isinstance(v, str)):
                 continue  # blank line
             w = f"{path}: row {row_no}"
             t = parse_time(row.get("time") or "", f"{w}, column 'time'")
-            az = _number(row.get("az_deg"), f"{w}, column 'az_deg'", -360.0, 720.0,
-                         "an azimuth in degrees")
-            el = _number(row.get("el_deg"), f"{w}, column 'el_deg'", -90.0, 90.0,
-                         "an elevation in degrees between -90 and 90")
+            az = _number(row.get("az_deg"), f"{w}, column 'az_deg'", -360.0, 720.0, "an azimuth in degrees")
+            el = _number(
+                row.get("el_deg"),
+                f"{w}, column 'el_deg'",
+                -90.0,
+                90.0,
+                "an elevation in degrees between -90 and 90",
+            )
             sig_text = (row.get("sigma_deg") or "").strip() if "sigma_deg" in header else ""
-            sig = (_number(sig_text, f"{w}, column 'sigma_deg'", 1e-6, 90.0,
-                           "a positive one-sigma in degrees") if sig_text else DEFAULT_SIGMA_DEG)
+            sig = (
+                _number(sig_text, f"{w}, column 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
+                if sig_text
+                else DEFAULT_SIGMA_DEG
+            )
             out.append(SunObservation(t, az % 360.0, el, sig, sensor=sensor))
     if not out:
         raise InputError(f"{path}: no observations (expected rows of time, az_deg, el_deg)")

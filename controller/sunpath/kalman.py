@@ -45,7 +45,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from ..sun.source import Site
 from ..sun.types import SunObservation
 from .bounds import bound_covariance, max_sigma, observation_problem, state_problem
-from .days import DayResult, split_days
+from .days import DayResult
 from .ephemeris import GeocentricSun, azel_from_hour_angle, geocentric_sun, transit_time, wrap180
 from .initial_fit import initial_fit
 from .kalman_config import (
@@ -75,10 +75,25 @@ from .persistence import kalman_from_dict, kalman_to_dict
 from .recovery import SiteMismatch, add_older, add_to_run, assess_run, inflate, inflation_caps
 
 # Callers import the filter's records and the orbit law from here too.
-__all__ = ["AZOFF", "DEC", "FREE_MODEL", "LAT", "LON", "MEAN_MOTION_DEG_PER_DAY",
-           "OBLIQUITY_DEG", "OMEGA_YEAR", "RATE", "REFR", "STATE_NAMES", "STATE_NAMES_FREE",
-           "KalmanConfig", "Prediction", "SunPathKalman", "UpdateResult", "orbit_advance_deg",
-           "run_kalman"]
+__all__ = [
+    "AZOFF",
+    "DEC",
+    "FREE_MODEL",
+    "LAT",
+    "LON",
+    "MEAN_MOTION_DEG_PER_DAY",
+    "OBLIQUITY_DEG",
+    "OMEGA_YEAR",
+    "RATE",
+    "REFR",
+    "STATE_NAMES",
+    "STATE_NAMES_FREE",
+    "KalmanConfig",
+    "Prediction",
+    "SunPathKalman",
+    "UpdateResult",
+    "orbit_advance_deg",
+]
 
 
 class SunPathKalman:
@@ -105,10 +120,10 @@ class SunPathKalman:
         self.consecutive_rejects = 0
         self.n_accepted = 0
         self.n_rejected = 0  # every observation not used, whatever the reason
-        self.n_older = 0     # of which: older than the state
-        self.n_invalid = 0   # of which: not an observation of the sun (NaN, el > 90, ...)
-        self.n_reinit = 0    # restarts from a self-consistent run of rejections
-        self.n_rebase = 0    # states carried back to a clock that stepped back
+        self.n_older = 0  # of which: older than the state
+        self.n_invalid = 0  # of which: not an observation of the sun (NaN, el > 90, ...)
+        self.n_reinit = 0  # restarts from a self-consistent run of rejections
+        self.n_rebase = 0  # states carried back to a clock that stepped back
         self.obliquity_applied = False
         # Transient (not saved): the runs :mod:`.recovery` judges, and what it found.
         self.rejected_run: list[SunObservation] = []
@@ -138,8 +153,9 @@ class SunPathKalman:
     def _azel(self, x, geo: GeocentricSun, i=0):
         """Model (sensor azimuth, elevation) for state ``x`` at the time of ``geo[i]``."""
         h = wrap180(geo.sidereal_deg[i] + x[LON] - geo.ra_deg[i])
-        az, el = azel_from_hour_angle(h, self._dec(x, geo, i), x[LAT], x[REFR],
-                                      self.config.pressure_hpa, self.config.temp_c)
+        az, el = azel_from_hour_angle(
+            h, self._dec(x, geo, i), x[LAT], x[REFR], self.config.pressure_hpa, self.config.temp_c
+        )
         return float(az) + x[AZOFF], float(el)
 
     def _jacobian(self, x, geo, i=0, scaled=True):
@@ -160,8 +176,7 @@ class SunPathKalman:
     @staticmethod
     def _residual(z, hx):
         """Tangent-plane residual ``(d_az cos(el), d_el)`` in deg."""
-        return np.array([float(wrap180(z[0] - hx[0])) * np.cos(np.radians(hx[1])),
-                         z[1] - hx[1]])
+        return np.array([float(wrap180(z[0] - hx[0])) * np.cos(np.radians(hx[1])), z[1] - hx[1]])
 
     # ------------------------------------------------------------------ time update
     def _transition(self, t0: float, t1: float):
@@ -180,7 +195,7 @@ class SunPathKalman:
         else:  # correction to SPA: constant plus slow drift
             F[DEC, RATE] = d
             qr = c.q_rate_ephemeris
-            Q[DEC, DEC] = c.q_dec * ad + qr * ad ** 3 / 3
+            Q[DEC, DEC] = c.q_dec * ad + qr * ad**3 / 3
             Q[DEC, RATE] = Q[RATE, DEC] = qr * d * ad / 2  # sign of d: also backwards
             Q[RATE, RATE] = qr * ad
         Q[LAT, LAT] = Q[LON, LON] = c.q_site * ad
@@ -214,7 +229,7 @@ class SunPathKalman:
         is kept afterwards (apart from the small process noise).
         """
         c = self.config
-        if (self.mode != "free" or self.obliquity_applied or c.obliquity_sigma_deg <= 0):
+        if self.mode != "free" or self.obliquity_applied or c.obliquity_sigma_deg <= 0:
             return
         x, P = self.ekf.x, self.ekf.P
         if abs(x[RATE]) < 3.0 * np.sqrt(max(P[RATE, RATE], 0.0)):
@@ -248,8 +263,7 @@ class SunPathKalman:
         if bad is not None:
             self.n_invalid += 1
             self.n_rejected += 1
-            return UpdateResult(False, float("nan"), self.initialised,
-                                f"invalid observation: {bad}")
+            return UpdateResult(False, float("nan"), self.initialised, f"invalid observation: {bad}")
         if not self.initialised:
             self.buffer.append(obs)
             if self._try_initialise():
@@ -261,7 +275,7 @@ class SunPathKalman:
         self._propagate(obs.time)
         geo = geocentric_sun(obs.time)
         z = np.array([obs.az_deg, obs.el_deg])
-        R = np.eye(2) * obs.sigma_deg ** 2
+        R = np.eye(2) * obs.sigma_deg**2
         H = self._jacobian(self.ekf.x, geo)
         y = self._residual(z, self._azel(self.ekf.x, geo))
         S = H @ self.ekf.P @ H.T + R
@@ -270,9 +284,13 @@ class SunPathKalman:
             return self._rejected(obs, d2, "gated")
         x0, P0, obliquity0 = self.ekf.x.copy(), self.ekf.P.copy(), self.obliquity_applied
         if self.config.iterations <= 1:
-            self.ekf.update(z, lambda x: self._jacobian(x, geo),
-                            lambda x: np.array(self._azel(x, geo)), R=R,
-                            residual=self._residual)
+            self.ekf.update(
+                z,
+                lambda x: self._jacobian(x, geo),
+                lambda x: np.array(self._azel(x, geo)),
+                R=R,
+                residual=self._residual,
+            )
         else:
             self._iterated_update(z, R, geo, H, y)
         self._normalise()
@@ -433,11 +451,21 @@ class SunPathKalman:
         x, P = self._propagated(tn)
         dec, sdec = self.declination(tn)
         return DayResult(
-            date=date, noon_utc=tn, noon_el_deg=self.predict(tn).el_deg, declination_deg=dec,
-            lat_deg=float(x[LAT]), lon_deg=float(wrap180(x[LON])), n_obs=n_obs,
-            method="kalman", az_offset_deg=float(x[AZOFF] % 360.0), n_rejected=n_rejected,
-            noon_sigma_s=sn, lat_sigma_deg=float(np.sqrt(P[LAT, LAT])),
-            lon_sigma_deg=float(np.sqrt(P[LON, LON])), dec_sigma_deg=sdec)
+            date=date,
+            noon_utc=tn,
+            noon_el_deg=self.predict(tn).el_deg,
+            declination_deg=dec,
+            lat_deg=float(x[LAT]),
+            lon_deg=float(wrap180(x[LON])),
+            n_obs=n_obs,
+            method="kalman",
+            az_offset_deg=float(x[AZOFF] % 360.0),
+            n_rejected=n_rejected,
+            noon_sigma_s=sn,
+            lat_sigma_deg=float(np.sqrt(P[LAT, LAT])),
+            lon_sigma_deg=float(np.sqrt(P[LON, LON])),
+            dec_sigma_deg=sdec,
+        )
 
     def copy(self) -> SunPathKalman:
         """Independent deep copy (e.g. to predict from a checkpoint)."""
@@ -456,26 +484,3 @@ class SunPathKalman:
         the field when the snapshot is malformed, not physical or not plausible.
         """
         return kalman_from_dict(d, cls, now=now)
-
-
-
-def run_kalman(observations: list[SunObservation], config: KalmanConfig | None = None,
-               site: Site | None = None, utc_offset_h: float | None = None,
-               kf: SunPathKalman | None = None) -> tuple[list[DayResult], SunPathKalman]:
-    """Run the filter over observations (any order) and summarise each local day.
-
-    Each day's row is the filter's state after that day's last observation (a filtered,
-    not smoothed, estimate); days before the filter could start give no row.
-    """
-    kf = kf or SunPathKalman(config, site)
-    obs = sorted(observations, key=lambda o: o.time)
-    times = np.array([o.time for o in obs])
-    results = []
-    for day in split_days(times, utc_offset_h):
-        rej0 = kf.n_rejected
-        for i in day.index:
-            kf.update(obs[i])
-        if kf.initialised:
-            results.append(kf.day_result(float(np.median(times[day.index])), day.date,
-                                         int(day.index.size), kf.n_rejected - rej0))
-    return results, kf

@@ -21,10 +21,8 @@ import numpy as np
 from .orbit import OBLIQUITY_DEG
 
 LAT, LON, DEC, RATE, AZOFF, REFR = range(6)
-STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg",
-               "refraction_scale")
-STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg",
-                    "refraction_scale")
+STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg", "refraction_scale")
+STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg", "refraction_scale")
 #: Version tag of the ``free`` mode's declination states (u, v); older state files held
 #: (declination deg, rate deg/day) and are converted on load.
 FREE_MODEL = "orbit-uv-1"
@@ -172,4 +170,3 @@ class Prediction:
         """Total one-sigma angle on the sky, deg (azimuth scaled by cos(el))."""
         c = np.cos(np.radians(self.el_deg))
         return float(np.sqrt(max(self.covariance[0, 0] * c * c + self.covariance[1, 1], 0.0)))
-

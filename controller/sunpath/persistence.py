@@ -95,8 +95,7 @@ class SnapshotError(ValueError):
 COUNTERS = ("n_accepted", "n_rejected", "n_older", "n_invalid", "n_reinit", "n_rebase")
 
 
-def kalman_from_dict(d: dict, cls: Callable[[KalmanConfig, Site | None], F],
-                     now: float | None = None) -> F:
+def kalman_from_dict(d: dict, cls: Callable[[KalmanConfig, Site | None], F], now: float | None = None) -> F:
     """Inverse of :func:`kalman_to_dict`, building an instance of ``cls``; validated.
 
     Parameters
@@ -183,10 +182,8 @@ def _config(c, mode: str) -> KalmanConfig:
     if cfg.declination != mode:
         raise SnapshotError("config.declination", f"{cfg.declination!r} but mode is {mode!r}")
     if cfg.orbit_rate not in ORBIT_RATES:
-        raise SnapshotError("config.orbit_rate", f"{cfg.orbit_rate!r} is not one of "
-                            f"{list(ORBIT_RATES)}")
-    at_least_one = ("iterations", "max_consecutive_rejects", "init_min_obs",
-                    "max_consecutive_older")
+        raise SnapshotError("config.orbit_rate", f"{cfg.orbit_rate!r} is not one of {list(ORBIT_RATES)}")
+    at_least_one = ("iterations", "max_consecutive_rejects", "init_min_obs", "max_consecutive_older")
     for f in fields(cfg):
         v = getattr(cfg, f.name)
         if isinstance(v, str):
@@ -224,8 +221,7 @@ def _buffer(rows, now: float | None) -> list[SunObservation]:
         raise SnapshotError("buffer", "not a list")
     out = []
     for i, row in enumerate(rows):
-        if (not isinstance(row, list) or len(row) != 4
-                or not all(_is_number(v) for v in row)):
+        if not isinstance(row, list) or len(row) != 4 or not all(_is_number(v) for v in row):
             raise SnapshotError(f"buffer[{i}]", "not [time, az_deg, el_deg, sigma_deg]")
         t, az, el, sigma = (float(v) for v in row)
         o = SunObservation(t, az, el, sigma)

@@ -76,10 +76,14 @@ def fuse(estimates: list[SunEstimate], source: EstimateSource, t: float) -> SunE
     return SunEstimate(float(t), float(az), float(el), cov, source)
 
 
-def select_estimate(t: float, fresh_observation: SunObservation | None,
-                    prediction: SunEstimate | None, ephemeris: SunEstimate | None,
-                    config: PolicyConfig = PolicyConfig(), now: float | None = None
-                    ) -> SunEstimate | None:
+def select_estimate(
+    t: float,
+    fresh_observation: SunObservation | None,
+    prediction: SunEstimate | None,
+    ephemeris: SunEstimate | None,
+    config: PolicyConfig = PolicyConfig(),
+    now: float | None = None,
+) -> SunEstimate | None:
     """The policy as a pure function (see module docstring).
 
     ``prediction`` is the filter's estimate at ``t`` (already including any accepted
@@ -89,25 +93,30 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
     """
     if prediction is not None and prediction.sigma_deg > config.max_predicted_sigma_deg:
         prediction = None
-    fresh = (fresh_observation is not None
-             and 0.0 <= (t if now is None else now) - fresh_observation.time
-             <= config.max_obs_age_s)
+    fresh = (
+        fresh_observation is not None
+        and 0.0 <= (t if now is None else now) - fresh_observation.time <= config.max_obs_age_s
+    )
     if prediction is not None:
         if fresh:
-            return SunEstimate(t, prediction.az_deg, prediction.el_deg, prediction.covariance,
-                               EstimateSource.OBSERVED)
+            return SunEstimate(
+                t, prediction.az_deg, prediction.el_deg, prediction.covariance, EstimateSource.OBSERVED
+            )
         if ephemeris is None:
-            return SunEstimate(t, prediction.az_deg, prediction.el_deg, prediction.covariance,
-                               EstimateSource.PREDICTED)
-        dominant = (EstimateSource.EPHEMERIS if ephemeris.sigma_deg < prediction.sigma_deg
-                    else EstimateSource.PREDICTED)
+            return SunEstimate(
+                t, prediction.az_deg, prediction.el_deg, prediction.covariance, EstimateSource.PREDICTED
+            )
+        dominant = (
+            EstimateSource.EPHEMERIS
+            if ephemeris.sigma_deg < prediction.sigma_deg
+            else EstimateSource.PREDICTED
+        )
         return fuse([prediction, ephemeris], dominant, t)
     if fresh and fresh_observation is not None:
         o = fresh_observation
-        s2 = o.sigma_deg ** 2
+        s2 = o.sigma_deg**2
         c = max(np.cos(np.radians(o.el_deg)), 1e-6)
-        return SunEstimate(t, o.az_deg, o.el_deg, np.diag([s2 / (c * c), s2]),
-                           EstimateSource.OBSERVED)
+        return SunEstimate(t, o.az_deg, o.el_deg, np.diag([s2 / (c * c), s2]), EstimateSource.OBSERVED)
     return ephemeris
 
 
@@ -115,8 +124,7 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
 EXTRAPOLATE_MAX_S = 3600.0
 #: ``tan(obliquity) (15 deg/h in rad)^2 / 2`` in deg/h^2: the largest departure rate of the
 #: sun's small circle from a great circle (at the solstices).
-CURVATURE_DEG_PER_H2 = float(np.tan(np.radians(23.44)) * np.radians(15.0) ** 2 / 2.0
-                             * 180.0 / np.pi)
+CURVATURE_DEG_PER_H2 = float(np.tan(np.radians(23.44)) * np.radians(15.0) ** 2 / 2.0 * 180.0 / np.pi)
 
 
 def extrapolate_two(o1: SunObservation, o2: SunObservation, t: float) -> SunEstimate | None:
@@ -141,17 +149,24 @@ def extrapolate_two(o1: SunObservation, o2: SunObservation, t: float) -> SunEsti
     if sin_a < 1e-9:
         return None
     axis /= sin_a
-    rate = float(np.arctan2(sin_a, float(v1 @ v2))) / dt       # rad/s
+    rate = float(np.arctan2(sin_a, float(v1 @ v2))) / dt  # rad/s
     ang = rate * tau
-    v = (v2 * np.cos(ang) + np.cross(axis, v2) * np.sin(ang)
-         + axis * float(axis @ v2) * (1.0 - np.cos(ang)))        # Rodrigues
+    v = (
+        v2 * np.cos(ang) + np.cross(axis, v2) * np.sin(ang) + axis * float(axis @ v2) * (1.0 - np.cos(ang))
+    )  # Rodrigues
     az, el = enu_to_azel(v)
     tau_h, dt_h = abs(tau) / 3600.0, dt / 3600.0
-    sig = max(o1.sigma_deg, o2.sigma_deg) * np.sqrt(1.0 + 2.0 * (tau / dt) ** 2) \
-        + CURVATURE_DEG_PER_H2 * tau_h * (tau_h + dt_h)
+    sig = max(o1.sigma_deg, o2.sigma_deg) * np.sqrt(
+        1.0 + 2.0 * (tau / dt) ** 2
+    ) + CURVATURE_DEG_PER_H2 * tau_h * (tau_h + dt_h)
     c = max(np.cos(np.radians(float(el))), 1e-6)
-    return SunEstimate(float(t), float(az) % 360.0, float(el),
-                       np.diag([sig * sig / (c * c), sig * sig]), EstimateSource.PREDICTED)
+    return SunEstimate(
+        float(t),
+        float(az) % 360.0,
+        float(el),
+        np.diag([sig * sig / (c * c), sig * sig]),
+        EstimateSource.PREDICTED,
+    )
 
 
 class SunPathSource(SunSource):
@@ -181,17 +196,21 @@ class SunPathSource(SunSource):
 
     name = "sunpath"
 
-    def __init__(self, site: Site | None = None, state_path: str | Path | None = None,
-                 kalman_config: KalmanConfig | None = None,
-                 policy_config: PolicyConfig | None = None, now: float | None = None):
+    def __init__(
+        self,
+        site: Site | None = None,
+        state_path: str | Path | None = None,
+        kalman_config: KalmanConfig | None = None,
+        policy_config: PolicyConfig | None = None,
+        now: float | None = None,
+    ):
         self.site = site
         self.state_path = Path(state_path) if state_path is not None else None
         self.policy = policy_config or PolicyConfig()
         self.persist = self.state_path is not None
         self.state_note: str | None = None  # why the state file was not used, if it was not
         loaded = self._load(time.time() if now is None else float(now))
-        self.kf: SunPathKalman = (loaded if loaded is not None
-                                  else SunPathKalman(kalman_config, site))
+        self.kf: SunPathKalman = loaded if loaded is not None else SunPathKalman(kalman_config, site)
         self.ephemeris = EphemerisSource(site) if site is not None else None
         self.last_accepted: SunObservation | None = None
 
@@ -205,16 +224,20 @@ class SunPathSource(SunSource):
         try:
             kf = load_state(path, now=now)
             if kf is None:
-                log.info(f"{path}: no learned sun-path state yet; starting "
-                         + ("from the ephemeris at the configured site" if self.site
-                            else "without one"))
+                log.info(
+                    f"{path}: no learned sun-path state yet; starting "
+                    + ("from the ephemeris at the configured site" if self.site else "without one")
+                )
             elif self.site is not None:
                 self._check_site(path, kf)
                 kf.site = kf.site or self.site  # the configured site is the prior from now on
             return kf
         except StateError as exc:
-            start = ("starting from the ephemeris at the configured site" if self.site
-                     else "starting without a learned state")
+            start = (
+                "starting from the ephemeris at the configured site"
+                if self.site
+                else "starting without a learned state"
+            )
             if exc.reason in ("unreadable", "version"):
                 self.persist = False  # not ours to move: another version, or permissions
                 self.state_note = f"{exc}; {start}; the learned state will not be saved"
@@ -226,8 +249,10 @@ class SunPathSource(SunSource):
                     self.state_note = f"{exc}; kept it as {aside.name}; {start}"
                 except OSError as err:
                     self.persist = False
-                    self.state_note = (f"{exc}; could not move it aside ({err.strerror}); "
-                                       f"{start}; the learned state will not be saved")
+                    self.state_note = (
+                        f"{exc}; could not move it aside ({err.strerror}); "
+                        f"{start}; the learned state will not be saved"
+                    )
             log.warning(self.state_note)
             return None
 
@@ -244,15 +269,18 @@ class SunPathSource(SunSource):
             return
         dlat, dlon = lat - self.site.latitude, float(wrap180(lon - self.site.longitude))
         if max(abs(dlat), abs(dlon)) > kf.config.site_mismatch_deg:
-            raise StateError(f"{path}: invalid sun-path state: field 'filter.x[lat_deg, "
-                             f"lon_deg]': learned {dlat:+.3f}, {dlon:+.3f} deg from the "
-                             "configured site", "invalid")
+            raise StateError(
+                f"{path}: invalid sun-path state: field 'filter.x[lat_deg, "
+                f"lon_deg]': learned {dlat:+.3f}, {dlon:+.3f} deg from the "
+                "configured site",
+                "invalid",
+            )
 
     def observe(self, obs: SunObservation) -> bool:
         """Give the filter one observation (ENU or sensor frame); True when accepted."""
         res = self.kf.update(obs)
         if res.accepted or res.reason == "waiting to initialise":  # buffered for the start
-            self.last_accepted = obs   # never one the filter refused (NaN, past the zenith)
+            self.last_accepted = obs  # never one the filter refused (NaN, past the zenith)
         return res.accepted
 
     def prediction(self, t: float) -> SunEstimate | None:
@@ -267,8 +295,7 @@ class SunPathSource(SunSource):
             enu = [o for o in self.kf.buffer if o.frame == "enu"]
             return extrapolate_two(enu[-2], enu[-1], t) if len(enu) >= 2 else None
         p = self.kf.predict(t)
-        return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance,
-                           EstimateSource.PREDICTED)
+        return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance, EstimateSource.PREDICTED)
 
     def estimate(self, t: float, now: float | None = None) -> SunEstimate | None:
         eph = self.ephemeris.estimate(t) if self.ephemeris is not None else None
@@ -292,17 +319,30 @@ class SunPathSource(SunSource):
         the state file was not used, when it was not.
         """
         kf = self.kf
-        out: dict = {"mode": kf.mode, "site_given": self.site is not None,
-                     "initialised": kf.initialised, "accepted": kf.n_accepted,
-                     "rejected": kf.n_rejected, "older": kf.n_older, "invalid": kf.n_invalid,
-                     "reinitialised": kf.n_reinit, "rebased": kf.n_rebase}
+        out: dict = {
+            "mode": kf.mode,
+            "site_given": self.site is not None,
+            "initialised": kf.initialised,
+            "accepted": kf.n_accepted,
+            "rejected": kf.n_rejected,
+            "older": kf.n_older,
+            "invalid": kf.n_invalid,
+            "reinitialised": kf.n_reinit,
+            "rebased": kf.n_rebase,
+        }
         if self.state_note is not None:
             out["state_note"] = self.state_note
         if kf.initialised:
             x = kf.x
-            out.update({"lat_deg": float(x[LAT]), "lon_deg": float(wrap180(x[LON])),
-                        "lat_sigma_deg": kf.sigma(LAT), "lon_sigma_deg": kf.sigma(LON),
-                        "az_offset_deg": float(wrap180(x[AZOFF]))})
+            out.update(
+                {
+                    "lat_deg": float(x[LAT]),
+                    "lon_deg": float(wrap180(x[LON])),
+                    "lat_sigma_deg": kf.sigma(LAT),
+                    "lon_sigma_deg": kf.sigma(LON),
+                    "az_offset_deg": float(wrap180(x[AZOFF])),
+                }
+            )
         if self.site is not None:
             limit = kf.config.site_mismatch_deg
             far = False
@@ -314,8 +354,9 @@ class SunPathSource(SunSource):
             m = kf.site_mismatch
             out["site_mismatch"] = far or m is not None
             if m is not None:
-                out.update({"site_mismatch_lat_deg": m.lat_offset_deg,
-                            "site_mismatch_lon_deg": m.lon_offset_deg})
+                out.update(
+                    {"site_mismatch_lat_deg": m.lat_offset_deg, "site_mismatch_lon_deg": m.lon_offset_deg}
+                )
         return out
 
     def save(self) -> None:

@@ -116,8 +116,7 @@ def inflate(P: np.ndarray, caps: np.ndarray) -> np.ndarray:
     return P * np.outer(d, d)
 
 
-def add_to_run(run: list[SunObservation], obs: SunObservation, config: KalmanConfig
-               ) -> bool:
+def add_to_run(run: list[SunObservation], obs: SunObservation, config: KalmanConfig) -> bool:
     """Keep ``obs`` in the run of rejections if it thins the run to a useful sampling.
 
     The run keeps observations at least half the start's sampling apart
@@ -129,17 +128,19 @@ def add_to_run(run: list[SunObservation], obs: SunObservation, config: KalmanCon
     if run and obs.time - run[-1].time < spacing:
         return False
     run.append(obs)
-    del run[:-4 * max(config.init_min_obs, 1)]
+    del run[: -4 * max(config.init_min_obs, 1)]
     return True
 
 
 def _consistent(fit: InitialFit | None, config: KalmanConfig, mode: str) -> bool:
-    return (fit is not None and fit.rms_sigma <= config.reinit_max_rms
-            and state_problem(fit.x, fit.P, mode) is None)
+    return (
+        fit is not None
+        and fit.rms_sigma <= config.reinit_max_rms
+        and state_problem(fit.x, fit.P, mode) is None
+    )
 
 
-def assess_run(run: list[SunObservation], config: KalmanConfig, mode: str,
-               site: Site | None) -> RunVerdict:
+def assess_run(run: list[SunObservation], config: KalmanConfig, mode: str, site: Site | None) -> RunVerdict:
     """Judge a run of rejected observations (see the module docstring).
 
     A run is judged only with as much evidence as a first start: with a site fixed,
@@ -149,8 +150,7 @@ def assess_run(run: list[SunObservation], config: KalmanConfig, mode: str,
     c = config
     obs = sorted(run, key=lambda o: o.time)
     span = obs[-1].time - obs[0].time if obs else 0.0
-    if (site is not None and len(obs) >= c.max_consecutive_rejects
-            and span >= SITE_RUN_MIN_SPAN_S):
+    if site is not None and len(obs) >= c.max_consecutive_rejects and span >= SITE_RUN_MIN_SPAN_S:
         fit = initial_fit(obs, c, mode, site)
         if fit is not None and _consistent(fit, c, mode):
             return RunVerdict("restart", fit, site_fixed=True)
@@ -178,6 +178,4 @@ def add_older(run: list[SunObservation], obs: SunObservation, config: KalmanConf
     if run and obs.time <= run[-1].time:
         run.clear()
     run.append(obs)
-    return (len(run) >= config.max_consecutive_older
-            and run[-1].time - run[0].time >= config.rebase_min_span_s)
-
+    return len(run) >= config.max_consecutive_older and run[-1].time - run[0].time >= config.rebase_min_span_s

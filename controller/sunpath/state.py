@@ -43,18 +43,23 @@ def _read(path: Path) -> dict:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
-        raise StateError(f"{path}: cannot read sun-path state ({why})",
-                         "unreadable" if isinstance(exc, OSError) else "corrupt") from None
+        raise StateError(
+            f"{path}: cannot read sun-path state ({why})",
+            "unreadable" if isinstance(exc, OSError) else "corrupt",
+        ) from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise StateError(f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
-                         f"column {exc.colno}: {exc.msg}); fix or remove the file") from None
+        raise StateError(
+            f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
+            f"column {exc.colno}: {exc.msg}); fix or remove the file"
+        ) from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise StateError(f"{path}: not a sun-path state file (expected format {FORMAT!r})")
     if doc.get("version") != VERSION:
-        raise StateError(f"{path}: sun-path state version {doc.get('version')!r}, "
-                         f"expected {VERSION}", "version")
+        raise StateError(
+            f"{path}: sun-path state version {doc.get('version')!r}, expected {VERSION}", "version"
+        )
     return doc
 
 
@@ -79,16 +84,19 @@ def load_state(path: str | Path, now: float | None = None) -> SunPathKalman | No
         return None
     doc = _read(path)
     if not isinstance(doc.get("filter"), dict):
-        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is missing; fix or "
-                         "remove the file")
+        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is missing; fix or remove the file")
     try:
         return kalman_from_dict(doc["filter"], SunPathKalman, now=now)
     except SnapshotError as exc:
-        raise StateError(f"{path}: invalid sun-path state: field 'filter.{exc.field}': "
-                         f"{exc.why}; fix or remove the file", "invalid") from None
+        raise StateError(
+            f"{path}: invalid sun-path state: field 'filter.{exc.field}': {exc.why}; fix or remove the file",
+            "invalid",
+        ) from None
     except (KeyError, TypeError, ValueError) as exc:
-        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is invalid "
-                         f"({exc}); fix or remove the file", "invalid") from None
+        raise StateError(
+            f"{path}: corrupt sun-path state: field 'filter' is invalid ({exc}); fix or remove the file",
+            "invalid",
+        ) from None
 
 
 def save_state(path: str | Path, kf: SunPathKalman, overwrite_corrupt: bool = False) -> None:
@@ -113,7 +121,8 @@ def save_state(path: str | Path, kf: SunPathKalman, overwrite_corrupt: bool = Fa
     try:  # what is written must load again: never replace a state with a broken one
         kalman_from_dict(snapshot, SunPathKalman)
     except SnapshotError as exc:
-        raise StateError(f"{path}: not saving an invalid sun-path state (field "
-                         f"'filter.{exc.field}': {exc.why})", "invalid") from None
+        raise StateError(
+            f"{path}: not saving an invalid sun-path state (field 'filter.{exc.field}': {exc.why})", "invalid"
+        ) from None
     doc = {"format": FORMAT, "version": VERSION, "filter": snapshot}
     atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")

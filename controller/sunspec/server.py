@@ -106,7 +106,7 @@ def peer_allowed(peer: str | None, networks: tuple) -> bool:
     except ValueError:
         return False
     if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
-        ip = ip.ipv4_mapped          # a dual-stack socket reports ::ffff:a.b.c.d
+        ip = ip.ipv4_mapped  # a dual-stack socket reports ::ffff:a.b.c.d
     return any(ip in net for net in networks if net.version == ip.version)
 
 
@@ -138,10 +138,19 @@ class SunSpecServer:
         Address of the ``SunS`` marker.
     """
 
-    def __init__(self, snapshot: SnapshotFn, on_override: OverrideFn | None = None, *,
-                 host: str = "127.0.0.1", port: int = 1502, device_address: int = 1,
-                 writes_enabled: bool = False, allow: Iterable[str] = ("127.0.0.1",),
-                 identity: Identity | None = None, base_address: int = SUNSPEC_BASE_ADDRESS):
+    def __init__(
+        self,
+        snapshot: SnapshotFn,
+        on_override: OverrideFn | None = None,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 1502,
+        device_address: int = 1,
+        writes_enabled: bool = False,
+        allow: Iterable[str] = ("127.0.0.1",),
+        identity: Identity | None = None,
+        base_address: int = SUNSPEC_BASE_ADDRESS,
+    ):
         self.snapshot = snapshot
         self.on_override = on_override
         self.host = host
@@ -160,13 +169,22 @@ class SunSpecServer:
         self._thread = ServerThread(self._make_server, name="sunspec-server")
 
     @classmethod
-    def from_config(cls, cfg: SunSpecConfig, snapshot: SnapshotFn,
-                    on_override: OverrideFn | None = None, **kw) -> SunSpecServer:
+    def from_config(
+        cls, cfg: SunSpecConfig, snapshot: SnapshotFn, on_override: OverrideFn | None = None, **kw
+    ) -> SunSpecServer:
         """Build from a parsed ``[sunspec]`` table (see :func:`parse_sunspec`)."""
         ident = Identity(serial_number=cfg.serial_number, device_address=cfg.device_address)
-        return cls(snapshot, on_override, host=cfg.host, port=cfg.port,
-                   device_address=cfg.device_address, writes_enabled=cfg.writes_enabled,
-                   allow=cfg.allow, identity=ident, **kw)
+        return cls(
+            snapshot,
+            on_override,
+            host=cfg.host,
+            port=cfg.port,
+            device_address=cfg.device_address,
+            writes_enabled=cfg.writes_enabled,
+            allow=cfg.allow,
+            identity=ident,
+            **kw,
+        )
 
     # -- lifecycle -------------------------------------------------------------------
     def start(self) -> Self:
@@ -180,12 +198,18 @@ class SunSpecServer:
         try:
             self._thread.start()
         except ServerThreadError as exc:
-            raise SunSpecServerError(f"SunSpec server failed to start on {self.host}:"
-                                     f"{self.requested_port}: {exc}") from exc
+            raise SunSpecServerError(
+                f"SunSpec server failed to start on {self.host}:{self.requested_port}: {exc}"
+            ) from exc
         self.port = self._thread.port
-        log.info("SunSpec server on %s:%d, unit %d, %d trackers, writes %s",
-                 self.host, self.port, self.device_address, self.map.n_trackers,
-                 f"enabled for {', '.join(self.allow)}" if self.writes_enabled else "disabled")
+        log.info(
+            "SunSpec server on %s:%d, unit %d, %d trackers, writes %s",
+            self.host,
+            self.port,
+            self.device_address,
+            self.map.n_trackers,
+            f"enabled for {', '.join(self.allow)}" if self.writes_enabled else "disabled",
+        )
         return self
 
     def stop(self) -> None:
@@ -202,9 +226,9 @@ class SunSpecServer:
         assert self.map is not None
         device = SimDevice(
             id=self.device_address,
-            simdata=[SimData(self.base_address, count=self.map.size, values=0,
-                             datatype=DataType.REGISTERS)],
-            action=self._action)
+            simdata=[SimData(self.base_address, count=self.map.size, values=0, datatype=DataType.REGISTERS)],
+            action=self._action,
+        )
         server = _PeerAwareTcpServer(device, address=(self.host, self.requested_port))
         server.context = _SingleUnitCore(device)
         return server
@@ -214,12 +238,12 @@ class SunSpecServer:
         """pymodbus SimDevice action: render before reads, police writes."""
         try:
             if set_values is None:
-                if fc not in _READ_FCS | _WRITE_FCS:   # reads back after FC 6 are fc 6
+                if fc not in _READ_FCS | _WRITE_FCS:  # reads back after FC 6 are fc 6
                     return ExcCodes.ILLEGAL_FUNCTION
                 plant = self.snapshot()
                 self._controls.refresh(plant)
                 words = self._encoder.registers(plant, self._controls.staged, address, count)
-                registers[address - start:address - start + count] = words
+                registers[address - start : address - start + count] = words
                 self.stats["reads"] += 1
                 return None
             if fc not in _WRITE_FCS:
@@ -237,7 +261,7 @@ class SunSpecServer:
         if not peer_allowed(peer, self._networks):
             return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "client not in the allowlist")
         controls = self._controls
-        assert controls is not None          # built by start()
+        assert controls is not None  # built by start()
         plant = self.snapshot()
         controls.refresh(plant)
         backup = copy.deepcopy(controls.staged)
@@ -261,6 +285,7 @@ class SunSpecServer:
 
     def _refuse(self, code: ExcCodes, peer, address: int, reason: str) -> ExcCodes:
         self.stats["writes_refused"] += 1
-        log.warning("SunSpec write at %d from %s refused (exception %d): %s",
-                    address, peer, int(code), reason)
+        log.warning(
+            "SunSpec write at %d from %s refused (exception %d): %s", address, peer, int(code), reason
+        )
         return code

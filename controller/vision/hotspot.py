@@ -54,8 +54,9 @@ def _end_threshold(imax: int, imin: int, end_rule: str) -> int:
     return int(math.ceil(end))
 
 
-def _candidate(labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray,
-               offset: tuple[int, int], full_width: int) -> int:
+def _candidate(
+    labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray, offset: tuple[int, int], full_width: int
+) -> int:
     """Label of the component with the largest mean brightness (ties: area, raster order)."""
     if n <= 1:
         return 0
@@ -117,12 +118,13 @@ def _minmax(image, mask):
     return int(imin), int(imax)
 
 
-def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode",
-                 glint_level: int = 230) -> Segmentation:
+def segment_seed(
+    image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode", glint_level: int = 230
+) -> Segmentation:
     """The paper's Algorithm 1, literally, on the whole frame (slow: one labelling of the full
     frame per threshold)."""
     img = np.ascontiguousarray(image)
-    m = (mask > 0)
+    m = mask > 0
     if not m.any():
         return Segmentation(False, "empty_mask")
     imin, imax = _minmax(img, m.astype(np.uint8))
@@ -133,9 +135,19 @@ def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
     curve = _sweep(img, m, imax, i_end, (0, 0), W)
     i_opt = _knee(curve)
     h, ncand = _final(img, m, i_opt, (0, 0), W)
-    return Segmentation(True, None, mask=h, roi=(0, img.shape[0], 0, img.shape[1]), i_opt=i_opt,
-                        i_max=imax, i_min=imin, n_candidates=ncand, area=int(h.sum()), curve=curve,
-                        roi_mask=h)
+    return Segmentation(
+        True,
+        None,
+        mask=h,
+        roi=(0, img.shape[0], 0, img.shape[1]),
+        i_opt=i_opt,
+        i_max=imax,
+        i_min=imin,
+        n_candidates=ncand,
+        area=int(h.sum()),
+        curve=curve,
+        roi_mask=h,
+    )
 
 
 #: More separate saturated spots than this is not one glint (hot pixels, noise, a lit
@@ -143,8 +155,14 @@ def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
 MAX_SATURATED_SPOTS = 8
 
 
-def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode",
-                 glint_level: int = 230, full_mask: bool = True) -> Segmentation:
+def segment_fast(
+    image: np.ndarray,
+    mask: np.ndarray,
+    *,
+    end_rule: str = "pseudocode",
+    glint_level: int = 230,
+    full_mask: bool = True,
+) -> Segmentation:
     """Same H as :func:`segment_seed`, computed on the window that can hold it.
 
     A frame with more than :data:`MAX_SATURATED_SPOTS` separate spots above
@@ -161,8 +179,7 @@ def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
     _, hi = cv2.threshold(img, glint_level - 1, 1, cv2.THRESH_BINARY)
     spots = cv2.connectedComponents(cv2.bitwise_and(hi, m8), connectivity=8)[0] - 1
     if spots > MAX_SATURATED_SPOTS:
-        return Segmentation(False, "ambiguous_bright_spots", i_max=imax, i_min=imin,
-                            n_candidates=spots)
+        return Segmentation(False, "ambiguous_bright_spots", i_max=imax, i_min=imin, n_candidates=spots)
     i_end = _end_threshold(imax, imin, end_rule)
     _, b = cv2.threshold(img, i_end, 1, cv2.THRESH_BINARY)
     b = cv2.bitwise_and(b, m8)
@@ -180,7 +197,17 @@ def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
     if full_mask:
         full = np.zeros((H, W), np.uint8)
         full[r0:r1, c0:c1] = hsub
-    seg = Segmentation(True, None, mask=full, roi=(r0, r1, c0, c1), i_opt=i_opt, i_max=imax,
-                       i_min=imin, n_candidates=ncand, area=int(hsub.sum()), curve=curve,
-                       roi_mask=hsub)
+    seg = Segmentation(
+        True,
+        None,
+        mask=full,
+        roi=(r0, r1, c0, c1),
+        i_opt=i_opt,
+        i_max=imax,
+        i_min=imin,
+        n_candidates=ncand,
+        area=int(hsub.sum()),
+        curve=curve,
+        roi_mask=hsub,
+    )
     return seg

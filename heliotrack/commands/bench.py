@@ -10,20 +10,34 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction) -> None:
     from benchmarks import BENCHMARKS
 
-    p = sub.add_parser("bench", help="run benchmarks (all when no name is given)",
-                       description="Run benchmarks and write benchmarks/results/<name>.json; "
-                                   "with no name, run every one and write summary.md.  Exit "
-                                   "status 1 when a figure misses its target.")
-    p.add_argument("names", nargs="*", metavar="NAME", choices=(*BENCHMARKS, "all", []),
-                   help=f"benchmarks to run ({', '.join(BENCHMARKS)}); default: all")
+    p = sub.add_parser(
+        "bench",
+        help="run benchmarks (all when no name is given)",
+        description="Run benchmarks and write benchmarks/results/<name>.json; "
+        "with no name, run every one and write summary.md.  Exit "
+        "status 1 when a figure misses its target.",
+    )
+    p.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME",
+        choices=(*BENCHMARKS, "all", []),
+        help=f"benchmarks to run ({', '.join(BENCHMARKS)}); default: all",
+    )
     p.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
-    p.add_argument("--summary-only", action="store_true",
-                   help="run nothing: rebuild summary.md from the results on disk")
-    p.add_argument("--kills", type=int, default=None,
-                   help="persistence: how many times to kill the writer (default 1000)")
+    p.add_argument(
+        "--summary-only", action="store_true", help="run nothing: rebuild summary.md from the results on disk"
+    )
+    p.add_argument(
+        "--kills",
+        type=int,
+        default=None,
+        help="persistence: how many times to kill the writer (default 1000)",
+    )
     p.add_argument("--days", type=int, default=None, help="soak: simulated days (default 30)")
-    p.add_argument("--results-dir", type=Path, default=None,
-                   help="where to write JSON (default benchmarks/results/)")
+    p.add_argument(
+        "--results-dir", type=Path, default=None, help="where to write JSON (default benchmarks/results/)"
+    )
     p.set_defaults(func=run)
 
 
@@ -42,8 +56,9 @@ def run(args: argparse.Namespace) -> int:
         for i, name in enumerate(names):
             if progress:
                 print(f"[{i + 1}/{len(names)}] {name} ...", file=sys.stderr, flush=True)
-            record = run_benchmark(name, quick=args.quick, results_dir=args.results_dir,
-                                   kills=args.kills, days=args.days)
+            record = run_benchmark(
+                name, quick=args.quick, results_dir=args.results_dir, kills=args.kills, days=args.days
+            )
             print(f"== {name} ({record['wall_s']} s) -> {record['path']}")
             found = headlines(name, record["result"])
             print(table(found))
@@ -52,8 +67,7 @@ def run(args: argparse.Namespace) -> int:
         for name, rec in load_results(names, results_dir).items():
             rows += headlines(name, rec["result"]) if rec else []
     if not args.names or "all" in args.names or args.summary_only:
-        path = atomic_write(results_dir / "summary.md",
-                            markdown(load_results(list(BENCHMARKS), results_dir)))
+        path = atomic_write(results_dir / "summary.md", markdown(load_results(list(BENCHMARKS), results_dir)))
         print(f"wrote {path}")
     misses = [r for r in rows if r.ok is False]
     if misses:

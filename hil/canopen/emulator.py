@@ -59,8 +59,7 @@ class CanopenDriveEmulator:
         Monotonic seconds for bus timing.
     """
 
-    def __init__(self, firmware: DriveFirmware, node_id: int,
-                 wall: Callable[[], float] = time.monotonic):
+    def __init__(self, firmware: DriveFirmware, node_id: int, wall: Callable[[], float] = time.monotonic):
         n_axes = len(firmware.axes)
         try:
             check_node_id(node_id, n_axes)
@@ -68,8 +67,7 @@ class CanopenDriveEmulator:
             raise HilError(str(exc)) from None
         self.firmware = firmware
         self.bus = DriveBus(firmware)
-        self.nodes = [AxisNode(self.bus, k, axis_node_id(node_id, k), wall)
-                      for k in range(n_axes)]
+        self.nodes = [AxisNode(self.bus, k, axis_node_id(node_id, k), wall) for k in range(n_axes)]
 
     @property
     def node_ids(self) -> list[int]:
@@ -108,14 +106,20 @@ class CanopenNetworkEmulator:
         Passed to ``can.Bus``.
     """
 
-    def __init__(self, channel: str = "heliotrack", interface: str = "virtual", *,
-                 bus: can.BusABC | None = None, period_s: float = 0.05, **bus_kwargs):
+    def __init__(
+        self,
+        channel: str = "heliotrack",
+        interface: str = "virtual",
+        *,
+        bus: can.BusABC | None = None,
+        period_s: float = 0.05,
+        **bus_kwargs,
+    ):
         self.network = SafeNetwork(bus)
         if bus is None:
             self.network.connect(interface=interface, channel=channel, **bus_kwargs)
         else:
-            self.network.notifier = can.Notifier(bus, self.network.listeners,
-                                                 self.network.NOTIFIER_CYCLE)
+            self.network.notifier = can.Notifier(bus, self.network.listeners, self.network.NOTIFIER_CYCLE)
         self.period_s = period_s
         self.drives: list[CanopenDriveEmulator] = []
         self._lock = threading.Lock()
@@ -123,8 +127,9 @@ class CanopenNetworkEmulator:
         self._thread: threading.Thread | None = None
         self.service_errors = 0
 
-    def add_drive(self, firmware: DriveFirmware, node_id: int,
-                  wall: Callable[[], float] = time.monotonic) -> CanopenDriveEmulator:
+    def add_drive(
+        self, firmware: DriveFirmware, node_id: int, wall: Callable[[], float] = time.monotonic
+    ) -> CanopenDriveEmulator:
         """Put a drive on the bus (its nodes send their boot-up messages now)."""
         used = {i for d in self.drives for i in d.node_ids}
         drive = CanopenDriveEmulator(firmware, node_id, wall)
@@ -165,7 +170,7 @@ class CanopenNetworkEmulator:
             self.service()
             next_t += self.period_s
             delay = next_t - time.monotonic()
-            if delay < 0:          # overloaded: do not try to catch up in a burst
+            if delay < 0:  # overloaded: do not try to catch up in a burst
                 next_t = time.monotonic()
                 delay = 0
             self._stop.wait(delay)

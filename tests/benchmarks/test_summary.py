@@ -4,7 +4,7 @@ import json
 import shutil
 
 from benchmarks import BENCHMARKS, RESULTS_DIR
-from benchmarks.summary import headlines, load_results, markdown
+from benchmarks.summary import headlines, load_results
 from heliotrack.cli import main
 
 

@@ -9,8 +9,9 @@ from firmware_protocol.server_thread import ServerThread, ServerThreadError
 
 
 def tcp_server(port: int = 0) -> ModbusTcpServer:
-    device = SimDevice(id=1, simdata=[SimData(0, count=4, values=[11, 22, 33, 44],
-                                              datatype=DataType.REGISTERS)])
+    device = SimDevice(
+        id=1, simdata=[SimData(0, count=4, values=[11, 22, 33, 44], datatype=DataType.REGISTERS)]
+    )
     return ModbusTcpServer(device, address=("127.0.0.1", port))
 
 
@@ -23,7 +24,7 @@ def test_serves_on_a_free_port_until_stopped():
         client.close()
     assert not thread._thread.is_alive()
     client = ModbusTcpClient("127.0.0.1", port=thread.port, timeout=0.5, retries=0)
-    assert not client.connect()                   # nobody listens any more
+    assert not client.connect()  # nobody listens any more
 
 
 def test_a_failing_factory_is_reported_by_start():
@@ -34,7 +35,7 @@ def test_a_failing_factory_is_reported_by_start():
     with pytest.raises(ServerThreadError, match="no such device") as err:
         thread.start()
     assert isinstance(err.value.__cause__, ValueError)
-    thread.stop()                                  # quiet after a failed start
+    thread.stop()  # quiet after a failed start
 
 
 def test_an_address_in_use_is_reported_by_start():

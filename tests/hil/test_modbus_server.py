@@ -42,6 +42,7 @@ def test_exceptions_on_the_wire(client):
 def test_foreign_slave_id_gets_no_answer(client):
     c, *_ = client
     from pymodbus.exceptions import ModbusIOException
+
     with pytest.raises(ModbusIOException):
         c.read_holding_registers(0, count=3, device_id=9)
     # The line is still usable afterwards.

@@ -10,5 +10,4 @@ from .axis import Axis402
 from .drive import CanopenDrive, SetPointNotAcknowledged
 from .network import SharedNetwork, send_master_heartbeat
 
-__all__ = ["Axis402", "CanopenDrive", "SetPointNotAcknowledged", "SharedNetwork",
-           "send_master_heartbeat"]
+__all__ = ["Axis402", "CanopenDrive", "SetPointNotAcknowledged", "SharedNetwork", "send_master_heartbeat"]

@@ -10,7 +10,8 @@ import canopen
 from canopen.objectdictionary import eds as eds_format
 
 from firmware_protocol import Fault, Mode, Status, register
-from firmware_protocol.canopen import State402, eds, mirror_index, state_from_statusword
+from firmware_protocol.canopen import State402, mirror_index, state_from_statusword
+from firmware_protocol.eds import eds
 
 from ..base import AxisState, DriveCommError
 
@@ -39,7 +40,7 @@ class Axis402:
 
     def __init__(self, node: canopen.BaseNode402):
         self.node = node
-        self.tpdo_time: dict[int, float] = {}      # TPDO number -> monotonic reception
+        self.tpdo_time: dict[int, float] = {}  # TPDO number -> monotonic reception
         self.heartbeat_time: float | None = None
 
     @property
@@ -56,19 +57,18 @@ class Axis402:
 
     def tpdos_mapping(self, index: int) -> list[int]:
         """Numbers of the enabled TPDOs that carry object ``index``."""
-        return [n for n, pdo in self.node.tpdo.items()
-                if pdo.enabled and any(v.index == index for v in pdo.map)]
+        return [
+            n for n, pdo in self.node.tpdo.items() if pdo.enabled and any(v.index == index for v in pdo.map)
+        ]
 
     def reflects_target(self, raw: int, since: float) -> bool:
         """The drive's effective target is ``raw``, or every TPDO carrying it has been heard
         since ``since`` (the drive took the set-point and clamped it)."""
         if self.node.tpdo_values.get(IDX_EFFECTIVE_TARGET) == raw:
             return True
-        return all(self.tpdo_time.get(n, 0.0) > since
-                   for n in self.tpdos_mapping(IDX_EFFECTIVE_TARGET))
+        return all(self.tpdo_time.get(n, 0.0) > since for n in self.tpdos_mapping(IDX_EFFECTIVE_TARGET))
 
-    def check_fresh(self, now: float, stale_s: float, producer_heartbeat_ms: int,
-                    label: str) -> None:
+    def check_fresh(self, now: float, stale_s: float, producer_heartbeat_ms: int, label: str) -> None:
         """Refuse a state that is no longer the drive's.
 
         Raises
@@ -78,17 +78,19 @@ class Axis402:
             its TPDOs is older than ``stale_s``.
         """
         node = self.node
-        if self.heartbeat_time is not None and \
-                now - self.heartbeat_time > 3 * producer_heartbeat_ms / 1000 > 0:
+        if (
+            self.heartbeat_time is not None
+            and now - self.heartbeat_time > 3 * producer_heartbeat_ms / 1000 > 0
+        ):
             raise DriveCommError(f"{label}: heartbeat of node {node.id} lost")
         if node.nmt.state not in ("OPERATIONAL", "INITIALISING") and self.heartbeat_time:
-            raise DriveCommError(f"{label}: node {node.id} left OPERATIONAL "
-                                 f"(NMT {node.nmt.state}); reconnect")
+            raise DriveCommError(
+                f"{label}: node {node.id} left OPERATIONAL (NMT {node.nmt.state}); reconnect"
+            )
         for number in self.enabled_tpdos():
             t = self.tpdo_time.get(number)
             if t is None or now - t > stale_s:
-                raise DriveCommError(f"{label}: no TPDO{number} from node {node.id} "
-                                     f"for {stale_s:g} s")
+                raise DriveCommError(f"{label}: no TPDO{number} from node {node.id} for {stale_s:g} s")
 
     def axis_state(self, label: str) -> AxisState:
         """The axis as its last TPDOs describe it (degrees, deg/s).
@@ -106,10 +108,11 @@ class Axis402:
                 velocity_dps=v[0x606C] * _VELOCITY.scale,
                 status=Status(int(v[IDX_STATUS])),
                 fault=Fault(int(v[IDX_FAULT])),
-                mode=Mode(int(v[IDX_MODE])))
+                mode=Mode(int(v[IDX_MODE])),
+            )
         except KeyError as exc:
-            raise DriveCommError(f"{label}: node {self.node.id} does not map "
-                                 f"0x{exc.args[0]:04X} in a TPDO") from None
-        except ValueError as exc:   # an unknown fault or mode code on the wire
-            raise DriveCommError(f"{label}: implausible state from node {self.node.id}: "
-                                 f"{exc}") from None
+            raise DriveCommError(
+                f"{label}: node {self.node.id} does not map 0x{exc.args[0]:04X} in a TPDO"
+            ) from None
+        except ValueError as exc:  # an unknown fault or mode code on the wire
+            raise DriveCommError(f"{label}: implausible state from node {self.node.id}: {exc}") from None

@@ -53,7 +53,6 @@ from ..base import (
     DriveState,
     LinkSettingsError,
     LinkStats,
-    soft_limit_steps,
 )
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
@@ -63,12 +62,10 @@ from .network import SharedNetwork, send_master_heartbeat
 log = logging.getLogger(__name__)
 
 _TARGET = register("TARGET_ANGLE")
-_LIMIT_MIN = register("SOFT_LIMIT_MIN")
-_LIMIT_MAX = register("SOFT_LIMIT_MAX")
-_STOW = register("STOW_ANGLE")
 _IDX_COMMAND = mirror_index(register("COMMAND"))
-_IDX_MAGIC, _IDX_PROTOCOL, _IDX_AXES = (mirror_index(register(n)) for n in
-                                         ("MAGIC", "PROTOCOL_VERSION", "AXIS_COUNT"))
+_IDX_MAGIC, _IDX_PROTOCOL, _IDX_AXES = (
+    mirror_index(register(n)) for n in ("MAGIC", "PROTOCOL_VERSION", "AXIS_COUNT")
+)
 #: SDO failures worth another attempt; an abort is the drive's answer and final.
 _SDO_RETRY_ON = (SdoCommunicationError, canopen.nmt.NmtError, OSError, RuntimeError)
 
@@ -121,20 +118,39 @@ class CanopenDrive(DriveLink):
         if not isinstance(link, CanopenLink):
             raise TypeError(f"{cls.__name__} needs a CanopenLink, got {type(link).__name__}")
         if link.is_hil:
-            raise LinkSettingsError(f'link {link.name!r}: channel = "hil" names a bus that only '
-                                    "`heliotrack simulate` provides; give the real one")
-        return cls(device_id, channel=link.channel, interface=link.interface,
-                   bitrate=link.bitrate if link.interface != "virtual" else None,
-                   timeout_s=link.timeout_s, retries=link.retries,
-                   pdo_from_eds=link.pdo_mapping == "eds",
-                   label=f"{link.name} ({link.interface}:{link.channel}) node {device_id}")
+            raise LinkSettingsError(
+                f'link {link.name!r}: channel = "hil" names a bus that only '
+                "`heliotrack simulate` provides; give the real one"
+            )
+        return cls(
+            device_id,
+            channel=link.channel,
+            interface=link.interface,
+            bitrate=link.bitrate if link.interface != "virtual" else None,
+            timeout_s=link.timeout_s,
+            retries=link.retries,
+            pdo_from_eds=link.pdo_mapping == "eds",
+            label=f"{link.name} ({link.interface}:{link.channel}) node {device_id}",
+        )
 
-    def __init__(self, node_id: int, *, channel: str | None = None, interface: str = "virtual",
-                 bitrate: int | None = None, eds: str | Path | None = None,
-                 timeout_s: float = 0.5, retries: int = 2,
-                 network: canopen.Network | None = None, master_node_id: int = MASTER_NODE_ID,
-                 producer_heartbeat_ms: int = 1000, stale_s: float | None = None,
-                 pdo_from_eds: bool = False, label: str = "", **bus_kwargs: Any):
+    def __init__(
+        self,
+        node_id: int,
+        *,
+        channel: str | None = None,
+        interface: str = "virtual",
+        bitrate: int | None = None,
+        eds: str | Path | None = None,
+        timeout_s: float = 0.5,
+        retries: int = 2,
+        network: canopen.Network | None = None,
+        master_node_id: int = MASTER_NODE_ID,
+        producer_heartbeat_ms: int = 1000,
+        stale_s: float | None = None,
+        pdo_from_eds: bool = False,
+        label: str = "",
+        **bus_kwargs: Any,
+    ):
         try:
             check_node_id(node_id)
         except ValueError as exc:
@@ -173,21 +189,23 @@ class CanopenDrive(DriveLink):
             raise DriveCommError(f"{self.label}: not connected")
         return self.network
 
-    async def _sdo(self, what: str, fn: Callable[[], Any]) -> Any:
+    async def sdo(self, what: str, fn: Callable[[], Any]) -> Any:
         """Run a blocking SDO operation in a thread, under the SDO retry policy."""
-        return await self.sdo_policy.run(lambda: asyncio.to_thread(fn), what=what,
-                                         label=self.label, stats=self.stats)
+        return await self.sdo_policy.run(
+            lambda: asyncio.to_thread(fn), what=what, label=self.label, stats=self.stats
+        )
 
     def _on_tpdo(self, axis: Axis402, number: int) -> Callable[[Any], None]:
-        def callback(_pdo: Any) -> None:   # canopen's receive thread
+        def callback(_pdo: Any) -> None:  # canopen's receive thread
             axis.tpdo_time[number] = time.monotonic()
             loop, event = self._loop, self._tpdo_event
             if loop is not None and event is not None and not loop.is_closed():
                 loop.call_soon_threadsafe(event.set)
+
         return callback
 
     @staticmethod
-    def _heard(axis: Axis402, _state: int) -> None:   # canopen's receive thread
+    def _heard(axis: Axis402, _state: int) -> None:  # canopen's receive thread
         axis.heartbeat_time = time.monotonic()
 
     async def _wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
@@ -218,22 +236,27 @@ class CanopenDrive(DriveLink):
         self._loop = asyncio.get_running_loop()
         self._tpdo_event = asyncio.Event()
         if self.network is None:
-            assert self.channel is not None         # checked in __init__
+            assert self.channel is not None  # checked in __init__
             try:
                 shared = await asyncio.to_thread(
-                    SharedNetwork.acquire, self.interface, self.channel, self.bus_kwargs)
+                    SharedNetwork.acquire, self.interface, self.channel, self.bus_kwargs
+                )
             except Exception as exc:  # noqa: BLE001 - python-can raises many kinds on a bad channel
                 raise DriveCommError(f"{self.label}: cannot open the CAN bus: {exc}") from None
             self._shared, self.network = shared, shared.network
         try:
             first = self._add_node(self.node_id)
-            magic = await self._sdo("identification read", lambda: first.sdo[_IDX_MAGIC].raw)
+            magic = await self.sdo("identification read", lambda: first.sdo[_IDX_MAGIC].raw)
             if magic != MAGIC:
-                raise DriveCommError(f"{self.label}: not a heliotrack drive (0x{_IDX_MAGIC:04X} = {magic:#06x})")
-            version = await self._sdo("identification read", lambda: first.sdo[_IDX_PROTOCOL].raw)
+                raise DriveCommError(
+                    f"{self.label}: not a heliotrack drive (0x{_IDX_MAGIC:04X} = {magic:#06x})"
+                )
+            version = await self.sdo("identification read", lambda: first.sdo[_IDX_PROTOCOL].raw)
             if version >> 8 != PROTOCOL_VERSION >> 8:
-                raise DriveCommError(f"{self.label}: protocol {version >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x")
-            count = await self._sdo("identification read", lambda: first.sdo[_IDX_AXES].raw)
+                raise DriveCommError(
+                    f"{self.label}: protocol {version >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x"
+                )
+            count = await self.sdo("identification read", lambda: first.sdo[_IDX_AXES].raw)
             if not 1 <= count <= 2:
                 raise DriveCommError(f"{self.label}: implausible axis count {count}")
             check_node_id(self.node_id, count)
@@ -241,8 +264,9 @@ class CanopenDrive(DriveLink):
             for k in range(1, count):
                 self.axes.append(Axis402(self._add_node(self.node_id + k)))
             for k, axis in enumerate(self.axes):
-                index = await self._sdo("axis index read",
-                                        partial(getattr, axis.node.sdo[AXIS_INDEX_OBJECT], "raw"))
+                index = await self.sdo(
+                    "axis index read", partial(getattr, axis.node.sdo[AXIS_INDEX_OBJECT], "raw")
+                )
                 if index != k:
                     raise DriveCommError(f"{self.label}: node {axis.node.id} is axis {index}, expected {k}")
                 await self._start_axis(axis)
@@ -267,25 +291,26 @@ class CanopenDrive(DriveLink):
             node.tpdo.read(from_od=self.pdo_from_eds)
             node.rpdo.read(from_od=self.pdo_from_eds)
 
-        await self._sdo("PDO configuration read", read_pdos)
+        await self.sdo("PDO configuration read", read_pdos)
         node.setup_402_state_machine(read_pdos=False)
         for number, tpdo in node.tpdo.items():
             if tpdo.enabled:
                 tpdo.add_callback(self._on_tpdo(axis, number))
         node.nmt.add_heartbeat_callback(partial(self._heard, axis))
         if self.producer_heartbeat_ms:
-            await self._sdo("producer heartbeat write",
-                            lambda: setattr(node.sdo[0x1017], "raw", self.producer_heartbeat_ms))
-        node.nmt.state = "OPERATIONAL"     # NMT start: PDOs flow from now on
+            await self.sdo(
+                "producer heartbeat write",
+                lambda: setattr(node.sdo[0x1017], "raw", self.producer_heartbeat_ms),
+            )
+        node.nmt.state = "OPERATIONAL"  # NMT start: PDOs flow from now on
         # Every TPDO goes out once after NMT start; waiting for them means the state is
         # known before the 402 helper starts switching (a drive that stays silent fails
         # in _enable with a clear timeout).
-        await self._wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()),
-                         self.timeout_s * 2)
-        actual = await self._sdo("position read", lambda: node.sdo[0x6064].raw)
+        await self._wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()), self.timeout_s * 2)
+        actual = await self.sdo("position read", lambda: node.sdo[0x6064].raw)
         if 0x607A in node.rpdo_pointers:
             target: Any = node.rpdo_pointers[0x607A]
-            target.raw = actual       # no jump if a set-point slips through
+            target.raw = actual  # no jump if a set-point slips through
         await self._enable(axis)
 
     async def _enable(self, axis: Axis402) -> None:
@@ -297,7 +322,7 @@ class CanopenDrive(DriveLink):
             node.state = "OPERATION ENABLED"
 
         try:
-            await self._sdo("enable operation", enable)
+            await self.sdo("enable operation", enable)
         except DriveCommError:
             if axis.state == State402.FAULT:
                 # A faulted drive still connects: read_state reports the fault and
@@ -309,7 +334,7 @@ class CanopenDrive(DriveLink):
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""
         network = self.network
-        for node in self._added:   # only the nodes this drive added: the network is shared
+        for node in self._added:  # only the nodes this drive added: the network is shared
             if network is None:
                 break
             for tpdo in node.tpdo.values():
@@ -349,11 +374,13 @@ class CanopenDrive(DriveLink):
         for k, (axis, raw) in enumerate(zip(self.axes, raws)):
             state = axis.state
             if state == State402.FAULT:
-                continue   # read_state shows the fault; command(CLEAR_FAULT) recovers
+                continue  # read_state shows the fault; command(CLEAR_FAULT) recovers
             if state != State402.OPERATION_ENABLED:
-                raise DriveCommError(f"{self.label}: axis {k} (node {axis.node.id}) is "
-                                     f"{state.name if state else 'in an unknown state'}, not "
-                                     "OPERATION ENABLED; not re-enabled automatically")
+                raise DriveCommError(
+                    f"{self.label}: axis {k} (node {axis.node.id}) is "
+                    f"{state.name if state else 'in an unknown state'}, not "
+                    "OPERATION ENABLED; not re-enabled automatically"
+                )
             await self._set_point(k, axis, raw)
 
     async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
@@ -367,8 +394,10 @@ class CanopenDrive(DriveLink):
         t_written = time.monotonic()
         raws = [to_raw(_TARGET, a) for a in angles_deg]
 
-        await self._wait(lambda: all(axis.reflects_target(raw, t_written)
-                                     for axis, raw in zip(self.axes, raws)), self.timeout_s)
+        await self._wait(
+            lambda: all(axis.reflects_target(raw, t_written) for axis, raw in zip(self.axes, raws)),
+            self.timeout_s,
+        )
         return await self.read_state()
 
     async def _set_point(self, k: int, axis: Axis402, raw: int) -> None:
@@ -391,19 +420,20 @@ class CanopenDrive(DriveLink):
                 if 0x6040 not in pointers or pointers[0x6040].pdo_parent is not target_pdo:
                     target_pdo.transmit()
             else:
-                await self._sdo("target write", lambda: setattr(node.sdo[0x607A], "raw", raw))
+                await self.sdo("target write", lambda: setattr(node.sdo[0x607A], "raw", raw))
             self._controlword(node, CW_NEW_SET_POINT)
             taken = await self._wait(ack, self.timeout_s)
             self._controlword(node, CW_ENABLE_OPERATION)
             if not taken:
                 raise SetPointNotAcknowledged(f"not acknowledged within {self.timeout_s:g} s")
 
-        await self.set_point_policy.run(attempt, what=f"axis {k} set-point", label=self.label,
-                                        stats=self.stats)
+        await self.set_point_policy.run(
+            attempt, what=f"axis {k} set-point", label=self.label, stats=self.stats
+        )
 
     @staticmethod
     def _controlword(node: canopen.BaseNode402, cw: int) -> None:
-        node.controlword = int(cw)   # RPDO transmit (non-blocking) or SDO fallback
+        node.controlword = int(cw)  # RPDO transmit (non-blocking) or SDO fallback
 
     # -- heartbeat, commands, configuration -------------------------------------------------
     async def heartbeat(self) -> None:
@@ -421,53 +451,26 @@ class CanopenDrive(DriveLink):
         if not self.axes:
             raise DriveCommError(f"{self.label}: not connected")
         first = self.axes[0].node
-        await self._sdo(f"command {cmd.name}",
-                        lambda: setattr(first.sdo[_IDX_COMMAND], "raw", int(cmd)))
+        await self.sdo(f"command {cmd.name}", lambda: setattr(first.sdo[_IDX_COMMAND], "raw", int(cmd)))
         if cmd in (Command.CLEAR_FAULT, Command.RESUME):
             # An explicit operator command: bring every axis back to OPERATION ENABLED
             # (from FAULT through a fault-reset edge, which the 402 helper sends).
             for axis in self.axes:
                 if axis.state != State402.OPERATION_ENABLED:
                     if axis.state == State402.FAULT:
-                        self._controlword(axis.node, 0)   # bit 7 low, so the next is an edge
-                    await self._sdo("re-enable",
-                                    partial(setattr, axis.node, "state", "OPERATION ENABLED"))
+                        self._controlword(axis.node, 0)  # bit 7 low, so the next is an edge
+                    await self.sdo("re-enable", partial(setattr, axis.node, "state", "OPERATION ENABLED"))
 
-    async def configure(self, *, heartbeat_timeout_s: float | None = None,
-                        soft_limits: Sequence[tuple[float, float]] | None = None,
-                        stow_angles: Sequence[float] | None = None) -> None:
-        if not self.axes:
-            raise DriveCommError(f"{self.label}: not connected")
-        if heartbeat_timeout_s is not None:
-            ms = round(heartbeat_timeout_s * 1000)
-            if not 0 <= ms <= 0xFFFF:
-                raise LinkSettingsError(f"{self.label}: heartbeat timeout {heartbeat_timeout_s:g} s "
-                                        "outside the 0..65.535 s a CANopen consumer heartbeat "
-                                        "time holds")
-            value = (self.master_node_id << 16) | ms
-            for axis in self.axes:
-                await self._sdo("consumer heartbeat write",
-                                partial(setattr, axis.node.sdo[0x1016][1], "raw", value))
-        limits, stows = list(soft_limits or ()), list(stow_angles or ())
-        for k, (lo, hi) in enumerate(limits):
-            if to_raw(_LIMIT_MIN, lo) > to_raw(_LIMIT_MAX, hi):
-                raise ValueError(f"soft limits of axis {k}: min {lo} > max {hi}")
-        for k in range(max(len(limits), len(stows))):
-            node = self.axes[k].node
-            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
-            stow = stows[k] if k < len(stows) else None
-            current = (0.0, 0.0)
-            if new is not None and stow is not None:
-                lo_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][1], "raw"))
-                hi_raw = await self._sdo("soft limit read", partial(getattr, node.sdo[0x607D][2], "raw"))
-                current = (lo_raw * _LIMIT_MIN.scale, hi_raw * _LIMIT_MAX.scale)
-            for step in soft_limit_steps(current, new, stow):
-                if isinstance(step, tuple):   # min first: valid on the way (see the steps)
-                    await self._sdo("soft limit write", partial(
-                        setattr, node.sdo[0x607D][1], "raw", to_raw(_LIMIT_MIN, step[0])))
-                    await self._sdo("soft limit write", partial(
-                        setattr, node.sdo[0x607D][2], "raw", to_raw(_LIMIT_MAX, step[1])))
-                else:
-                    await self._sdo("stow angle write", partial(
-                        setattr, node.sdo[mirror_index(_STOW)], "raw", to_raw(_STOW, step)))
+    async def configure(
+        self,
+        *,
+        heartbeat_timeout_s: float | None = None,
+        soft_limits: Sequence[tuple[float, float]] | None = None,
+        stow_angles: Sequence[float] | None = None,
+    ) -> None:
+        """Consumer heartbeat, soft limits and stow angles (see :mod:`.configure`)."""
+        from .configure import configure_drive
 
+        await configure_drive(
+            self, heartbeat_timeout_s=heartbeat_timeout_s, soft_limits=soft_limits, stow_angles=stow_angles
+        )

@@ -24,7 +24,7 @@ class SharedNetwork:
     def __init__(self, interface: str, channel: str, bus_kwargs: dict[str, Any]):
         self.key = (interface, channel)
         self.network = canopen.Network()
-        self.network.NOTIFIER_CYCLE = 0.1   # closing waits for one notifier cycle
+        self.network.NOTIFIER_CYCLE = 0.1  # closing waits for one notifier cycle
         self.network.connect(interface=interface, channel=channel, **bus_kwargs)
         self.users = 0
 

@@ -8,5 +8,12 @@
 from .client import LineSettings, SharedSerialClient, modbus_client, retry_policy
 from .drive import ModbusDrive, ModbusRtuDrive, ModbusTcpDrive
 
-__all__ = ["LineSettings", "ModbusDrive", "ModbusRtuDrive", "ModbusTcpDrive",
-           "SharedSerialClient", "modbus_client", "retry_policy"]
+__all__ = [
+    "LineSettings",
+    "ModbusDrive",
+    "ModbusRtuDrive",
+    "ModbusTcpDrive",
+    "SharedSerialClient",
+    "modbus_client",
+    "retry_policy",
+]

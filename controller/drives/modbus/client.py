@@ -24,8 +24,14 @@ from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from ..retry import RetryPolicy
 
 #: Exception responses that mean "not now" rather than "never": worth another attempt.
-_TRANSIENT_CODES = frozenset({ExcCodes.ACKNOWLEDGE, ExcCodes.DEVICE_BUSY,
-                              ExcCodes.GATEWAY_PATH_UNAVIABLE, ExcCodes.GATEWAY_NO_RESPONSE})
+_TRANSIENT_CODES = frozenset(
+    {
+        ExcCodes.ACKNOWLEDGE,
+        ExcCodes.DEVICE_BUSY,
+        ExcCodes.GATEWAY_PATH_UNAVIABLE,
+        ExcCodes.GATEWAY_NO_RESPONSE,
+    }
+)
 
 
 class ModbusRefused(Exception):
@@ -40,8 +46,7 @@ class ModbusBusy(Exception):
 def retry_policy(retries: int) -> RetryPolicy:
     """The retry policy of every Modbus device: no answer, a garbled answer or "busy" is
     retried; an exception response saying the request is wrong is final."""
-    return RetryPolicy(retries, retry_on=(ModbusException, OSError, ModbusBusy),
-                       final=(ModbusRefused,))
+    return RetryPolicy(retries, retry_on=(ModbusException, OSError, ModbusBusy), final=(ModbusRefused,))
 
 
 async def checked(request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any) -> Any:
@@ -91,15 +96,21 @@ class SharedSerialClient:
 
     def __init__(self, port: str, settings: LineSettings, link_name: str):
         self.client = AsyncModbusSerialClient(
-            port, baudrate=settings.baudrate, parity=settings.parity,
-            stopbits=settings.stopbits, bytesize=8, timeout=settings.timeout_s, retries=0,
-            reconnect_delay=0)
+            port,
+            baudrate=settings.baudrate,
+            parity=settings.parity,
+            stopbits=settings.stopbits,
+            bytesize=8,
+            timeout=settings.timeout_s,
+            retries=0,
+            reconnect_delay=0,
+        )
         self.port = port
         self.key = _port_key(port)
         self.settings = settings
         self.link_name = link_name
         self.users = 0
-        try:   # a client belongs to the event loop it first runs on
+        try:  # a client belongs to the event loop it first runs on
             self.loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:
             self.loop = None
@@ -117,14 +128,15 @@ class SharedSerialClient:
         settings = LineSettings.of(link)
         shared = cls._open.get(key)
         if shared is not None and shared.loop is not None and shared.loop.is_closed():
-            shared = None        # left over from a finished event loop: unusable anyway
+            shared = None  # left over from a finished event loop: unusable anyway
         if shared is None:
             shared = cls._open[key] = cls(link.port, settings, link.name)
         elif shared.settings != settings:
             raise LinkSettingsError(
                 f"links {shared.link_name!r} and {link.name!r} both open serial port "
                 f"{link.port} with different settings ({shared.settings} vs {settings}); "
-                "a line has one setting: make them equal, or make them one link")
+                "a line has one setting: make them equal, or make them one link"
+            )
         shared.users += 1
         return shared
 
@@ -147,8 +159,10 @@ class SharedSerialClient:
 
 
 def _simulator_only(link: LinkConfig, key: str) -> LinkSettingsError:
-    return LinkSettingsError(f"link {link.name!r}: {key} = \"hil\" names a device that only "
-                             "`heliotrack simulate` provides; give the real one")
+    return LinkSettingsError(
+        f'link {link.name!r}: {key} = "hil" names a device that only '
+        "`heliotrack simulate` provides; give the real one"
+    )
 
 
 def modbus_client(link: LinkConfig) -> Any:
@@ -170,10 +184,12 @@ def modbus_client(link: LinkConfig) -> Any:
     if isinstance(link, ModbusTcpLink):
         if link.is_hil:
             raise _simulator_only(link, "host")
-        return AsyncModbusTcpClient(link.host, port=link.tcp_port, timeout=link.timeout_s,
-                                    retries=0, reconnect_delay=0)
-    raise LinkSettingsError(f"link {link.name!r} is {link.kind!r}, not a Modbus link "
-                            "(modbus-rtu or modbus-tcp)")
+        return AsyncModbusTcpClient(
+            link.host, port=link.tcp_port, timeout=link.timeout_s, retries=0, reconnect_delay=0
+        )
+    raise LinkSettingsError(
+        f"link {link.name!r} is {link.kind!r}, not a Modbus link (modbus-rtu or modbus-tcp)"
+    )
 
 
 def endpoint(link: LinkConfig) -> str:

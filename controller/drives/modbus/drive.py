@@ -47,8 +47,14 @@ class ModbusDrive(DriveLink):
         on close; connecting again must take the line's current one, not keep its own).
     """
 
-    def __init__(self, client: Any, device_id: int, retries: int = 2, label: str = "",
-                 reopen: Callable[[], Any] | None = None):
+    def __init__(
+        self,
+        client: Any,
+        device_id: int,
+        retries: int = 2,
+        label: str = "",
+        reopen: Callable[[], Any] | None = None,
+    ):
         self.client = client
         self.reopen = reopen
         self.device_id = device_id
@@ -60,32 +66,39 @@ class ModbusDrive(DriveLink):
         self._beat = 0
         self._closed = False
 
-    async def _call(self, what: str, request: Callable[..., Awaitable[Any]], *args: Any,
-                    **kwargs: Any) -> Any:
+    async def _call(
+        self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
+    ) -> Any:
         """One request to this slave under the link's retry policy."""
         return await self.policy.run(
             lambda: checked(request, *args, device_id=self.device_id, **kwargs),
-            what=what, label=self.label, stats=self.stats)
+            what=what,
+            label=self.label,
+            stats=self.stats,
+        )
 
     async def connect(self) -> None:
-        if self._closed:         # connected again after close (the loop's reconnection)
+        if self._closed:  # connected again after close (the loop's reconnection)
             self._closed = False
             if self.reopen is not None:
                 self.client = self.reopen()
         if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
-        words = (await self._call("identification read", self.client.read_holding_registers,
-                                  0, count=_ID_WORDS)).registers
+        words = (
+            await self._call("identification read", self.client.read_holding_registers, 0, count=_ID_WORDS)
+        ).registers
         if words[0] != MAGIC:
             raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
         if words[1] >> 8 != PROTOCOL_VERSION >> 8:
-            raise DriveCommError(f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x")
+            raise DriveCommError(
+                f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x"
+            )
         if not 1 <= words[2] <= 2:
             raise DriveCommError(f"{self.label}: implausible axis count {words[2]}")
         self.axis_count = words[2]
 
     async def close(self) -> None:
-        if not self._closed:     # once: a shared line's client counts its users
+        if not self._closed:  # once: a shared line's client counts its users
             self._closed = True
             self.client.close()
 
@@ -94,10 +107,16 @@ class ModbusDrive(DriveLink):
         try:
             for k in range(self.axis_count):
                 v = decode_axis(words, k * AXIS_STRIDE)
-                axes.append(AxisState(
-                    actual_deg=float(v["ACTUAL_ANGLE"]), target_deg=float(v["TARGET_ANGLE"]),
-                    velocity_dps=float(v["VELOCITY"]), status=Status(int(v["STATUS"])),
-                    fault=Fault(int(v["FAULT_CODE"])), mode=Mode(int(v["MODE"]))))
+                axes.append(
+                    AxisState(
+                        actual_deg=float(v["ACTUAL_ANGLE"]),
+                        target_deg=float(v["TARGET_ANGLE"]),
+                        velocity_dps=float(v["VELOCITY"]),
+                        status=Status(int(v["STATUS"])),
+                        fault=Fault(int(v["FAULT_CODE"])),
+                        mode=Mode(int(v["MODE"])),
+                    )
+                )
         except (ValueError, KeyError) as exc:  # an unknown mode or fault code on the wire
             raise DriveCommError(f"{self.label}: implausible state from the drive: {exc}") from None
         dev = Status(0)
@@ -106,8 +125,12 @@ class ModbusDrive(DriveLink):
         return DriveState(self.axis_count, tuple(axes), dev)
 
     async def read_state(self) -> DriveState:
-        rr = await self._call("state read", self.client.read_holding_registers,
-                              axis_block_address(0), count=AXIS_STRIDE * self.axis_count)
+        rr = await self._call(
+            "state read",
+            self.client.read_holding_registers,
+            axis_block_address(0),
+            count=AXIS_STRIDE * self.axis_count,
+        )
         return self._decode_state(rr.registers)
 
     def _check(self, angles_deg: Sequence[float]) -> None:
@@ -117,65 +140,88 @@ class ModbusDrive(DriveLink):
     async def write_targets(self, angles_deg: Sequence[float]) -> None:
         self._check(angles_deg)
         for k, angle in enumerate(angles_deg):
-            await self._call("target write", self.client.write_registers, _TARGET.address(k),
-                             encode(_TARGET, angle))
+            await self._call(
+                "target write", self.client.write_registers, _TARGET.address(k), encode(_TARGET, angle)
+            )
 
     async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
         """Axis 1's target by FC16, then axis 0's target and the state read in one FC23."""
         self._check(angles_deg)
         for k in range(1, self.axis_count):
-            await self._call("target write", self.client.write_registers, _TARGET.address(k),
-                             encode(_TARGET, angles_deg[k]))
-        rr = await self._call("target write + state read", self.client.readwrite_registers,
-                              read_address=axis_block_address(0),
-                              read_count=AXIS_STRIDE * self.axis_count,
-                              write_address=_TARGET.address(0),
-                              values=encode(_TARGET, angles_deg[0]))
+            await self._call(
+                "target write",
+                self.client.write_registers,
+                _TARGET.address(k),
+                encode(_TARGET, angles_deg[k]),
+            )
+        rr = await self._call(
+            "target write + state read",
+            self.client.readwrite_registers,
+            read_address=axis_block_address(0),
+            read_count=AXIS_STRIDE * self.axis_count,
+            write_address=_TARGET.address(0),
+            values=encode(_TARGET, angles_deg[0]),
+        )
         return self._decode_state(rr.registers)
 
     async def heartbeat(self) -> None:
         self._beat = (self._beat + 1) & 0xFFFF
-        await self._call("heartbeat", self.client.write_register,
-                         register("HEARTBEAT").address(), self._beat)
+        await self._call("heartbeat", self.client.write_register, register("HEARTBEAT").address(), self._beat)
 
     async def command(self, cmd: Command) -> None:
-        await self._call(f"command {cmd.name}", self.client.write_register,
-                         register("COMMAND").address(), int(cmd))
+        await self._call(
+            f"command {cmd.name}", self.client.write_register, register("COMMAND").address(), int(cmd)
+        )
 
-    async def configure(self, *, heartbeat_timeout_s: float | None = None,
-                        soft_limits: Sequence[tuple[float, float]] | None = None,
-                        stow_angles: Sequence[float] | None = None) -> None:
+    async def configure(
+        self,
+        *,
+        heartbeat_timeout_s: float | None = None,
+        soft_limits: Sequence[tuple[float, float]] | None = None,
+        stow_angles: Sequence[float] | None = None,
+    ) -> None:
         if heartbeat_timeout_s is not None:
             reg = register("HEARTBEAT_TIMEOUT")
-            await self._call("configure", self.client.write_registers, reg.address(),
-                             encode(reg, heartbeat_timeout_s))
+            await self._call(
+                "configure", self.client.write_registers, reg.address(), encode(reg, heartbeat_timeout_s)
+            )
         limits, stows = list(soft_limits or ()), list(stow_angles or ())
         for k in range(max(len(limits), len(stows))):
             new = (limits[k][0], limits[k][1]) if k < len(limits) else None
             stow = stows[k] if k < len(stows) else None
-            current = await self._soft_limits(k) if new is not None and stow is not None \
-                else (0.0, 0.0)
+            current = await self._soft_limits(k) if new is not None and stow is not None else (0.0, 0.0)
             for step in soft_limit_steps(current, new, stow):
                 if isinstance(step, tuple):
-                    await self._call("configure", self.client.write_registers,
-                                     _LIMIT_MIN.address(k),
-                                     encode(_LIMIT_MIN, step[0]) + encode(_LIMIT_MAX, step[1]))
+                    await self._call(
+                        "configure",
+                        self.client.write_registers,
+                        _LIMIT_MIN.address(k),
+                        encode(_LIMIT_MIN, step[0]) + encode(_LIMIT_MAX, step[1]),
+                    )
                 else:
-                    await self._call("configure", self.client.write_registers,
-                                     _STOW.address(k), encode(_STOW, step))
+                    await self._call(
+                        "configure", self.client.write_registers, _STOW.address(k), encode(_STOW, step)
+                    )
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
-        rr = await self._call("soft limit read", self.client.read_holding_registers,
-                              _LIMIT_MIN.address(k), count=_LIMIT_MIN.words + _LIMIT_MAX.words)
+        rr = await self._call(
+            "soft limit read",
+            self.client.read_holding_registers,
+            _LIMIT_MIN.address(k),
+            count=_LIMIT_MIN.words + _LIMIT_MAX.words,
+        )
         words = rr.registers
-        return (float(decode(_LIMIT_MIN, words[:_LIMIT_MIN.words])),
-                float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words:])))
+        return (
+            float(decode(_LIMIT_MIN, words[: _LIMIT_MIN.words])),
+            float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words :])),
+        )
 
     async def read_register(self, name: str, axis: int | None = None) -> float | int:
         reg = register(name)
-        rr = await self._call(f"read {name}", self.client.read_holding_registers,
-                              reg.address(axis), count=reg.words)
+        rr = await self._call(
+            f"read {name}", self.client.read_holding_registers, reg.address(axis), count=reg.words
+        )
         return decode(reg, rr.registers)
 
 
@@ -190,8 +236,13 @@ class ModbusRtuDrive(ModbusDrive):
         :func:`~controller.drives.modbus.client.modbus_client`)."""
         if not isinstance(link, ModbusRtuLink):
             raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
-        return cls(modbus_client(link), device_id, link.retries,
-                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )
 
 
 class ModbusTcpDrive(ModbusDrive):
@@ -204,5 +255,10 @@ class ModbusTcpDrive(ModbusDrive):
         """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
         if not isinstance(link, ModbusTcpLink):
             raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
-        return cls(modbus_client(link), device_id, link.retries,
-                   label=f"{endpoint(link)} id {device_id}", reopen=lambda: modbus_client(link))
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )

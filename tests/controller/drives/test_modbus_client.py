@@ -29,8 +29,7 @@ def test_baudrate_and_stop_bits_reach_the_serial_port(sim_clock):
         assert before[4] != termios.B19200 and not before[2] & termios.CSTOPB
 
         async def scenario():
-            d = open_drive(ModbusRtuLink(name="rs485", port=pty.path, baudrate=19200,
-                                         stopbits=2), 1)
+            d = open_drive(ModbusRtuLink(name="rs485", port=pty.path, baudrate=19200, stopbits=2), 1)
             await d.connect()
             try:
                 # The kernel's view of the line: what the client asked the port for.
@@ -49,9 +48,11 @@ def test_parity_reaches_the_serial_client(sim_clock):
     # emulator's ptyfd:// handler: pyserial itself holds the link's settings.
     fw = DriveFirmware(two_axes(), sim_clock.now)
     with PtyLink.open() as pty, ModbusServerThread({1: fw}, serial_url=pty.url, parity="O"):
+
         async def scenario():
-            d = open_drive(ModbusRtuLink(name="rs485", port=pty.slave_url, baudrate=9600,
-                                         parity="O", stopbits=2), 1)
+            d = open_drive(
+                ModbusRtuLink(name="rs485", port=pty.slave_url, baudrate=9600, parity="O", stopbits=2), 1
+            )
             await d.connect()
             try:
                 port = d.client.client.ctx.transport.sync_serial
@@ -72,7 +73,7 @@ def test_devices_on_one_line_share_one_client_until_the_last_closes():
         assert a.client is b.client is pyr.client
         assert a.client.users == 3
         await a.close()
-        await a.close()                      # closing twice releases once
+        await a.close()  # closing twice releases once
         await pyr.close()
         assert SharedSerialClient._open.get("/dev/ttyFAKE0") is b.client
         await b.close()
@@ -81,8 +82,7 @@ def test_devices_on_one_line_share_one_client_until_the_last_closes():
     run(scenario())
 
 
-@pytest.mark.parametrize("other", [{"baudrate": 9600}, {"parity": "E"}, {"stopbits": 2},
-                                   {"timeout_s": 1.0}])
+@pytest.mark.parametrize("other", [{"baudrate": 9600}, {"parity": "E"}, {"stopbits": 2}, {"timeout_s": 1.0}])
 def test_two_links_on_one_port_with_different_settings_are_refused(other):
     async def scenario():
         first = open_drive(ModbusRtuLink(name="line-a", port="/dev/ttyFAKE1"), 1)
@@ -145,7 +145,7 @@ def test_an_exception_response_is_final_not_retried():
 
 
 def test_a_busy_device_is_retried():
-    dev = _Refusing(code=6, times=1)          # SERVER DEVICE BUSY once, then answers
+    dev = _Refusing(code=6, times=1)  # SERVER DEVICE BUSY once, then answers
 
     async def scenario(port):
         d = open_drive(ModbusTcpLink(name="tcp", host="127.0.0.1", tcp_port=port, retries=1), 1)
@@ -162,9 +162,8 @@ def test_pyranometer_on_modbus_tcp_connects_by_itself(sim_clock):
     sensor = Pyranometer(lambda t: 500.0, sim_clock.now, noise_w_m2=0.0)
 
     async def scenario(port):
-        pyr = ModbusPyranometer.from_config(
-            ModbusTcpLink(name="tcp", host="127.0.0.1", tcp_port=port), 10)
-        sample = await pyr.read(123.0)          # no connect() first: read opens the link
+        pyr = ModbusPyranometer.from_config(ModbusTcpLink(name="tcp", host="127.0.0.1", tcp_port=port), 10)
+        sample = await pyr.read(123.0)  # no connect() first: read opens the link
         assert (sample.time, sample.ghi_w_m2) == (123.0, pytest.approx(500.0, abs=1))
         await pyr.close()
 
@@ -175,15 +174,16 @@ def test_pyranometer_on_modbus_tcp_connects_by_itself(sim_clock):
 def test_a_drive_closed_and_connected_again_rejoins_its_lines_client(sim_clock):
     fws = {i: DriveFirmware(two_axes(), sim_clock.now) for i in (1, 2)}
     with PtyLink.open() as pty, ModbusServerThread(fws, serial_url=pty.url):
+
         async def scenario():
             link = ModbusRtuLink(name="rs485", port=pty.path)
             a, b = open_drive(link, 1), open_drive(link, 2)
             await a.connect()
             await b.connect()
-            await a.close()                  # as the loop does before reconnecting
+            await a.close()  # as the loop does before reconnecting
             await a.connect()
             try:
-                assert a.client is b.client and a.client.users == 2   # one client per line
+                assert a.client is b.client and a.client.users == 2  # one client per line
                 await a.exchange([11.0, 12.0])
                 await b.exchange([21.0, 22.0])
                 assert (fws[1].axes[0].target, fws[2].axes[0].target) == (11.0, 21.0)

@@ -28,8 +28,7 @@ def test_connect_targets_state_and_configuration(pty_drive):
         d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
         await d.connect()
         assert d.axis_count == 2
-        await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)],
-                          stow_angles=[180, 80])
+        await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80])
         assert fw.heartbeat_timeout == pytest.approx(50)
         assert fw.axes[1].p.soft_min == pytest.approx(5) and fw.axes[1].p.stow_angle == pytest.approx(80)
         await d.write_targets([150.0, 30.0])
@@ -111,4 +110,3 @@ def test_modbus_tcp_backend_on_loopback(sim_clock):
 
     with ModbusServerThread({3: fw}, tcp=("127.0.0.1", 0)) as srv:
         run(scenario(srv.tcp_port))
-

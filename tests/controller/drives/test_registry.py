@@ -76,12 +76,14 @@ def plugin(tmp_path, monkeypatch):
     dist = tmp_path / "ht_loopback-1.0.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: ht-loopback\nVersion: 1.0\n")
-    (dist / "entry_points.txt").write_text(textwrap.dedent("""\
+    (dist / "entry_points.txt").write_text(
+        textwrap.dedent("""\
         [heliotrack.drive_links]
         loopback = ht_loopback:LoopbackDrive
         broken = ht_missing_module:Drive
         modbus-rtu = ht_loopback:LoopbackDrive
-        """))
+        """)
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     registry.reload_plugins()
     yield
@@ -91,9 +93,11 @@ def plugin(tmp_path, monkeypatch):
 
 
 def plant(link: dict) -> dict:
-    return {"site": {"latitude": 10, "longitude": 20}, "links": [link],
-            "trackers": [{"name": "row", "type": "single-axis", "link": link["name"],
-                          "device_id": 3}]}
+    return {
+        "site": {"latitude": 10, "longitude": 20},
+        "links": [link],
+        "trackers": [{"name": "row", "type": "single-axis", "link": link["name"], "device_id": 3}],
+    }
 
 
 def test_a_plug_in_backend_is_found_validated_and_built(plugin):
@@ -126,7 +130,7 @@ def test_an_unknown_kind_is_a_config_error_listing_the_known_kinds(plugin):
 
 
 def test_a_broken_plug_in_is_a_clear_error_only_where_it_is_used(plugin):
-    cfg = parse_config(plant({"name": "mem", "kind": "loopback"}))     # other kinds load fine
+    cfg = parse_config(plant({"name": "mem", "kind": "loopback"}))  # other kinds load fine
     assert cfg.links[0].kind == "loopback"
     with pytest.raises(BackendLoadError, match="'broken'.*ht_missing_module:Drive.*ModuleNotFoundError"):
         parse_config(plant({"name": "x", "kind": "broken"}))
@@ -139,21 +143,23 @@ def test_without_the_plug_in_its_kind_is_unknown():
 
 
 def test_importing_the_drives_package_imports_no_backend():
-    code = ("import sys, controller.drives, controller.drives.registry\n"
-            "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('pymodbus', 'canopen', 'can')"
-            " or m.startswith(('controller.drives.modbus', 'controller.drives.canopen')))\n"
-            "print(loaded)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO,
-                         check=True)
+    code = (
+        "import sys, controller.drives, controller.drives.registry\n"
+        "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('pymodbus', 'canopen', 'can')"
+        " or m.startswith(('controller.drives.modbus', 'controller.drives.canopen')))\n"
+        "print(loaded)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
     assert out.stdout.strip() == "[]"
 
 
 def test_a_configuration_imports_only_the_backends_it_uses():
-    code = ("import sys\nfrom controller.config import parse_config\n"
-            "parse_config({'site': {'latitude': 1, 'longitude': 2}, 'links': [{'name': 'l', "
-            "'kind': 'modbus-tcp', 'host': '127.0.0.1'}], 'trackers': [{'name': 'r', 'type': "
-            "'single-axis', 'link': 'l', 'device_id': 1}]})\n"
-            "print('canopen' in sys.modules, 'pymodbus' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO,
-                         check=True)
+    code = (
+        "import sys\nfrom controller.config import parse_config\n"
+        "parse_config({'site': {'latitude': 1, 'longitude': 2}, 'links': [{'name': 'l', "
+        "'kind': 'modbus-tcp', 'host': '127.0.0.1'}], 'trackers': [{'name': 'r', 'type': "
+        "'single-axis', 'link': 'l', 'device_id': 1}]})\n"
+        "print('canopen' in sys.modules, 'pymodbus' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, check=True)
     assert out.stdout.split() == ["False", "True"]

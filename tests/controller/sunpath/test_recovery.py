@@ -43,8 +43,10 @@ def stepped_back(k: int, order: str) -> list[SunObservation]:
     ``sorted``: as ``read_observations`` gives them; ``camera``: in the order taken, so the
     times go back by an hour at ``k``.
     """
-    out = [SunObservation(o.time - 3600.0, o.az_deg, o.el_deg, o.sigma_deg) if i >= k else o
-           for i, o in enumerate(OBS)]
+    out = [
+        SunObservation(o.time - 3600.0, o.az_deg, o.el_deg, o.sigma_deg) if i >= k else o
+        for i, o in enumerate(OBS)
+    ]
     return sorted(out, key=lambda o: o.time) if order == "sorted" else out
 
 
@@ -73,7 +75,7 @@ def test_one_hour_step_back_site_unknown_follows_the_consistent_shift(k, mode):
 @pytest.mark.parametrize("mode", ["free", "ephemeris"])
 def test_one_hour_step_back_site_known_keeps_the_site_and_reports_it(k, mode):
     src = SunPathSource(TRUTH, kalman_config=KalmanConfig(declination=mode))
-    feed(src, stepped_back(k, "sorted")[:175])   # five days: the verdict comes on day 5
+    feed(src, stepped_back(k, "sorted")[:175])  # five days: the verdict comes on day 5
     s = src.summary()
     assert abs(s["site_offset_lat_deg"]) < 0.05 and abs(s["site_offset_lon_deg"]) < 0.05
     assert s["site_mismatch"] is True
@@ -88,7 +90,7 @@ def test_one_hour_step_back_in_camera_order(known):
     src = SunPathSource(TRUTH if known else None, kalman_config=KalmanConfig(declination="free"))
     feed(src, stepped_back(133, "camera")[:175])
     s = src.summary()
-    assert s["older"] == 3   # the hour taken twice, but for the frame at the state's own time
+    assert s["older"] == 3  # the hour taken twice, but for the frame at the state's own time
     assert abs(s["lat_deg"] - TRUTH.latitude) < 1.0
     expected_lon = 0.0 if known else 15.0
     assert abs(wrap180(s["lon_deg"] - TRUTH.longitude) - expected_lon) < 0.5
@@ -124,10 +126,17 @@ def test_an_observation_older_than_the_state_is_rejected_and_counted(learnt):
     assert kf.n_rejected == rej0 + 1 and kf.n_older == 1
 
 
-@pytest.mark.parametrize("az, el, sigma, dt", [
-    (float("nan"), 40.0, 0.3, 600.0), (180.0, float("inf"), 0.3, 600.0),
-    (180.0, 120.0, 0.3, 600.0), (180.0, 40.0, 0.0, 600.0), (180.0, 40.0, -1.0, 600.0),
-    (180.0, 40.0, float("nan"), 600.0)])
+@pytest.mark.parametrize(
+    "az, el, sigma, dt",
+    [
+        (float("nan"), 40.0, 0.3, 600.0),
+        (180.0, float("inf"), 0.3, 600.0),
+        (180.0, 120.0, 0.3, 600.0),
+        (180.0, 40.0, 0.0, 600.0),
+        (180.0, 40.0, -1.0, 600.0),
+        (180.0, 40.0, float("nan"), 600.0),
+    ],
+)
 def test_an_invalid_observation_never_reaches_the_state(learnt, az, el, sigma, dt):
     kf = learnt.copy()
     x0, P0 = kf.x.copy(), kf.P.copy()
@@ -139,8 +148,10 @@ def test_an_invalid_observation_never_reaches_the_state(learnt, az, el, sigma, d
 
 def garbage(t0: float, n: int, seed: int, step_s: float = 900.0) -> list[SunObservation]:
     rng = np.random.default_rng(seed)
-    return [SunObservation(t0 + step_s * (i + 1), float(rng.uniform(0, 360)),
-                           float(rng.uniform(5, 85)), 0.3) for i in range(n)]
+    return [
+        SunObservation(t0 + step_s * (i + 1), float(rng.uniform(0, 360)), float(rng.uniform(5, 85)), 0.3)
+        for i in range(n)
+    ]
 
 
 def test_a_long_run_of_garbage_neither_moves_nor_blows_up_the_state(learnt):
@@ -157,12 +168,25 @@ def test_a_long_run_of_garbage_neither_moves_nor_blows_up_the_state(learnt):
     assert kf.x[LAT] == lat0
 
 
-@settings(max_examples=25, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(seq=st.lists(st.tuples(st.floats(-1800.0, 3600.0), st.floats(-720.0, 720.0),
-                              st.floats(-100.0, 100.0), st.floats(1e-3, 20.0),
-                              st.sampled_from([False] * 9 + [True])),
-                    min_size=20, max_size=60))
+@settings(
+    max_examples=25,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture],
+)
+@given(
+    seq=st.lists(
+        st.tuples(
+            st.floats(-1800.0, 3600.0),
+            st.floats(-720.0, 720.0),
+            st.floats(-100.0, 100.0),
+            st.floats(1e-3, 20.0),
+            st.sampled_from([False] * 9 + [True]),
+        ),
+        min_size=20,
+        max_size=60,
+    )
+)
 def test_random_observations_never_leave_physical_bounds(learnt, seq):
     # Garbage: times that step forwards and backwards, directions anywhere (some not even
     # on the sky), sigmas from 0.001 to 20 deg, a true observation now and then.
@@ -206,8 +230,10 @@ def test_a_sensor_knocked_round_in_azimuth_is_relearnt_with_the_site_kept():
     t = sample_times("2024-04-10", 3, 3.5)
     obs, _, _ = observations(TRUTH, t, az_offset_deg=5.0, seed=7)
     knock = t[0] + 86400 * 1.2
-    obs = [SunObservation(o.time, (o.az_deg + 12.0) % 360 if o.time > knock else o.az_deg,
-                          o.el_deg, o.sigma_deg) for o in obs]
+    obs = [
+        SunObservation(o.time, (o.az_deg + 12.0) % 360 if o.time > knock else o.az_deg, o.el_deg, o.sigma_deg)
+        for o in obs
+    ]
     kf = SunPathKalman(KalmanConfig(), TRUTH)
     for o in obs:
         kf.update(o)
@@ -242,6 +268,6 @@ def test_an_invalid_observation_before_the_filter_starts_is_not_the_sun_either()
     assert src.estimate(t0 + 10.0) is None
     good = SunObservation(t0 + 60.0, 120.0, 40.0, 0.3)
     src.observe(good)
-    src.observe(SunObservation(t0 + 70.0, 120.0, 140.0, 0.3))   # past the zenith
+    src.observe(SunObservation(t0 + 70.0, 120.0, 140.0, 0.3))  # past the zenith
     e = src.estimate(t0 + 80.0)
     assert e is not None and (e.az_deg, e.el_deg) == (120.0, 40.0)

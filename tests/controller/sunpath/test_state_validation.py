@@ -52,21 +52,21 @@ def _set(doc, key, value):
 
 Y2100 = pd.Timestamp("2100-01-01T12:00:00Z").timestamp()
 BAD = [
-    ("x.0", 95.0, "lat_deg"),                      # latitude past the pole
+    ("x.0", 95.0, "lat_deg"),  # latitude past the pole
     ("x.0", -117.0, "lat_deg"),
-    ("x.5", -24.0, "refraction_scale"),            # a negative atmosphere
-    ("P.0,0", 1e12, "P[lat_deg]"),                 # absurd variance
-    ("P.0,1", 0.5, "P"),                           # not symmetric
-    ("P.2,2", -1.0, "P["),                         # negative variance
-    ("t", Y2100, "'filter.t'"),                    # in the future
-    ("t", 100.0, "'filter.t'"),                    # before 2000
+    ("x.5", -24.0, "refraction_scale"),  # a negative atmosphere
+    ("P.0,0", 1e12, "P[lat_deg]"),  # absurd variance
+    ("P.0,1", 0.5, "P"),  # not symmetric
+    ("P.2,2", -1.0, "P["),  # negative variance
+    ("t", Y2100, "'filter.t'"),  # in the future
+    ("t", 100.0, "'filter.t'"),  # before 2000
     ("n_accepted", -3, "n_accepted"),
     ("n_rejected", -1, "n_rejected"),
     ("mode", "magic", "mode"),
-    ("buffer.1", float("nan"), "buffer"),          # NaN azimuth (json writes NaN)
-    ("buffer.2", 120.0, "buffer"),                 # elevation past the zenith
-    ("buffer.3", -0.3, "buffer"),                  # negative sigma
-    ("buffer.0", Y2100, "buffer"),                 # an observation from 2100
+    ("buffer.1", float("nan"), "buffer"),  # NaN azimuth (json writes NaN)
+    ("buffer.2", 120.0, "buffer"),  # elevation past the zenith
+    ("buffer.3", -0.3, "buffer"),  # negative sigma
+    ("buffer.0", Y2100, "buffer"),  # an observation from 2100
 ]
 
 
@@ -87,9 +87,9 @@ def test_the_good_state_loads_and_the_future_is_judged_against_the_callers_now(t
     kf = load_state(path)
     assert kf is not None and kf.initialised
     t = kf.t
-    assert load_state(path, now=t - 3600.0) is not None          # within a day's slack
+    assert load_state(path, now=t - 3600.0) is not None  # within a day's slack
     with pytest.raises(StateError, match="filter.t"):
-        load_state(path, now=t - 3 * 86400.0)                  # saved "three days from now"
+        load_state(path, now=t - 3 * 86400.0)  # saved "three days from now"
     # a latitude of 95 is not rescued by the longitude normalisation either
     bad = _set(_set(good_doc, "x.0", 95.0), "x.1", 228.3364)
     path.write_text(json.dumps(bad))
@@ -105,14 +105,15 @@ def _bad_file(tmp_path, good_doc):
 
 
 def test_source_with_an_invalid_state_starts_from_the_ephemeris_and_keeps_the_file(
-        tmp_path, good_doc, caplog):
+    tmp_path, good_doc, caplog
+):
     path, text = _bad_file(tmp_path, good_doc)
     with caplog.at_level(logging.WARNING):
         src = SunPathSource(site=ANDIMESHK, state_path=path, now=NOW)
     warnings = [r for r in caplog.records if r.levelno >= logging.WARNING]
     assert len(warnings) == 1 and "\n" not in warnings[0].getMessage()
     assert str(path) in warnings[0].getMessage() and "lat_deg" in warnings[0].getMessage()
-    assert not src.kf.initialised                                  # nothing of the bad state
+    assert not src.kf.initialised  # nothing of the bad state
     e = src.estimate(NOW)
     assert e is not None and e.source is EstimateSource.EPHEMERIS
     # the bad file is kept aside, byte for byte, and a fresh state takes its place
@@ -179,7 +180,7 @@ def test_a_state_learned_at_another_site_is_set_aside(tmp_path, good_doc, caplog
 
 def test_a_state_path_that_cannot_be_read_is_left_alone_and_save_does_not_crash(tmp_path, caplog):
     path = tmp_path / "sunpath.json"
-    path.mkdir()                                  # something in the way, not a state file
+    path.mkdir()  # something in the way, not a state file
     (path / "keep.txt").write_text("mine")
     with caplog.at_level(logging.WARNING):
         src = SunPathSource(site=ANDIMESHK, state_path=path, now=NOW)
@@ -195,7 +196,7 @@ def test_a_missing_state_file_is_one_line_and_a_safe_start(tmp_path, caplog):
         src = SunPathSource(site=ANDIMESHK, state_path=path, now=NOW)
     msgs = [r.getMessage() for r in caplog.records]
     assert len(msgs) == 1 and str(path) in msgs[0] and "\n" not in msgs[0]
-    assert caplog.records[0].levelno == logging.INFO       # a first start is not a fault
+    assert caplog.records[0].levelno == logging.INFO  # a first start is not a fault
     assert src.estimate(NOW).source is EstimateSource.EPHEMERIS
     src.save()
     assert load_state(path) is not None

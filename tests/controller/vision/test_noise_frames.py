@@ -22,7 +22,7 @@ def test_noise_is_not_a_glint(est, kind):
         img = rng.integers(0, 256, (h, w), dtype=np.uint8)
     elif kind == "bright":
         img = np.clip(rng.normal(200, 30, (h, w)), 0, 255).astype(np.uint8)
-    else:                                   # dark frame sprinkled with hot pixels
+    else:  # dark frame sprinkled with hot pixels
         img = np.clip(rng.normal(20, 4, (h, w)), 0, 255).astype(np.uint8)
         idx = rng.integers(0, h * w, 400)
         img.flat[idx] = 255
