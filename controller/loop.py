@@ -15,7 +15,7 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Any
 
 from firmware_protocol import Command, Mode, Status
 
@@ -30,19 +30,14 @@ from .records import CycleRecord, TrackerRuntime
 from .safety import SafetyState, StowOrder, clamp_targets
 from .sun.source import SunSource
 from .sun.types import SunEstimate
-from .weather import WindSample, WindState
+from .wind_polling import WindPolling, WindSensor
 
 log = logging.getLogger("heliotrack.controller")
 
 __all__ = ["Controller", "CycleRecord", "TrackerRuntime"]
 
 
-class WindSensor(Protocol):
-    async def read(self, t: float) -> WindSample: ...
-    async def close(self) -> None: ...
-
-
-class Controller:
+class Controller(WindPolling):
     """Drives every configured tracker from one sun source.
 
     A failing drive is recorded and skipped for that cycle; it never stops the others.
@@ -133,6 +128,7 @@ class Controller:
             )
         # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
         self._note_watchdog_stow(tr, await tr.drive.read_state())
+        tr.uptime_s = None
         await tr.drive.configure(
             heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
             soft_limits=tr.cfg.soft_limits,
@@ -154,6 +150,29 @@ class Controller:
         if force or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
             await tr.drive.heartbeat()
             tr.last_heartbeat = t
+            await self._check_reboot(tr)
+
+    async def _check_reboot(self, tr: TrackerRuntime) -> None:
+        """A drive whose uptime went back has rebooted: it forgot its configuration (limits,
+        stow angle, watchdog), so it is configured again before the next exchange."""
+        ident = await tr.drive.identify()
+        if ident is None:
+            return
+        now = self.clock.monotonic()
+        # the uptime it should show by now, had it not restarted since the last reading
+        expected = None if tr.uptime_s is None else tr.uptime_s + (now - tr.uptime_at)
+        before = tr.uptime_s
+        tr.uptime_s, tr.uptime_at = ident.uptime_s, now
+        if expected is not None and before is not None and ident.uptime_s + 5.0 < expected:
+            log.warning(
+                "%s: drive rebooted (uptime %.0f s, was %.0f s): configuring it again",
+                tr.cfg.name,
+                ident.uptime_s,
+                before,
+            )
+            self._event("drive_reboot", tracker=tr.cfg.name)
+            tr.uptime_s = None
+            await self._configure(tr)
 
     # -- one cycle ----------------------------------------------------------------
     async def cycle(self) -> list[CycleRecord]:
@@ -271,62 +290,6 @@ class Controller:
             self.sensor_errors += 1
             log.warning("pyranometer: %s", exc or "no answer")
         return self.diffuse.update(t)
-
-    # -- weather between cycles ------------------------------------------------------------
-    @property
-    def next_weather_poll(self) -> float:
-        """When the anemometer is read next (the clock's monotonic time; inf without one)."""
-        return self._next_wind_poll if self.anemometer is not None else math.inf
-
-    def weather_due(self) -> bool:
-        """True when the anemometer should be read now (every ``[wind] poll_s``)."""
-        return self.anemometer is not None and self.clock.monotonic() >= self._next_wind_poll
-
-    async def _poll_weather_if_due(self) -> None:
-        if self.weather_due():
-            await self.poll_weather()
-
-    async def poll_weather(self) -> WindState:
-        """Read the anemometer, update the wind stow, and stow (or resume) every drive at
-        once when it changes.  Returns the wind state."""
-        wind = self.config.wind
-        if self.anemometer is None or wind is None:
-            return self.safety.wind
-        self._next_wind_poll = self.clock.monotonic() + wind.poll_s
-        t = self.clock.now()
-        try:
-            sample: WindSample | None = await asyncio.wait_for(self.anemometer.read(t), max(wind.poll_s, 1.0))
-        except (TimeoutError, DriveCommError) as exc:
-            self.sensor_errors += 1
-            log.warning("anemometer: %s", exc or "no answer")
-            sample = None
-        before = self.safety.wind
-        state = self.safety.update_wind(t, sample)
-        if state.alarm and not before.alarm:
-            log.warning("WIND ALARM: %s", state.reason)
-            self._event("wind_alarm", reason=state.reason, stow=state.stow)
-        if state.stow and not before.stow:
-            await self._stow_all(state.reason)
-        elif before.stow and not state.stow:
-            log.warning("wind stow over: resuming")
-            self._event("wind_clear")
-        return state
-
-    async def _stow_all(self, reason: str) -> None:
-        """Command STOW to every drive at once and read each back."""
-        self._event("stow_commanded", reason=reason)
-
-        async def one(tr: TrackerRuntime) -> None:
-            try:
-                await tr.drive.command(Command.STOW)
-                tr.health.stowed_by_us = True
-                st = await tr.drive.read_state()
-                if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes):
-                    self._event("stow_confirmed", tracker=tr.cfg.name)
-            except DriveCommError as exc:
-                log.warning("%s: wind stow command failed: %s", tr.cfg.name, exc)
-
-        await asyncio.wait([asyncio.ensure_future(one(tr)) for tr in self.trackers], timeout=self._deadline())
 
     def _event(self, kind: str, **detail: Any) -> None:
         self.events.append({"time": self.clock.now(), "kind": kind, **detail})

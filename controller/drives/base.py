@@ -52,6 +52,20 @@ class DriveState:
         return any(a.status & Status.FAULT for a in self.axes)
 
 
+@dataclass(frozen=True)
+class DriveIdentity:
+    """What a drive says of itself (global registers / their CANopen mirrors)."""
+
+    axis_count: int
+    protocol_version: int  # major * 256 + minor
+    firmware_version: int  # major * 256 + minor
+    uptime_s: float
+
+    @staticmethod
+    def version_text(v: int) -> str:
+        return f"{v >> 8}.{v & 0xFF}"
+
+
 @dataclass
 class LinkStats:
     """Counts of one drive link: attempts made, attempts failed, retries, and the latency
@@ -108,6 +122,11 @@ class DriveLink(abc.ABC):
 
     @abc.abstractmethod
     async def command(self, cmd: Command) -> None: ...
+
+    async def identify(self) -> DriveIdentity | None:
+        """Who the drive is and how long it has been up (a reboot resets ``uptime_s``);
+        None from a backend that cannot tell (no reboot detection, ``check`` says so)."""
+        return None
 
     @abc.abstractmethod
     async def configure(

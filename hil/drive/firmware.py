@@ -183,9 +183,8 @@ class DriveFirmware:
     def value(self, reg: Register, k: int | None) -> float | int:
         """Current engineering value of a register."""
         n = reg.name
-        if k is not None and k >= len(self.axes):
-            return 0
-        ax = self.axes[k] if k is not None else None
+        if k is not None:
+            return self._axis_value(n, k) if k < len(self.axes) else 0
         match n:
             case "MAGIC":
                 return MAGIC
@@ -208,6 +207,11 @@ class DriveFirmware:
                 return self.heartbeat_timeout
             case "UPTIME":
                 return int(max(self._t - self._t0, 0))
+        raise AssertionError(f"register {n} has no value")  # pragma: no cover
+
+    def _axis_value(self, n: str, k: int) -> float | int:
+        ax = self.axes[k]
+        match n:
             case "TARGET_ANGLE":
                 return ax.target
             case "ACTUAL_ANGLE":
@@ -288,7 +292,7 @@ class DriveFirmware:
             raise FirmwareReject(3, f"COMMAND {value} is not a command")
         if reg.name == "MAX_SPEED" and not 0 < value <= 10:
             raise FirmwareReject(3, "MAX_SPEED must be in (0, 10] deg/s")
-        if reg.name in ("SOFT_LIMIT_MIN", "SOFT_LIMIT_MAX"):
+        if reg.name in ("SOFT_LIMIT_MIN", "SOFT_LIMIT_MAX") and k is not None:
             ax = self.axes[k]
             if not ax.p.hard_min <= value <= ax.p.hard_max:
                 raise FirmwareReject(3, f"{reg.name} outside the hard limits")
@@ -330,7 +334,9 @@ class DriveFirmware:
             raise FirmwareReject(3, "the watchdog can be switched off only in MAINTENANCE")
 
     def _apply(self, reg: Register, k: int | None, value) -> None:
-        ax = self.axes[k] if k is not None else None
+        if k is not None:
+            self._apply_axis(reg.name, k, value)
+            return
         match reg.name:
             case "COMMAND":
                 self._command(Command(value))
@@ -342,6 +348,10 @@ class DriveFirmware:
             case "HEARTBEAT_TIMEOUT":
                 self.heartbeat_timeout = value
                 self._last_heartbeat_change = self._t
+
+    def _apply_axis(self, name: str, k: int, value) -> None:
+        ax = self.axes[k]
+        match name:
             case "TARGET_ANGLE":
                 if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                     clamped = min(max(value, ax.p.soft_min), ax.p.soft_max)

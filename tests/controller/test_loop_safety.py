@@ -159,3 +159,23 @@ def test_the_schedule_ignores_wall_clock_steps(default_plant):
     clock.step_wall(-7200.0)  # ... and back
     res = run(ctl.run(1.2))
     assert res["cycles"] >= 4
+
+
+def test_a_drive_that_reboots_is_configured_again(default_plant):
+    from hil.drive import DriveFirmware
+
+    run, ctl, fws, clock, cfg = default_plant
+    fw = fws["row-1"]
+    run(ctl.cycle())
+    clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+    run(ctl.cycle())
+    # power cycle: the same firmware object comes back with its power-up state
+    fresh = DriveFirmware([ax.p for ax in fw.axes], clock.now, heartbeat_timeout=10.0)
+    fw.__dict__.update(fresh.__dict__)
+    fw.axes[0].p.soft_max = 90.0  # power-up default, not the configured 55
+    for _ in range(2):
+        clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+        recs = run(ctl.cycle())
+    assert any(e["kind"] == "drive_reboot" and e["tracker"] == "row-1" for e in ctl.events)
+    assert fw.heartbeat_timeout == cfg.control.heartbeat_timeout_s
+    assert fw.axes[0].p.soft_max == 55.0 and not recs[1].error

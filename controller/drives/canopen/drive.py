@@ -49,6 +49,7 @@ from firmware_protocol.codec import to_raw
 
 from ..base import (
     DriveCommError,
+    DriveIdentity,
     DriveLink,
     DriveState,
     LinkSettingsError,
@@ -446,6 +447,22 @@ class CanopenDrive(DriveLink):
             raise DriveCommError(f"{self.label}: heartbeat not sent: {exc}") from None
         if sent:
             self.stats.transactions += 1
+
+    async def identify(self) -> DriveIdentity:
+        if not self.axes:
+            raise DriveCommError(f"{self.label}: not connected")
+        node = self.axes[0].node
+
+        def read(name: str) -> float:
+            reg = register(name)
+            raw = node.sdo[mirror_index(reg)].raw
+            return float(raw * reg.scale)
+
+        values = [
+            await self.sdo("identification read", partial(read, n))
+            for n in ("AXIS_COUNT", "PROTOCOL_VERSION", "FIRMWARE_VERSION", "UPTIME")
+        ]
+        return DriveIdentity(int(values[0]), int(values[1]), int(values[2]), values[3])
 
     async def command(self, cmd: Command) -> None:
         if not self.axes:

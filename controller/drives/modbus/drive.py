@@ -19,7 +19,15 @@ from firmware_protocol import (
 )
 from firmware_protocol.codec import axis_block_address, decode_axis
 
-from ..base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, soft_limit_steps
+from ..base import (
+    AxisState,
+    DriveCommError,
+    DriveIdentity,
+    DriveLink,
+    DriveState,
+    LinkStats,
+    soft_limit_steps,
+)
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .client import checked, endpoint, modbus_client, retry_policy
 
@@ -215,6 +223,23 @@ class ModbusDrive(DriveLink):
         return (
             float(decode(_LIMIT_MIN, words[: _LIMIT_MIN.words])),
             float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words :])),
+        )
+
+    async def identify(self) -> DriveIdentity:
+        first, last = register("MAGIC"), register("UPTIME")
+        n = last.address() + last.words - first.address()
+        rr = await self._call(
+            "identification read", self.client.read_holding_registers, first.address(), count=n
+        )
+        w = rr.registers
+
+        def val(name: str) -> float:
+            reg = register(name)
+            a = reg.address() - first.address()
+            return float(decode(reg, w[a : a + reg.words]))
+
+        return DriveIdentity(
+            int(val("AXIS_COUNT")), int(val("PROTOCOL_VERSION")), int(val("FIRMWARE_VERSION")), val("UPTIME")
         )
 
     async def read_register(self, name: str, axis: int | None = None) -> float | int:
