@@ -19,7 +19,10 @@ from .errors import USER_ERRORS, format_user_error
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "simulate",
+    "replay",
+    "report",
     "hil",
+    "hil_record",
     "protocol",
     "bench",
     "sunpath",

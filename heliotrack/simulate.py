@@ -1,4 +1,4 @@
-"""The HIL scenario runner behind ``heliotrack simulate``: the orchestrator.
+"""The HIL scenario runner behind ``heliotrack simulate`` (and ``replay``): the orchestrator.
 
 It builds the world (:mod:`heliotrack.world`: one emulated drive firmware per tracker on
 every configured link: Modbus RTU on a pty, Modbus TCP on 127.0.0.1, CANopen on a virtual
@@ -6,8 +6,12 @@ CAN bus), the controller (:mod:`heliotrack.devices`: its drive links and pyranom
 through the registry, on the other end of the wire) and a shared simulated clock; then it
 steps the clock one control period at a time.  The controller and the world meet only on
 the wire.  Between cycles the world samples its own truth (the physical axis angles from
-the emulated drives, the sun from pvlib SPA), scored by :mod:`heliotrack.scoring`;
-:mod:`heliotrack.output` writes the results.
+the emulated drives, the sun from pvlib SPA or a recording), scored by
+:mod:`heliotrack.scoring`; :mod:`heliotrack.output` writes the results.
+
+Memory does not grow with the run: the truth is computed one day at a time, the figures
+are running sums, and the rows go to ``cycles.csv`` as the run goes.  An interrupted run
+(Ctrl-C) stops at the cycle it was in and returns (and writes) a partial summary.
 """
 
 from __future__ import annotations
@@ -16,38 +20,110 @@ import asyncio
 import math
 import time
 from contextlib import ExitStack
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from datetime import UTC, date, datetime, timedelta
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
+from controller.errors import ConfigError
 from controller.loop import Controller, CycleRecord
-from controller.sun.camera import CallableFrameSource, CameraSunSensor
+from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
-from hil import truth
 from hil.drive import DriveFirmware
-from hil.sky import sky_series
 
 from .devices import open_anemometer, open_drives, open_pyranometer
-from .output import log_row, summary_table, write_outputs
-from .scenario import as_scenario
-from .scoring import DEFINITIONS, TruthGrid, TruthTally, energy, panel, stats
+from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
+from .renderers import frames_setting, world_renderer
+from .scenario import ScenarioConfig, as_scenario
+from .scoring import (
+    DEFINITIONS,
+    ErrorStats,
+    TruthGrid,
+    TruthSource,
+    TruthTally,
+    WorldTruth,
+    panel,
+    truth_grid,
+)
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
 from .world import build_world
 
-__all__ = ["ScenarioRun", "day_start", "run_simulation", "summary_table", "write_outputs"]
+__all__ = [
+    "MAX_DAYS",
+    "ScenarioRun",
+    "Span",
+    "cycles_per_day",
+    "day_samples",
+    "day_start",
+    "run_simulation",
+    "simulation_span",
+    "summary_table",
+    "world_truth",
+]
+
+#: The longest run ``simulate`` accepts (days): about ten years.
+MAX_DAYS = 3660
 
 
 def day_start(d: date, longitude: float) -> float:
     """POSIX time of local mean midnight starting day ``d`` at this longitude."""
     midnight_utc = datetime(d.year, d.month, d.day, tzinfo=UTC)
     return (midnight_utc - timedelta(hours=longitude / 15.0)).timestamp()
+
+
+@dataclass(frozen=True)
+class Span:
+    """What a run covers: its first cycle (POSIX s), its number of cycles and how its start
+    is shown (a date, or an ISO time)."""
+
+    t0: float
+    n_cycles: int
+    label: str
+
+
+def simulation_span(
+    config: Config, days: int = 1, start: date | datetime | None = None, hours: float | None = None
+) -> Span:
+    """``days`` whole days from local mean midnight of ``start`` (a date), or from an aware
+    datetime; ``hours`` instead of days when given."""
+    scenario = as_scenario(config)
+    if not 1 <= days <= MAX_DAYS:
+        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", days)
+    first = start or scenario.hil.start
+    t0 = first.timestamp() if isinstance(first, datetime) else day_start(first, scenario.site.longitude)
+    seconds = days * 86400 if hours is None else hours * 3600
+    n = max(1, round(seconds / scenario.control.period_s))
+    return Span(t0, n, first.isoformat())
+
+
+def cycles_per_day(period_s: float) -> int:
+    """Cycles in one stretch of truth (a day, to the nearest whole cycle)."""
+    return max(1, round(86400 / period_s))
+
+
+def day_samples(span: Span, period_s: float, substeps: int, day: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cycle times of day ``day`` of a run, and its truth sample times (``substeps``
+    per cycle, at the middles of equal parts of the period)."""
+    per_day = cycles_per_day(period_s)
+    i0 = day * per_day
+    i1 = min(span.n_cycles, i0 + per_day)
+    cycles = span.t0 + np.arange(i0, i1) * period_s
+    offsets = (np.arange(substeps) + 0.5) / substeps * period_s
+    return cycles, (cycles[:, None] + offsets[None, :]).ravel()
+
+
+def world_truth(config: Config) -> WorldTruth:
+    """The emulated world's truth of a scenario."""
+    scenario = as_scenario(config)
+    hil = scenario.hil
+    return WorldTruth(scenario.site, hil.skies, hil.linke_turbidity, hil.seed)
 
 
 def run_simulation(
@@ -61,74 +137,63 @@ def run_simulation(
     """Run the HIL scenario; return the summary (and write it under ``out_dir``).
 
     ``start``: a date (the run begins at local mean midnight) or an aware datetime.
-    ``hours``: run this long instead of ``days`` whole days.
+    ``hours``: run this long instead of ``days`` whole days.  An interrupted run returns
+    its partial summary with ``"interrupted": true``.
     """
-    run = ScenarioRun(config, days, start, progress, hours)
-    summary = asyncio.run(run.run())
-    if out_dir is not None:
-        write_outputs(Path(out_dir), summary, run.log_rows)
-    return summary
+    run = ScenarioRun(config, simulation_span(config, days, start, hours), progress=progress)
+    return run.execute(out_dir)
 
 
 class ScenarioRun:
-    """One simulated run: the world, the controller, the clock and the truth tallies."""
+    """One run: the world, the controller, the clock and the truth tallies.
+
+    ``frames`` replaces the world's rendered camera (a replayed folder or video);
+    ``truth`` replaces the emulated world's truth (a recording's); ``speed`` paces the
+    simulated clock at that many times the wall clock (None: as fast as it goes);
+    ``extra`` is merged into the summary.
+    """
 
     def __init__(
         self,
         config: Config,
-        days: int,
-        start: date | datetime | None,
-        progress: bool,
-        hours: float | None = None,
+        span: Span,
+        *,
+        progress: bool = True,
+        frames: FrameSource | None = None,
+        truth: TruthSource | None = None,
+        command: str = "simulate",
+        speed: float | None = None,
+        extra: dict[str, Any] | None = None,
     ):
-        self.config = config = as_scenario(config)
-        self.hil = config.hil
-        self.days = days if hours is None else max(1, math.ceil(hours / 24))
-        self.start = start or self.hil.start
+        self.config: ScenarioConfig = as_scenario(config)
+        self.hil = self.config.hil
+        self.span = span
+        self.t0, self.n_cycles = span.t0, span.n_cycles
+        self.period = self.config.control.period_s
+        self.days = max(1, math.ceil(self.n_cycles * self.period / 86400 - 1e-9))
         self.progress = progress
-        self.period = config.control.period_s
-        if isinstance(self.start, datetime):
-            self.t0 = self.start.timestamp()
-        else:
-            self.t0 = day_start(self.start, config.site.longitude)
-        seconds = days * 86400 if hours is None else hours * 3600
-        self.n_cycles = max(1, round(seconds / self.period))
+        self.command = command
+        self.speed = speed
+        self.extra = extra or {}
         self.sub = self.hil.substeps
-        # Truth at every sub-sample of every cycle, in one vectorised call each.
-        offsets = (np.arange(self.sub) + 0.5) / self.sub * self.period
-        self.t_samples = (
-            self.t0 + np.arange(self.n_cycles)[:, None] * self.period + offsets[None, :]
-        ).ravel()
-        site = config.site
-        sun = truth.sun_truth(
-            self.t_samples,
-            site.latitude,
-            site.longitude,
-            site.altitude,
-            site.temperature_c,
-            self.hil.linke_turbidity,
-        )
-        skies = self.hil.skies
-        kinds = {d: skies[d % len(skies)] for d in range(days + 1)}
-        sky = sky_series(
-            self.t_samples,
-            site.latitude,
-            site.longitude,
-            site.altitude,
-            kinds,
-            self.hil.linke_turbidity,
-            seed=self.hil.seed,
-        )
-        self.grid = TruthGrid(self.t_samples, sun, sun.vectors, sky)
+        self.cycles_per_day = cycles_per_day(self.period)
+        self.truth: TruthSource = truth if truth is not None else world_truth(self.config)
+        self.grid: TruthGrid | None = None
+        self.cycle_sun = np.zeros((0, 2))
+        self.day = -1
         self.clock = SimClock(self.t0)
-        self.tally = {tr.name: TruthTally() for tr in config.trackers}
-        self.row_errors = {tr.name: 0 for tr in config.trackers}
+        self.tally = {tr.name: TruthTally() for tr in self.config.trackers}
+        self.row_errors = {tr.name: 0 for tr in self.config.trackers}
         self.modes: dict[str, int] = {}
         self.sources: dict[str, int] = {}
-        self.log_rows: list[dict] = []
+        self.sun_path_days: list[dict] = []
+        self.cycles_done = 0
+        self.interrupted = False
+        self.writer: CyclesWriter | None = None
+        self._frames = frames
         self._sun: SunSource | None = None
         self._sensor: CameraSunSensor | None = None
-        wind = config.wind
+        wind = self.config.wind
         self.wind = self.hil.wind.script(self.t0) if wind is not None else None
         self.weather = (
             WeatherTruth(self.wind, wind.gust_stow_m_s)
@@ -136,32 +201,76 @@ class ScenarioRun:
             else None
         )
 
-    def _camera_frames(self) -> CallableFrameSource | None:
-        """The world's camera, when the controller looks at the sky through one."""
-        hs = self.config.hotspot
-        if self.config.control.sun_source != "hotspot" or hs is None or hs.frames != "hil":
-            return None
-        from hil.camera import Site as CameraSite
-        from hil.camera import profile, render_frame
+    # -- the truth, one day at a time --------------------------------------------------
+    def _enter_day(self, day: int) -> None:
+        """Compute the truth of the run's day ``day`` (its cycles' sample times)."""
+        cycles, samples = day_samples(self.span, self.period, self.sub, day)
+        self.grid = truth_grid(self.truth, samples, day)
+        sun = self.truth.sun(cycles)
+        self.cycle_sun = np.column_stack([sun.azimuth, sun.elevation])
+        self.day = day
 
-        site = self.config.site
-        cam = self.hil.camera
-        scn = profile(cam.profile, noise=cam.noise, tilt_deg=cam.tilt_deg).with_(
-            site=CameraSite(site.latitude, site.longitude, site.altitude)
-        )
+    def _leave_day(self) -> None:
+        """Fold the day's panel normals into the energy sums; note what the filter learned."""
+        if self.grid is None:
+            return
+        for tr in self.config.trackers:
+            self.tally[tr.name].flush(tr, self.grid, self.period / self.sub / 3600.0)
+        learned = self._sun.summary() if self._sensor is not None and self._sun is not None else {}
+        if "lat_deg" in learned:
+            site = self.config.site
+            lon_err = float(wrap180(learned["lon_deg"] - site.longitude))
+            mid = self.t0 + (self.day + 0.5) * self.cycles_per_day * self.period
+            self.sun_path_days.append(
+                {
+                    "day": datetime.fromtimestamp(mid, UTC).date().isoformat(),
+                    "lat_error_deg": round(learned["lat_deg"] - site.latitude, 5),
+                    "lon_error_deg": round(lon_err, 5),
+                    # solar noon moves 4 min per degree of longitude, earlier eastwards
+                    "noon_error_s": round(-240.0 * lon_err, 2),
+                    "accepted": learned.get("accepted", 0),
+                }
+            )
+        self.grid = None
 
-        def render(t: float) -> np.ndarray:
-            tau = float(np.interp(t, self.t_samples, self.grid.sky.beam_transmittance))
-            return render_frame(scn, t, transmittance=tau).image
-
-        return CallableFrameSource(render)
+    def transmittance_at(self, t: float) -> float:
+        """The clouds' beam transmittance over the sun at ``t`` (what the camera sees)."""
+        assert self.grid is not None
+        return float(np.interp(t, self.grid.t, self.grid.sky.beam_transmittance))
 
     def ghi_at(self, t: float) -> float:
         """The sky's true GHI at ``t`` (what the emulated pyranometer sees), W/m2."""
-        return float(np.interp(t, self.t_samples, self.grid.sky.ghi))
+        assert self.grid is not None
+        return float(np.interp(t, self.grid.t, self.grid.sky.ghi))
+
+    def _camera_frames(self) -> FrameSource | None:
+        """The controller's camera: the replayed frames, or the world's renderer."""
+        if self._frames is not None:
+            return self._frames
+        if frames_setting(self.config) != "hil":
+            return None
+        render = world_renderer(self.config, self.transmittance_at)
+        return CallableFrameSource(render) if render is not None else None
+
+    # -- running -----------------------------------------------------------------------
+    def execute(self, out_dir: Path | None = None) -> dict:
+        """Run and return the summary; with ``out_dir``, write ``cycles.csv`` as the run
+        goes and ``summary.json`` at the end (also when interrupted)."""
+        if out_dir is not None:
+            out = check_out_dir(Path(out_dir))
+            self.writer = CyclesWriter(out / "cycles.csv", self.config.trackers)
+        try:
+            summary = asyncio.run(self.run())
+        finally:
+            if self.writer is not None:
+                self.writer.close()
+        if out_dir is not None:
+            write_summary(Path(out_dir), summary)
+        return summary
 
     async def run(self) -> dict:
         wall0 = time.perf_counter()
+        self._enter_day(0)
         with ExitStack() as stack:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
@@ -175,22 +284,38 @@ class ScenarioRun:
                 pyranometer=open_pyranometer(self.config, world.links),
                 anemometer=open_anemometer(self.config, world.links),
             )
+            bar = tqdm(
+                total=self.n_cycles, desc=self.command, unit="cycle", disable=not self.progress, leave=False
+            )
             try:
                 await controller.start()
-                bar = tqdm(
-                    total=self.n_cycles, desc="simulate", unit="cycle", disable=not self.progress, leave=False
-                )
                 for i in range(self.n_cycles):
+                    day, j = divmod(i, self.cycles_per_day)
+                    if day != self.day:
+                        self._leave_day()
+                        self._enter_day(day)
                     self.clock.advance_to(self.t0 + i * self.period)
                     records = await controller.cycle()
                     tracking = {r.tracker for r in records if r.mode == "TRACK" and not r.error}
-                    errors = await self._sample_truth(i, world.firmwares, tracking, controller)
-                    self._log(records, errors)
+                    errors = await self._sample_truth(j, world.firmwares, tracking, controller)
+                    self._log(records, errors, j, controller)
+                    self.cycles_done = i + 1
                     bar.update(1)
-                bar.close()
+                    await self._pace(i, wall0)
+            except asyncio.CancelledError:  # Ctrl-C: stop here, keep what was done
+                self.interrupted = True
             finally:
+                bar.close()
+                self._leave_day()
                 await controller.close()
         return self._summary(controller, time.perf_counter() - wall0)
+
+    async def _pace(self, i: int, wall0: float) -> None:
+        """With ``speed``: hold the simulated clock to ``speed`` times the wall clock."""
+        if self.speed:
+            ahead = (i + 1) * self.period / self.speed - (time.perf_counter() - wall0)
+            if ahead > 0:
+                await asyncio.sleep(ahead)
 
     async def _weather_until(
         self, t: float, controller: Controller, firmwares: dict[str, DriveFirmware]
@@ -206,48 +331,63 @@ class ScenarioRun:
             self.weather.sample(self.clock.monotonic(), firmwares)
 
     async def _sample_truth(
-        self, i: int, firmwares: dict[str, DriveFirmware], tracking: set[str], controller: Controller
+        self, j: int, firmwares: dict[str, DriveFirmware], tracking: set[str], controller: Controller
     ) -> dict[str, list[float]]:
-        """Advance through the cycle's sub-samples, recording every panel's orientation.
+        """Advance through the cycle's sub-samples (cycle ``j`` of the day), recording every
+        panel's orientation.
 
         Pointing error counts only for trackers that were commanded to follow the sun in
         this cycle (not DIFFUSE, STOW or a failed exchange).
         """
+        grid = self.grid
+        assert grid is not None
         errs: dict[str, list[float]] = {tr.name: [] for tr in self.config.trackers}
-        for k in range(i * self.sub, (i + 1) * self.sub):
-            await self._weather_until(self.t_samples[k], controller, firmwares)
-            self.clock.advance_to(self.t_samples[k])
+        for k in range(j * self.sub, (j + 1) * self.sub):
+            t = float(grid.t[k])
+            await self._weather_until(t, controller, firmwares)
+            self.clock.advance_to(t)
             if self.weather is not None:
-                self.weather.sample(self.t_samples[k], firmwares)
-            if self.grid.sun.elevation[k] <= 0:
+                self.weather.sample(t, firmwares)
+            if grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
-                n, e = panel(tr, firmwares[tr.name].true_angles(), self.grid.sun_vecs[k])
+                n, e = panel(tr, firmwares[tr.name].true_angles(), grid.sun_vecs[k])
                 tally = self.tally[tr.name]
                 tally.samples.append(k)
                 tally.normals.append(n)
                 if not math.isnan(e) and tr.name in tracking:
-                    tally.pointing.append(e)
                     errs[tr.name].append(e)
+        for name, values in errs.items():
+            self.tally[name].pointing.add(values)
         return errs
 
-    def _log(self, records: list[CycleRecord], errors: dict[str, list[float]]) -> None:
+    def _log(
+        self, records: list[CycleRecord], errors: dict[str, list[float]], j: int, controller: Controller
+    ) -> None:
+        ghi = None
+        samples = controller.diffuse.samples
+        if controller.pyranometer is not None and samples and samples[-1][0] == records[0].time:
+            ghi = samples[-1][1]
+        true_sun = (float(self.cycle_sun[j, 0]), float(self.cycle_sun[j, 1]))
+        rows = []
         for rec in records:
             self.sources[rec.source] = self.sources.get(rec.source, 0) + 1
             self.modes[rec.mode] = self.modes.get(rec.mode, 0) + 1
             if rec.error:
                 self.row_errors[rec.tracker] += 1
-            e = errors[rec.tracker]
-            self.log_rows.append(log_row(rec, float(np.mean(e)) if e else math.nan))
+            if self.writer is not None:
+                e = errors[rec.tracker]
+                axes = self.writer.axes[rec.tracker]
+                rows.append(cycle_row(rec, axes, float(np.mean(e)) if e else math.nan, true_sun, ghi))
+        if self.writer is not None:
+            self.writer.write(rows)
 
-    def _energy(self, tr: TrackerConfig) -> dict:
-        return energy(tr, self.tally[tr.name], self.grid, self.period / self.sub / 3600.0)
-
+    # -- the summary -------------------------------------------------------------------
     def _sun_path_summary(self) -> dict:
         """The camera's frame outcomes and what the sun-path filter learned (camera runs)."""
         if self._sensor is None:
             return {}
-        out = {"camera_frames": dict(self._sensor.outcomes)}
+        out: dict[str, Any] = {"camera_frames": dict(self._sensor.outcomes)}
         sp = self._sun.summary() if self._sun is not None else {}
         if sp:
             if "lat_deg" in sp:
@@ -255,6 +395,8 @@ class ScenarioRun:
                 sp["lat_error_deg"] = sp["lat_deg"] - site.latitude
                 sp["lon_error_deg"] = float(wrap180(sp["lon_deg"] - site.longitude))
             out["sun_path"] = sp
+        if self.sun_path_days:
+            out["sun_path_days"] = self.sun_path_days
         return out
 
     @staticmethod
@@ -272,21 +414,39 @@ class ScenarioRun:
                 }
         return out
 
+    def _weather_summary(self, controller: Controller) -> dict:
+        if self.weather is None:
+            return {}
+        alarms = [e for e in controller.events if e["kind"] == "wind_alarm"]
+        return {"weather": {**self.weather.summary(), "alarms": len(alarms)}}
+
+    def _sky_labels(self) -> list[str]:
+        kind = getattr(self.truth, "sky_kind", None)
+        return [kind(d) for d in range(self.days)] if kind is not None else []
+
+    def _energy(self, tr: TrackerConfig) -> dict:
+        return self.tally[tr.name].energy()
+
     def _summary(self, controller: Controller, wall: float) -> dict:
         energies = {tr.name: self._energy(tr) for tr in self.config.trackers}
-        beam = sum(e["beam"][0] for e in energies.values())
-        ideal = sum(e["beam"][1] for e in energies.values())
-        all_err = [e for t in self.tally.values() for e in t.pointing]
+        beam = sum(t.beam for t in self.tally.values())
+        ideal = sum(t.ideal for t in self.tally.values())
+        everything = ErrorStats()
+        for t in self.tally.values():
+            everything = everything.merged(t.pointing)
+        cycles = self.cycles_done
         return {
+            "command": self.command,
+            **({"interrupted": True} if self.interrupted else {}),
             "days": self.days,
-            "hours": round(self.n_cycles * self.period / 3600, 4),
-            "start": self.start.isoformat(),
+            "hours": round(cycles * self.period / 3600, 4),
+            "start": self.span.label,
             "site": asdict(self.config.site),
-            "sky": [self.hil.skies[d % len(self.hil.skies)] for d in range(self.days)],
+            "sky": self._sky_labels(),
             "control_period_s": self.period,
-            "cycles": self.n_cycles,
+            "cycles": cycles,
             "wall_s": round(wall, 2),
-            "pointing_error_deg": stats(all_err),
+            "pointing_error_deg": everything.summary(),
             "energy_ratio": round(beam / ideal, 6) if ideal > 0 else None,
             "poa_global_kwh_m2": round(sum(e["poa_global_kwh_m2"] for e in energies.values()), 5),
             "modbus": controller.stats(),
@@ -294,19 +454,11 @@ class ScenarioRun:
             "modes": self.modes,
             "sources": self.sources,
             **self._sun_path_summary(),
-            **(
-                {
-                    "weather": {
-                        **self.weather.summary(),
-                        "alarms": sum(1 for e in controller.events if e["kind"] == "wind_alarm"),
-                    }
-                }
-                if self.weather is not None
-                else {}
-            ),
+            **self._weather_summary(controller),
             "trackers": {
                 tr.name: {
-                    "pointing_error_deg": stats(self.tally[tr.name].pointing),
+                    "type": tr.type,
+                    "pointing_error_deg": self.tally[tr.name].pointing.summary(),
                     "energy_ratio": energies[tr.name]["energy_ratio"],
                     "poa_global_kwh_m2": energies[tr.name]["poa_global_kwh_m2"],
                     "link": tr.link,
@@ -314,6 +466,7 @@ class ScenarioRun:
                 }
                 for tr in self.config.trackers
             },
+            **self.extra,
             "definitions": {
                 **DEFINITIONS,
                 "modbus": "transactions, errors and retries of every drive link (Modbus and "

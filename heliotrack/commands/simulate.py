@@ -7,9 +7,14 @@ import sys
 from datetime import UTC, date, datetime
 from pathlib import Path
 
+from controller.config import Config
 from controller.errors import ConfigError
+from heliotrack.resources import bundled_config
 
-DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "hil-default.toml"
+DEFAULT_CONFIG = bundled_config("hil-default.toml")
+
+#: The setting of each link kind that names its device (``"hil"``: the simulator's).
+DEVICE_KEYS = ("port", "host", "channel")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -17,7 +22,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "simulate",
         help="run the hardware-in-the-loop scenario",
         description="Run the controller against emulated drives on a "
-        "simulated clock; write OUT/summary.json and OUT/cycles.csv.",
+        "simulated clock; write OUT/cycles.csv as the run goes, OUT/summary.json "
+        "(partial on Ctrl-C) and OUT/report/ (figures and index.html).",
     )
     p.add_argument(
         "--config",
@@ -25,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=DEFAULT_CONFIG,
         help="scenario TOML (default: the embedded config/hil-default.toml)",
     )
-    p.add_argument("--days", type=int, default=1, help="days to simulate (default 1)")
+    p.add_argument("--days", type=int, default=1, help="days to simulate (default 1, at most 3660)")
     p.add_argument(
         "--start",
         type=str,
@@ -37,7 +43,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--hours", type=float, default=None, help="run this many hours instead of --days whole days"
     )
     p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output folder")
-    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    p.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="hide the progress bar (shown only when stderr is a terminal)",
+    )
+    p.add_argument("--no-report", action="store_true", help="do not write OUT/report/")
     p.add_argument(
         "--realtime",
         action="store_true",
@@ -58,35 +69,64 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from heliotrack.output import check_out_dir
     from heliotrack.scenario import load_scenario
-    from heliotrack.simulate import run_simulation, summary_table
+    from heliotrack.simulate import MAX_DAYS, ScenarioRun, simulation_span, summary_table
 
     config = load_scenario(args.config)
+    refuse_real_links(config)
     if args.realtime:
         return _realtime(args, config)
     if args.sunspec:
         raise ConfigError(
             None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec
         )
-    if args.days < 1:
-        raise ConfigError(None, "--days", "a whole number >= 1", args.days)
-    start = _parse_start(args.start) if args.start else None
+    if not 1 <= args.days <= MAX_DAYS:
+        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", args.days)
+    start = parse_start(args.start) if args.start else None
     if args.hours is not None and not 0 < args.hours <= 24 * 366:
         raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
-    summary = run_simulation(
+    out = check_out_dir(args.out)
+    run = ScenarioRun(
         config,
-        days=args.days,
-        start=start,
-        out_dir=args.out,
+        simulation_span(config, args.days, start, args.hours),
         progress=not args.no_progress and sys.stderr.isatty(),
-        hours=args.hours,
     )
+    summary = run.execute(out)
     print(summary_table(summary))
-    print(f"wrote {args.out / 'summary.json'} and {args.out / 'cycles.csv'}")
+    return finish(summary, out, report=not args.no_report)
+
+
+def finish(summary: dict, out: Path, report: bool = True) -> int:
+    """After a run: the report, the files written, and 130 when it was interrupted."""
+    written = [out / "summary.json", out / "cycles.csv"]
+    if report:
+        from heliotrack.reports.run_report import write_report
+
+        written.append(write_report(out))
+    print("wrote " + ", ".join(str(p) for p in written))
+    if summary.get("interrupted"):
+        print("interrupted: the figures above cover the cycles run so far", file=sys.stderr)
+        return 130
     return 0
 
 
-def _parse_start(text: str):
+def refuse_real_links(config: Config) -> None:
+    """The simulator emulates every device: a link that names real hardware is refused
+    (``heliotrack run`` drives real hardware)."""
+    for i, link in enumerate(config.links):
+        if link.is_hil:
+            continue
+        key = next((k for k in DEVICE_KEYS if hasattr(link, k)), "kind")
+        raise ConfigError(
+            config.file,
+            f"links[{i}].{key}",
+            f'"hil" (simulate emulates every device; for real hardware use: heliotrack run --config {config.file})',
+            getattr(link, key),
+        )
+
+
+def parse_start(text: str):
     """``--start``: a date (the run starts at local mean midnight) or a time with a zone."""
     from controller.errors import InputError
     from controller.timestamps import parse_timestamp

@@ -1,0 +1,402 @@
+"""Replay recorded camera frames through the whole controller (``heliotrack replay``).
+
+A frame folder (file names carry their UTC time, ``2026-03-20T10-15-00Z.png``) or a video
+file (a start time and a frame rate) feeds the configured camera sensor; everything else
+runs as in ``simulate``: the sun-path filter, the modes, the setpoints and the emulated
+drives, on a simulated clock.  The run is scored against the recording's ``truth.csv``
+when there is one (``hil record`` writes it; a survey of a real site can too), else
+against the ephemeris (pvlib SPA), with the scenario's clear sky for energy.
+
+``truth.csv`` columns: ``time_utc`` (ISO 8601 with a zone), ``sun_az_deg``,
+``sun_el_deg``, ``sun_visible`` (0/1), and optionally ``ghi_w_m2``, ``dni_w_m2``,
+``dhi_w_m2``, ``beam_transmittance`` (the sky the pyranometer and the energy tally see).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from controller.config import Config
+from controller.errors import ConfigError, InputError
+from controller.sun.camera import IMAGE_SUFFIXES, CameraFrame, FolderFrameSource, FrameSource
+from controller.timestamps import parse_timestamp, time_from_name, to_iso
+from hil import truth
+from hil.sky import SkySeries
+
+from .renderers import camera_sensor
+from .scenario import as_scenario
+from .scoring import WorldTruth
+from .simulate import ScenarioRun, Span
+
+TRUTH_FILE = "truth.csv"
+TRUTH_COLUMNS = (
+    "time_utc",
+    "frame",
+    "sun_az_deg",
+    "sun_el_deg",
+    "sun_visible",
+    "ghi_w_m2",
+    "dni_w_m2",
+    "dhi_w_m2",
+    "beam_transmittance",
+)
+SKY_COLUMNS = ("ghi_w_m2", "dni_w_m2", "dhi_w_m2", "beam_transmittance")
+VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm", ".mjpeg", ".mjpg"}
+#: A frame named at a time rounded to the millisecond still belongs to its cycle.
+TOLERANCE_S = 0.002
+#: A frame older than this is not used (the controller predicts instead).
+MAX_AGE_S = 120.0
+
+
+def _grey(image: np.ndarray) -> np.ndarray:
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        return cv2.cvtColor(image, cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY)
+    return image
+
+
+# -- frames ------------------------------------------------------------------------------
+
+
+class RecordedFrames(FrameSource):
+    """Frames of a folder or a video, with the times they were exposed at."""
+
+    times: np.ndarray
+
+    def __init__(self, source: Path):
+        self.source = source
+
+    @property
+    def cadence_s(self) -> float:
+        return float(np.median(np.diff(self.times))) if self.times.size > 1 else MAX_AGE_S
+
+
+class FolderFrames(RecordedFrames):
+    """A folder of timestamped images (:class:`~controller.sun.camera.FolderFrameSource`),
+    tolerant of names rounded to the millisecond; colour frames are turned grey."""
+
+    def __init__(self, folder: Path, max_age_s: float = MAX_AGE_S):
+        super().__init__(folder)
+        try:
+            self.inner = FolderFrameSource(folder, max_age_s=max_age_s)
+        except ConfigError as exc:
+            raise InputError(f"{folder}: expected {exc.expected}, got {exc.got}") from None
+        self.times = self.inner.times
+        if self.times.size == 0:
+            suffixes = ", ".join(sorted(IMAGE_SUFFIXES))
+            raise InputError(
+                f"{folder}: no images ({suffixes}) named by their time, e.g. 2026-03-20T10-15-00Z.png"
+            )
+
+    def grab(self, t: float) -> CameraFrame | None:
+        frame = self.inner.grab(t + TOLERANCE_S)
+        return None if frame is None else replace(frame, image=_grey(frame.image))
+
+
+class VideoFrames(RecordedFrames):
+    """A video file: frame ``k`` was exposed at ``start + k / fps``."""
+
+    def __init__(self, path: Path, start: float, fps: float | None, max_age_s: float = MAX_AGE_S):
+        super().__init__(path)
+        self.cap = cv2.VideoCapture(str(path))
+        if not self.cap.isOpened():
+            raise InputError(f"{path}: not a video OpenCV can read")
+        fps = fps or float(self.cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        if not fps or not math.isfinite(fps) or fps <= 0:
+            raise InputError(f"{path}: the video gives no frame rate: pass --fps")
+        n = int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        if n <= 0:
+            raise InputError(f"{path}: no frames")
+        self.fps, self.start, self.max_age_s = fps, start, max_age_s
+        self.times = start + np.arange(n) / fps
+        self.pos = 0  # index of the next frame the capture will decode
+
+    def grab(self, t: float) -> CameraFrame | None:
+        k = int(math.floor((t - self.start) * self.fps + 1e-6))
+        if k < 0 or k >= self.times.size or t - self.times[k] > self.max_age_s:
+            return None
+        if k < self.pos or k - self.pos > 50:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, k)
+            self.pos = k
+        while self.pos < k:
+            self.cap.grab()
+            self.pos += 1
+        ok, image = self.cap.read()
+        self.pos += 1
+        if not ok or image is None:
+            return None
+        return CameraFrame(_grey(image), float(self.times[k]), f"{self.source.name}#{k}")
+
+
+def open_frames(source: Path, start: float | None = None, fps: float | None = None) -> RecordedFrames:
+    """The frames of a folder or a video file (``start``: the video's first frame, POSIX s;
+    by default the time in its file name)."""
+    source = Path(source)
+    if source.is_dir():
+        if fps is not None:
+            raise InputError("--fps: only for a video (a folder's frames are named by their time)")
+        return FolderFrames(source)
+    if not source.is_file():
+        raise InputError(f"{source}: no such folder or video file")
+    if source.suffix.lower() not in VIDEO_SUFFIXES:
+        raise InputError(
+            f"{source}: expected a folder of frames or a video ({', '.join(sorted(VIDEO_SUFFIXES))})"
+        )
+    if start is None:
+        start = time_from_name(source.name)
+    if start is None:
+        raise InputError(f"{source}: the video's name carries no time: pass --start (its first frame, UTC)")
+    return VideoFrames(source, start, fps)
+
+
+# -- truth -------------------------------------------------------------------------------
+
+
+def write_truth(path: Path, rows: Iterable[dict]) -> int:
+    """Write ``truth.csv`` rows (keys of :data:`TRUTH_COLUMNS`); return how many."""
+    n = 0
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=TRUTH_COLUMNS, extrasaction="ignore")
+        w.writeheader()
+        for row in rows:
+            w.writerow(row)
+            n += 1
+    return n
+
+
+def truth_row(t: float, frame: str, az: float, el: float, sky: dict[str, float]) -> dict:
+    """One ``truth.csv`` row: the sun is visible when up and not behind a cloud."""
+    tau = sky.get("beam_transmittance", 1.0)
+    return {
+        "time_utc": to_iso(t),
+        "frame": frame,
+        "sun_az_deg": f"{az:.6f}",
+        "sun_el_deg": f"{el:.6f}",
+        "sun_visible": int(el > 0 and tau >= 0.5),
+        **{k: f"{sky[k]:.3f}" for k in SKY_COLUMNS if k in sky},
+    }
+
+
+class RecordedTruth:
+    """The truth of a recording (``truth.csv``) where it covers, else the ephemeris.
+
+    The recorded sun is interpolated as its offset from the ephemeris (so sparse rows
+    still follow the sun's curved path); the recorded sky linearly.  A time farther than
+    ``max_gap_s`` from both neighbouring rows is not covered.
+    """
+
+    def __init__(self, path: Path, fallback: WorldTruth):
+        self.path = Path(path)
+        self.fallback = fallback
+        t, cols = self._read(self.path)
+        if t.size == 0:
+            raise InputError(f"{path}: no rows")
+        order = np.argsort(t)
+        self.t = t[order]
+        self.cols = {k: v[order] for k, v in cols.items()}
+        eph = fallback.sun(self.t)
+        self.d_az = _wrap180(self.cols["sun_az_deg"] - eph.azimuth)
+        self.d_el = self.cols["sun_el_deg"] - eph.elevation
+        spacing = float(np.median(np.diff(self.t))) if self.t.size > 1 else 60.0
+        self.max_gap_s = max(3 * spacing, MAX_AGE_S)
+        self.has_sky = all(k in self.cols for k in SKY_COLUMNS)
+
+    @staticmethod
+    def _read(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        try:
+            with open(path, newline="", encoding="utf-8") as f:
+                reader = csv.DictReader(f)
+                fields = reader.fieldnames or []
+                need = {"time_utc", "sun_az_deg", "sun_el_deg"}
+                if not need <= set(fields):
+                    raise InputError(
+                        f"{path}: expected columns {', '.join(sorted(need))}, got {', '.join(fields)}"
+                    )
+                numeric = [c for c in ("sun_az_deg", "sun_el_deg", *SKY_COLUMNS) if c in fields]
+                times: list[float] = []
+                values: dict[str, list[float]] = {c: [] for c in numeric}
+                for line, row in enumerate(reader, start=2):
+                    times.append(
+                        parse_timestamp(row["time_utc"], f"{path}:{line}: time_utc", require_zone=True)
+                    )
+                    for c in numeric:
+                        try:
+                            values[c].append(float(row[c]))
+                        except (TypeError, ValueError):
+                            raise InputError(
+                                f"{path}:{line}: {c}: expected a number, got {row[c]!r}"
+                            ) from None
+        except UnicodeDecodeError as exc:
+            raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
+        except OSError as exc:
+            raise InputError(f"{path}: {exc.strerror or exc}") from None
+        return np.asarray(times, float), {c: np.asarray(v, float) for c, v in values.items()}
+
+    def covered(self, t: np.ndarray) -> np.ndarray:
+        """Which of the times ``t`` the recording covers."""
+        t = np.asarray(t, float)
+        i = np.clip(np.searchsorted(self.t, t), 1, max(1, self.t.size - 1))
+        before = self.t[np.maximum(i - 1, 0)]
+        after = self.t[np.minimum(i, self.t.size - 1)]
+        inside = (t >= self.t[0] - TOLERANCE_S) & (t <= self.t[-1] + TOLERANCE_S)
+        near = np.minimum(np.abs(t - before), np.abs(after - t)) <= self.max_gap_s
+        return inside & (near | (after - before <= self.max_gap_s))
+
+    def sun(self, t: np.ndarray) -> truth.SunTruth:
+        eph = self.fallback.sun(t)
+        inside = self.covered(t)
+        if not inside.any():
+            return eph
+        az = eph.azimuth + np.where(inside, np.interp(t, self.t, self.d_az), 0.0)
+        el = eph.elevation + np.where(inside, np.interp(t, self.t, self.d_el), 0.0)
+        return truth.SunTruth(np.asarray(t, float), np.mod(az, 360.0), el, eph.dni)
+
+    def sky(self, t: np.ndarray, day: int) -> SkySeries:
+        clear = self.fallback.sky(t, 0)
+        if not self.has_sky:
+            return clear
+        inside = self.covered(t)
+        rec = {k: np.interp(t, self.t, self.cols[k]) for k in SKY_COLUMNS}
+        pick = {
+            k: np.where(inside, rec[k], getattr(clear, k.split("_")[0]))
+            for k in ("ghi_w_m2", "dni_w_m2", "dhi_w_m2")
+        }
+        tau = np.where(inside, rec["beam_transmittance"], clear.beam_transmittance)
+        kinds = np.where(inside, "recorded", clear.kinds)
+        return SkySeries(
+            np.asarray(t, float), pick["ghi_w_m2"], pick["dni_w_m2"], pick["dhi_w_m2"], tau, kinds
+        )
+
+    def sky_kind(self, day: int) -> str:
+        return "recorded"
+
+
+def _wrap180(x: np.ndarray) -> np.ndarray:
+    return (np.asarray(x) + 180.0) % 360.0 - 180.0
+
+
+# -- the run -----------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ReplayPlan:
+    span: Span
+    warnings: list[str]
+
+
+def _span_text(a: float, b: float) -> str:
+    fmt = "%Y-%m-%d %H:%M:%S"
+    return f"{datetime.fromtimestamp(a, UTC).strftime(fmt)} to {datetime.fromtimestamp(b, UTC).strftime(fmt)} UTC"
+
+
+def plan(frames: RecordedFrames, period_s: float, start: float | None, hours: float | None) -> ReplayPlan:
+    """The run's span (from the frames unless ``start``/``hours`` say otherwise) and what
+    the frames leave uncovered: there the controller has no camera and falls back on the
+    sun-path filter's prediction or the ephemeris, which the user must be told."""
+    first, last = float(frames.times[0]), float(frames.times[-1])
+    t0 = first if start is None else start
+    end = t0 + hours * 3600.0 if hours is not None else last + period_s
+    if end <= t0:
+        raise InputError(
+            f"--start: after the last frame ({to_iso(last)}); the frames cover {_span_text(first, last)}"
+        )
+    n = max(1, round((end - t0) / period_s))
+    warnings = []
+    reach = max(MAX_AGE_S, 1.5 * frames.cadence_s)
+    if t0 < first - reach or t0 + n * period_s > last + reach:
+        warnings.append(
+            f"the frames cover {_span_text(first, last)}, the run {_span_text(t0, t0 + n * period_s)}: "
+            "outside the frames the controller has no camera and tracks on prediction or the ephemeris"
+        )
+    gaps = np.flatnonzero(np.diff(frames.times) > max(reach, 3 * frames.cadence_s))
+    if gaps.size:
+        a, b = frames.times[gaps[0]], frames.times[gaps[0] + 1]
+        warnings.append(
+            f"{gaps.size} gap(s) in the frames (the first {_span_text(float(a), float(b))}): "
+            "no camera there, the controller falls back on prediction or the ephemeris"
+        )
+    label = to_iso(t0)
+    return ReplayPlan(Span(t0, n, label), warnings)
+
+
+def replay_config(config: Config) -> Config:
+    """The configuration with its camera fed by the replay (``frames = "hil"``)."""
+    sensor = camera_sensor(config)
+    if sensor is None:
+        raise ConfigError(
+            config.file,
+            "control.sun_source",
+            'a camera sensor to replay frames into (e.g. "hotspot")',
+            config.control.sun_source,
+        )
+    table = getattr(config, sensor)
+    return replace(config, **{sensor: replace(table, frames="hil")})
+
+
+def run_replay(
+    config: Config,
+    source: Path,
+    *,
+    start: float | None = None,
+    fps: float | None = None,
+    hours: float | None = None,
+    speed: float | None = None,
+    truth_file: Path | None = None,
+    out_dir: Path | None = None,
+    progress: bool = False,
+    warn=None,
+) -> dict:
+    """Replay ``source`` through the controller; return (and write) the summary.
+
+    ``warn(text)`` is told what the frames and the truth do not cover.
+    """
+    scenario = as_scenario(replay_config(config))
+    frames = open_frames(Path(source), start if not Path(source).is_dir() else None, fps)
+    p = plan(frames, scenario.control.period_s, start if Path(source).is_dir() else None, hours)
+    hil = scenario.hil
+    fallback = WorldTruth(scenario.site, ("clear",), hil.linke_turbidity, hil.seed)
+    if truth_file is None:
+        near = (Path(source) if Path(source).is_dir() else Path(source).parent) / TRUTH_FILE
+        truth_file = near if near.is_file() else None
+    warnings = list(p.warnings)
+    recorded = RecordedTruth(truth_file, fallback) if truth_file is not None else None
+    if recorded is not None:
+        times = p.span.t0 + np.arange(p.span.n_cycles) * scenario.control.period_s
+        uncovered = ~recorded.covered(times)
+        if uncovered.any():
+            warnings.append(
+                f"{truth_file} does not cover {int(uncovered.sum())} of {times.size} cycles: "
+                "scored against the ephemeris there"
+            )
+    for w in warnings:
+        if warn is not None:
+            warn(w)
+    extra = {
+        "replay": {
+            "source": str(source),
+            "frames": int(frames.times.size),
+            "first_frame_utc": to_iso(float(frames.times[0])),
+            "last_frame_utc": to_iso(float(frames.times[-1])),
+            "truth": str(truth_file) if truth_file is not None else "ephemeris",
+            "speed": speed,
+        },
+        **({"warnings": warnings} if warnings else {}),
+    }
+    run = ScenarioRun(
+        scenario,
+        p.span,
+        progress=progress,
+        frames=frames,
+        truth=recorded if recorded is not None else fallback,
+        command="replay",
+        speed=speed,
+        extra=extra,
+    )
+    return run.execute(out_dir)
