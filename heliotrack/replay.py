@@ -66,12 +66,24 @@ def _grey(image: np.ndarray) -> np.ndarray:
 
 
 class RecordedFrames(FrameSource):
-    """Frames of a folder or a video, with the times they were exposed at."""
+    """Frames of a folder or a video, with the times they were exposed at.
+
+    Each frame is handed out once: a later cycle that finds no newer frame gets none (the
+    sun-path filter predicts), instead of observing the same exposure again as if it
+    were new.
+    """
 
     times: np.ndarray
 
     def __init__(self, source: Path):
         self.source = source
+        self.last_time = -math.inf
+
+    def fresh(self, frame: CameraFrame | None) -> CameraFrame | None:
+        if frame is None or frame.time <= self.last_time:
+            return None
+        self.last_time = frame.time
+        return frame
 
     @property
     def cadence_s(self) -> float:
@@ -96,7 +108,10 @@ class FolderFrames(RecordedFrames):
             )
 
     def grab(self, t: float) -> CameraFrame | None:
-        frame = self.inner.grab(t + TOLERANCE_S)
+        i = int(np.searchsorted(self.times, t + TOLERANCE_S, side="right")) - 1
+        if i < 0 or self.times[i] <= self.last_time:
+            return None  # no frame yet, or the newest one was already used: skip reading it
+        frame = self.fresh(self.inner.grab(t + TOLERANCE_S))
         return None if frame is None else replace(frame, image=_grey(frame.image))
 
 
@@ -120,7 +135,12 @@ class VideoFrames(RecordedFrames):
 
     def grab(self, t: float) -> CameraFrame | None:
         k = int(math.floor((t - self.start) * self.fps + 1e-6))
-        if k < 0 or k >= self.times.size or t - self.times[k] > self.max_age_s:
+        if (
+            k < 0
+            or k >= self.times.size
+            or t - self.times[k] > self.max_age_s
+            or self.times[k] <= self.last_time
+        ):
             return None
         if k < self.pos or k - self.pos > 50:
             self.cap.set(cv2.CAP_PROP_POS_FRAMES, k)
@@ -132,7 +152,7 @@ class VideoFrames(RecordedFrames):
         self.pos += 1
         if not ok or image is None:
             return None
-        return CameraFrame(_grey(image), float(self.times[k]), f"{self.source.name}#{k}")
+        return self.fresh(CameraFrame(_grey(image), float(self.times[k]), f"{self.source.name}#{k}"))
 
 
 def open_frames(source: Path, start: float | None = None, fps: float | None = None) -> RecordedFrames:

@@ -243,7 +243,7 @@ def sky_classes(df: pd.DataFrame, summary: dict) -> Figure | None:
     from controller.sky.grid import build_day_grid
     from controller.sun.source import Site
 
-    t = plant["time"].astype("int64").to_numpy() / 1e9
+    t = (plant["time"] - pd.Timestamp(0, tz="UTC")).dt.total_seconds().to_numpy()
     try:
         grid = build_day_grid(t, plant["ghi_w_m2"].to_numpy(float), site["longitude"])
         res = analyse_grid(grid, Site(site["latitude"], site["longitude"], site.get("altitude", 0.0)))
