@@ -5,7 +5,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench install clean
+.PHONY: demo test wheel-test bench install clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,8 +18,25 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/heliotrack simulate --days 1 --out out/demo
 
-test: $(STAMP)
+test: $(STAMP) wheel-test
 	$(BIN)/python -m pytest -q
+
+# A plain (not editable) install must run: build the wheel, install it into a throwaway
+# venv and simulate an hour from outside the repository, so only the wheel's files (the
+# packaged config/ included) are there to use.  The throwaway venv borrows the installed
+# dependencies from $(VENV) through a .pth line (no download); heliotrack itself comes
+# from the wheel alone.
+wheel-test: $(STAMP)
+	@set -e; tmp=$$(mktemp -d); trap 'rm -rf "$$tmp"' EXIT; \
+	$(BIN)/pip wheel --quiet --no-deps --wheel-dir "$$tmp/dist" . 2>"$$tmp/build.log" || { cat "$$tmp/build.log"; exit 1; }; \
+	$(BIN)/python -m venv --without-pip "$$tmp/venv"; \
+	deps=$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
+	site=$$("$$tmp/venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
+	echo "$$deps" > "$$site/_heliotrack_deps.pth"; \
+	$(BIN)/pip --python "$$tmp/venv/bin/python" install --quiet --no-deps "$$tmp"/dist/heliotrack-*.whl; \
+	cd "$$tmp" && venv/bin/heliotrack simulate --hours 1 --out out --no-report > run.log; \
+	venv/bin/python -c 'import heliotrack, sys; sys.exit("heliotrack imported from " + heliotrack.__file__ if "/venv/" not in heliotrack.__file__ else 0)'; \
+	tail -1 run.log; echo "wheel-test: a plain install of the wheel simulates an hour"
 
 bench: $(STAMP)
 	$(BIN)/heliotrack bench all

@@ -52,17 +52,20 @@ def run(args: argparse.Namespace) -> int:
     results_dir = args.results_dir or RESULTS_DIR
     rows = []
     if not args.summary_only:
-        progress = sys.stderr.isatty()
-        for i, name in enumerate(names):
-            if progress:
-                print(f"[{i + 1}/{len(names)}] {name} ...", file=sys.stderr, flush=True)
+        from tqdm import tqdm
+
+        # a bar over the benchmarks when stderr is a terminal, silent otherwise
+        bar = tqdm(names, desc="bench", unit="benchmark", disable=not sys.stderr.isatty(), leave=False)
+        for name in bar:
+            bar.set_postfix_str(name)
             record = run_benchmark(
                 name, quick=args.quick, results_dir=args.results_dir, kills=args.kills, days=args.days
             )
-            print(f"== {name} ({record['wall_s']} s) -> {record['path']}")
+            bar.write(f"== {name} ({record['wall_s']} s) -> {record['path']}", file=sys.stdout)
             found = headlines(name, record["result"])
-            print(table(found))
+            bar.write(table(found), file=sys.stdout)
             rows += found
+        bar.close()
     else:
         for name, rec in load_results(names, results_dir).items():
             rows += headlines(name, rec["result"]) if rec else []

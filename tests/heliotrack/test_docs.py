@@ -1,0 +1,154 @@
+"""Every example in README.md and docs/*.md runs, so none rots.
+
+- ```sh blocks run line by line from a scratch folder holding ``config/`` and ``samples/``
+  (as from the top of the repository): ``heliotrack ...`` in-process through the console
+  script's ``main`` (globs expanded, ``> FILE`` honoured), ``mkdir -p``, ``cp A B``; any other command
+  fails the test until the block says why it cannot run here.
+- ```python blocks compile (top-level ``await`` allowed), and every name they import exists.
+- ```toml blocks parse.
+
+A block is marked by an HTML comment on the line before it: ``<!-- doctest: skip (why) -->``,
+or ``<!-- doctest: emulators -->`` for real-hardware commands (``run``, ``check``), which
+are run against emulators by their own tests and skipped here.
+"""
+
+from __future__ import annotations
+
+import ast
+import contextlib
+import glob
+import importlib
+import io
+import os
+import re
+import shlex
+import shutil
+import tomllib
+
+import pytest
+
+from heliotrack.cli import COMMAND_MODULES, main
+from tests.conftest import REPO
+
+DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
+BLOCK = re.compile(
+    r"(?:<!--\s*doctest:\s*(?P<mark>[^>]*?)\s*-->[ \t]*\n)?^```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^```",
+    re.S | re.M,
+)
+SHELL = {"sh", "bash", "shell", "console"}
+
+
+def blocks(langs: set[str]) -> list:
+    out = []
+    for path in DOCS:
+        text = path.read_text()
+        for m in BLOCK.finditer(text):
+            if m["lang"] in langs:
+                line = text.count("\n", 0, m.start("body")) + 1
+                rel = path.relative_to(REPO)
+                out.append(pytest.param(path, line, m["mark"] or "", m["body"], id=f"{rel}:{line}"))
+    return out
+
+
+def commands(body: str) -> list[tuple[int, str]]:
+    """Shell lines of a block (continuations joined, comments and blanks dropped)."""
+    out, pending, first = [], "", 0
+    for i, raw in enumerate(body.splitlines()):
+        if not pending:
+            first = i
+        if raw.rstrip().endswith("\\"):
+            pending += raw.rstrip()[:-1] + " "
+            continue
+        line = (pending + raw).strip()
+        pending = ""
+        if line and not line.startswith("#"):
+            out.append((first, line))
+    return out
+
+
+def run_line(words: list[str], where: str) -> None:
+    redirect = None
+    if ">" in words:
+        i = words.index(">")
+        words, redirect = words[:i], words[i + 1]
+    if words[0] == "mkdir":
+        for w in words[1:]:
+            if not w.startswith("-"):
+                os.makedirs(w, exist_ok=True)
+        return
+    if words[0] == "cp" and len(words) == 3:
+        shutil.copyfile(words[1], words[2])
+        return
+    if words[0] != "heliotrack":
+        pytest.fail(
+            f"{where}: `{words[0]}` cannot run in the doc test: mark the block <!-- doctest: skip (why) -->"
+        )
+    args = []
+    for w in words[1:]:
+        args += sorted(glob.glob(w)) if any(c in w for c in "*?[") else [w]
+    out = open(redirect, "w") if redirect else io.StringIO()  # noqa: SIM115 - closed below
+    try:
+        with contextlib.redirect_stdout(out):
+            rc = main(args)
+    finally:
+        out.close()
+    assert rc == 0, f"{where}: {' '.join(words)} exited {rc}"
+
+
+@pytest.mark.parametrize(("path", "line", "mark", "body"), blocks(SHELL))
+def test_shell_example_runs(path, line, mark, body, tmp_path, monkeypatch):
+    where = f"{path.relative_to(REPO)}:{line}"
+    if mark.startswith("skip"):
+        pytest.skip(f"{where}: {mark}")
+    lines = commands(body)
+    if mark == "emulators":
+        known = set(COMMAND_MODULES)
+        missing = {shlex.split(text)[1] for _, text in lines} - known
+        pytest.skip(f"{where}: needs a plant of emulators; not on this branch: {', '.join(sorted(missing))}")
+    assert not mark, f"{where}: unknown doctest mark {mark!r}"
+    for name in ("config", "samples"):
+        (tmp_path / name).symlink_to(REPO / name)
+    monkeypatch.chdir(tmp_path)
+    for offset, text in lines:
+        run_line(shlex.split(text), f"{where}+{offset}")
+
+
+@pytest.mark.parametrize(("path", "line", "mark", "body"), blocks({"python"}))
+def test_python_example_compiles_and_its_imports_exist(path, line, mark, body):
+    where = f"{path.relative_to(REPO)}:{line}"
+    if mark.startswith("skip"):
+        pytest.skip(f"{where}: {mark}")
+    tree = compile(body, where, "exec", flags=ast.PyCF_ONLY_AST | ast.PyCF_ALLOW_TOP_LEVEL_AWAIT)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                importlib.import_module(alias.name)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            module = importlib.import_module(node.module)
+            for alias in node.names:
+                assert hasattr(module, alias.name), f"{where}: {node.module} has no {alias.name}"
+
+
+@pytest.mark.parametrize(("path", "line", "mark", "body"), blocks({"toml"}))
+def test_toml_example_parses(path, line, mark, body):
+    if mark.startswith("skip"):
+        pytest.skip(mark)
+    tomllib.loads(body)
+
+
+def test_every_workflow_has_an_example():
+    text = (REPO / "README.md").read_text()
+    for command in (
+        "simulate",
+        "check",
+        "run",
+        "hil record",
+        "replay",
+        "report",
+        "calibrate",
+        "estimate",
+        "sunpath",
+        "classify",
+        "bench",
+    ):
+        assert re.search(rf"^heliotrack {command} ", text, re.M), command
