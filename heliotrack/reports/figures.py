@@ -24,9 +24,9 @@ MODE_COLOURS = {
     "DIFFUSE": "#17becf",
     "STOW": "#7f7f7f",
     "STOW (weather)": "#d62728",
-    "MANUAL": "#9467bd",
+    "MANUAL": "#8c564b",
 }
-SOURCE_COLOURS = {"observed": "#2ca02c", "predicted": "#ff7f0e", "ephemeris": "#1f77b4", "none": "#bbbbbb"}
+SOURCE_COLOURS = {"observed": "#7b3fa0", "predicted": "#ff7f0e", "ephemeris": "#1f77b4", "none": "#bbbbbb"}
 HEALTH_COLOURS = {"ok": "#2ca02c", "degraded": "#ff7f0e", "lost": "#d62728"}
 WEATHER_WORDS = ("wind", "hail", "snow", "anemometer")
 
@@ -252,21 +252,27 @@ def sky_classes(df: pd.DataFrame, summary: dict) -> Figure | None:
     if res.days.empty:
         return None
     classes = {"I": 1, "II": 2, "III": 3}
-    x = pd.to_datetime(res.days["date"].astype(str))
-    fig = Figure(figsize=(10, 3.2))
+    dates = [str(d)[:10] for d in res.days["date"]]
+    fig = Figure(figsize=(max(7.0, min(14.0, 2 + 0.5 * len(dates))), 3.2))
     ax = fig.add_subplot()
+    x = np.arange(len(dates))
     ax.bar(x, [classes.get(c, 0) for c in res.days["class"]], width=0.6, color="#1f77b4")
     sky = summary.get("sky") or []
-    start = pd.Timestamp(str(summary.get("start", ""))[:10]) if sky else None
-    for xi in x:
-        if start is not None:
-            k = (xi.normalize() - start.normalize()).days
-            if 0 <= k < len(sky):
-                ax.annotate(sky[k], (xi, 0.1), ha="center", fontsize=7, rotation=90, color="white")
+    start = str(summary.get("start", ""))[:10]
+    for xi, d in zip(x, dates):
+        try:
+            k = (pd.Timestamp(d) - pd.Timestamp(start)).days
+        except ValueError:
+            continue
+        if 0 <= k < len(sky):
+            ax.annotate(sky[k], (xi, 0.1), ha="center", fontsize=7, rotation=90, color="white")
+    step = max(1, len(dates) // 15)
+    ax.set_xticks(x[::step])
+    ax.set_xticklabels(dates[::step], rotation=20)
     ax.set_yticks([1, 2, 3])
     ax.set_yticklabels(["I clear", "II intermediate", "III overcast"])
     ax.set_ylim(0, 3.5)
-    ax.set_title("Sky class per day from the pyranometer (scenario's sky written on the bars)")
-    _time_axis(ax, "day")
+    ax.set_title("Sky class per day, from the pyranometer (bars: the scenario's sky)")
+    ax.set_xlabel("day")
     fig.tight_layout()
     return fig
