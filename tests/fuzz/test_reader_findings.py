@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import cv2
+import numpy as np
 import pytest
 
 from controller.errors import InputError
 from controller.sky.io import read_csv_record
 from controller.sunpath.io import read_observations
+from controller.vision.imageio import load_grey, read_image
 
 
 def test_a_first_row_longer_than_the_header_no_longer_shifts_the_columns(tmp_path):
@@ -33,3 +36,21 @@ def test_an_observation_with_a_decimal_comma_is_refused(tmp_path):
     path.write_text("time,az_deg,el_deg\n2024-03-20T10:15:00Z,120,5,30,2\n")
     with pytest.raises(InputError, match=r"row 2: 5 fields, the header names 3 \(a decimal comma"):
         read_observations(path)
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int16, np.int32, np.float64])
+def test_a_colour_tiff_of_samples_cv_cannot_convert_is_a_reason(tmp_path, dtype):
+    """load_grey raised cv2.error ("Unsupported depth of input image") from cvtColor."""
+    ok, buf = cv2.imencode(".tif", np.ones((4, 4, 3), dtype))
+    assert ok
+    path = tmp_path / "frame.tif"
+    path.write_bytes(buf.tobytes())
+    img, reason = read_image(path)
+    assert img is not None and img.dtype == dtype  # read_image gives what OpenCV decodes
+    assert load_grey(path) == (None, "unsupported_image_format")
+
+
+def test_a_path_with_a_nul_is_unreadable_not_an_exception():
+    """Path.read_bytes raised ValueError (embedded null byte)."""
+    assert read_image("frame\x00.png") == (None, "unreadable_file")
+    assert load_grey("frame\x00.png") == (None, "unreadable_file")
