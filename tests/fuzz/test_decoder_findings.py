@@ -91,3 +91,42 @@ def test_a_fraction_is_not_truncated_into_an_unscaled_register():
     with pytest.raises(ProtocolError, match="whole number"):
         encode("COMMAND", 2.9)
     assert encode("MODE", 2.0) == [2]
+
+
+def test_a_garbled_sdo_answer_is_a_comm_error_not_an_object_dictionary_error():
+    """A node answering an SDO upload with fewer bytes than the object's type: canopen's
+    decode raised ObjectDictionaryError, which the retry policy let through, out of
+    CanopenDrive.connect() and so out of Controller.start() (only DriveCommError and
+    timeouts are a drive's failure there)."""
+    import threading
+    import uuid
+
+    import can
+
+    from controller.drives.canopen.drive import CanopenDrive
+
+    channel = f"ht-garbled-{uuid.uuid4().hex[:8]}"
+    rogue = can.Bus(interface="virtual", channel=channel)
+    stop = threading.Event()
+    uploads = []
+
+    def answer() -> None:
+        while not stop.is_set():
+            msg = rogue.recv(0.02)
+            if msg is not None and msg.arbitration_id == 0x605 and msg.data[0] & 0xE0 == 0x40:
+                uploads.append(bytes(msg.data[1:4]))
+                # expedited upload response with 1 byte for an UNSIGNED16 object
+                data = bytes([0x4F]) + bytes(msg.data[1:4]) + b"\x48\x00\x00\x00"
+                rogue.send(can.Message(arbitration_id=0x585, data=data, is_extended_id=False))
+
+    thread = threading.Thread(target=answer, daemon=True)
+    thread.start()
+    drive = CanopenDrive(5, channel=channel, interface="virtual", timeout_s=0.3, retries=1, label="node 5")
+    try:
+        with pytest.raises(DriveCommError, match="node 5: identification read failed after 2 attempt"):
+            asyncio.run(drive.connect())
+        assert len(uploads) == 2  # retried like a garbled frame
+    finally:
+        stop.set()
+        thread.join(1.0)
+        rogue.shutdown()
