@@ -247,7 +247,7 @@ async def _run(cfg: Config, data, cycles: int) -> tuple[Controller, dict[str, Re
     return ctl, drives
 
 
-@bounded(120)
+@bounded(100)
 @given(plants(), st.data())
 def test_no_sequence_of_inputs_sends_a_target_outside_the_limits(cfg, data):
     _ctl, drives = asyncio.run(_run(cfg, data, cycles=6))
