@@ -17,6 +17,7 @@ are running sums, and the rows go to ``cycles.csv`` as the run goes.  An interru
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 from contextlib import ExitStack
@@ -32,6 +33,7 @@ from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
 from controller.errors import ConfigError
 from controller.loop import Controller, CycleRecord
+from controller.store import open_store_or_none
 from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
@@ -54,6 +56,8 @@ from .scoring import (
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
 from .world import build_world
+
+log = logging.getLogger("heliotrack.simulate")
 
 __all__ = [
     "MAX_DAYS",
@@ -275,6 +279,13 @@ class ScenarioRun:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
+            store = (
+                open_store_or_none(self.config.store.path, log.warning)
+                if self.config.store.path is not None
+                else None
+            )
+            if store is not None:
+                stack.callback(store.close)
             controller = Controller(
                 self.config,
                 open_drives(self.config, world.links),
@@ -283,6 +294,7 @@ class ScenarioRun:
                 sensor=sensor,
                 pyranometer=open_pyranometer(self.config, world.links),
                 anemometer=open_anemometer(self.config, world.links),
+                store=store,
             )
             bar = tqdm(
                 total=self.n_cycles, desc=self.command, unit="cycle", disable=not self.progress, leave=False
