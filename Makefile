@@ -21,14 +21,16 @@ demo: $(STAMP)
 test: $(STAMP) wheel-test
 	$(BIN)/python -m pytest -q
 
-# A plain (not editable) install must run: build the wheel, install it into a throwaway
-# venv and simulate an hour from outside the repository, so only the wheel's files (the
-# packaged config/ included) are there to use.  The throwaway venv borrows the installed
+# A plain (not editable) install must run: build the wheel from the tracked files (as from
+# a fresh clone; nothing is written into the tree), install it into a throwaway venv and
+# simulate an hour from outside the repository, so only the wheel's files (the packaged
+# config/ included) are there to use.  The throwaway venv borrows the installed
 # dependencies from $(VENV) through a .pth line (no download); heliotrack itself comes
 # from the wheel alone.
 wheel-test: $(STAMP)
 	@set -e; tmp=$$(mktemp -d); trap 'rm -rf "$$tmp"' EXIT; \
-	$(BIN)/pip wheel --quiet --no-deps --wheel-dir "$$tmp/dist" . 2>"$$tmp/build.log" || { cat "$$tmp/build.log"; exit 1; }; \
+	mkdir "$$tmp/src"; git ls-files -z | tar --null -T - -cf - | tar -xf - -C "$$tmp/src"; \
+	$(BIN)/pip wheel --quiet --no-deps --wheel-dir "$$tmp/dist" "$$tmp/src" 2>"$$tmp/build.log" || { cat "$$tmp/build.log"; exit 1; }; \
 	$(BIN)/python -m venv --without-pip "$$tmp/venv"; \
 	deps=$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
 	site=$$("$$tmp/venv/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \

@@ -27,6 +27,7 @@ import numpy as np
 from controller.config import Config
 from controller.errors import ConfigError, InputError
 from controller.sun.camera import IMAGE_SUFFIXES, CameraFrame, FolderFrameSource, FrameSource
+from controller.sun.source import Site
 from controller.timestamps import parse_timestamp, time_from_name, to_iso
 from hil import truth
 from hil.sky import SkySeries
@@ -298,6 +299,16 @@ class RecordedTruth:
         return "recorded"
 
 
+class EphemerisTruth(WorldTruth):
+    """No recording of the truth: pvlib SPA at the configured site, the clear-sky model."""
+
+    def __init__(self, site: Site, linke_turbidity: float = 3.0):
+        super().__init__(site, ("clear",), linke_turbidity)
+
+    def sky_kind(self, day: int) -> str:
+        return "unknown (scored on the ephemeris)"
+
+
 def _wrap180(x: np.ndarray) -> np.ndarray:
     return (np.asarray(x) + 180.0) % 360.0 - 180.0
 
@@ -381,7 +392,7 @@ def run_replay(
     frames = open_frames(Path(source), start if not Path(source).is_dir() else None, fps)
     p = plan(frames, scenario.control.period_s, start if Path(source).is_dir() else None, hours)
     hil = scenario.hil
-    fallback = WorldTruth(scenario.site, ("clear",), hil.linke_turbidity, hil.seed)
+    fallback = EphemerisTruth(scenario.site, hil.linke_turbidity)
     if truth_file is None:
         near = (Path(source) if Path(source).is_dir() else Path(source).parent) / TRUTH_FILE
         truth_file = near if near.is_file() else None

@@ -98,7 +98,7 @@ class WorldTruth:
             s.latitude,
             s.longitude,
             s.altitude,
-            {0: self.sky_kind(day)},
+            {0: self.skies[day % len(self.skies)]},
             self.linke_turbidity,
             seed=self.day_seed(day),
         )

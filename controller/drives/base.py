@@ -7,6 +7,7 @@ imported.
 from __future__ import annotations
 
 import abc
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
@@ -66,15 +67,20 @@ class DriveIdentity:
         return f"{v >> 8}.{v & 0xFF}"
 
 
+#: Latencies kept per link (the most recent).
+LATENCY_WINDOW = 10_000
+
+
 @dataclass
 class LinkStats:
     """Counts of one drive link: attempts made, attempts failed, retries, and the latency
-    of every successful attempt (s)."""
+    of the last :data:`LATENCY_WINDOW` successful attempts (s; bounded: a controller runs
+    for months)."""
 
     transactions: int = 0
     errors: int = 0
     retries: int = 0
-    latencies_s: list[float] = field(default_factory=list)
+    latencies_s: deque[float] = field(default_factory=lambda: deque(maxlen=LATENCY_WINDOW))
 
 
 class DriveLink(abc.ABC):
