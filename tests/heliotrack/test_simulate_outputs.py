@@ -2,10 +2,14 @@
 summary on Ctrl-C, bounded memory and days, an unwritable --out or a real port refused
 before the run."""
 
+import fcntl
 import json
+import os
 import signal
+import struct
 import subprocess
 import sys
+import termios
 import time
 import tracemalloc
 
@@ -57,7 +61,7 @@ def test_ctrl_c_leaves_the_rows_and_a_partial_summary(tmp_path):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "heliotrack.cli", "simulate", "--config", str(short_config(tmp_path, 60.0))]
     proc = subprocess.Popen(
-        [*cmd, "--days", "2", "--out", str(out), "--no-progress"],
+        [*cmd, "--days", "2", "--out", str(out)],  # stderr is a pipe: no progress bar
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -76,7 +80,7 @@ def test_ctrl_c_leaves_the_rows_and_a_partial_summary(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 130, stderr
-    assert "Traceback" not in stderr
+    assert "Traceback" not in stderr and "cycle/s" not in stderr and "%|" not in stderr
     s = json.loads((out / "summary.json").read_text())
     assert s["interrupted"] is True and 20 <= s["cycles"] < 2 * 1440
     rows = pd.read_csv(out / "cycles.csv")
@@ -134,3 +138,30 @@ def test_running_error_statistics_match_the_whole_sample():
     assert s["rms"] == pytest.approx(np.sqrt(np.mean(whole**2)), abs=1e-5)
     assert s["p95"] == pytest.approx(np.percentile(whole, 95), abs=2e-5)
     assert s["max"] == pytest.approx(whole.max(), abs=1e-5)
+
+
+def test_a_progress_bar_when_stderr_is_a_terminal(tmp_path):
+    master, slave = os.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal's width
+    try:
+        cmd = [sys.executable, "-m", "heliotrack.cli", "simulate", "--config", str(short_config(tmp_path))]
+        proc = subprocess.run(
+            [*cmd, "--start", MORNING, "--hours", "1", "--out", str(tmp_path / "o"), "--no-report"],
+            stdout=subprocess.DEVNULL,
+            stderr=slave,
+            timeout=300,
+        )
+        os.close(slave)
+        seen = b""
+        while True:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the pty's other end is closed: all read
+                break
+            if not chunk:
+                break
+            seen += chunk
+    finally:
+        os.close(master)
+    assert proc.returncode == 0
+    assert b"simulate:" in seen and b"cycle" in seen
