@@ -50,6 +50,32 @@ def _device_key(link: LinkConfig) -> str:
     return "kind"
 
 
+def load_plant(path: str | Path, command: str = "run") -> Config:
+    """Read a plant file for ``run`` or ``check``: the schema, then :func:`refuse_hil`.
+
+    Raises
+    ------
+    ConfigError
+        The file is invalid, is a simulator scenario (a ``[hil]`` table), or names a
+        simulator device.
+    """
+    from controller.config import load_config
+
+    try:
+        config: Config = load_config(path)
+    except ConfigError as exc:
+        if exc.key == "hil":
+            raise ConfigError(
+                exc.file,
+                "hil",
+                f"a plant file for heliotrack {command}, with no [hil] table (a [hil] table makes "
+                "a scenario for heliotrack simulate)",
+            ) from None
+        raise
+    refuse_hil(config, command)
+    return config
+
+
 def refuse_hil(config: Config, command: str = "run") -> None:
     """A plant file for ``run`` or ``check`` names real devices only.
 
@@ -72,8 +98,8 @@ def refuse_hil(config: Config, command: str = "run") -> None:
         raise ConfigError(
             config.file,
             "hotspot.frames",
-            f'a camera for heliotrack {command}: device:N, a stream URL, a video file or a folder ("hil" '
-            "is the simulator's renderer)",
+            f"a camera for heliotrack {command}: device:N, a stream URL, a video file or a folder "
+            '("hil" is the renderer only heliotrack simulate provides)',
             "hil",
         )
 

@@ -54,11 +54,9 @@ class Row:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controller.config import load_config
-    from heliotrack.runtime import refuse_hil
+    from heliotrack.runtime import load_plant
 
-    config: Config = load_config(args.config)
-    refuse_hil(config, "check")
+    config = load_plant(args.config, "check")
     rows = asyncio.run(check_plant(config, out=sys.stdout))
     failed = [r for r in rows if not r.ok]
     print(

@@ -56,10 +56,44 @@ def _register_drive(hs: argparse._SubParsersAction) -> None:
 
 
 def run_drive(args: argparse.Namespace) -> int:
-    from hil.drive import AxisParams, DriveFirmware
-    from hil.errors import HilError
     from hil.modbus_server import ModbusServerThread
     from hil.pty import PtyLink
+
+    fw = firmware(args)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+
+    if args.protocol == "canopen":
+        return _serve_canopen(args, fw, stop)
+    pty = None
+    try:
+        if args.link == "pty":
+            pty = PtyLink.open()
+            server = ModbusServerThread({args.id: fw}, serial_url=pty.url).start()
+            print(f"PTY {pty.path}", flush=True)
+        else:
+            server = ModbusServerThread({args.id: fw}, tcp=("127.0.0.1", args.port)).start()
+            print(f"TCP 127.0.0.1:{server.tcp_port}", flush=True)
+        print(
+            f"drive id {args.id}, {args.axes} axis(es), heartbeat timeout {args.heartbeat_timeout:g} s",
+            file=sys.stderr,
+            flush=True,
+        )
+        while not stop.wait(0.1):
+            fw.update()  # the watchdog runs even when nobody polls
+        server.stop()
+    finally:
+        if pty:
+            pty.close()
+    _report(fw)
+    return 0
+
+
+def firmware(args: argparse.Namespace):
+    """The emulated firmware the options describe (a one-line error for a bad option)."""
+    from hil.drive import AxisParams, DriveFirmware
+    from hil.errors import HilError
 
     if args.protocol == "canopen":
         if args.link != "pty":
@@ -97,36 +131,7 @@ def run_drive(args: argparse.Namespace) -> int:
         if not lo <= s <= hi:
             raise HilError(f"--stow: axis {k} stow angle {s:g} outside its travel [{lo:g}, {hi:g}] deg")
     # wall time for nothing but its reports; physics, watchdog and uptime on its own ticks
-    fw = DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout, monotonic=time.monotonic)
-
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-
-    if args.protocol == "canopen":
-        return _serve_canopen(args, fw, stop)
-    pty = None
-    try:
-        if args.link == "pty":
-            pty = PtyLink.open()
-            server = ModbusServerThread({args.id: fw}, serial_url=pty.url).start()
-            print(f"PTY {pty.path}", flush=True)
-        else:
-            server = ModbusServerThread({args.id: fw}, tcp=("127.0.0.1", args.port)).start()
-            print(f"TCP 127.0.0.1:{server.tcp_port}", flush=True)
-        print(
-            f"drive id {args.id}, {args.axes} axis(es), heartbeat timeout {args.heartbeat_timeout:g} s",
-            file=sys.stderr,
-            flush=True,
-        )
-        while not stop.wait(0.1):
-            fw.update()  # the watchdog runs even when nobody polls
-        server.stop()
-    finally:
-        if pty:
-            pty.close()
-    _report(fw)
-    return 0
+    return DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout, monotonic=time.monotonic)
 
 
 def _report(fw) -> None:

@@ -64,12 +64,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from controller.config import load_config
     from controller.errors import ConfigError
-    from heliotrack.runtime import refuse_hil, use_state_folder
+    from heliotrack.runtime import load_plant, use_state_folder
 
-    config: Config = load_config(args.config)
-    refuse_hil(config, "run")
+    config = load_plant(args.config, "run")
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(None, "--duration", "seconds > 0", args.duration)
     config, state = use_state_folder(config, args.state)
@@ -94,7 +92,7 @@ class Service:
         name = signal.Signals(signum).name
         assert self.stop is not None
         if self.stop.is_set():
-            log.warning("%s again: exiting at once", name)
+            log.warning("second signal (%s): exiting at once", name)
             logging.shutdown()
             os._exit(128 + signum)
         self.stopped_by = name
