@@ -197,7 +197,8 @@ class VideoCaptureFrameSource(FrameSource):
     when it was opened, frame ``k`` exposed at ``t_open + k / fps`` (wall time); after its
     end its last frame stays the newest, and ages out after ``max_age_s``.
 
-    ``grab(t)`` returns the newest frame not older than ``max_age_s``, as 8-bit grey.
+    ``grab(t)`` returns the newest frame not older than ``max_age_s`` (for a file, at least
+    1.5 frame intervals), as 8-bit grey.
     """
 
     #: OpenCV's open and read timeouts for network streams, ms.
@@ -248,6 +249,8 @@ class VideoCaptureFrameSource(FrameSource):
         self._cap = cap
         fps = cap.get(cv2.CAP_PROP_FPS)
         self.fps = fps if math.isfinite(fps) and fps > 0 else 1.0
+        # a frame is the newest until the next one: a slow file must not read as "no frame"
+        self.max_age_s = max(self.max_age_s, 1.5 / self.fps)
         count = cap.get(cv2.CAP_PROP_FRAME_COUNT)
         self.frame_count = int(count) if math.isfinite(count) and count > 0 else None
         self.t_open, self.mono_open = self.clock.now(), self.clock.monotonic()

@@ -33,6 +33,8 @@ log = logging.getLogger("heliotrack.run")
 CYCLE_GRACE_S = 0.5
 #: How long the drives have to confirm their safe position (s).
 SAFE_TIMEOUT_S = 3.0
+#: Errors named in a cycle's line (all of them are in its JSON fields).
+MAX_ERRORS_SHOWN = 5
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -112,7 +114,8 @@ class Service:
         for sig in (signal.SIGTERM, signal.SIGINT):
             loop.add_signal_handler(sig, self._on_signal, sig)
         config, clock = self.config, RealClock()
-        sun, sensor = build_sun_source(config, now=clock.now(), clock=clock)
+        # in a thread: a camera's estimator takes seconds to build, signals stay heard
+        sun, sensor = await asyncio.to_thread(build_sun_source, config, None, clock.now(), clock)
         server = None
         try:
             ctl = self.ctl = Controller(
@@ -220,6 +223,9 @@ class Service:
         camera = self._camera_outcome()
         az, el = (records[0].sun_az_deg, records[0].sun_el_deg) if records else (math.nan, math.nan)
         text = ", ".join(f"{m} x{n}" if n > 1 else m for m, n in sorted(modes.items()))
+        shown = "; ".join(errors[:MAX_ERRORS_SHOWN]) + (
+            f"; and {len(errors) - MAX_ERRORS_SHOWN} more" if len(errors) > MAX_ERRORS_SHOWN else ""
+        )
         log.info(
             "cycle %d: %s; sun %s (az %.2f, el %.2f)%s; %d error(s)%s",
             ctl.cycles,
@@ -229,7 +235,7 @@ class Service:
             el,
             f"; camera {camera}" if camera else "",
             len(errors),
-            (": " + "; ".join(errors)) if errors else "",
+            (": " + shown) if errors else "",
             extra={
                 "fields": {
                     "cycle": ctl.cycles,

@@ -127,11 +127,12 @@ def plant_toml(
     period: float = 1.0,
     heartbeat: float = 3.0,
     video: Path | None = None,
+    sunspec: bool = False,
 ) -> Path:
     d = plant.drives
-    camera = ""
+    camera = "\n[sunspec]\nenabled = true\nport = 0\n" if sunspec else ""
     if video is not None:
-        camera = f"""
+        camera += f"""
 [hotspot]
 calibration = "{BUNDLE}"
 frames = "{video}"
@@ -241,7 +242,20 @@ def _axis(read, k: int) -> AxisReading:
     )
 
 
-def _read_canopen(drive: Drive) -> list[AxisReading]:
+def _read_canopen(drive: Drive, attempts: int = 3) -> list[AxisReading]:
+    """SDO reads through the emulator's slcan pty (a new adapter connection each time: a
+    read that fails while the previous client lets go is tried again)."""
+    for attempt in range(attempts):
+        try:
+            return _read_canopen_once(drive)
+        except Exception:  # noqa: BLE001 - python-can and canopen raise many kinds
+            if attempt == attempts - 1:
+                raise
+            time.sleep(0.2)
+    raise AssertionError("unreachable")
+
+
+def _read_canopen_once(drive: Drive) -> list[AxisReading]:
     import canopen
 
     network = canopen.Network()

@@ -16,6 +16,7 @@ import threading
 import time
 
 import pytest
+from pymodbus.client import ModbusTcpClient
 
 from firmware_protocol import Mode, Status
 from heliotrack.cli import main
@@ -51,7 +52,13 @@ def plant(tmp_path_factory):
         video = render_video(folder / "camera.avi", t + 10, frames=3, dt=8.0, site=site)
         procs = PlantProcs({name: ready(d) for name, d in started.items()})
         cfg = plant_toml(
-            folder / "plant.toml", procs, site, period=PERIOD_S, heartbeat=HEARTBEAT_S, video=video
+            folder / "plant.toml",
+            procs,
+            site,
+            period=PERIOD_S,
+            heartbeat=HEARTBEAT_S,
+            video=video,
+            sunspec=True,
         )
         yield procs, cfg, folder / "state"
     finally:
@@ -107,7 +114,13 @@ def test_run_tracks_then_sigterm_leaves_every_axis_safe(plant):
     procs, cfg, state = plant
     run = Run(cfg, state)
     try:
+        served = run.wait_line(r"SunSpec model 601 served on 127.0.0.1:\d+")
         run.wait_line(r"cycle 4: ")
+        # SCADA reads the plant meanwhile
+        scada = ModbusTcpClient("127.0.0.1", port=int(served.rsplit(":", 1)[1]), timeout=1)
+        assert scada.connect()
+        assert scada.read_holding_registers(40000, count=2, device_id=1).registers == [0x5375, 0x6E53]
+        scada.close()
         # the drives follow the sun: the TCP row (TCP admits a second master) left its stow (0)
         row = read_axes(procs.drives["row-tcp"])[0]
         assert row.mode == Mode.AUTO and abs(row.target_deg) > 0.5, row

@@ -52,6 +52,13 @@ def test_a_video_file_plays_at_its_frame_rate_from_when_it_was_opened(tmp_path):
     clock.sleep(src.max_age_s)
     assert src.grab(clock.now()) is None
     src.close()
+    # a frame every 20 s: each is the newest until the next, not "no frame" after 10 s
+    slow = VideoCaptureFrameSource(str(_video(tmp_path / "slow.avi", [10, 60], 0.05)), clock)
+    clock.sleep(15.0)
+    assert slow.grab(clock.now()).image[0, 0] == 10
+    clock.sleep(10.0)
+    assert slow.grab(clock.now()).image[0, 0] == 60
+    slow.close()
 
 
 def test_what_frames_names_is_read_as_opencv_opens_it(tmp_path):
