@@ -165,3 +165,35 @@ def test_hil_drive_firmware_counts_its_own_time(monkeypatch):
     mono[0] += 2.5  # 2.5 s of silence on the drive's own clock
     fw.update()
     assert fw.comm_lost
+
+
+def test_check_reads_the_sensors_on_a_line(tmp_path, capsys):
+    """A drive, a pyranometer and an anemometer served on one pty: one row each."""
+    from hil.anemometer import Anemometer
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from hil.pyranometer import Pyranometer
+    from hil.wind import WindScript
+    from tests.conftest import two_axes
+
+    devices = {
+        1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic),
+        10: Pyranometer(lambda t: 640.0, time.monotonic, seed=1),
+        11: Anemometer(WindScript(time.time()), time.monotonic),
+    }
+    with PtyLink.open() as link, ModbusServerThread(devices, serial_url=link.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            f'[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
+            f'port = "{link.path}"\n[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\n'
+            'device_id = 1\n[pyranometer]\nlink = "rs485"\ndevice_id = 10\n'
+            '[wind]\nlink = "rs485"\ndevice_id = 11\n'
+        )
+        assert main(["check", "--config", str(p)]) == 0
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    assert set(rows) == {"dual-1", "pyranometer", "anemometer"}, out
+    assert f"{link.path} id 10" in rows["pyranometer"] and " W/m2" in rows["pyranometer"], out
+    assert f"{link.path} id 11" in rows["anemometer"] and "m/s, gust" in rows["anemometer"], out
+    assert "at 180.00, 90.00 deg (AUTO, AUTO)" in rows["dual-1"], out
