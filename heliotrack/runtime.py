@@ -5,8 +5,9 @@ folder, and leaving every drive at its safe position.
   file names real devices, a scenario file only the simulator's (``"hil"``), and each
   command refuses the other kind in one line that names the key.
 - :func:`use_state_folder`: ``--state DIR``, the one place that decides where learned
-  state lives (the sun-path filter's ``DIR/sunpath.json`` unless ``[sunpath] state``
-  names a file, the record of the last shutdown).
+  state lives (the SQLite store ``DIR/heliotrack.sqlite`` unless ``[store] path`` names
+  one, the sun-path file ``DIR/sunpath.json`` unless ``[sunpath] state`` does, the record
+  of the last shutdown).
 - :func:`go_safe`: every drive commanded to its tracker's ``safe_position`` (``stow`` or
   ``hold``) and confirmed by reading it back; the trackers stowed so are recorded in the
   state folder, so that the next start resumes them (a stow it did not command the loop
@@ -140,8 +141,14 @@ class StateFolder:
     path: Path
 
     @property
+    def store(self) -> Path:
+        """The SQLite store (learned state and history), unless ``[store] path`` names one."""
+        return self.path / "heliotrack.sqlite"
+
+    @property
     def sunpath(self) -> Path:
-        """The sun-path filter's state, unless ``[sunpath] state`` names a file."""
+        """The sun-path filter's state file, unless ``[sunpath] state`` names one: read once
+        into a new store, and where the state goes when the store cannot be opened."""
         return self.path / "sunpath.json"
 
     @property
@@ -151,10 +158,12 @@ class StateFolder:
 
 
 def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, StateFolder | None]:
-    """Create (if needed) and check the state folder; the config with its state files in it.
+    """Create (if needed) and check the state folder; the config with its state files in it:
+    the store (``[store] path``) and the sun-path state file (``[sunpath] state``), each
+    unless the plant file names one.
 
-    Without a folder, the config is unchanged (the sun-path state persists only where
-    ``[sunpath] state`` says).
+    Without a folder, the config is unchanged (state persists only where the plant file
+    says).
 
     Raises
     ------
@@ -173,6 +182,8 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
     if not os.access(folder, os.W_OK | os.X_OK):
         raise ConfigError(None, "--state", "a folder this user can write", str(folder))
     state = StateFolder(folder)
+    if config.store.path is None:
+        config = replace(config, store=replace(config.store, path=state.store))
     if config.sunpath.state is None:
         config = replace(config, sunpath=replace(config.sunpath, state=state.sunpath))
     return config, state

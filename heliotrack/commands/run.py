@@ -52,7 +52,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=Path,
         default=None,
         metavar="DIR",
-        help="folder for learned state (DIR/sunpath.json unless [sunpath] state names a file)",
+        help="folder for learned state and history: DIR/heliotrack.sqlite unless [store] path "
+        "names a file, DIR/sunpath.json unless [sunpath] state does",
     )
     p.add_argument(
         "--duration",
@@ -105,6 +106,7 @@ class Service:
     async def serve(self, duration: float | None) -> int:
         from controller.clock import RealClock
         from controller.loop import Controller
+        from controller.store import open_store_or_none
         from heliotrack.devices import open_anemometer, open_drives, open_pyranometer
         from heliotrack.runtime import resume_last_shutdown
         from heliotrack.sun_sources import build_sun_source
@@ -116,8 +118,10 @@ class Service:
         config, clock = self.config, RealClock()
         # in a thread: a camera's estimator takes seconds to build, signals stay heard
         sun, sensor = await asyncio.to_thread(build_sun_source, config, None, clock.now(), clock)
-        server = None
+        server = store = None
         try:
+            if config.store.path is not None:
+                store = open_store_or_none(config.store.path, log.warning)
             ctl = self.ctl = Controller(
                 config,
                 open_drives(config),
@@ -127,6 +131,7 @@ class Service:
                 sensor=sensor,
                 pyranometer=open_pyranometer(config),
                 anemometer=open_anemometer(config),
+                store=store,
             )
             self._log_start(duration)
             resume_last_shutdown(ctl, self.state)
@@ -147,6 +152,8 @@ class Service:
                 server.stop()
             if sensor is not None:
                 sensor.close()
+            if store is not None:
+                store.close()
 
     async def _live(self, ctl, duration: float | None) -> bool:
         """Start and cycle until the stop (a signal or the end of ``duration``); True when

@@ -85,8 +85,14 @@ def test_the_state_folder_holds_the_learned_state(tmp_path):
     assert same is cfg and none is None
     got, state = use_state_folder(cfg, tmp_path / "var" / "heliotrack")
     assert state.path.is_dir() and got.sunpath.state == state.path / "sunpath.json"
-    named = replace(cfg, sunpath=replace(cfg.sunpath, state=tmp_path / "mine.json"))
-    assert use_state_folder(named, tmp_path / "s")[0].sunpath.state == tmp_path / "mine.json"  # the file wins
+    assert got.store.path == state.path / "heliotrack.sqlite"
+    named = replace(
+        cfg,
+        sunpath=replace(cfg.sunpath, state=tmp_path / "mine.json"),
+        store=replace(cfg.store, path=tmp_path / "mine.sqlite"),
+    )
+    got = use_state_folder(named, tmp_path / "s")[0]  # what the plant file names wins
+    assert (got.sunpath.state, got.store.path) == (tmp_path / "mine.json", tmp_path / "mine.sqlite")
     (tmp_path / "file").write_text("")
     with pytest.raises(ConfigError, match="--state"):
         use_state_folder(cfg, tmp_path / "file" / "sub")
