@@ -238,7 +238,7 @@ class Controller(WindPolling):
         """The plant's mode this cycle (a weather stow outranks everything)."""
         if order is not None:
             return ModeDecision(ControlMode.STOW, order.reason)
-        if est is None:
+        if est is None or not (math.isfinite(est.az_deg) and math.isfinite(est.el_deg)):
             return ModeDecision(ControlMode.STOW, "no sun estimate")
         return decide_mode(est.el_deg, self.config.control.min_elevation_deg, overcast=overcast)
 

@@ -27,6 +27,8 @@ def tracking(
     wrap.  A row whose sun is below the horizon (NaN rotation) is sent to its stow.
     """
     out: list[Setpoint] = [(list(cfg.stow_angles), False) for cfg in trackers]
+    if not (math.isfinite(est.az_deg) and math.isfinite(est.el_deg)):
+        return out  # not a direction (a NaN or infinite estimate): nothing to follow
     rows = [(i, cfg) for i, cfg in enumerate(trackers) if isinstance(cfg, SingleAxisTracker)]
     if rows:
         sps = single_axis_setpoints(est.az_deg, est.el_deg, [cfg for _, cfg in rows])

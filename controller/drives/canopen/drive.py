@@ -67,8 +67,15 @@ _IDX_COMMAND = mirror_index(register("COMMAND"))
 _IDX_MAGIC, _IDX_PROTOCOL, _IDX_AXES = (
     mirror_index(register(n)) for n in ("MAGIC", "PROTOCOL_VERSION", "AXIS_COUNT")
 )
-#: SDO failures worth another attempt; an abort is the drive's answer and final.
-_SDO_RETRY_ON = (SdoCommunicationError, canopen.nmt.NmtError, OSError, RuntimeError)
+#: SDO failures worth another attempt; an abort is the drive's answer and final.  An answer
+#: of the wrong size for the object's type does not decode (ObjectDictionaryError): garbled.
+_SDO_RETRY_ON = (
+    SdoCommunicationError,
+    canopen.nmt.NmtError,
+    canopen.objectdictionary.ObjectDictionaryError,
+    OSError,
+    RuntimeError,
+)
 
 
 class SetPointNotAcknowledged(Exception):
