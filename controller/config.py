@@ -184,8 +184,9 @@ class HotspotConfig:
     frames: str = setting(
         "hil",
         doc='Where frames come from: "hil" (rendered by the '
-        'simulator), a folder of timestamped images, or "device:N" '
-        "(OpenCV camera N).",
+        'simulator), a folder of timestamped images (watched for new ones), "device:N" '
+        '(OpenCV camera N), a stream URL ("rtsp://...", "http://...") or a video file '
+        "(played in real time from start-up). Relative paths are from this file's folder.",
         nonempty=True,
     )
     algorithm: Literal["default", "seed"] = setting(
@@ -202,7 +203,7 @@ class HotspotConfig:
     )
 
     def __schema_check__(self, at: Where) -> HotspotConfig:
-        if self.frames == "hil" or self.frames.startswith("device:"):
+        if self.frames == "hil" or self.frames.startswith("device:") or "://" in self.frames:
             return self
         folder = Path(self.frames).expanduser()
         if not folder.is_absolute():

@@ -85,6 +85,8 @@ class Controller(WindPolling):
         self._next_wind_poll = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
+        #: Sensors not answering now, by name, with why (one warning per outage).
+        self.sensors_down: dict[str, str] = {}
         self.sun_alarm = ""
         self.safety = SafetyState(config.wind, config.stow, clock.now(), warn=log.warning)
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
@@ -302,10 +304,24 @@ class Controller(WindPolling):
         try:
             sample = await asyncio.wait_for(self.pyranometer.read(t), self._deadline())
             self.diffuse.add(sample.time, sample.ghi_w_m2)
+            self._sensor_status("pyranometer", None)
         except (TimeoutError, DriveCommError) as exc:
-            self.sensor_errors += 1
-            log.warning("pyranometer: %s", exc or "no answer")
+            self._sensor_status("pyranometer", exc)
         return self.diffuse.update(t)
+
+    def _sensor_status(self, name: str, exc: BaseException | None) -> None:
+        """Count a failed read; warn once when a sensor stops answering and say once when
+        it is back, not on every read."""
+        if exc is None:
+            if self.sensors_down.pop(name, None) is not None:
+                log.info("%s: answering again", name)
+            return
+        self.sensor_errors += 1
+        why = str(exc) or "no answer"
+        if name not in self.sensors_down:
+            log.warning("%s: %s", name, why)
+            self._event("sensor_down", sensor=name, reason=why)
+        self.sensors_down[name] = why
 
     def _event(self, kind: str, **detail: Any) -> None:
         self.events.append({"time": self.clock.now(), "kind": kind, **detail})

@@ -29,7 +29,8 @@ class WindSensor(Protocol):
 
 class WindPolling:
     """Needs ``config``, ``clock``, ``safety``, ``trackers``, ``anemometer``, ``sensor_errors``,
-    ``_next_wind_poll``, ``_deadline()`` and ``_event()`` from the controller."""
+    ``_next_wind_poll``, ``_deadline()``, ``_event()`` and ``_sensor_status()`` from the
+    controller."""
 
     config: Config
     clock: Clock
@@ -43,6 +44,9 @@ class WindPolling:
         raise NotImplementedError
 
     def _event(self, kind: str, **detail: Any) -> None:  # pragma: no cover - the controller's
+        raise NotImplementedError
+
+    def _sensor_status(self, name: str, exc: BaseException | None) -> None:  # pragma: no cover
         raise NotImplementedError
 
     @property
@@ -68,9 +72,9 @@ class WindPolling:
         t = self.clock.now()
         try:
             sample: WindSample | None = await asyncio.wait_for(self.anemometer.read(t), max(wind.poll_s, 1.0))
+            self._sensor_status("anemometer", None)
         except (TimeoutError, DriveCommError) as exc:
-            self.sensor_errors += 1
-            log.warning("anemometer: %s", exc or "no answer")
+            self._sensor_status("anemometer", exc)
             sample = None
         before = self.safety.wind
         state = self.safety.update_wind(t, sample)

@@ -3,7 +3,11 @@
 Each subcommand lives in its own module under :mod:`heliotrack.commands` and exposes
 ``register(subparsers)``; the module adds its parser and sets ``func`` to a callable taking
 the parsed namespace and returning an exit code.  Adding a command means adding one module
-and one name to :data:`COMMAND_MODULES`.
+and one name to :data:`COMMAND_MODULES`.  A command that logs at INFO by default (``run``,
+``check``) sets ``default_log_level`` in its parser's defaults.
+
+The log options (:mod:`heliotrack.logs`) come before the command, and commands that serve
+for long (``run``) accept them after it too.
 """
 
 from __future__ import annotations
@@ -15,9 +19,12 @@ from collections.abc import Sequence
 
 from . import __version__
 from .errors import USER_ERRORS, format_user_error
+from .logs import add_log_options, logging_configured
 
 #: Subcommand modules, in the order ``--help`` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
+    "run",
+    "check",
     "simulate",
     "replay",
     "report",
@@ -39,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Camera-based sun-tracker controller and its hardware-in-the-loop emulator.",
     )
     parser.add_argument("--version", action="version", version=f"heliotrack {__version__}")
+    add_log_options(parser, top_level=True)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMAND_MODULES:
@@ -49,8 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    level = args.log_level or getattr(args, "default_log_level", "WARNING")
     try:
-        return int(args.func(args) or 0)
+        with logging_configured(level, args.log_format or "text", args.log_file):
+            return int(args.func(args) or 0)
     except USER_ERRORS as exc:
         print(format_user_error(exc), file=sys.stderr)
         return 2

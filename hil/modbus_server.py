@@ -9,7 +9,6 @@ silent (:mod:`hil.modbus_device`).
 
 from __future__ import annotations
 
-import logging
 from typing import Self
 
 from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServer
@@ -18,8 +17,6 @@ from firmware_protocol.server_thread import ServerThread, ServerThreadError
 
 from .errors import HilError
 from .modbus_device import MultidropCore, RegisterDevice, sim_device
-
-logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 __all__ = ["ModbusServerThread", "RegisterDevice", "sim_device"]
 

@@ -24,6 +24,15 @@ class DriveCommError(Exception):
     """The drive did not answer, or answered with an error, after the configured retries."""
 
 
+class DriveNoAnswer(DriveCommError):
+    """Every attempt of a transaction failed without the drive refusing it (no answer, or
+    a garbled one): ``label`` says where, ``attempts`` how many were made."""
+
+    def __init__(self, label: str, what: str, attempts: int, last: BaseException | None):
+        self.label, self.what, self.attempts, self.last = label, what, attempts, last
+        super().__init__(f"{label}: {what} failed after {attempts} attempt(s): {last}")
+
+
 class LinkSettingsError(UserError):
     """Two links disagree about one physical port (or a link cannot be used as given)."""
 

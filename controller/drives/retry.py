@@ -14,7 +14,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
-from .base import DriveCommError, LinkStats
+from .base import DriveCommError, DriveNoAnswer, LinkStats
 
 T = TypeVar("T")
 Errors = tuple[type[BaseException], ...]
@@ -55,7 +55,8 @@ class RetryPolicy:
         ------
         DriveCommError
             ``"<label>: <what> refused by the drive: ..."`` for a final error, or
-            ``"<label>: <what> failed after N attempt(s): <last error>"``.
+            ``"<label>: <what> failed after N attempt(s): <last error>"`` (a
+            :class:`~controller.drives.base.DriveNoAnswer`).
         """
         last: BaseException | None = None
         for n in range(self.attempts):
@@ -74,4 +75,4 @@ class RetryPolicy:
                 continue
             stats.latencies_s.append(time.perf_counter() - t0)
             return result
-        raise DriveCommError(f"{label}: {what} failed after {self.attempts} attempt(s): {last}")
+        raise DriveNoAnswer(label, what, self.attempts, last)

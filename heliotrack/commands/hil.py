@@ -13,6 +13,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hil", help="run a piece of the emulated world on its own")
     hs = p.add_subparsers(dest="hil_command", metavar="WHAT")
     hs.required = True
+    _register_drive(hs)
+    # further ``hil`` subcommands register here, one line each (their own modules)
+
+
+def _register_drive(hs: argparse._SubParsersAction) -> None:
     d = hs.add_parser(
         "drive",
         help="serve an emulated drive firmware in real time",
@@ -22,7 +27,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "adapter on a pty (--protocol canopen; open it with python-can "
         "interface 'slcan'). With --link pty the first stdout "
         "line is 'PTY <path>'; with --link tcp it is 'TCP <host>:<port>'. "
-        "Runs until SIGINT or SIGTERM.",
+        "Runs until SIGINT or SIGTERM; then the last line on stderr gives each axis's "
+        "angle and mode.  The firmware counts its own (monotonic) time: a step of the "
+        "wall clock neither fires nor delays its watchdog.",
     )
     d.add_argument("--link", choices=("pty", "tcp"), default="pty")
     d.add_argument("--protocol", choices=("modbus", "canopen"), default="modbus")
@@ -49,39 +56,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_drive(args: argparse.Namespace) -> int:
-    from hil.drive import AxisParams, DriveFirmware
-    from hil.errors import HilError
     from hil.modbus_server import ModbusServerThread
     from hil.pty import PtyLink
 
-    if args.protocol == "canopen":
-        if args.link != "pty":
-            raise HilError(
-                "--protocol canopen serves an slcan adapter on a pty: use --link pty (CAN has no TCP link)"
-            )
-    elif not 1 <= args.id <= 247:
-        raise HilError(f"--id must be 1..247, got {args.id}")
-    stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
-    if len(stow) != args.axes:
-        raise HilError(f"--stow needs {args.axes} value(s), got {len(stow)}")
-    if args.axes == 2:
-        limits = [(0.0, 360.0), (0.0, 90.0)]
-    else:
-        limits = [(-60.0, 60.0)]
-    axes = [
-        AxisParams(
-            max_speed=args.max_speed,
-            soft_min=lo,
-            soft_max=hi,
-            hard_min=lo - 5,
-            hard_max=hi + 5,
-            stow_angle=s,
-            initial_angle=s,
-        )
-        for (lo, hi), s in zip(limits, stow)
-    ]
-    fw = DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout)
-
+    fw = firmware(args)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -108,7 +86,65 @@ def run_drive(args: argparse.Namespace) -> int:
     finally:
         if pty:
             pty.close()
+    _report(fw)
     return 0
+
+
+def firmware(args: argparse.Namespace):
+    """The emulated firmware the options describe (a one-line error for a bad option)."""
+    from hil.drive import AxisParams, DriveFirmware
+    from hil.errors import HilError
+
+    if args.protocol == "canopen":
+        if args.link != "pty":
+            raise HilError(
+                "--protocol canopen serves an slcan adapter on a pty: use --link pty (CAN has no TCP link)"
+            )
+    elif not 1 <= args.id <= 247:
+        raise HilError(f"--id must be 1..247, got {args.id}")
+    if not args.heartbeat_timeout >= 0:  # NaN too
+        raise HilError(
+            f"--heartbeat-timeout must be >= 0 s (0 disables the watchdog), got {args.heartbeat_timeout}"
+        )
+    if not args.max_speed > 0:
+        raise HilError(f"--max-speed must be > 0 deg/s, got {args.max_speed}")
+    stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
+    if len(stow) != args.axes:
+        raise HilError(f"--stow needs {args.axes} value(s), got {len(stow)}")
+    if args.axes == 2:
+        limits = [(0.0, 360.0), (0.0, 90.0)]
+    else:
+        limits = [(-60.0, 60.0)]
+    axes = [
+        AxisParams(
+            max_speed=args.max_speed,
+            soft_min=lo,
+            soft_max=hi,
+            hard_min=lo - 5,
+            hard_max=hi + 5,
+            stow_angle=s,
+            initial_angle=s,
+        )
+        for (lo, hi), s in zip(limits, stow)
+    ]
+    for k, (s, (lo, hi)) in enumerate(zip(stow, limits)):
+        if not lo <= s <= hi:
+            raise HilError(f"--stow: axis {k} stow angle {s:g} outside its travel [{lo:g}, {hi:g}] deg")
+    # wall time for nothing but its reports; physics, watchdog and uptime on its own ticks
+    return DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout, monotonic=time.monotonic)
+
+
+def _report(fw) -> None:
+    """The last line on stderr: each axis's angle and mode as the firmware left them."""
+    from firmware_protocol import register
+
+    fw.update()
+    axes = "; ".join(
+        f"axis {k} {fw.value(register('ACTUAL_ANGLE'), k):.2f} deg {fw.modes[k].name}"
+        + (" COMM_LOST" if fw.comm_lost else "")
+        for k in range(len(fw.axes))
+    )
+    print(f"drive stopped: {axes}", file=sys.stderr, flush=True)
 
 
 def _serve_canopen(args: argparse.Namespace, fw, stop: threading.Event) -> int:
@@ -139,6 +175,7 @@ def _serve_canopen(args: argparse.Namespace, fw, stop: threading.Event) -> int:
         )
         while not stop.wait(0.1):
             fw.update()  # the watchdog runs even when nobody talks
+        _report(fw)
     finally:
         if adapter:
             adapter.stop()

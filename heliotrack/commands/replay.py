@@ -55,13 +55,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from controller.errors import ConfigError, InputError
     from controller.timestamps import parse_timestamp
-    from heliotrack.commands.simulate import finish, refuse_real_links
+    from heliotrack.commands.simulate import finish
     from heliotrack.output import check_out_dir, summary_table
     from heliotrack.replay import run_replay
+    from heliotrack.runtime import require_hil
     from heliotrack.scenario import load_scenario
 
     config = load_scenario(args.config)
-    refuse_real_links(config)
+    require_hil(config)
     start = parse_timestamp(args.start, "--start", require_zone=True) if args.start else None
     if args.fps is not None and not (math.isfinite(args.fps) and 0 < args.fps <= 10_000):
         raise ConfigError(None, "--fps", "frames per second in (0, 10000]", args.fps)

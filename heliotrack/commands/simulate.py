@@ -7,14 +7,10 @@ import sys
 from datetime import UTC, date, datetime
 from pathlib import Path
 
-from controller.config import Config
 from controller.errors import ConfigError
 from heliotrack.resources import bundled_config
 
 DEFAULT_CONFIG = bundled_config("hil-default.toml")
-
-#: The setting of each link kind that names its device (``"hil"``: the simulator's).
-DEVICE_KEYS = ("port", "host", "channel")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -70,11 +66,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from heliotrack.output import check_out_dir
+    from heliotrack.runtime import require_hil
     from heliotrack.scenario import load_scenario
     from heliotrack.simulate import MAX_DAYS, ScenarioRun, simulation_span, summary_table
 
     config = load_scenario(args.config)
-    refuse_real_links(config)
+    require_hil(config)
     if args.realtime:
         return _realtime(args, config)
     if args.sunspec:
@@ -109,21 +106,6 @@ def finish(summary: dict, out: Path, report: bool = True) -> int:
         print("interrupted: the figures above cover the cycles run so far", file=sys.stderr)
         return 130
     return 0
-
-
-def refuse_real_links(config: Config) -> None:
-    """The simulator emulates every device: a link that names real hardware is refused
-    (``heliotrack run`` drives real hardware)."""
-    for i, link in enumerate(config.links):
-        if link.is_hil:
-            continue
-        key = next((k for k in DEVICE_KEYS if hasattr(link, k)), "kind")
-        raise ConfigError(
-            config.file,
-            f"links[{i}].{key}",
-            f'"hil" (simulate emulates every device; for real hardware use: heliotrack run --config {config.file})',
-            getattr(link, key),
-        )
 
 
 def parse_start(text: str):

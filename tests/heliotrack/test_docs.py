@@ -7,9 +7,12 @@
 - ```python blocks compile (top-level ``await`` allowed), and every name they import exists.
 - ```toml blocks parse.
 
-A block is marked by an HTML comment on the line before it: ``<!-- doctest: skip (why) -->``,
-or ``<!-- doctest: emulators -->`` for real-hardware commands (``run``, ``check``), which
-are run against emulators by their own tests and skipped here.
+A block is marked by an HTML comment on the line before it: ``<!-- doctest: skip (why) -->``.
+Real-plant commands (``run``, ``check`` on ``plant.toml``; ``<!-- doctest: emulators -->``)
+run against a plant of emulators in other processes (``check`` must find every device;
+``run`` is stopped by SIGTERM after two cycles and must exit 0).  A block for a real
+installation (``sudo``, ``systemctl``, paths under /etc, /var, /opt) cannot run here: its
+``heliotrack`` command lines are only parsed.
 """
 
 from __future__ import annotations
@@ -23,12 +26,18 @@ import os
 import re
 import shlex
 import shutil
+import signal
+import subprocess
+import threading
+import time
 import tomllib
+from functools import partial
 
 import pytest
 
-from heliotrack.cli import COMMAND_MODULES, main
+from heliotrack.cli import build_parser, main
 from tests.conftest import REPO
+from tests.heliotrack.plant_emulators import HELIOTRACK, daytime_site, env, plant_toml, start_plant, wait_for
 
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 BLOCK = re.compile(
@@ -36,6 +45,8 @@ BLOCK = re.compile(
     re.S | re.M,
 )
 SHELL = {"sh", "bash", "shell", "console"}
+#: A block for a real machine: system commands, an installation's paths.
+DEPLOYMENT = re.compile(r"(^|\s)(sudo|systemctl|journalctl)\s|\s/(etc|var|opt)/", re.M)
 
 
 def blocks(langs: set[str]) -> list:
@@ -95,22 +106,79 @@ def run_line(words: list[str], where: str) -> None:
     assert rc == 0, f"{where}: {' '.join(words)} exited {rc}"
 
 
+def any_line(lines: list[str], text: str) -> bool:
+    return any(text in ln for ln in lines)
+
+
+def run_on_emulators(lines: list[tuple[int, str]], where: str, folder) -> None:
+    """``check`` and ``run`` of a block against a plant of emulators (``plant.toml``: an
+    RTU drive on a pty, a TCP drive, a CANopen drive behind an slcan pty): ``check`` must
+    find every device; ``run`` runs until its second cycle, then SIGTERM must end it with 0."""
+    plant = start_plant()
+    try:
+        plant_toml(folder / "plant.toml", plant, daytime_site(time.time()), period=1.0, heartbeat=3.0)
+        for offset, text in lines:
+            words = shlex.split(text, comments=True)
+            assert words[:1] == ["heliotrack"], f"{where}+{offset}: {text}"
+            if words[1] != "run":
+                run_line(words, f"{where}+{offset}")
+                continue
+            proc = subprocess.Popen(
+                [*HELIOTRACK, *words[1:]],
+                cwd=folder,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+                env=env(),
+            )
+            seen: list[str] = []
+            threading.Thread(target=seen.extend, args=(proc.stderr,), daemon=True).start()
+            try:
+                assert wait_for(partial(any_line, seen, "cycle 2"), 60.0, 0.1), seen[-20:]
+                proc.send_signal(signal.SIGTERM)
+                assert proc.wait(30) == 0, "".join(seen[-20:])
+            finally:
+                if proc.poll() is None:
+                    proc.kill()
+                    proc.wait()
+    finally:
+        plant.stop()
+
+
+def syntax_only(lines: list[tuple[int, str]], where: str) -> None:
+    """Commands that can only run on a real installation: their options must still exist."""
+    parser = build_parser()
+    for offset, text in lines:
+        words = shlex.split(text, comments=True)
+        if words[0] != "heliotrack" or "[" in text:
+            continue
+        try:
+            with contextlib.redirect_stderr(io.StringIO()):
+                parser.parse_args(words[1:])
+        except SystemExit:
+            pytest.fail(f"{where}+{offset}: {text}: the command line parser refuses it")
+
+
 @pytest.mark.parametrize(("path", "line", "mark", "body"), blocks(SHELL))
 def test_shell_example_runs(path, line, mark, body, tmp_path, monkeypatch):
     where = f"{path.relative_to(REPO)}:{line}"
     if mark.startswith("skip"):
         pytest.skip(f"{where}: {mark}")
     lines = commands(body)
-    if mark == "emulators":
-        known = set(COMMAND_MODULES)
-        missing = {shlex.split(text)[1] for _, text in lines} - known
-        pytest.skip(f"{where}: needs a plant of emulators; not on this branch: {', '.join(sorted(missing))}")
-    assert not mark, f"{where}: unknown doctest mark {mark!r}"
+    if DEPLOYMENT.search(body):
+        syntax_only(lines, where)
+        pytest.skip(f"{where}: the commands of a real installation (their options were checked)")
     for name in ("config", "samples"):
         (tmp_path / name).symlink_to(REPO / name)
     monkeypatch.chdir(tmp_path)
+    if mark == "emulators" or any(
+        shlex.split(text, comments=True)[1:2] in (["run"], ["check"]) for _, text in lines
+    ):
+        run_on_emulators(lines, where, tmp_path)
+        return
+    assert not mark, f"{where}: unknown doctest mark {mark!r}"
     for offset, text in lines:
-        run_line(shlex.split(text), f"{where}+{offset}")
+        run_line(shlex.split(text, comments=True), f"{where}+{offset}")
 
 
 @pytest.mark.parametrize(("path", "line", "mark", "body"), blocks({"python"}))

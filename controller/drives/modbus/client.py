@@ -110,6 +110,7 @@ class SharedSerialClient:
         self.settings = settings
         self.link_name = link_name
         self.users = 0
+        self._connecting: asyncio.Lock | None = None
         try:  # a client belongs to the event loop it first runs on
             self.loop: asyncio.AbstractEventLoop | None = asyncio.get_running_loop()
         except RuntimeError:
@@ -148,7 +149,12 @@ class SharedSerialClient:
         return bool(self.client.connected)
 
     async def connect(self) -> bool:
-        return self.client.connected or await self.client.connect()
+        # One opening at a time: the drives of a line connect at once at start-up, and a
+        # second open of the port while the first is under way fails its exclusive lock.
+        if self._connecting is None:
+            self._connecting = asyncio.Lock()
+        async with self._connecting:
+            return self.client.connected or await self.client.connect()
 
     def close(self) -> None:
         self.users -= 1

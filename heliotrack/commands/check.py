@@ -1,0 +1,221 @@
+"""``heliotrack check``: what a commissioning engineer runs first.
+
+Validates the plant file, opens every link and asks every configured device who it is: each
+drive its axis count, protocol and firmware versions, uptime, fault word and position; the
+pyranometer and the anemometer a reading; the camera a frame (its size against the
+calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
+what the device said, or what failed.  Exit 0 only if every device answered, 1 otherwise
+(2 for a bad file).
+
+Connecting to a drive is what ``run`` does at start-up (CANopen: NMT start and operation
+enabled, holding its position); no target is written and nothing is configured.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, TextIO
+
+from heliotrack.logs import add_log_options
+
+if TYPE_CHECKING:
+    from controller.clock import Clock
+    from controller.config import Config, TrackerConfig
+
+#: One device may take this long at most (a CANopen drive's start takes a few SDOs).
+DEVICE_TIMEOUT_S = 30.0
+#: A live camera has this long to deliver a first frame.
+CAMERA_TIMEOUT_S = 10.0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "check",
+        help="ask every configured device who it is (commissioning)",
+        description="Validate a plant file, open every link and ask every drive, sensor and "
+        "the camera who it is; one row per device, 'ok' or what failed.  Exit 0 only if "
+        "every device answered.",
+    )
+    p.add_argument("--config", type=Path, required=True, help="plant TOML")
+    add_log_options(p, top_level=False)
+    p.set_defaults(func=run, default_log_level="WARNING")
+
+
+@dataclass
+class Row:
+    device: str
+    where: str
+    ok: bool
+    detail: str
+
+
+def run(args: argparse.Namespace) -> int:
+    from heliotrack.runtime import load_plant
+
+    config = load_plant(args.config, "check")
+    rows = asyncio.run(check_plant(config, out=sys.stdout))
+    failed = [r for r in rows if not r.ok]
+    print(
+        f"{len(rows) - len(failed)} of {len(rows)} device(s) ok"
+        + (f"; {len(failed)} failed" if failed else "")
+    )
+    return 1 if failed else 0
+
+
+async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | None = None) -> list[Row]:
+    """Check every device of ``config`` in turn; rows are printed to ``out`` as they come."""
+    from controller.clock import RealClock
+
+    clock = clock or RealClock()
+    links = config.links_by_name
+    width = max([len(t.name) for t in config.trackers] + [len("pyranometer"), len("anemometer")]) + 2
+    rows: list[Row] = []
+
+    def emit(row: Row) -> None:
+        rows.append(row)
+        if out is not None:
+            status = "ok" if row.ok else "FAILED"
+            print(f"{row.device:<{width}}{row.where:<34} {status:<7}{row.detail}", file=out, flush=True)
+
+    if out is not None:
+        print(f"{'DEVICE':<{width}}{'WHERE':<34} {'RESULT':<7}DETAIL", file=out, flush=True)
+    for tr in config.trackers:
+        link = links[tr.link]
+        emit(await _guarded(tr.name, _where(link, tr.device_id), _drive(tr, link)))
+    if config.pyranometer is not None:
+        p = config.pyranometer
+        emit(await _guarded("pyranometer", _where(links[p.link], p.device_id), _pyranometer(config, clock)))
+    if config.wind is not None:
+        w = config.wind
+        emit(await _guarded("anemometer", _where(links[w.link], w.device_id), _anemometer(config, clock)))
+    if config.hotspot is not None and config.control.sun_source == "hotspot":
+        emit(await _guarded("camera", config.hotspot.frames, asyncio.to_thread(_camera, config, clock)))
+    return rows
+
+
+def _where(link, device_id: int) -> str:
+    from controller.drives.modbus.client import endpoint
+
+    if link.kind == "canopen":
+        return f"{link.interface}:{link.channel} node {device_id}"
+    return f"{endpoint(link)} id {device_id}"
+
+
+async def _guarded(device: str, where: str, check) -> Row:
+    """Run one device's check; a failure is a row, never an exception."""
+    from controller.drives.base import DriveCommError, DriveNoAnswer
+    from controller.errors import UserError
+
+    try:
+        ok, detail = await asyncio.wait_for(check, DEVICE_TIMEOUT_S)
+    except DriveNoAnswer as exc:
+        ok, detail = False, f"no answer on {exc.label} after {exc.attempts} tries"
+    except TimeoutError:
+        ok, detail = False, f"no answer on {where} within {DEVICE_TIMEOUT_S:g} s"
+    except (DriveCommError, UserError, OSError) as exc:
+        ok, detail = False, str(exc)
+    return Row(device, where, ok, detail)
+
+
+async def _drive(tr: TrackerConfig, link) -> tuple[bool, str]:
+    from controller.drives.registry import open_drive
+    from firmware_protocol import PROTOCOL_VERSION, Fault, Status
+
+    drive = open_drive(link, tr.device_id)
+    try:
+        await drive.connect()
+        count = drive.axis_count
+        ident = await drive.identify()
+        state = await drive.read_state()
+    finally:
+        await drive.close()
+    problems = []
+    if count < tr.axes:
+        problems.append(f"drive has {count} axis, a {tr.type} tracker needs {tr.axes}")
+    parts = [f"{count} axis" if count == 1 else f"{count} axes"]
+    if ident is None:
+        parts.append("identity not reported by this link kind")
+    else:
+        v = ident.version_text
+        if ident.protocol_version >> 8 != PROTOCOL_VERSION >> 8:
+            problems.append(
+                f"protocol version {ident.protocol_version >> 8}, expected {PROTOCOL_VERSION >> 8}"
+            )
+        parts.append(f"protocol {v(ident.protocol_version)}, firmware {v(ident.firmware_version)}")
+        parts.append(f"up {_duration(ident.uptime_s)}")
+    faults = [f"axis {k} {a.fault.name}" for k, a in enumerate(state.axes) if a.status & Status.FAULT]
+    if faults:
+        problems.append("fault " + ", ".join(faults))
+    else:
+        parts.append("no fault")
+    if any(a.fault != Fault.NONE and not a.status & Status.FAULT for a in state.axes):
+        parts.append("a cleared fault code remains")
+    pos = ", ".join(f"{a.actual_deg:.2f}" for a in state.axes)
+    modes = ", ".join(a.mode.name + (" COMM_LOST" if a.status & Status.COMM_LOST else "") for a in state.axes)
+    parts.append(f"at {pos} deg ({modes})")
+    text = "; ".join(parts)
+    return (False, "; ".join(problems) + f" ({text})") if problems else (True, text)
+
+
+def _duration(s: float) -> str:
+    if s < 120:
+        return f"{s:.0f} s"
+    if s < 7200:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
+
+
+async def _pyranometer(config: Config, clock: Clock) -> tuple[bool, str]:
+    from heliotrack.devices import open_pyranometer
+
+    sensor = open_pyranometer(config)
+    assert sensor is not None
+    try:
+        sample = await sensor.read(clock.now())
+    finally:
+        await sensor.close()
+    return True, f"{sample.ghi_w_m2:.0f} W/m2"
+
+
+async def _anemometer(config: Config, clock: Clock) -> tuple[bool, str]:
+    from heliotrack.devices import open_anemometer
+
+    sensor = open_anemometer(config)
+    assert sensor is not None
+    try:
+        s = await sensor.read(clock.now())
+    finally:
+        await sensor.close()
+    return (
+        True,
+        f"wind {s.speed_m_s:.1f} m/s, gust {s.gust_m_s:.1f} m/s, 10-min mean {s.mean_10min_m_s:.1f} m/s",
+    )
+
+
+def _camera(config: Config, clock: Clock) -> tuple[bool, str]:
+    """A frame from the camera, and its size against the calibration bundle's."""
+    from controller.calibration.bundle import load_bundle
+    from controller.sun.camera import grey8, judge_frame
+    from heliotrack.sun_sources import open_frame_source
+
+    hs = config.hotspot
+    assert hs is not None
+    cam = load_bundle(hs.calibration).camera
+    source = open_frame_source(hs.frames, clock)
+    try:
+        frame = source.first_frame(clock.now(), CAMERA_TIMEOUT_S)
+    finally:
+        source.close()
+    if frame is None:
+        return False, f"no frame from {hs.frames} within {CAMERA_TIMEOUT_S:g} s"
+    h, w = frame.image.shape[:2]
+    text = f"frame {w}x{h}" + (f" ({frame.name})" if frame.name else "")
+    if (w, h) != (cam.width, cam.height):
+        return False, f"{text}, the calibration bundle expects {cam.width}x{cam.height}"
+    grey = grey8(frame.image)
+    judged = judge_frame(grey) if grey is not None else "unsupported_image_format"
+    return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")

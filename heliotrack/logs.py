@@ -1,0 +1,137 @@
+"""Logging for every command: ``--log-level``, ``--log-file``, ``--log-format text|json``.
+
+The standard :mod:`logging` module throughout.  One handler on the root logger (stderr,
+or the file), so a library's records reach the same place; our own loggers (``heliotrack.*``,
+and the ``controller`` and ``hil`` packages' module loggers) log at the level asked for,
+every other logger (pymodbus, python-can, canopen) at WARNING and above, whatever the
+level: nothing is silenced, and a debug run is not drowned in a library's frames.
+
+``json`` writes one object per line: ``time`` (ISO 8601 UTC), ``level``, ``logger``,
+``message``, and the fields a caller passed as ``extra={"fields": {...}}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+LEVELS = ("DEBUG", "INFO", "WARNING", "ERROR")
+FORMATS = ("text", "json")
+#: Logger name prefixes that are ours: they log at the chosen level.
+OURS = ("heliotrack", "controller", "hil", "firmware_protocol", "benchmarks")
+#: Every other logger's records pass from this level.
+LIBRARY_LEVEL = logging.WARNING
+
+
+def add_log_options(parser: argparse.ArgumentParser, *, top_level: bool) -> None:
+    """The log options; after a subcommand they default to "not given" so that the
+    top-level ones stand unless repeated there."""
+    default = None if top_level else argparse.SUPPRESS
+    g = parser.add_argument_group("logging")
+    g.add_argument(
+        "--log-level",
+        type=str.upper,
+        choices=LEVELS,
+        default=default,
+        metavar="LEVEL",
+        help="DEBUG, INFO, WARNING or ERROR (default: INFO for run, else WARNING)",
+    )
+    g.add_argument(
+        "--log-file", type=Path, default=default, metavar="FILE", help="append the log here (default stderr)"
+    )
+    g.add_argument(
+        "--log-format", choices=FORMATS, default=default, help="text lines, or one JSON object per line"
+    )
+
+
+def is_ours(name: str) -> bool:
+    return any(name == p or name.startswith(p + ".") for p in OURS)
+
+
+class _LevelFilter(logging.Filter):
+    """Our loggers from ``level``, the libraries' from WARNING."""
+
+    def __init__(self, level: int):
+        super().__init__()
+        self.level = level
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return record.levelno >= (self.level if is_ours(record.name) else max(self.level, LIBRARY_LEVEL))
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, set)):
+        return [_plain(v) for v in value]
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return value
+    return str(value)
+
+
+class JsonFormatter(logging.Formatter):
+    """One JSON object per record."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        out: dict[str, Any] = {
+            "time": datetime.fromtimestamp(record.created, UTC).isoformat(timespec="milliseconds"),
+            "level": record.levelname,
+            "logger": record.name,
+            "message": record.getMessage(),
+        }
+        fields = getattr(record, "fields", None)
+        if isinstance(fields, dict):
+            out.update({k: _plain(v) for k, v in fields.items() if k not in out})
+        if record.exc_info:
+            out["exception"] = self.formatException(record.exc_info)
+        return json.dumps(out, separators=(",", ":"))
+
+
+TEXT_FORMAT = "%(asctime)s %(levelname)-7s %(name)s: %(message)s"
+
+
+def make_handler(fmt: str = "text", file: Path | None = None) -> logging.Handler:
+    """A stream handler (stderr) or a file handler (appending), with the chosen format."""
+    handler: logging.Handler
+    if file is not None:
+        handler = logging.FileHandler(file, encoding="utf-8")
+    else:
+        handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(JsonFormatter() if fmt == "json" else logging.Formatter(TEXT_FORMAT))
+    return handler
+
+
+@contextmanager
+def logging_configured(level: str = "WARNING", fmt: str = "text", file: Path | None = None) -> Iterator[None]:
+    """Log to stderr (or ``file``) for the duration of a command, then put the root
+    logger back as it was (commands run in-process too, from tests)."""
+    from controller.errors import ConfigError
+
+    try:
+        handler = make_handler(fmt, file)
+    except OSError as exc:
+        raise ConfigError(
+            None, "--log-file", f"a file that can be written ({exc.strerror})", str(file)
+        ) from None
+    numeric = logging.getLevelName(level)
+    handler.addFilter(_LevelFilter(numeric))
+    root = logging.getLogger()
+    before = root.level
+    root.addHandler(handler)
+    root.setLevel(min(numeric, LIBRARY_LEVEL))
+    try:
+        yield
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(before)
+        handler.close()

@@ -1,0 +1,305 @@
+"""What ``heliotrack run`` and ``check`` share: which devices a command may use, the state
+folder, and leaving every drive at its safe position.
+
+- :func:`refuse_hil` (``run``, ``check``) and :func:`require_hil` (``simulate``): a plant
+  file names real devices, a scenario file only the simulator's (``"hil"``), and each
+  command refuses the other kind in one line that names the key.
+- :func:`use_state_folder`: ``--state DIR``, the one place that decides where learned
+  state lives (the SQLite store ``DIR/heliotrack.sqlite`` unless ``[store] path`` names
+  one, the sun-path file ``DIR/sunpath.json`` unless ``[sunpath] state`` does, the record
+  of the last shutdown).
+- :func:`go_safe`: every drive commanded to its tracker's ``safe_position`` (``stow`` or
+  ``hold``) and confirmed by reading it back; the trackers stowed so are recorded in the
+  state folder, so that the next start resumes them (a stow it did not command the loop
+  otherwise leaves alone, as a local switch's).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+import os
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from controller.atomic import atomic_write
+from controller.config import Config
+from controller.drives.base import DriveCommError
+from controller.drives.links import CanopenLink, LinkConfig, ModbusRtuLink, ModbusTcpLink
+from controller.errors import ConfigError
+from controller.loop import Controller
+from controller.records import TrackerRuntime
+from controller.safety import clamp_targets
+from firmware_protocol import Command, Mode
+
+log = logging.getLogger("heliotrack.run")
+
+#: The key that names a link's device, per link kind.
+_DEVICE_KEY: dict[type[LinkConfig], str] = {
+    ModbusRtuLink: "port",
+    ModbusTcpLink: "host",
+    CanopenLink: "channel",
+}
+
+
+def _device_key(link: LinkConfig) -> str:
+    for cls, key in _DEVICE_KEY.items():
+        if isinstance(link, cls):
+            return key
+    return "kind"
+
+
+def load_plant(path: str | Path, command: str = "run") -> Config:
+    """Read a plant file for ``run`` or ``check``: the schema, then :func:`refuse_hil`.
+
+    Raises
+    ------
+    ConfigError
+        The file is invalid, is a simulator scenario (a ``[hil]`` table), or names a
+        simulator device.
+    """
+    from controller.config import load_config
+
+    try:
+        config: Config = load_config(path)
+    except ConfigError as exc:
+        if exc.key == "hil":
+            raise ConfigError(
+                exc.file,
+                "hil",
+                f"a plant file for heliotrack {command}, with no [hil] table (a [hil] table makes "
+                "a scenario for heliotrack simulate)",
+            ) from None
+        raise
+    refuse_hil(config, command)
+    return config
+
+
+def refuse_hil(config: Config, command: str = "run") -> None:
+    """A plant file for ``run`` or ``check`` names real devices only.
+
+    Raises
+    ------
+    ConfigError
+        A link or the camera names a device only ``heliotrack simulate`` provides.
+    """
+    for i, link in enumerate(config.links):
+        if link.is_hil:
+            key = _device_key(link)
+            raise ConfigError(
+                config.file,
+                f"links[{i}].{key}",
+                f'a real device for heliotrack {command} ("hil" names an emulator only '
+                "heliotrack simulate provides)",
+                getattr(link, key, link.kind),
+            )
+    if config.hotspot is not None and config.hotspot.frames == "hil":
+        raise ConfigError(
+            config.file,
+            "hotspot.frames",
+            f"a camera for heliotrack {command}: device:N, a stream URL, a video file or a folder "
+            '("hil" is the renderer only heliotrack simulate provides)',
+            "hil",
+        )
+
+
+def require_hil(config: Config) -> None:
+    """A scenario for ``simulate`` names the simulator's devices only: it runs every drive
+    and sensor on emulators, so a real port, host or bus would be silently ignored.
+
+    Raises
+    ------
+    ConfigError
+        A link names a real device (or a Modbus TCP port the simulator would not use).
+    """
+    for i, link in enumerate(config.links):
+        key = _device_key(link)
+        if not link.is_hil:
+            raise ConfigError(
+                config.file,
+                f"links[{i}].{key}",
+                '"hil" in a simulation, which runs on emulators (to drive real devices use heliotrack run)',
+                getattr(link, key, link.kind),
+            )
+        if isinstance(link, ModbusTcpLink) and link.tcp_port not in (0, 502):
+            raise ConfigError(
+                config.file,
+                f"links[{i}].tcp_port",
+                '0 or 502 with host = "hil" (the simulator serves on a free port of 127.0.0.1; '
+                "to reach a real endpoint use heliotrack run)",
+                link.tcp_port,
+            )
+
+
+# -- the state folder ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class StateFolder:
+    """Where ``run`` keeps what it learned and what it left (``--state DIR``)."""
+
+    path: Path
+
+    @property
+    def store(self) -> Path:
+        """The SQLite store (learned state and history), unless ``[store] path`` names one."""
+        return self.path / "heliotrack.sqlite"
+
+    @property
+    def sunpath(self) -> Path:
+        """The sun-path filter's state file, unless ``[sunpath] state`` names one: read once
+        into a new store, and where the state goes when the store cannot be opened."""
+        return self.path / "sunpath.json"
+
+    @property
+    def shutdown(self) -> Path:
+        """The trackers the last shutdown stowed (resumed by the next start)."""
+        return self.path / "shutdown.json"
+
+
+def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, StateFolder | None]:
+    """Create (if needed) and check the state folder; the config with its state files in it:
+    the store (``[store] path``) and the sun-path state file (``[sunpath] state``), each
+    unless the plant file names one.
+
+    Without a folder, the config is unchanged (state persists only where the plant file
+    says).
+
+    Raises
+    ------
+    ConfigError
+        ``--state`` cannot be created or written.
+    """
+    if folder is None:
+        return config, None
+    folder = folder.expanduser().resolve()
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(
+            None, "--state", f"a folder that can be created ({exc.strerror})", str(folder)
+        ) from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(None, "--state", "a folder this user can write", str(folder))
+    state = StateFolder(folder)
+    if config.store.path is None:
+        config = replace(config, store=replace(config.store, path=state.store))
+    if config.sunpath.state is None:
+        config = replace(config, sunpath=replace(config.sunpath, state=state.sunpath))
+    return config, state
+
+
+def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str]:
+    """Mark the trackers the last shutdown stowed as stowed by us (the loop resumes them);
+    returns their names.  The record is used once."""
+    if state is None or not state.shutdown.exists():
+        return []
+    try:
+        names = set(json.loads(state.shutdown.read_text())["stowed"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        log.warning("%s: unreadable (%s): ignored", state.shutdown, exc)
+        names = set()
+    resumed = [tr.cfg.name for tr in ctl.trackers if tr.cfg.name in names]
+    for tr in ctl.trackers:
+        if tr.cfg.name in names:
+            tr.health.stowed_by_us = True
+    try:
+        state.shutdown.unlink()
+    except OSError:
+        pass
+    if resumed:
+        log.info("resuming %d tracker(s) the last shutdown stowed: %s", len(resumed), ", ".join(resumed))
+    return resumed
+
+
+# -- safe positions -------------------------------------------------------------------------------
+@dataclass
+class SafeOutcome:
+    """What one drive was left doing at shutdown."""
+
+    tracker: str
+    wanted: str  # "stow" or "hold"
+    confirmed: bool
+    detail: str
+    positions_deg: tuple[float, ...] = ()
+
+
+def _angles(values) -> str:
+    return ", ".join(f"{v:.2f}" for v in values)
+
+
+async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> SafeOutcome:
+    want = tr.cfg.safe_position
+    drive = tr.drive
+    if not tr.configured:
+        await drive.connect()  # a drive the loop had lost: one more try
+    if want == "hold":
+        st = await drive.read_state()
+        if any(a.mode == Mode.STOW for a in st.axes):
+            # a weather or watchdog stow in force: the safest place, left so
+            return SafeOutcome(
+                tr.cfg.name, want, True, "already stowed: left so", tuple(a.actual_deg for a in st.axes)
+            )
+        targets = clamp_targets(tr.cfg, [a.actual_deg for a in st.axes])
+        st = await drive.exchange(targets)
+        ok = all(abs(a.target_deg - x) <= 0.02 for a, x in zip(st.axes, targets))
+        detail = f"holding at {_angles(targets)} deg" + ("" if ok else " (target not read back)")
+        return SafeOutcome(tr.cfg.name, want, ok, detail, tuple(a.actual_deg for a in st.axes))
+    await drive.command(Command.STOW)
+    tr.health.stowed_by_us = True
+    while True:
+        st = await drive.read_state()
+        if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes):
+            pos = tuple(a.actual_deg for a in st.axes)
+            return SafeOutcome(
+                tr.cfg.name, want, True, f"stowing from {_angles(pos)} deg (mode STOW read back)", pos
+            )
+        if time.monotonic() >= deadline:
+            modes = ", ".join(a.mode.name for a in st.axes)
+            return SafeOutcome(tr.cfg.name, want, False, f"STOW not read back (modes {modes})")
+        await asyncio.sleep(0.05)
+
+
+async def go_safe(
+    ctl: Controller, timeout_s: float = 3.0, state: StateFolder | None = None
+) -> list[SafeOutcome]:
+    """Command every drive to its tracker's ``safe_position`` at once and read it back.
+
+    ``stow``: the STOW command, confirmed when every axis reads back in STOW mode (the
+    drive then travels there by itself).  ``hold``: the axes' present angles as targets,
+    confirmed when the drive reads them back; a drive already in STOW is left so.  A drive
+    that does not answer within ``timeout_s`` is reported (its own watchdog stows it
+    within ``control.heartbeat_timeout_s``).  The trackers stowed are recorded in
+    ``state`` for the next start.
+    """
+    deadline = time.monotonic() + timeout_s
+
+    async def one(tr: TrackerRuntime) -> SafeOutcome:
+        try:
+            return await _safe_one(ctl, tr, deadline)
+        except (DriveCommError, OSError, ValueError) as exc:
+            return SafeOutcome(tr.cfg.name, tr.cfg.safe_position, False, f"no answer: {exc}")
+
+    tasks = {tr.cfg.name: asyncio.ensure_future(one(tr)) for tr in ctl.trackers}
+    await asyncio.wait(tasks.values(), timeout=max(deadline - time.monotonic(), 0.1))
+    outcomes = []
+    hb = ctl.config.control.heartbeat_timeout_s
+    for tr in ctl.trackers:
+        task = tasks[tr.cfg.name]
+        if task.done() and not task.cancelled():
+            out = task.result()
+        else:
+            task.cancel()
+            out = SafeOutcome(tr.cfg.name, tr.cfg.safe_position, False, f"no answer within {timeout_s:g} s")
+        if not out.confirmed:
+            out.detail += f"; its watchdog stows it within {hb:g} s"
+        outcomes.append(out)
+    if state is not None:
+        stowed = [o.tracker for o in outcomes if o.wanted == "stow"]
+        try:
+            atomic_write(state.shutdown, json.dumps({"time": time.time(), "stowed": stowed}) + "\n")
+        except OSError as exc:
+            log.warning(
+                "%s: not written (%s): the next start leaves these drives stowed", state.shutdown, exc
+            )
+    return outcomes

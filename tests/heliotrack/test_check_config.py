@@ -1,0 +1,205 @@
+"""Which devices each command may use, the state folder, the log options, ``hil drive``'s
+options, and ``check`` on a port that is not there: one line, never a traceback."""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from controller.config import load_config
+from controller.errors import ConfigError
+from heliotrack.cli import build_parser, main
+from heliotrack.logs import logging_configured
+from heliotrack.runtime import require_hil, use_state_folder
+from heliotrack.scenario import load_scenario
+from tests.conftest import DEFAULT_CONFIG
+
+REPO = Path(__file__).resolve().parents[2]
+EXAMPLE = REPO / "config" / "plant-example.toml"
+
+
+def _variant(tmp_path, old, new, source=EXAMPLE):
+    text = source.read_text()
+    assert old in text
+    p = tmp_path / "plant.toml"
+    p.write_text(text.replace(old, new).replace('"calibration/', f'"{REPO}/config/calibration/'))
+    return p
+
+
+def test_the_plant_example_is_valid_and_real():
+    cfg = load_config(EXAMPLE)
+    assert {link.kind for link in cfg.links} == {"modbus-rtu", "modbus-tcp", "canopen"}
+    assert not any(link.is_hil for link in cfg.links) and cfg.hotspot.frames == "device:0"
+    assert {t.safe_position for t in cfg.trackers} == {"stow", "hold"}
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+@pytest.mark.parametrize(
+    "old, new, key",
+    [
+        ('port = "/dev/ttyUSB0"', 'port = "hil"', "links[0].port"),
+        ('host = "10.0.0.30"', 'host = "hil"', "links[1].host"),
+        ('channel = "can0"', 'channel = "hil"', "links[2].channel"),
+        ('frames = "device:0"', 'frames = "hil"', "hotspot.frames"),
+    ],
+)
+def test_run_and_check_refuse_the_simulators_devices(tmp_path, capsys, command, old, new, key):
+    p = _variant(tmp_path, old, new)
+    assert main([command, "--config", str(p)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{p}: {key}" in err and "heliotrack simulate" in err, err
+
+
+def test_run_refuses_a_scenario_file(capsys):
+    assert main(["run", "--config", str(DEFAULT_CONFIG)]) == 2
+    assert "no [hil] table" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "old, new, key",
+    [
+        ('port = "hil"', 'port = "/dev/ttyUSB0"', "links[0].port"),
+        ('host = "hil"', 'host = "10.0.0.30"', "links[1].host"),
+        ("tcp_port = 502", "tcp_port = 1502", "links[1].tcp_port"),
+        ('channel = "hil"', 'channel = "can0"', "links[2].channel"),
+    ],
+)
+def test_simulate_refuses_real_devices_it_would_ignore(tmp_path, old, new, key):
+    mixed = REPO / "config" / "hil-mixed.toml"
+    require_hil(load_scenario(mixed))  # the shipped scenario passes
+    p = tmp_path / "s.toml"
+    p.write_text(mixed.read_text().replace(old, new))
+    with pytest.raises(ConfigError, match=r"heliotrack run") as e:
+        require_hil(load_scenario(p))
+    assert e.value.key == key
+
+
+def test_the_state_folder_holds_the_learned_state(tmp_path):
+    cfg = load_config(EXAMPLE)
+    same, none = use_state_folder(cfg, None)
+    assert same is cfg and none is None
+    got, state = use_state_folder(cfg, tmp_path / "var" / "heliotrack")
+    assert state.path.is_dir() and got.sunpath.state == state.path / "sunpath.json"
+    assert got.store.path == state.path / "heliotrack.sqlite"
+    named = replace(
+        cfg,
+        sunpath=replace(cfg.sunpath, state=tmp_path / "mine.json"),
+        store=replace(cfg.store, path=tmp_path / "mine.sqlite"),
+    )
+    got = use_state_folder(named, tmp_path / "s")[0]  # what the plant file names wins
+    assert (got.sunpath.state, got.store.path) == (tmp_path / "mine.json", tmp_path / "mine.sqlite")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ConfigError, match="--state"):
+        use_state_folder(cfg, tmp_path / "file" / "sub")
+
+
+def test_check_names_a_port_that_is_not_there(tmp_path, capsys):
+    p = tmp_path / "plant.toml"
+    p.write_text(
+        '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
+        f'port = "{tmp_path / "ttyUSB9"}"\n[[trackers]]\nname = "row-1"\ntype = "single-axis"\n'
+        'link = "rs485"\ndevice_id = 3\n'
+    )
+    assert main(["check", "--config", str(p)]) == 1
+    out, err = capsys.readouterr()
+    row = out.splitlines()[1]
+    assert row.startswith("row-1") and "FAILED" in row and "ttyUSB9 id 3" in row, out
+    assert out.splitlines()[-1] == "0 of 1 device(s) ok; 1 failed" and "Traceback" not in err
+
+
+def test_log_options_go_before_the_command_and_after_run():
+    p = build_parser()
+    a = p.parse_args(["--log-level", "debug", "--log-format", "json", "run", "--config", "x.toml"])
+    assert (a.log_level, a.log_format, a.log_file, a.default_log_level) == ("DEBUG", "json", None, "INFO")
+    a = p.parse_args(["--log-level", "error", "run", "--config", "x.toml", "--log-file", "l.txt"])
+    assert (a.log_level, a.log_file) == ("ERROR", Path("l.txt"))  # both places count
+    a = p.parse_args(["check", "--config", "x.toml"])
+    assert a.log_level is None and a.default_log_level == "WARNING"
+
+
+def test_json_lines_our_level_and_libraries_at_warning(tmp_path):
+    log_file = tmp_path / "run.log"
+    root = logging.getLogger()
+    level_before, handlers_before = root.level, list(root.handlers)
+    with logging_configured("INFO", "json", log_file):
+        logging.getLogger("heliotrack.run").info(
+            "cycle %d", 7, extra={"fields": {"cycle": 7, "el": float("nan")}}
+        )
+        logging.getLogger("heliotrack.run").debug("not at INFO")
+        logging.getLogger("pymodbus.logging").info("a library's chatter")
+        logging.getLogger("pymodbus.logging").warning("a library's warning")  # never silenced
+    assert (root.level, root.handlers) == (level_before, handlers_before)  # put back
+    lines = [json.loads(line) for line in log_file.read_text().splitlines()]
+    assert [(r["logger"], r["level"], r["message"]) for r in lines] == [
+        ("heliotrack.run", "INFO", "cycle 7"),
+        ("pymodbus.logging", "WARNING", "a library's warning"),
+    ]
+    assert lines[0]["cycle"] == 7 and lines[0]["el"] is None and lines[0]["time"].endswith("+00:00")
+
+
+def test_a_log_file_that_cannot_be_written_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "missing" / "x.log"
+    assert main(["--log-file", str(bad), "config", "validate", str(EXAMPLE)]) == 2
+    assert "--log-file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "option, value", [("--heartbeat-timeout", "-1"), ("--max-speed", "-2"), ("--max-speed", "0")]
+)
+def test_hil_drive_refuses_a_negative_timeout_or_speed(capsys, option, value):
+    assert main(["hil", "drive", option, value]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and option in err and "Traceback" not in err
+
+
+def test_hil_drive_firmware_counts_its_own_time(monkeypatch):
+    """A step of the wall clock neither fires nor delays the standalone drive's watchdog."""
+    from heliotrack.commands.hil import firmware
+
+    wall, mono = [1.7e9], [100.0]
+    monkeypatch.setattr(time, "time", lambda: wall[0])
+    monkeypatch.setattr(time, "monotonic", lambda: mono[0])
+    fw = firmware(build_parser().parse_args(["hil", "drive", "--heartbeat-timeout", "2"]))
+    wall[0] += 3600.0  # NTP steps the wall clock an hour
+    fw.update()
+    assert not fw.comm_lost
+    mono[0] += 2.5  # 2.5 s of silence on the drive's own clock
+    fw.update()
+    assert fw.comm_lost
+
+
+def test_check_reads_the_sensors_on_a_line(tmp_path, capsys):
+    """A drive, a pyranometer and an anemometer served on one pty: one row each."""
+    from hil.anemometer import Anemometer
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from hil.pyranometer import Pyranometer
+    from hil.wind import WindScript
+    from tests.conftest import two_axes
+
+    devices = {
+        1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic),
+        10: Pyranometer(lambda t: 640.0, time.monotonic, seed=1),
+        11: Anemometer(WindScript(time.time()), time.monotonic),
+    }
+    with PtyLink.open() as link, ModbusServerThread(devices, serial_url=link.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            f'[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
+            f'port = "{link.path}"\n[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\n'
+            'device_id = 1\n[pyranometer]\nlink = "rs485"\ndevice_id = 10\n'
+            '[wind]\nlink = "rs485"\ndevice_id = 11\n'
+        )
+        assert main(["check", "--config", str(p)]) == 0
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    assert set(rows) == {"dual-1", "pyranometer", "anemometer"}, out
+    assert f"{link.path} id 10" in rows["pyranometer"] and " W/m2" in rows["pyranometer"], out
+    assert f"{link.path} id 11" in rows["anemometer"] and "m/s, gust" in rows["anemometer"], out
+    assert "at 180.00, 90.00 deg (AUTO, AUTO)" in rows["dual-1"], out
