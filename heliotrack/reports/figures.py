@@ -142,7 +142,7 @@ def timeline(df: pd.DataFrame, period_s: float) -> Figure | None:
         t = date2num(rows["time"])
         labels = [_mode_label(m, r) for m, r in zip(rows["mode"], rows["reason"].fillna(""))]
         lanes.append((f"{name} mode", _segments(t, labels, period_s), MODE_COLOURS))
-        health = rows["health"].fillna("ok").tolist() if "health" in rows else []
+        health = [h or "ok" for h in rows["health"]] if "health" in rows else []
         if any(h != "ok" for h in health):
             lanes.append((f"{name} health", _segments(t, health, period_s), HEALTH_COLOURS))
     plant = _plant_rows(df)

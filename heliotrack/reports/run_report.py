@@ -27,6 +27,9 @@ from . import figures
 
 __all__ = ["load_run", "write_report"]
 
+#: Text columns of cycles.csv (empty when a run did not write them).
+TEXT_COLUMNS = ("mode", "reason", "source", "alarms", "error", "health", "health_reason")
+
 #: (file stem, caption) of each figure, in page order.
 CAPTIONS = {
     "sky_dome": "The sun path on a sky dome: the controller's estimates by source, and the true sun.",
@@ -60,10 +63,13 @@ def load_run(folder: Path) -> tuple[pd.DataFrame, dict]:
     if missing:
         raise InputError(f"{cycles_path}: missing column(s) {', '.join(sorted(missing))}")
     df["time"] = pd.to_datetime(df["time_utc"], utc=True, format="ISO8601", errors="coerce")
-    df = df[df["time"].notna()]
-    for col in ("reason", "alarms", "error", "health_reason"):
-        if col in df:
-            df[col] = df[col].fillna("")
+    df = df[df["time"].notna()].copy()
+    for col in TEXT_COLUMNS:  # a writer of fewer columns (an older run) still gets a report
+        df[col] = df[col].fillna("").astype(str) if col in df else ""
+    df["tracker"] = df["tracker"].astype(str)
+    for col in df.columns:
+        if col.endswith(("_deg", "_w_m2", "_ms")):
+            df[col] = pd.to_numeric(df[col], errors="coerce")
     return df, summary
 
 

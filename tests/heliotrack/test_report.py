@@ -120,3 +120,18 @@ def test_multi_day_figures_and_weather_on_the_timeline(tmp_path):
     assert "alarms" in lanes and "dual-1 mode" in lanes
     bars = figures.sky_classes(df, summary).axes[0].patches
     assert [round(b.get_height()) for b in bars] == [1, 3]  # class I clear, class III overcast
+
+
+def test_a_run_that_wrote_fewer_columns_still_gets_its_report(tmp_path):
+    # e.g. `heliotrack run` on a real plant: no truth, no pointing error, no setpoints
+    (tmp_path / "cycles.csv").write_text(
+        "time_utc,tracker,mode,source,sun_az_deg,sun_el_deg\n"
+        "2024-03-20T06:00:00+00:00,a,TRACK,ephemeris,100.0,20.0\n"
+        "2024-03-20T06:01:00+00:00,a,TRACK,observed,100.2,not a number\n"
+    )
+    (tmp_path / "summary.json").write_text(
+        json.dumps({"command": "run", "site": {"latitude": 32, "longitude": 48}})
+    )
+    assert main(["report", str(tmp_path)]) == 0
+    figs = images((tmp_path / "report" / "index.html").read_text())
+    assert set(figs) == {"sky_dome", "timeline"}  # the true sun from the ephemeris
