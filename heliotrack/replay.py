@@ -340,7 +340,7 @@ def plan(frames: RecordedFrames, period_s: float, start: float | None, hours: fl
         )
     n = max(1, round((end - t0) / period_s))
     warnings = []
-    reach = max(MAX_AGE_S, 1.5 * frames.cadence_s)
+    reach = max(MAX_AGE_S, 1.5 * frames.cadence_s, period_s)
     if t0 < first - reach or t0 + n * period_s > last + reach:
         warnings.append(
             f"the frames cover {_span_text(first, last)}, the run {_span_text(t0, t0 + n * period_s)}: "
