@@ -72,15 +72,15 @@ def sky_dome(df: pd.DataFrame, truth: pd.DataFrame | None) -> Figure | None:
                 np.radians(s["sun_az_deg"]),
                 90 - s["sun_el_deg"],
                 "o",
-                ms=4,
+                ms=7,
                 color=colour,
-                alpha=0.6,
+                alpha=0.5,
                 label=source,
             )
     if truth is not None and not truth.empty:
         t = _thin(truth)
         ax.plot(
-            np.radians(t["az"]), 90 - t["el"], ".", ms=1.5, color="black", label=t.attrs.get("label", "true")
+            np.radians(t["az"]), 90 - t["el"], ".", ms=0.8, color="black", label=t.attrs.get("label", "true")
         )
     ax.set_rlim(0, 90)
     ax.set_rticks([30, 60, 90])
