@@ -21,7 +21,7 @@ _TI_BY_KIND = np.array([_TI[k] for k in WIND_KINDS])
 #: Turbulence samples on the instrument's 4-Hz grid are kept for reuse (the anemometer's
 #: gust and 10-min mean, read every few seconds, share almost all of their samples).
 _GRID_HZ = 4
-_CACHE_MAX = 200_000
+_CACHE_MAX = 50_000
 
 
 @dataclass(frozen=True)
