@@ -7,6 +7,7 @@ imported.
 from __future__ import annotations
 
 import abc
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
@@ -66,15 +67,20 @@ class DriveIdentity:
         return f"{v >> 8}.{v & 0xFF}"
 
 
+#: Latencies a link keeps (the most recent ones): a month of transactions must not grow
+#: the controller's memory.
+LATENCIES_KEPT = 4096
+
+
 @dataclass
 class LinkStats:
     """Counts of one drive link: attempts made, attempts failed, retries, and the latency
-    of every successful attempt (s)."""
+    of the most recent successful attempts (s; at most ``LATENCIES_KEPT``)."""
 
     transactions: int = 0
     errors: int = 0
     retries: int = 0
-    latencies_s: list[float] = field(default_factory=list)
+    latencies_s: deque[float] = field(default_factory=lambda: deque(maxlen=LATENCIES_KEPT))
 
 
 class DriveLink(abc.ABC):

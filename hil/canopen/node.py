@@ -128,6 +128,7 @@ class AxisNode:
             rpdo.add_callback(self._on_rpdo)
         network.subscribe(0x80, self._on_sync)
         network.subscribe(0x700 + self.heartbeat_producer, self._on_master_heartbeat)
+        network.subscribe(0x000, self._on_nmt)
         self._boot()
 
     def detach(self) -> None:
@@ -136,6 +137,7 @@ class AxisNode:
         self.node.nmt.stop_heartbeat()
         self.network.unsubscribe(0x80, self._on_sync)
         self.network.unsubscribe(0x700 + self.heartbeat_producer, self._on_master_heartbeat)
+        self.network.unsubscribe(0x000, self._on_nmt)
         for pdo in list(self.node.rpdo.values()) + list(self.node.tpdo.values()):
             if pdo.cob_id:
                 self.network.unsubscribe(pdo.cob_id, pdo.on_message)
@@ -394,6 +396,14 @@ class AxisNode:
                 if tt == 0 and not self._changed(no, pdo, snap) or tt and self._sync_count % tt:
                     continue
                 self._send(no, pdo, snap, self.wall())
+
+    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """An NMT start for this node (or all): every TPDO goes out once more at the next
+        service, as after boot, so that a master that connects again (to a node already
+        OPERATIONAL) learns the whole state without waiting for the keep-alive timers."""
+        if len(data) >= 2 and data[0] == 0x01 and data[1] in (0, self.id):
+            with self.drive.lock:
+                self._last_tx.clear()
 
     def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:

@@ -182,6 +182,9 @@ class CanopenDrive(DriveLink):
         self.stats = LinkStats()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tpdo_event: asyncio.Event | None = None
+        #: After a failed transaction the TPDOs held may predate what the drive did while
+        #: we could not hear it: a state needs TPDOs received after this (time.monotonic()).
+        self._fresh_after = 0.0
 
     # -- helpers ------------------------------------------------------------------------
     @property
@@ -192,9 +195,13 @@ class CanopenDrive(DriveLink):
 
     async def sdo(self, what: str, fn: Callable[[], Any]) -> Any:
         """Run a blocking SDO operation in a thread, under the SDO retry policy."""
-        return await self.sdo_policy.run(
-            lambda: asyncio.to_thread(fn), what=what, label=self.label, stats=self.stats
-        )
+        try:
+            return await self.sdo_policy.run(
+                lambda: asyncio.to_thread(fn), what=what, label=self.label, stats=self.stats
+            )
+        except DriveCommError:
+            self._fresh_after = time.monotonic()
+            raise
 
     def _on_tpdo(self, axis: Axis402, number: int) -> Callable[[Any], None]:
         def callback(_pdo: Any) -> None:  # canopen's receive thread
@@ -353,9 +360,30 @@ class CanopenDrive(DriveLink):
             self.network = None
 
     # -- state --------------------------------------------------------------------------
+    async def _restart_if_rebooted(self) -> None:
+        """A node of this drive that announced itself again (a reboot: its heartbeat says
+        PRE-OPERATIONAL) is started afresh before it is used, the CANopen side of reopening
+        a link; the loop's uptime check then configures the drive again."""
+        if any(
+            a.heartbeat_time and a.node.nmt.state not in ("OPERATIONAL", "INITIALISING") for a in self.axes
+        ):
+            log.warning("%s: a node rebooted; starting the drive again", self.label)
+            await self.connect()
+
     async def read_state(self) -> DriveState:
         if not self.axes:
             raise DriveCommError(f"{self.label}: not connected")
+        await self._restart_if_rebooted()
+        if self._fresh_after:
+            # after a failure, wait for TPDOs sent since: the cache may hold a past state
+            since = self._fresh_after
+            fresh = await self._wait(
+                lambda: all(a.tpdo_time.get(n, 0.0) > since for a in self.axes for n in a.enabled_tpdos()),
+                self.stale_s,
+            )
+            if not fresh:
+                raise DriveCommError(f"{self.label}: no TPDOs since the link failed")
+            self._fresh_after = 0.0
         now = time.monotonic()
         axes = []
         for axis in self.axes:
@@ -372,6 +400,7 @@ class CanopenDrive(DriveLink):
             raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
         # Encode everything first: a bad angle (NaN, out of range) sends nothing at all.
         raws = [to_raw(_TARGET, angle) for angle in angles_deg]
+        await self._restart_if_rebooted()
         for k, (axis, raw) in enumerate(zip(self.axes, raws)):
             state = axis.state
             if state == State402.FAULT:
@@ -425,12 +454,16 @@ class CanopenDrive(DriveLink):
             self._controlword(node, CW_NEW_SET_POINT)
             taken = await self._wait(ack, self.timeout_s)
             self._controlword(node, CW_ENABLE_OPERATION)
-            if not taken:
+            if not taken and axis.state != State402.FAULT:  # a fault meanwhile: read_state says so
                 raise SetPointNotAcknowledged(f"not acknowledged within {self.timeout_s:g} s")
 
-        await self.set_point_policy.run(
-            attempt, what=f"axis {k} set-point", label=self.label, stats=self.stats
-        )
+        try:
+            await self.set_point_policy.run(
+                attempt, what=f"axis {k} set-point", label=self.label, stats=self.stats
+            )
+        except DriveCommError:
+            self._fresh_after = time.monotonic()
+            raise
 
     @staticmethod
     def _controlword(node: canopen.BaseNode402, cw: int) -> None:
@@ -474,9 +507,17 @@ class CanopenDrive(DriveLink):
             # (from FAULT through a fault-reset edge, which the 402 helper sends).
             for axis in self.axes:
                 if axis.state != State402.OPERATION_ENABLED:
-                    if axis.state == State402.FAULT:
+                    faulted = axis.state == State402.FAULT
+                    if faulted:
                         self._controlword(axis.node, 0)  # bit 7 low, so the next is an edge
-                    await self.sdo("re-enable", partial(setattr, axis.node, "state", "OPERATION ENABLED"))
+                    try:
+                        await self.sdo("re-enable", partial(setattr, axis.node, "state", "OPERATION ENABLED"))
+                    except DriveCommError:
+                        if not (cmd == Command.CLEAR_FAULT and faulted and axis.state == State402.FAULT):
+                            raise
+                        # The fault's cause is still there: the drive keeps it, as a Modbus
+                        # drive keeps FAULT_CODE after a CLEAR_FAULT; read_state reports it.
+                        log.info("%s: node %d stays in FAULT after a fault reset", self.label, axis.node.id)
 
     async def configure(
         self,

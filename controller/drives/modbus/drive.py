@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Awaitable, Callable, Sequence
 from typing import Any
 
+from pymodbus.exceptions import ConnectionException
+
 from firmware_protocol import (
     AXIS_STRIDE,
     MAGIC,
@@ -77,13 +79,16 @@ class ModbusDrive(DriveLink):
     async def _call(
         self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
     ) -> Any:
-        """One request to this slave under the link's retry policy."""
-        return await self.policy.run(
-            lambda: checked(request, *args, device_id=self.device_id, **kwargs),
-            what=what,
-            label=self.label,
-            stats=self.stats,
-        )
+        """One request to this slave under the link's retry policy; an attempt on a client
+        that lost its connection (a gateway restarted, a reply it could not decode) opens
+        it again first."""
+
+        async def attempt() -> Any:
+            if not self.client.connected and not await self.client.connect():
+                raise ConnectionException(f"{self.label}: the link is down and does not reopen")
+            return await checked(request, *args, device_id=self.device_id, **kwargs)
+
+        return await self.policy.run(attempt, what=what, label=self.label, stats=self.stats)
 
     async def connect(self) -> None:
         if self._closed:  # connected again after close (the loop's reconnection)
