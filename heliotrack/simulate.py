@@ -26,7 +26,7 @@ from tqdm import tqdm
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
 from controller.loop import Controller, CycleRecord
-from controller.sun.camera import CallableFrameSource, CameraSunSensor
+from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
 from hil import truth
@@ -34,12 +34,13 @@ from hil.drive import DriveFirmware
 from hil.sky import sky_series
 
 from .devices import open_anemometer, open_drives, open_pyranometer
+from .faults import FaultScheduler, FaultyFrameSource
 from .output import log_row, summary_table, write_outputs
 from .scenario import as_scenario
 from .scoring import DEFINITIONS, TruthGrid, TruthTally, energy, panel, stats
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
-from .world import build_world
+from .world import World, build_world
 
 __all__ = ["ScenarioRun", "day_start", "run_simulation", "summary_table", "write_outputs"]
 
@@ -128,6 +129,9 @@ class ScenarioRun:
         self.log_rows: list[dict] = []
         self._sun: SunSource | None = None
         self._sensor: CameraSunSensor | None = None
+        #: Fault injection ([hil.faults]): the scheduler, and the camera it damages.
+        self.faults: FaultScheduler | None = None
+        self._frames: FaultyFrameSource | None = None
         wind = config.wind
         self.wind = self.hil.wind.script(self.t0) if wind is not None else None
         self.weather = (
@@ -136,7 +140,7 @@ class ScenarioRun:
             else None
         )
 
-    def _camera_frames(self) -> CallableFrameSource | None:
+    def _camera_frames(self) -> FrameSource | None:
         """The world's camera, when the controller looks at the sky through one."""
         hs = self.config.hotspot
         if self.config.control.sun_source != "hotspot" or hs is None or hs.frames != "hil":
@@ -154,7 +158,10 @@ class ScenarioRun:
             tau = float(np.interp(t, self.t_samples, self.grid.sky.beam_transmittance))
             return render_frame(scn, t, transmittance=tau).image
 
-        return CallableFrameSource(render)
+        if not self.hil.faults.enabled:
+            return CallableFrameSource(render)
+        self._frames = FaultyFrameSource(CallableFrameSource(render), self.hil.faults.seed)
+        return self._frames
 
     def ghi_at(self, t: float) -> float:
         """The sky's true GHI at ``t`` (what the emulated pyranometer sees), W/m2."""
@@ -165,6 +172,9 @@ class ScenarioRun:
         with ExitStack() as stack:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
+            if self.hil.faults.enabled:
+                t1 = self.t0 + self.n_cycles * self.period
+                self.faults = FaultScheduler(self.config, world, self.clock, self.t0, t1, self._frames)
             self._sun, self._sensor = sun, sensor
             controller = Controller(
                 self.config,
@@ -181,8 +191,9 @@ class ScenarioRun:
                     total=self.n_cycles, desc="simulate", unit="cycle", disable=not self.progress, leave=False
                 )
                 for i in range(self.n_cycles):
-                    self.clock.advance_to(self.t0 + i * self.period)
-                    records = await controller.cycle()
+                    self._advance(self.t0 + i * self.period)
+                    records = await self._cycle(controller)
+                    self._after_cycle(records, controller, world)
                     tracking = {r.tracker for r in records if r.mode == "TRACK" and not r.error}
                     errors = await self._sample_truth(i, world.firmwares, tracking, controller)
                     self._log(records, errors)
@@ -192,6 +203,29 @@ class ScenarioRun:
                 await controller.close()
         return self._summary(controller, time.perf_counter() - wall0)
 
+    # -- hooks (fault injection; a soak overrides them to count and carry on) -----------------
+    def _advance(self, t: float) -> None:
+        """Move the clock to ``t`` and let the fault scheduler act."""
+        self.clock.advance_to(t)
+        if self.faults is not None:
+            self.faults.advance(t)
+
+    async def _cycle(self, controller: Controller) -> list[CycleRecord]:
+        return await controller.cycle()
+
+    async def _poll(self, controller: Controller) -> None:
+        await controller.poll_weather()
+
+    def _after_cycle(self, records: list[CycleRecord], controller: Controller, world: World) -> None:
+        if self.faults is not None:
+            self.faults.after_cycle(self.clock.monotonic(), records, controller.safety.order() is not None)
+
+    def _reachable(self, firmwares: dict[str, DriveFirmware]) -> dict[str, DriveFirmware]:
+        """The drives no fault cuts off from the controller (the others cannot obey)."""
+        if self.faults is None:
+            return firmwares
+        return {n: fw for n, fw in firmwares.items() if self.faults.ledger.state[n].blocked == 0}
+
     async def _weather_until(
         self, t: float, controller: Controller, firmwares: dict[str, DriveFirmware]
     ) -> None:
@@ -200,10 +234,10 @@ class ScenarioRun:
         if self.weather is None:
             return
         while controller.next_weather_poll <= t:
-            self.clock.advance_to(max(controller.next_weather_poll, self.clock.monotonic()))
-            self.weather.sample(self.clock.monotonic(), firmwares)
-            await controller.poll_weather()
-            self.weather.sample(self.clock.monotonic(), firmwares)
+            self._advance(max(controller.next_weather_poll, self.clock.monotonic()))
+            self.weather.sample(self.clock.monotonic(), self._reachable(firmwares))
+            await self._poll(controller)
+            self.weather.sample(self.clock.monotonic(), self._reachable(firmwares))
 
     async def _sample_truth(
         self, i: int, firmwares: dict[str, DriveFirmware], tracking: set[str], controller: Controller
@@ -216,9 +250,9 @@ class ScenarioRun:
         errs: dict[str, list[float]] = {tr.name: [] for tr in self.config.trackers}
         for k in range(i * self.sub, (i + 1) * self.sub):
             await self._weather_until(self.t_samples[k], controller, firmwares)
-            self.clock.advance_to(self.t_samples[k])
+            self._advance(self.t_samples[k])
             if self.weather is not None:
-                self.weather.sample(self.t_samples[k], firmwares)
+                self.weather.sample(self.t_samples[k], self._reachable(firmwares))
             if self.grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
@@ -294,6 +328,7 @@ class ScenarioRun:
             "modes": self.modes,
             "sources": self.sources,
             **self._sun_path_summary(),
+            **({"faults": self.faults.summary()} if self.faults is not None else {}),
             **(
                 {
                     "weather": {
