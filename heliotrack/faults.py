@@ -166,6 +166,7 @@ class FaultScheduler:
     # -- running ------------------------------------------------------------------------------
     def advance(self, t: float) -> None:
         """Apply every change due at ``t`` (the clock has just been moved there)."""
+        t = float(t)
         while self._next < len(self.plan) and self.plan[self._next].start <= t:
             f = self.plan[self._next]
             self._next += 1
@@ -185,6 +186,7 @@ class FaultScheduler:
 
     def collect(self, t: float) -> None:
         """Take in the wire faults injected since the last call, stamped ``t``."""
+        t = float(t)
         for name, wire in self.world.faults.wire.items():
             self._tally(name, [(e.kind, e.device_id) for e in wire.drain()], t)
         for name, can in self.world.faults.can.items():

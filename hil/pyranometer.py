@@ -47,7 +47,7 @@ class Pyranometer:
         self.fault = False  # fault injection: the sensor reports a fault status
         self.frozen_at: float | None = None
         self.override: float | None = None
-        self._frozen: list[int] | None = None
+        self._frozen: tuple[float | None, list[int]] | None = None
 
     def values(self) -> dict[str, float]:
         g = float(self.ghi_at(self.now()))
@@ -65,8 +65,9 @@ class Pyranometer:
     def read(self, address: int, count: int) -> list[int]:
         if address < 0 or address + count > PYRANOMETER_SPACE:
             raise FirmwareReject(2, "outside the pyranometer's registers")
-        if self.frozen_at is not None and self.now() >= self.frozen_at and self._frozen is not None:
-            return self._frozen[address : address + count]
+        frozen = self.frozen_at is not None and self.now() >= self.frozen_at
+        if frozen and self._frozen is not None and self._frozen[0] == self.frozen_at:
+            return self._frozen[1][address : address + count]
         words = [0] * PYRANOMETER_SPACE
         for name, value in self.values().items():
             reg = PYR[name]
@@ -74,7 +75,8 @@ class Pyranometer:
                 words[reg.offset] = NAN_WORD_INT16
                 continue
             words[reg.offset : reg.offset + reg.words] = encode(reg, min(max(value, -32768), 32767))
-        self._frozen = words
+        if frozen:  # the words it keeps from now on
+            self._frozen = (self.frozen_at, words)
         return words[address : address + count]
 
     def write(self, address: int, values: Sequence[int]) -> None:

@@ -13,6 +13,11 @@ from ..drives.links import LinkConfig
 from ..drives.modbus.client import checked, endpoint, modbus_client, retry_policy
 
 MAX_PLAUSIBLE_W_M2 = 1600.0  # above the solar constant plus cloud enhancement: a fault
+#: Identical readings in a row (irradiance and raw signal, in daylight) that mean a frozen
+#: instrument: its noise alone changes the last digit between two readings a minute apart.
+FROZEN_AFTER = 10
+#: Below this the sky is dark enough for a steady reading (night: 0).
+FROZEN_MIN_W_M2 = 20.0
 _FIRST = PYR["PYR_IRRADIANCE"].offset
 _LAST = PYR["PYR_STATUS"].offset
 
@@ -32,7 +37,9 @@ class ModbusPyranometer:
     The link is opened on the first read and reopened after it drops, so a sensor that
     was away at start-up (or a gateway that restarted) comes back by itself.
     :meth:`read` raises :class:`DriveCommError` on a link error (after the link's retries),
-    a fault status or an implausible value, so a bad sample is never used.
+    a fault status, an implausible value, or a frozen instrument (``FROZEN_AFTER`` identical
+    daylight readings in a row: the map has no sample counter), so a bad sample is never
+    used.
 
     Parameters
     ----------
@@ -53,6 +60,7 @@ class ModbusPyranometer:
         self.policy = retry_policy(retries)
         self.stats = LinkStats()
         self._closed = False
+        self._same: tuple[tuple[int, ...], int] = ((), 0)
 
     @classmethod
     def from_config(cls, link: LinkConfig, device_id: int) -> ModbusPyranometer:
@@ -88,6 +96,11 @@ class ModbusPyranometer:
         ghi = float(decode(PYR["PYR_IRRADIANCE"], [words[0]]))
         if not -10.0 <= ghi <= MAX_PLAUSIBLE_W_M2:
             raise DriveCommError(f"{self.label}: implausible irradiance {ghi} W/m2")
+        key = tuple(words[: PYR["PYR_IRRADIANCE_RAW"].offset - _FIRST + 1])
+        last, n = self._same
+        self._same = (key, n + 1 if key == last and ghi >= FROZEN_MIN_W_M2 else 1)
+        if self._same[1] >= FROZEN_AFTER:
+            raise DriveCommError(f"{self.label}: frozen ({self._same[1]} identical readings of {ghi:g} W/m2)")
         return IrradianceSample(t, max(ghi, 0.0))
 
     async def close(self) -> None:
