@@ -2,7 +2,8 @@
 
 ``config/hil-soak.toml``: six trackers on Modbus RTU, Modbus TCP and CANopen, a
 pyranometer and an anemometer on the RS-485 line, the hotspot camera (one frame every
-30 min, its learned sun-path state saved daily), gusty days, and every fault type of
+30 min, its learned sun-path state saved daily in the store with the history), gusty
+days, and every fault type of
 ``[hil.faults]`` at random rates.  The benchmark adds storms at random moments (about
 one every two and a half days, peaks 18-26 m/s, the alarm at any second of a cycle) and
 runs ``days`` simulated days (default 30) through :class:`benchmarks.soak_run.SoakRun`.
@@ -61,8 +62,9 @@ DEFINITIONS = {
     "out)",
     "wind_stowed_worst_s": "the same, to every axis at its stow angle (bounded by the drives' "
     "speed: reported, no target)",
-    "state_corruptions": "times the sun-path state file the controller saved at its day change "
-    "failed to load and validate (controller.sunpath.state.load_state)",
+    "state_corruptions": "times the store failed its integrity check, or the sun-path state the "
+    "controller saved in it failed to load and validate (controller.sunpath.state."
+    "load_from_store), checked after each of the controller's day changes (when it saves)",
     "rss_growth_pct": "resident set size at the end of the last simulated day against the end "
     "of the first, percent, each measured after a garbage collection and glibc malloc_trim "
     "(memory freed in the threads' allocator arenas is not held)",
@@ -92,7 +94,8 @@ def random_storms(t0: float, days: int, seed: int) -> tuple:
 
 
 def soak_config(days: int, state_dir: Path, seed: int = 29):
-    """The soak scenario with its storms and a state file in ``state_dir``."""
+    """The soak scenario with its storms and its store (learned state, history) in
+    ``state_dir``."""
     from heliotrack.scenario import load_scenario
     from heliotrack.simulate import day_start
 
@@ -102,7 +105,7 @@ def soak_config(days: int, state_dir: Path, seed: int = 29):
     return replace(
         cfg,
         hil=replace(cfg.hil, wind=wind),
-        sunpath=replace(cfg.sunpath, state=state_dir / "sunpath.json"),
+        store=replace(cfg.store, path=state_dir / "store.sqlite"),
     )
 
 
@@ -110,7 +113,7 @@ def run(quick: bool = False, days: int | None = None) -> dict:
     days = days or (1 if quick else 30)
     with tempfile.TemporaryDirectory(prefix="heliotrack-soak-") as tmp:
         cfg = soak_config(days, Path(tmp))
-        soak = SoakRun(cfg, days, None, False, state_path=cfg.sunpath.state)
+        soak = SoakRun(cfg, days, None, False)
         summary = asyncio.run(soak.run())
     return result(soak, summary, days)
 

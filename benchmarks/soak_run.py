@@ -17,7 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from controller.loop import Controller, CycleRecord
-from controller.sunpath.state import StateError, load_state
+from controller.store import Store, StoreError
+from controller.sunpath.state import StateError, load_from_store, load_state
 from heliotrack.faults import unexpected_error
 from heliotrack.simulate import ScenarioRun
 from heliotrack.world import World
@@ -41,11 +42,14 @@ def rss_bytes(trim: bool = False) -> int:
 
 class SoakRun(ScenarioRun):
     """A :class:`~heliotrack.simulate.ScenarioRun` that keeps going through anything and
-    counts it.  ``state_path``: the sun-path state file to validate after every day."""
+    counts it.  The learned state it validates after every day: the store of ``[store]
+    path`` (its integrity check, and the sun-path state in it), else the ``[sunpath]
+    state`` file."""
 
-    def __init__(self, *args: Any, state_path: Path | None = None, **kwargs: Any):
+    def __init__(self, *args: Any, **kwargs: Any):
         super().__init__(*args, **kwargs)
-        self.state_path = state_path
+        self.store_path: Path | None = self.config.store.path
+        self.state_path: Path | None = self.config.sunpath.state
         self.crashes: Counter[str] = Counter()
         self.crash_samples: list[str] = []
         self.setpoints_checked = 0
@@ -183,12 +187,16 @@ class SoakRun(ScenarioRun):
 
     def _check_state(self) -> None:
         """The learned state the controller just saved must load and pass validation."""
-        if self.state_path is None:
+        if self.store_path is None and self.state_path is None:
             return
         self.state_checks += 1
         try:
-            load_state(self.state_path, now=self.clock.now())
-        except StateError as exc:
+            if self.store_path is not None:
+                with Store(self.store_path, check=True) as store:
+                    load_from_store(store, now=self.clock.now())
+            elif self.state_path is not None:
+                load_state(self.state_path, now=self.clock.now())
+        except (StateError, StoreError) as exc:
             self.state_corruptions.append(str(exc))
 
     # -- results ------------------------------------------------------------------------------------

@@ -3,19 +3,35 @@
 The server thread calls :meth:`Northbound.snapshot` on every Modbus request and hands
 accepted operator writes to :meth:`Northbound.on_override`; both only touch a cached
 object and a queue, so the control loop never waits on SCADA.  The loop publishes a new
-snapshot after each cycle and applies queued overrides before the next.
+snapshot after each cycle and applies queued overrides and stow requests before the next.
+
+The weather (vendor model 64601) comes from the loop's :class:`~controller.safety.SafetyState`:
+the stow in force, the wind and the snow/hail requests at publication, and a wind stow
+that started since (the loop polls the anemometer between cycles) at once, so that model
+601 writes are refused (exception 6) from the gust on, not from the next cycle on.
 """
 
 from __future__ import annotations
 
+import logging
 import queue
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 
 from .config import DualAxisTracker, SingleAxisTracker
 from .loop import Controller, CycleRecord
-from .sunspec import OverrideCommand, PlantSnapshot, TrackerSnapshot
+from .sunspec import OverrideCommand, PlantSnapshot, StowRequest, TrackerSnapshot, WeatherSnapshot
+from .sunspec.snapshot import SUNSPEC_SOURCE
+from .weather import WindState
+
+log = logging.getLogger("heliotrack.sunspec")
 
 _ALARM_SETPOINT = 1  # model 601 Alm bit 0: the tracker cannot reach or hold its setpoint
+
+
+def _anemometer_lost(wind: WindState) -> bool:
+    # WindMonitor's reason while no valid reading arrives (controller.weather)
+    return wind.alarm and wind.reason.startswith("anemometer silent")
 
 
 class Northbound:
@@ -24,26 +40,50 @@ class Northbound:
     def __init__(self, controller: Controller, name: str = "heliotrack"):
         self.controller = controller
         self.name = name
-        self.overrides: queue.SimpleQueue[OverrideCommand] = queue.SimpleQueue()
+        self.overrides: queue.SimpleQueue[OverrideCommand | StowRequest] = queue.SimpleQueue()
         self._snapshot = self._build([])
+        self._live: tuple[PlantSnapshot, WindState, PlantSnapshot] | None = None
 
     # -- server thread ---------------------------------------------------------------
     def snapshot(self) -> PlantSnapshot:
-        return self._snapshot
+        """The published snapshot; with a wind stow that started since, marked as one (the
+        same object while nothing changes, so the server's per-tracker work is skipped)."""
+        snap, wind = self._snapshot, self.controller.safety.wind  # each read is atomic
+        live = self._live
+        if live is not None and live[0] is snap and live[1] is wind:
+            return live[2]
+        out = snap
+        if wind.stow and snap.weather.stow != "wind":
+            out = replace(
+                snap,
+                weather=replace(
+                    snap.weather, stow="wind", reason=wind.reason, anemometer_lost=_anemometer_lost(wind)
+                ),
+            )
+        self._live = (snap, wind, out)
+        return out
 
-    def on_override(self, cmd: OverrideCommand) -> None:
+    def on_override(self, cmd: OverrideCommand | StowRequest) -> None:
         self.overrides.put(cmd)
 
     # -- control loop ----------------------------------------------------------------
     def apply_pending(self) -> int:
-        """Hand queued overrides to the controller; returns how many."""
+        """Hand queued overrides and stow requests to the controller; returns how many."""
         n = 0
         while True:
             try:
                 cmd = self.overrides.get_nowait()
             except queue.Empty:
                 return n
-            self.controller.set_override(cmd.tracker, cmd.ctl, cmd.el_deg, cmd.az_deg)
+            if isinstance(cmd, StowRequest):
+                self.controller.safety.request(SUNSPEC_SOURCE, cmd.kind)
+                log.warning(
+                    "SunSpec %s from %s",
+                    f"{cmd.kind} stow requested" if cmd.kind else "stow request withdrawn",
+                    cmd.peer or "?",
+                )
+            else:
+                self.controller.set_override(cmd.tracker, cmd.ctl, cmd.el_deg, cmd.az_deg)
             n += 1
 
     def publish(self, records: list[CycleRecord]) -> None:
@@ -102,4 +142,19 @@ class Northbound:
             local.replace(tzinfo=None),
             tuple(trackers),
             axis_tilt_deg=max(tilts, default=0.0),
+            weather=self._weather(),
+        )
+
+    def _weather(self) -> WeatherSnapshot:
+        safety = self.controller.safety
+        order = safety.order()
+        last = safety.monitor.last if safety.monitor is not None else None
+        return WeatherSnapshot(
+            stow=order.kind if order is not None else "",
+            reason=order.reason if order is not None else "",
+            speed_m_s=last.speed_m_s if last is not None else None,
+            gust_m_s=last.gust_m_s if last is not None else None,
+            mean_10min_m_s=last.mean_10min_m_s if last is not None else None,
+            anemometer_lost=_anemometer_lost(safety.wind),
+            requests=tuple(safety.requests.items()),
         )

@@ -13,6 +13,7 @@ rotation (0: flat).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -142,6 +143,10 @@ class WindMonitor:
 
     def update(self, t: float, sample: WindSample | None) -> WindState:
         c = self.config
+        if sample is not None and not all(
+            math.isfinite(v) and v >= 0 for v in (sample.speed_m_s, sample.gust_m_s, sample.mean_10min_m_s)
+        ):
+            sample = None  # an impossible reading is no reading: it counts toward the silence
         if sample is not None:
             self.last_valid = t
             self.last = sample
@@ -179,8 +184,10 @@ def read_flag_file(path: Path) -> StowReason | None | str:
         return f"{path}: cannot read the stow flag ({exc.strerror})"
     words = text.split()
     word = words[0].lower() if words else "none"
-    if word in ("snow", "hail"):
-        return word  # type: ignore[return-value]
+    if word == "snow":
+        return "snow"
+    if word == "hail":
+        return "hail"
     if word in ("none", "off", "clear"):
         return None
     return f"{path}: stow flag {words[0][:20]!r} is not snow, hail or none; ignored"

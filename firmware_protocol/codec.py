@@ -24,7 +24,15 @@ def to_raw(reg: Register, value: float) -> int:
     """Engineering value -> integer on the wire (before word splitting)."""
     if isinstance(value, float) and not math.isfinite(value):
         raise ProtocolError(f"{reg.name}: value must be finite, got {value!r}")
-    raw = int(round(value / reg.scale)) if reg.scale != 1 else int(value)
+    if reg.scale == 1:
+        if isinstance(value, float) and not value.is_integer():  # int() would truncate it
+            raise ProtocolError(f"{reg.name}: value must be a whole number, got {value!r}")
+        raw = int(value)
+    else:
+        counts = value / reg.scale
+        if not math.isfinite(counts):  # a huge finite value: round() would overflow
+            raise ProtocolError(f"{reg.name}: {value} {reg.unit} is far outside the {reg.type} range")
+        raw = int(round(counts))
     lo, hi = _RANGES[reg.type]
     if not lo <= raw <= hi:
         raise ProtocolError(

@@ -13,6 +13,7 @@ the emulated drives, the sun from pvlib SPA), scored by :mod:`heliotrack.scoring
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 from contextlib import ExitStack
@@ -26,6 +27,7 @@ from tqdm import tqdm
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
 from controller.loop import Controller, CycleRecord
+from controller.store import open_store_or_none
 from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
@@ -41,6 +43,8 @@ from .scoring import DEFINITIONS, TruthGrid, TruthTally, energy, panel, stats
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
 from .world import World, build_world
+
+log = logging.getLogger("heliotrack.simulate")
 
 __all__ = ["ScenarioRun", "day_start", "run_simulation", "summary_table", "write_outputs"]
 
@@ -176,6 +180,13 @@ class ScenarioRun:
                 t1 = self.t0 + self.n_cycles * self.period
                 self.faults = FaultScheduler(self.config, world, self.clock, self.t0, t1, self._frames)
             self._sun, self._sensor = sun, sensor
+            store = (
+                open_store_or_none(self.config.store.path, log.warning)
+                if self.config.store.path is not None
+                else None
+            )
+            if store is not None:
+                stack.callback(store.close)
             controller = Controller(
                 self.config,
                 open_drives(self.config, world.links),
@@ -184,6 +195,7 @@ class ScenarioRun:
                 sensor=sensor,
                 pyranometer=open_pyranometer(self.config, world.links),
                 anemometer=open_anemometer(self.config, world.links),
+                store=store,
             )
             try:
                 await controller.start()

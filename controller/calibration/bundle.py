@@ -38,6 +38,8 @@ mask = "mask.png"   # optional (top level); relative paths resolve against this 
 
 from __future__ import annotations
 
+import datetime as dt
+import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -50,6 +52,12 @@ from ..schema import Where, internal, load, load_file, setting
 from .camera import CameraCal
 
 Vec3 = tuple[float, float, float]
+
+
+def vec3(v) -> Vec3:
+    """Three floats from any 3-sequence (numpy arrays included)."""
+    x, y, z = (float(c) for c in v)
+    return x, y, z
 
 
 @dataclass(frozen=True)
@@ -241,7 +249,28 @@ def bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> Calibrati
 
 
 # ------------------------------------------------------------------------------------------
-def _fmt(v) -> str:
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _string(s: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    out = ['"']
+    for ch in s:
+        if ch in '"\\':
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return "".join(out) + '"'
+
+
+def _key(k: str) -> str:
+    return k if _BARE_KEY.fullmatch(k) else _string(k)
+
+
+def _fmt(v: Any) -> str:
+    """A TOML value (anything a loaded bundle holds, ``[notes]`` included)."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, (int, np.integer)):
@@ -249,10 +278,13 @@ def _fmt(v) -> str:
     if isinstance(v, (float, np.floating)):
         return repr(float(v))
     if isinstance(v, (str, Path)):
-        s = str(v).replace("\\", "\\\\").replace('"', '\\"')
-        return f'"{s}"'
+        return _string(str(v))
+    if isinstance(v, (dt.datetime, dt.date, dt.time)):
+        return v.isoformat()
     if isinstance(v, (list, tuple, np.ndarray)):
         return "[" + ", ".join(_fmt(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_key(str(k))} = {_fmt(x)}" for k, x in v.items()) + "}"
     raise TypeError(type(v))
 
 
@@ -299,6 +331,7 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
                     f"radial_poly = {_fmt(list(s.radial_poly))}",
                 ]
         else:
+            assert s.cloud is not None  # a cloud surface names its file (checked on load)
             out.append(f"cloud = {_fmt(rel(s.cloud))}")
         if s.min_z is not None:
             out.append(f"min_z = {_fmt(s.min_z)}")
@@ -306,22 +339,20 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
         p = b.pose
         out += ["", "[pose]"]
         if p.rvec is not None:
-            out += [f"rvec = {_fmt(list(p.rvec))}", f"tvec = {_fmt(list(p.tvec))}"]
+            out += [f"rvec = {_fmt(p.rvec)}", f"tvec = {_fmt(p.tvec)}"]
             if p.rms_px is not None:
                 out.append(f"rms_px = {_fmt(p.rms_px)}")
         else:
             out += [
-                f"markers_model = {_fmt([list(x) for x in p.markers_model])}",
-                f"markers_image = {_fmt([list(x) for x in p.markers_image])}",
+                f"markers_model = {_fmt(p.markers_model)}",
+                f"markers_image = {_fmt(p.markers_image)}",
             ]
     if b.level is not None:
         out += ["", "[level]"]
         if b.level.zenith_model is not None:
-            out.append(f"zenith_model = {_fmt(list(b.level.zenith_model))}")
+            out.append(f"zenith_model = {_fmt(b.level.zenith_model)}")
         else:
-            out.append(
-                "plumb_lines_image = " + _fmt([[list(p) for p in line] for line in b.level.plumb_lines_image])
-            )
+            out.append(f"plumb_lines_image = {_fmt(b.level.plumb_lines_image)}")
     if b.azimuth_offset_deg is not None:
         out += ["", "[azimuth]", f"offset_deg = {_fmt(b.azimuth_offset_deg)}"]
     if b.lobe_coeff_deg is not None:
@@ -329,7 +360,7 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
     if b.notes:
         out += ["", "[notes]"]
         for k, v in b.notes.items():
-            out.append(f"{k} = {_fmt(v)}")
+            out.append(f"{_key(str(k))} = {_fmt(v)}")
     return "\n".join(out) + "\n"
 
 

@@ -31,7 +31,9 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(path, "", f"UTF-8 text (byte {exc.start} is not)") from None
     try:
         return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
+    except RecursionError:
+        raise ConfigError(path, "", "valid TOML (arrays or tables nested too deep)") from None
+    except ValueError as exc:  # TOMLDecodeError, and an integer past Python's 4300 digits
         raise ConfigError(path, "", f"valid TOML ({exc})") from None
 
 
@@ -69,10 +71,19 @@ def _table(cls: type[T], data: Any, at: Where) -> T:
             kwargs[f.name] = _value(hints[f.name], data[f.name], here, spec_of(f))
         elif f.default is MISSING and f.default_factory is MISSING:
             raise here.error(f"a value ({expected_text(hints[f.name], spec_of(f))}); the key is missing")
+        elif isinstance(f.default_factory, type) and hasattr(f.default_factory, "__schema_check__"):
+            # an absent table is its defaults completed by its own rules (derived keys: a
+            # plant file without [control] got a NaN watchdog timeout and lead)
+            kwargs[f.name] = _table(f.default_factory, {}, here)
     obj = cls(**kwargs)
     check = getattr(cls, "__schema_check__", None)
     if check is not None:
-        obj = check(obj, at)
+        try:
+            obj = check(obj, at)
+        except (ValueError, OverflowError, OSError, RuntimeError) as exc:
+            # a cross-field rule tripped on a value it did not foresee (a path it cannot
+            # expand or resolve, a number too large for arithmetic): still the file's fault
+            raise at.error(f"usable settings ({exc})") from None
     return obj
 
 
@@ -110,7 +121,10 @@ def _value(tp: Any, v: Any, at: Where, spec: Spec) -> Any:
     if tp is float:
         if not isinstance(v, (int, float)) or isinstance(v, bool):
             raise at.error(expected_text(tp, spec), v)
-        v = float(v)
+        try:
+            v = float(v)
+        except OverflowError:  # an integer beyond the float range
+            raise at.error("a finite number", "an integer too large for a float") from None
         if not math.isfinite(v):
             raise at.error("a finite number", v)
         _bounds(v, at, spec, tp)
@@ -185,11 +199,18 @@ def _variant(v: Any, at: Where, spec: Spec) -> Any:
 def _path(v: Any, at: Where, spec: Spec) -> Path:
     if not isinstance(v, str) or not v:
         raise at.error("a path", v)
-    p = Path(v).expanduser()
-    if not p.is_absolute():
-        p = (at.folder / p).resolve()
-    if spec.path == "file" and not p.is_file():
-        raise at.error("an existing file", str(p))
-    if spec.path == "dir" and not p.is_dir():
-        raise at.error("an existing folder", str(p))
+    if "\x00" in v:
+        raise at.error("a path (without NUL characters)", v)
+    try:
+        p = Path(v).expanduser()
+        if not p.is_absolute():
+            p = (at.folder / p).resolve()
+        if spec.path == "file" and not p.is_file():
+            raise at.error("an existing file", str(p))
+        if spec.path == "dir" and not p.is_dir():
+            raise at.error("an existing folder", str(p))
+    except RuntimeError:  # "~user" of no known user
+        raise at.error("a path (its '~' names no user with a home folder)", v) from None
+    except OSError as exc:  # a name too long, a loop of links...
+        raise at.error(f"a usable path ({exc.strerror or exc})", v) from None
     return p

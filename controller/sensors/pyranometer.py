@@ -8,9 +8,8 @@ from typing import Any
 from firmware_protocol import decode
 from firmware_protocol.pyranometer import PYR
 
-from ..drives.base import DriveCommError, LinkStats
-from ..drives.links import LinkConfig
-from ..drives.modbus.client import checked, endpoint, modbus_client, retry_policy
+from ..drives.base import DriveCommError
+from .modbus_sensor import ModbusSensor
 
 MAX_PLAUSIBLE_W_M2 = 1600.0  # above the solar constant plus cloud enhancement: a fault
 #: Identical readings in a row (irradiance and raw signal, in daylight) that mean a frozen
@@ -30,66 +29,24 @@ class IrradianceSample:
     ghi_w_m2: float
 
 
-class ModbusPyranometer:
-    """A pyranometer on a pymodbus asyncio client (the shared client of an RS-485 line, or
-    a TCP connection of its own).
+class ModbusPyranometer(ModbusSensor):
+    """A pyranometer (map in :mod:`firmware_protocol.pyranometer`).
 
-    The link is opened on the first read and reopened after it drops, so a sensor that
-    was away at start-up (or a gateway that restarted) comes back by itself.
     :meth:`read` raises :class:`DriveCommError` on a link error (after the link's retries),
     a fault status, an implausible value, or a frozen instrument (``FROZEN_AFTER`` identical
     daylight readings in a row: the map has no sample counter), so a bad sample is never
     used.
-
-    Parameters
-    ----------
-    client : pymodbus async client
-        See :func:`~controller.drives.modbus.client.modbus_client`.
-    device_id : int
-        Modbus slave id.
-    label : str
-        Used in error messages.
-    retries : int
-        Extra attempts of a failed read.
     """
 
+    kind = "pyranometer"
+
     def __init__(self, client: Any, device_id: int, label: str = "", retries: int = 0):
-        self.client = client
-        self.device_id = device_id
-        self.label = label or f"pyranometer id {device_id}"
-        self.policy = retry_policy(retries)
-        self.stats = LinkStats()
-        self._closed = False
+        super().__init__(client, device_id, label, retries)
         self._same: tuple[tuple[int, ...], int] = ((), 0)
-
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusPyranometer:
-        """The pyranometer ``device_id`` on a Modbus ``link`` (must run in the event loop
-        that will read it: pymodbus clients belong to their loop)."""
-        return cls(
-            modbus_client(link),
-            device_id,
-            label=f"pyranometer {endpoint(link)} id {device_id}",
-            retries=link.retries,
-        )
-
-    async def connect(self) -> None:
-        """Open the link if it is not open (``read`` does this by itself)."""
-        if not self.client.connected and not await self.client.connect():
-            raise DriveCommError(f"{self.label}: cannot open the link")
 
     async def read(self, t: float) -> IrradianceSample:
         """The irradiance now, stamped ``t`` (POSIX s)."""
-        await self.connect()
-        rr = await self.policy.run(
-            lambda: checked(
-                self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1, device_id=self.device_id
-            ),
-            what="irradiance read",
-            label=self.label,
-            stats=self.stats,
-        )
-        words = rr.registers
+        words = await self.read_block(_FIRST, _LAST - _FIRST + 1, "irradiance read")
         status = int(decode(PYR["PYR_STATUS"], [words[_LAST - _FIRST]]))
         if status & 0b11:
             raise DriveCommError(f"{self.label}: sensor reports status {status:#06x}")
@@ -102,8 +59,3 @@ class ModbusPyranometer:
         if self._same[1] >= FROZEN_AFTER:
             raise DriveCommError(f"{self.label}: frozen ({self._same[1]} identical readings of {ghi:g} W/m2)")
         return IrradianceSample(t, max(ghi, 0.0))
-
-    async def close(self) -> None:
-        if not self._closed:  # once: a shared line's client counts its users
-            self._closed = True
-            self.client.close()

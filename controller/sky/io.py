@@ -19,6 +19,7 @@ or above 2000 W/m2, and unparsable times are errors that name the file, row and 
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -135,7 +136,9 @@ def _times(values: pd.Series, path: Path, column: str, row_offset: int) -> np.nd
             parsed = pd.to_datetime(values, utc=True, format="ISO8601")
         except (ValueError, TypeError):
             parsed = pd.to_datetime(values, utc=True, errors="coerce", format="mixed")
-        bad = parsed.isna().to_numpy()
+        # pandas reads "now" and "today" as the clock's present: not a sample time
+        relative = values.astype(str).str.strip().str.lower().isin(["now", "today"]).to_numpy()
+        bad = parsed.isna().to_numpy() | relative
         t = np.where(bad, np.nan, parsed.to_numpy(dtype="datetime64[ns]").astype(np.int64) / 1e9)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
@@ -161,17 +164,24 @@ def read_csv_record(
     """Read a CSV file with a UTC time column, a GHI column and optionally DNI (see module doc)."""
     path = Path(path)
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True)
+        with warnings.catch_warnings():
+            # a first row longer than the header: pandas would take its leading fields as
+            # an index and shift every column (index_col=False only warns), so refuse it
+            warnings.simplefilter("error", pd.errors.ParserWarning)
+            df = pd.read_csv(path, dtype=str, keep_default_na=False, skipinitialspace=True, index_col=False)
     except FileNotFoundError:
         raise InputError(f"{path}: file not found") from None
+    except pd.errors.ParserWarning:
+        raise InputError(f"{path}: row 2: more fields than the header (row 1) names") from None
     except (pd.errors.EmptyDataError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: not a readable CSV file ({exc})") from None
+        raise InputError(f"{path}: not a readable CSV file ({str(exc).strip()})") from None
     if df.empty:
         raise InputError(f"{path}: no data rows (expected a header and one row per sample)")
     cols = [str(c) for c in df.columns]
     tc = _pick(cols, time_col, TIME_NAMES, ("time",), "time column", path)
     gc = _pick(cols, ghi_col, GHI_NAMES, ("ghi", "global"), "GHI column", path)
     dc = _pick(cols, dni_col, DNI_NAMES, ("dni",), "DNI column", path, required=dni_col is not None)
+    assert tc is not None and gc is not None  # required: _pick raised otherwise
     # rows as the user sees them in an editor: header is row 1
     raw_t = df[tc].replace("", np.nan)
     numeric_t = pd.to_numeric(raw_t, errors="coerce")
@@ -218,6 +228,7 @@ def read_station_record(
         raise InputError(f"{path}: the {fmt.upper()} file holds no data rows")
     cols = [str(c) for c in data.columns]
     gc = _pick(cols, ghi_col, ("ghi",), ("ghi", "global"), "GHI column", path)
+    assert gc is not None  # required: _pick raised otherwise
     dni_candidates = ("dni", "dni_chp1", "dni_nip", "dni_rsp")
     dc = dni_col if dni_col is not None else next((c for c in dni_candidates if c in cols), None)
     if dc is not None and dc not in cols:

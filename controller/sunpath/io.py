@@ -124,9 +124,15 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
                 f"{', '.join(header) or 'nothing'}"
             )
         for row_no, row in enumerate(reader, start=2):
+            w = f"{path}: row {row_no}"
+            if row.get(None):  # DictReader's key of the fields beyond the header
+                # e.g. a decimal comma: "10,5" would shift el_deg into az_deg's neighbour
+                raise InputError(
+                    f"{w}: {len(header) + len(row[None])} fields, the header names "
+                    f"{len(header)} (a decimal comma? use a point)"
+                )
             if not any((v or "").strip() for v in row.values() if isinstance(v, str)):
                 continue  # blank line
-            w = f"{path}: row {row_no}"
             t = parse_time(row.get("time") or "", f"{w}, column 'time'")
             az = _number(row.get("az_deg"), f"{w}, column 'az_deg'", -360.0, 720.0, "an azimuth in degrees")
             el = _number(

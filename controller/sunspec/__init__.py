@@ -9,7 +9,8 @@ from .config import SunSpecConfig
 from .encode import DGR_SF, Identity
 from .models import SUNSPEC_BASE_ADDRESS, SunSpecMap
 from .server import SunSpecServer, SunSpecServerError
-from .snapshot import OverrideCommand, PlantSnapshot, TrackerSnapshot
+from .snapshot import OverrideCommand, PlantSnapshot, StowRequest, TrackerSnapshot, WeatherSnapshot
+from .vendor import WEATHER_MODEL_ID, write_model_json
 
 __all__ = [
     "DGR_SF",
@@ -17,9 +18,13 @@ __all__ = [
     "OverrideCommand",
     "PlantSnapshot",
     "SUNSPEC_BASE_ADDRESS",
+    "StowRequest",
     "SunSpecConfig",
     "SunSpecMap",
     "SunSpecServer",
     "SunSpecServerError",
     "TrackerSnapshot",
+    "WEATHER_MODEL_ID",
+    "WeatherSnapshot",
+    "write_model_json",
 ]

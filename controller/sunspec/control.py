@@ -19,7 +19,10 @@ from pymodbus.constants import ExcCodes
 
 from .encode import INT32_UNIMPLEMENTED, ControlState, ctl_name_for_mode, decode_point, raw_to_deg
 from .models import TRACKER_MODEL_ID, PointSlot, SunSpecMap
-from .snapshot import OverrideCommand, PlantSnapshot, TrackerSnapshot
+from .snapshot import OverrideCommand, PlantSnapshot, StowRequest, TrackerSnapshot
+from .vendor import STOW_REQUESTS, WEATHER_MODEL_ID
+
+Command = OverrideCommand | StowRequest
 
 # protocol-level ranges, degrees; tighter per-tracker limits come from the snapshot
 EL_RANGE_DEG = (-90.0, 90.0)  # elevation, or single-axis rotation
@@ -48,15 +51,20 @@ def _derived(tr: TrackerSnapshot) -> tuple:
 
 
 class ControlTable:
-    """Staged control registers for the global scope (key None) and each tracker."""
+    """Staged control registers for the global scope (key None) and each tracker, and the
+    vendor model's stow request (in the global scope)."""
 
     def __init__(self, smap: SunSpecMap):
         self.map = smap
-        self.writable = frozenset(p.name for p in smap.fixed.points + smap.block.points if p.writable)
+        self.writable = {
+            TRACKER_MODEL_ID: frozenset(p.name for p in smap.fixed.points + smap.block.points if p.writable),
+            WEATHER_MODEL_ID: frozenset(p.name for p in smap.weather.points if p.writable),
+        }
         self.staged: dict[int | None, ControlState] = {
             k: ControlState() for k in [None, *range(smap.n_trackers)]
         }
         self._seen: dict[int | None, tuple] = {}
+        self._seen_request: tuple[str | None] | None = None
         self._last_plant: PlantSnapshot | None = None
 
     # -- following the controller ----------------------------------------------------
@@ -76,6 +84,10 @@ class ControlTable:
         fields = list(zip(*(_derived(tr) for tr in plant.trackers))) or [(), (), ()]
         consensus = tuple(f[0] if f and all(v == f[0] for v in f) else None for f in fields)
         self._reseed(None, consensus)
+        request = (plant.weather.sunspec_request,)
+        if request != self._seen_request:
+            self.staged[None].stow_request = request[0]
+            self._seen_request = request
 
     def _reseed(self, scope: int | None, derived: tuple) -> None:
         seen = self._seen.get(scope)
@@ -89,7 +101,7 @@ class ControlTable:
     # -- operator writes ---------------------------------------------------------------
     def apply_write(
         self, plant: PlantSnapshot, address: int, words: list[int], peer: str = ""
-    ) -> list[OverrideCommand]:
+    ) -> list[Command]:
         """Check a write of ``words`` at ``address``; stage it and return the commands.
 
         Raises
@@ -97,7 +109,8 @@ class ControlTable:
         WriteRefused
             ILLEGAL_ADDRESS if the range is not whole writable points (or writes an
             azimuth point of a single-axis plant); ILLEGAL_VALUE for an angle outside
-            the range/limits, the unimplemented sentinel, or an unknown Ctl value.
+            the range/limits, the unimplemented sentinel, or an unknown Ctl or StowReq
+            value; DEVICE_BUSY for a model 601 write while a weather stow is in force.
             Nothing is staged unless the whole write is accepted.
         """
         count = len(words)
@@ -107,10 +120,23 @@ class ControlTable:
                 ExcCodes.ILLEGAL_ADDRESS, f"write {address}+{count} does not cover whole points"
             )
         updates: dict[int | None, dict[str, object]] = {}
+        requests: list[str | None] = []
         for slot in slots:
-            attr, value = self._check(slot, plant, words[slot.address - address : slot.end - address])
-            updates.setdefault(slot.tracker, {})[attr] = value
-        commands = []
+            point_words = words[slot.address - address : slot.end - address]
+            if slot.model == WEATHER_MODEL_ID and slot.point.name in self.writable[WEATHER_MODEL_ID]:
+                requests.append(self._stow_request(slot, point_words))
+            else:
+                attr, checked = self._check(slot, plant, point_words)
+                updates.setdefault(slot.tracker, {})[attr] = checked
+        if updates and plant.weather.stow:
+            # an override would not move a tracker now: say so rather than accept it
+            raise WriteRefused(
+                ExcCodes.DEVICE_BUSY, f"weather stow in force ({plant.weather.reason or plant.weather.stow})"
+            )
+        commands: list[Command] = []
+        for kind in requests:
+            self.staged[None].stow_request = kind
+            commands.append(StowRequest(kind, peer))
         for scope, fields in updates.items():
             targets = [scope] if scope is not None else [None, *range(self.map.n_trackers)]
             for t in targets:
@@ -120,9 +146,19 @@ class ControlTable:
             commands.append(OverrideCommand(scope, st.ctl, st.el_deg, st.az_deg, peer))
         return commands
 
+    @staticmethod
+    def _stow_request(slot: PointSlot, words: list[int]) -> str | None:
+        """The vendor model's ``StowReq``: "snow", "hail" or None (withdrawn)."""
+        raw = decode_point(slot.point, words)
+        if not 0 <= raw < len(STOW_REQUESTS):
+            raise WriteRefused(
+                ExcCodes.ILLEGAL_VALUE, f"{slot.point.name}={raw} is not 0 (none), 1 (snow) or 2 (hail)"
+            )
+        return None if raw == 0 else STOW_REQUESTS[raw].lower()
+
     def _check(self, slot: PointSlot, plant: PlantSnapshot, words: list[int]) -> tuple[str, object]:
         p = slot.point
-        if slot.model != TRACKER_MODEL_ID or p.name not in self.writable:
+        if p.name not in self.writable.get(slot.model, ()):
             raise WriteRefused(ExcCodes.ILLEGAL_ADDRESS, f"{p.name} is read-only")
         raw = decode_point(p, words)
         if p.name in _CTL_POINTS:
@@ -139,6 +175,7 @@ class ControlTable:
         if raw == INT32_UNIMPLEMENTED:
             raise WriteRefused(ExcCodes.ILLEGAL_VALUE, f"{p.name}: the unimplemented value is not a setpoint")
         deg = raw_to_deg(raw)
+        assert deg is not None  # the unimplemented sentinel was refused above
         trackers = plant.trackers if slot.tracker is None else [plant.trackers[slot.tracker]]
         if attr == "el_deg":
             ok = EL_RANGE_DEG[0] <= deg <= EL_RANGE_DEG[1] and all(

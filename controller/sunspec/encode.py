@@ -24,7 +24,15 @@ from .models import (
     PointSlot,
     SunSpecMap,
 )
-from .snapshot import CTL_AUTOMATIC, CTL_CALIBRATE, CTL_MANUAL, PlantSnapshot, TrackerSnapshot
+from .snapshot import (
+    CTL_AUTOMATIC,
+    CTL_CALIBRATE,
+    CTL_MANUAL,
+    PlantSnapshot,
+    TrackerSnapshot,
+    WeatherSnapshot,
+)
+from .vendor import ALARM_BITS, STOW_KINDS, STOW_REQUESTS, WEATHER_MODEL_ID, WIND_SF
 
 DGR_SF = -3  # angles in milli-degrees
 INT32_UNIMPLEMENTED = mb.SUNS_UNIMPL_INT32
@@ -107,14 +115,36 @@ def typ_symbol(plant: PlantSnapshot) -> str:
     return _TYP_BY_KIND["single-axis-tilted" if tilted else "single-axis-horizontal"]
 
 
+def wind_to_raw(m_s: float | None) -> int | None:
+    """m/s -> uint16 counts of ``WIND_SF``; None (unimplemented) for no or a bad reading."""
+    if m_s is None or not math.isfinite(m_s) or m_s < 0:
+        return None
+    return min(round(m_s * 10.0 ** (-WIND_SF)), 0xFFFE)  # 0xFFFF reads as unimplemented
+
+
+def weather_alarms(w: WeatherSnapshot) -> int:
+    """The vendor model's ``Alm`` bits (see :data:`~.vendor.ALARM_BITS`)."""
+    kinds = {kind for _, kind in w.requests}
+    on = {
+        "WindStow": w.stow == "wind",
+        "AnemometerLost": w.anemometer_lost,
+        "HailStow": "hail" in kinds,
+        "SnowStow": "snow" in kinds,
+        "StowRequested": w.sunspec_request is not None,
+    }
+    return sum(1 << i for i, name in enumerate(ALARM_BITS) if on[name])
+
+
 @dataclass
 class ControlState:
     """Contents of one scope's control registers (Ctl, ElCtl, AzCtl), in engineering
-    units: ``ctl`` a Ctl symbol name, angles in degrees or None."""
+    units: ``ctl`` a Ctl symbol name, angles in degrees or None.  The global scope also
+    holds the vendor model's ``StowReq`` (``"snow"``, ``"hail"`` or None)."""
 
     ctl: str = CTL_AUTOMATIC
     el_deg: float | None = None
     az_deg: float | None = None
+    stow_request: str | None = None
 
 
 class Encoder:
@@ -179,6 +209,8 @@ class Encoder:
         name = slot.point.name
         if slot.model == COMMON_MODEL_ID:
             return self._common_value(name)
+        if slot.model == WEATHER_MODEL_ID:
+            return self._weather_value(name, plant.weather, controls[None])
         if slot.tracker is None:
             return self._fixed_value(slot.point, plant, controls[None])
         return self._tracker_value(slot.point, plant, plant.trackers[slot.tracker], controls[slot.tracker])
@@ -196,6 +228,20 @@ class Encoder:
             "DA": ident.device_address,
             "Pad": None,
         }[name]
+
+    def _weather_value(self, name: str, w: WeatherSnapshot, ctl: ControlState):
+        return {
+            "ID": WEATHER_MODEL_ID,
+            "L": self.map.weather_model_length,
+            "Stow": STOW_KINDS.index(w.stow.upper() or "NONE"),
+            "Alm": weather_alarms(w),
+            "WindSpd": wind_to_raw(w.speed_m_s),
+            "WindGst": wind_to_raw(w.gust_m_s),
+            "WindAvg": wind_to_raw(w.mean_10min_m_s),
+            "StowReq": STOW_REQUESTS.index((ctl.stow_request or "none").upper()),
+            "Rsn": w.reason,
+            "Wind_SF": WIND_SF,
+        }.get(name)
 
     def _angle(self, plant: PlantSnapshot, axis: str, deg: float | None) -> int:
         # single-axis: the azimuth points are unimplemented (model 601 descriptions)

@@ -9,6 +9,7 @@ hand-types an offset.  The layout::
     40002  model 1 (common): ID, L = 66, Mn, Md, Opt, Vr, SN, DA, Pad
     40070  model 601 (tracker controller): ID, L = 26 + 22 N, 26 fixed registers,
            then N repeating "tracker" blocks of 22 registers
+    ...    vendor model 64601 (weather stow, :mod:`.vendor`): ID, L = 24
     ...    end model: ID = 0xFFFF, L = 0
 
 Addresses are the 0-based protocol addresses that appear in the request PDU (pysunspec2
@@ -24,6 +25,8 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 
+from .vendor import WEATHER_MODEL_ID, weather_model_definition
+
 SUNSPEC_BASE_ADDRESS = 40000
 SUNS_MARKER = (0x5375, 0x6E53)  # "SunS", big-endian ASCII in two registers
 END_MODEL_ID = 0xFFFF
@@ -38,8 +41,11 @@ def model_definition(model_id: int) -> dict:
     """The pysunspec2 JSON definition of a SunSpec model, as a dict.
 
     Read from the installed ``sunspec2`` package (a runtime dependency) rather than
-    copied, so the map and the clients decoding it cannot disagree.
+    copied, so the map and the clients decoding it cannot disagree; heliotrack's own
+    vendor model from :mod:`.vendor`.
     """
+    if model_id == WEATHER_MODEL_ID:
+        return weather_model_definition()
     path = resources.files("sunspec2") / "models" / "json" / f"model_{model_id}.json"
     with path.open("r", encoding="utf-8") as f:
         return json.load(f)
@@ -134,12 +140,19 @@ def tracker_controller_groups() -> tuple[GroupDef, GroupDef]:
     return GroupDef(d["name"], _points(d)), GroupDef(rep[0]["name"], _points(rep[0]))
 
 
+@cache
+def weather_group() -> GroupDef:
+    """Vendor model 64601 (weather stow), ID and L included."""
+    d = model_definition(WEATHER_MODEL_ID)["group"]
+    return GroupDef(d["name"], _points(d))
+
+
 @dataclass(frozen=True)
 class PointSlot:
     """A point placed at an absolute address.
 
-    ``model`` is 1 or 601 (0 for the marker and end model, which are not points of a
-    JSON model); ``tracker`` is the 0-based repeating-block index, None for fixed points.
+    ``model`` is 1, 601 or 64601 (0 for the marker and end model, which are not points of
+    a JSON model); ``tracker`` is the 0-based repeating-block index, None for fixed points.
     """
 
     address: int
@@ -168,16 +181,19 @@ class SunSpecMap:
         self.base_address = int(base_address)
         self.common = common_group()
         self.fixed, self.block = tracker_controller_groups()
+        self.weather = weather_group()
         self.common_address = self.base_address + 2
         # L does not count the ID and L registers themselves
         self.common_length = self.common.length - 2
         self.tracker_model_address = self.common_address + 2 + self.common_length
         self.tracker_model_length = self.fixed.length - 2 + self.n_trackers * self.block.length
-        self.end_address = self.tracker_model_address + 2 + self.tracker_model_length
+        self.weather_model_address = self.tracker_model_address + 2 + self.tracker_model_length
+        self.weather_model_length = self.weather.length - 2
+        self.end_address = self.weather_model_address + self.weather.length
         self.size = self.end_address + 2 - self.base_address
         if self.n_trackers < 0 or self.end_address + 2 > MAX_ADDRESS + 1:
             n_max = (
-                MAX_ADDRESS + 1 - 2 - (self.tracker_model_address + self.fixed.length)
+                MAX_ADDRESS + 1 - 2 - self.weather.length - (self.tracker_model_address + self.fixed.length)
             ) // self.block.length
             raise ValueError(
                 f"model 601 with {n_trackers} trackers does not fit below address "
@@ -192,6 +208,8 @@ class SunSpecMap:
             start = self.block_address(i)
             for p in self.block.points:
                 slots.append(PointSlot(start + p.offset, p, TRACKER_MODEL_ID, i))
+        for p in self.weather.points:
+            slots.append(PointSlot(self.weather_model_address + p.offset, p, WEATHER_MODEL_ID))
         self.slots: tuple[PointSlot, ...] = tuple(slots)
         self._starts = [s.address for s in self.slots]
         self._by_name = {(s.model, s.tracker, s.point.name): s for s in self.slots}

@@ -45,7 +45,7 @@ from .config import SunSpecConfig
 from .control import ControlTable, WriteRefused
 from .encode import Encoder, Identity
 from .models import SUNSPEC_BASE_ADDRESS, SunSpecMap
-from .snapshot import OverrideCommand, PlantSnapshot
+from .snapshot import OverrideCommand, PlantSnapshot, StowRequest
 
 log = logging.getLogger("heliotrack.sunspec")
 
@@ -54,7 +54,7 @@ _READ_FCS = {3, 4}
 _WRITE_FCS = {6, 16}
 
 SnapshotFn = Callable[[], PlantSnapshot]
-OverrideFn = Callable[[OverrideCommand], None]
+OverrideFn = Callable[[OverrideCommand | StowRequest], None]
 
 
 class SunSpecServerError(RuntimeError):

@@ -101,6 +101,54 @@ class TrackerSnapshot:
         )
 
 
+WEATHER_STOWS = ("", "wind", "hail", "snow")
+STOW_REQUEST_KINDS = (None, "snow", "hail")
+#: The ``SafetyState.request`` source of SCADA's stow requests.
+SUNSPEC_SOURCE = "sunspec"
+
+
+@dataclass(frozen=True)
+class WeatherSnapshot:
+    """The plant's weather state, for the vendor model 64601 (``docs/sunspec.md``).
+
+    Parameters
+    ----------
+    stow : str
+        The weather stow in force: ``"wind"``, ``"hail"``, ``"snow"`` or ``""`` (none).
+        While one is, model 601 writes are refused (exception 6, device busy).
+    reason : str
+        Why (``"wind: gust 24.1 m/s, ..."``, ``"snow stow (sunspec)"``).
+    speed_m_s, gust_m_s, mean_10min_m_s : float or None
+        The anemometer's last valid reading; None: no anemometer or no reading yet.
+    anemometer_lost : bool
+        No valid reading for ``[wind] silent_timeout_s`` (alarms even without stowing).
+    requests : tuple of (source, kind)
+        Snow and hail requests in force (``("sunspec", "snow")``, ``("flag file",
+        "hail")``), whether or not a higher stow outranks them.
+    """
+
+    stow: str = ""
+    reason: str = ""
+    speed_m_s: float | None = None
+    gust_m_s: float | None = None
+    mean_10min_m_s: float | None = None
+    anemometer_lost: bool = False
+    requests: tuple[tuple[str, str], ...] = ()
+
+    def __post_init__(self):
+        if self.stow not in WEATHER_STOWS:
+            raise ValueError(f"weather stow {self.stow!r} not in {WEATHER_STOWS}")
+        object.__setattr__(self, "requests", tuple(sorted((str(s), str(k)) for s, k in self.requests)))
+        for source, kind in self.requests:
+            if kind not in STOW_REQUEST_KINDS:
+                raise ValueError(f"stow request {kind!r} of {source!r} not in {STOW_REQUEST_KINDS[1:]}")
+
+    @property
+    def sunspec_request(self) -> str | None:
+        """SCADA's own request (source ``"sunspec"``): ``"snow"``, ``"hail"`` or None."""
+        return dict(self.requests).get(SUNSPEC_SOURCE)
+
+
 @dataclass(frozen=True)
 class PlantSnapshot:
     """The whole plant at one instant.
@@ -120,6 +168,8 @@ class PlantSnapshot:
         is fixed when the server starts.
     axis_tilt_deg : float
         Single-axis only: axis tilt, degrees; selects Horizontal vs Tilted.
+    weather : WeatherSnapshot
+        Weather stow, wind and alarms (vendor model 64601).
     """
 
     name: str
@@ -127,6 +177,7 @@ class PlantSnapshot:
     local_time: datetime
     trackers: tuple[TrackerSnapshot, ...] = field(default_factory=tuple)
     axis_tilt_deg: float = 0.0
+    weather: WeatherSnapshot = field(default_factory=WeatherSnapshot)
 
     def __post_init__(self):
         if self.type not in PLANT_TYPES:
@@ -160,4 +211,14 @@ class OverrideCommand:
     ctl: str
     el_deg: float | None
     az_deg: float | None
+    peer: str = ""
+
+
+@dataclass(frozen=True)
+class StowRequest:
+    """An accepted SCADA write of the vendor model's ``StowReq``: a snow or hail stow
+    requested (``kind`` ``"snow"`` or ``"hail"``) or withdrawn (None), for the controller's
+    ``SafetyState.request("sunspec", kind)``.  ``peer`` as for :class:`OverrideCommand`."""
+
+    kind: str | None
     peer: str = ""

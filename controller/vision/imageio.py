@@ -54,7 +54,7 @@ def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.nd
         data = p.read_bytes()
     except FileNotFoundError:
         return None, "file_not_found"
-    except OSError:
+    except (OSError, ValueError):  # a folder, no permission; a NUL in the name
         return None, "unreadable_file"
     if len(data) == 0:
         return None, "empty_file"
@@ -85,11 +85,15 @@ def load_grey(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.nda
     img, reason = read_image(path, max_pixels=max_pixels)
     if img is None:
         return None, reason
+    # 8 or 16 bit, grey, BGR or BGRA only: a TIFF of signed or 64-bit samples, or with two
+    # or five channels, decodes but cv2.cvtColor raises on it
+    if img.dtype not in (np.uint8, np.uint16) or img.ndim == 3 and img.shape[2] not in (3, 4):
+        return None, "unsupported_image_format"
     if img.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
         img = cv2.cvtColor(img, code)
     if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
+        img = (img.astype(np.uint16) >> 8).astype(np.uint8)
     if img.dtype != np.uint8 or img.ndim != 2:
         return None, "unsupported_image_format"
     return np.ascontiguousarray(img), None

@@ -58,7 +58,8 @@ def object_dictionary(node_id: int) -> canopen.ObjectDictionary:
 
 
 class DriveBus:
-    """What the axis nodes of one drive share: the firmware, a lock, a heartbeat counter.
+    """What the axis nodes of one drive share: the firmware, a lock, a heartbeat counter,
+    and the node whose heartbeat feeds the watchdog.
 
     Parameters
     ----------
@@ -70,11 +71,25 @@ class DriveBus:
         self.fw = firmware
         self.lock = threading.RLock()
         self._beat = 0
+        #: Node id of the heartbeat producer the watchdog consumes (0x1016:1 of any axis).
+        self.producer = MASTER_NODE_ID
+        self.nodes: list[AxisNode] = []
+
+    @property
+    def node_ids(self) -> list[int]:
+        return [n.id for n in self.nodes]
 
     def beat(self) -> None:
         """A heartbeat of the master arrived: feed the firmware watchdog."""
         self._beat = (self._beat + 1) & 0xFFFF
         self.fw.write(register("HEARTBEAT").address(), [self._beat])
+
+    def set_producer(self, producer: int) -> None:
+        """Consume the heartbeat of ``producer`` on every axis node (the watchdog is the
+        drive's: 0x1016 written on one axis sets it for all)."""
+        self.producer = producer
+        for node in self.nodes:
+            node.listen_to(producer)
 
 
 class AxisNode:
@@ -105,16 +120,21 @@ class AxisNode:
         self.op_mode = PROFILE_POSITION
         self.target_raw = 0
         self.ack = False
-        self.heartbeat_producer = MASTER_NODE_ID
+        self._listening: int | None = None  # producer whose heartbeat COB-ID we subscribe
         self._fault_seen = Fault.NONE
         self._pdo_dirty = False
         self._sync_count = 0
         self._last_tx: dict[int, tuple[list[int], float]] = {}  # TPDO no -> (values, t)
         self.network: canopen.Network | None = None
+        drive.nodes.append(self)
 
     @property
     def id(self) -> int:
         return self.node_id
+
+    @property
+    def heartbeat_producer(self) -> int:
+        return self.drive.producer
 
     # -- wiring ------------------------------------------------------------------------
     def attach(self, network: canopen.Network) -> None:
@@ -127,8 +147,7 @@ class AxisNode:
         for rpdo in self.node.rpdo.values():
             rpdo.add_callback(self._on_rpdo)
         network.subscribe(0x80, self._on_sync)
-        network.subscribe(0x700 + self.heartbeat_producer, self._on_master_heartbeat)
-        network.subscribe(0x000, self._on_nmt)
+        self.listen_to(self.drive.producer)
         self._boot()
 
     def detach(self) -> None:
@@ -136,14 +155,24 @@ class AxisNode:
             return
         self.node.nmt.stop_heartbeat()
         self.network.unsubscribe(0x80, self._on_sync)
-        self.network.unsubscribe(0x700 + self.heartbeat_producer, self._on_master_heartbeat)
-        self.network.unsubscribe(0x000, self._on_nmt)
+        if self._listening is not None:
+            self.network.unsubscribe(0x700 + self._listening, self._on_master_heartbeat)
+            self._listening = None
         for pdo in list(self.node.rpdo.values()) + list(self.node.tpdo.values()):
             if pdo.cob_id:
                 self.network.unsubscribe(pdo.cob_id, pdo.on_message)
         self.node.remove_network()
         self.network.nodes.pop(self.id, None)
         self.network = None
+
+    def listen_to(self, producer: int) -> None:
+        """Feed the drive's watchdog from the heartbeats of node ``producer``."""
+        if self.network is None or producer == self._listening:
+            return
+        if self._listening is not None:
+            self.network.unsubscribe(0x700 + self._listening, self._on_master_heartbeat)
+        self.network.subscribe(0x700 + producer, self._on_master_heartbeat)
+        self._listening = producer
 
     def _load_pdos(self, from_od: bool) -> None:
         for pdos in (self.node.rpdo, self.node.tpdo):
@@ -285,25 +314,35 @@ class AxisNode:
                 return
             if e.access != "rw":
                 raise SdoAbortedError(ABORT_READ_ONLY)
-            try:
-                self._reg_write_raw(e.register, value)
-            except (ProtocolError, FirmwareReject) as exc:
-                log.info("node %d: write 0x%04X:%02X = %d refused: %s", self.id, index, subindex, value, exc)
-                raise SdoAbortedError(ABORT_VALUE_RANGE) from None
+            self._firmware_write(index, subindex, e.register, value)
+
+    def _firmware_write(self, index: int, subindex: int, name: str, value: int) -> None:
+        """Write register ``name`` through the firmware's validation (the Modbus interlocks).
+        Refused: abort 0x08000022 for a valid value the drive's state forbids (a MODE, the
+        watchdog off outside MAINTENANCE), else 0x06090030 (range, limits, stow angle)."""
+        try:
+            self._reg_write_raw(name, value)
+        except (ProtocolError, FirmwareReject) as exc:
+            log.info("node %d: write 0x%04X:%02X = %d refused: %s", self.id, index, subindex, value, exc)
+            state = isinstance(exc, FirmwareReject) and (
+                name == "HEARTBEAT_TIMEOUT" or name == "MODE" and any(value == m for m in Mode)
+            )
+            raise SdoAbortedError(ABORT_STATE if state else ABORT_VALUE_RANGE) from None
 
     def _set_consumer(self, value: int) -> None:
-        producer, ms = (value >> 16) & 0x7F, value & 0xFFFF
+        """0x1016:1 = ``(producer << 16) | ms`` for the whole drive.  CiA 301: bits 24-31
+        reserved; a node id or time of 0 is "not monitored" (the watchdog off: MAINTENANCE
+        only).  A drive never watches its own nodes (they would keep it alive alone)."""
+        producer, ms = (value >> 16) & 0xFF, value & 0xFFFF
+        if value >> 24 or producer > 0x7F or producer in self.drive.node_ids:
+            log.info("node %d: consumer heartbeat 0x%08X refused", self.id, value)
+            raise SdoAbortedError(ABORT_VALUE_RANGE)
         # The firmware watchdog counts in 0.1 s; round up so a short timeout never
         # becomes 0 (which would disable the watchdog).
-        timeout = math.ceil(ms / 100) * 0.1 if ms else 0.0
-        try:
-            self._reg_write_raw("HEARTBEAT_TIMEOUT", round(timeout / 0.1))
-        except (ProtocolError, FirmwareReject):
-            raise SdoAbortedError(ABORT_VALUE_RANGE) from None
-        if producer and producer != self.heartbeat_producer and self.network is not None:
-            self.network.unsubscribe(0x700 + self.heartbeat_producer, self._on_master_heartbeat)
-            self.heartbeat_producer = producer
-            self.network.subscribe(0x700 + producer, self._on_master_heartbeat)
+        tenths = math.ceil(ms / 100) if producer else 0
+        self._firmware_write(0x1016, 1, "HEARTBEAT_TIMEOUT", tenths)
+        if tenths:
+            self.drive.set_producer(producer)
 
     # -- CiA 402 ------------------------------------------------------------------------
     def _controlword(self, cw: int) -> None:
@@ -397,13 +436,10 @@ class AxisNode:
                     continue
                 self._send(no, pdo, snap, self.wall())
 
-    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
-        """An NMT start for this node (or all): every TPDO goes out once more at the next
-        service, as after boot, so that a master that connects again (to a node already
-        OPERATIONAL) learns the whole state without waiting for the keep-alive timers."""
-        if len(data) >= 2 and data[0] == 0x01 and data[1] in (0, self.id):
-            with self.drive.lock:
-                self._last_tx.clear()
+    def resend_tpdos(self) -> None:
+        """Every TPDO goes out again at the next service, as after boot (on an NMT start)."""
+        with self.drive.lock:
+            self._last_tx.clear()
 
     def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:

@@ -344,6 +344,9 @@ class DriveFirmware:
                 )
         if timeout == 0 and any(m != Mode.MAINTENANCE for m in modes.values()):
             raise FirmwareReject(3, "the watchdog can be switched off only in MAINTENANCE")
+        leaving = any(self.modes[k] == Mode.MAINTENANCE != modes[k] for k in modes)
+        if leaving and (self.heartbeat_timeout if timeout is None else timeout) == 0:
+            raise FirmwareReject(3, "the watchdog is off: set HEARTBEAT_TIMEOUT before leaving MAINTENANCE")
 
     def _apply(self, reg: Register, k: int | None, value) -> None:
         if k is not None:

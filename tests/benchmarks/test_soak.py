@@ -61,7 +61,7 @@ class CrashOnce(SoakRun):
 def test_a_short_soak_goes_on_through_a_crash_and_reports_every_metric(tmp_path):
     cfg = soak_config(1, tmp_path)
     start = datetime(2024, 3, 20, 8, 0, tzinfo=UTC)
-    soak = CrashOnce(cfg, 1, start, False, 0.5, state_path=cfg.sunpath.state)
+    soak = CrashOnce(cfg, 1, start, False, 0.5)
     summary = asyncio.run(soak.run())
     r = result(soak, summary, 1)
     assert r["crashes"] == 1 and r["crashes_by_kind"] == {"cycle: ZeroDivisionError": 1}

@@ -106,6 +106,8 @@ def test_every_link_kind_from_toml():
     cfg = parse_config(
         {
             "site": {"latitude": 10, "longitude": 20},
+            # CANopen's consumer heartbeat holds at most 65.535 s (the default is 180 s)
+            "control": {"heartbeat_timeout_s": 65.0},
             "links": [
                 {
                     "name": "rs485",
@@ -175,7 +177,7 @@ def test_diffuse_needs_a_pyranometer_and_minute_sampling(tmp_path):
 def test_pyranometer_must_be_on_a_modbus_link(tmp_path):
     text = (
         BASE.replace('kind = "modbus-rtu"', 'kind = "canopen"')
-        + '[pyranometer]\nlink = "a"\ndevice_id = 10\n'
+        + '[pyranometer]\nlink = "a"\ndevice_id = 10\n[control]\nheartbeat_timeout_s = 65.0\n'
     )
     with pytest.raises(ConfigError, match="pyranometer.link: expected a Modbus link"):
         load_config(write(tmp_path, text))

@@ -82,3 +82,10 @@ def test_a_flag_file_with_nonsense_is_reported_not_obeyed(tmp_path):
     p = tmp_path / "stow.flag"
     p.write_text("tornado")
     assert "is not snow, hail or none" in read_flag_file(p)
+
+
+def test_an_impossible_reading_counts_as_silence():
+    m = WindMonitor(CFG, 0.0)
+    for t in range(5, 65, 5):
+        st = m.update(t, WindSample(t, float("nan"), float("nan"), 3.0))
+    assert st.stow and "anemometer silent" in st.reason

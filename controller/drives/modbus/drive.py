@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable, Sequence
-from typing import Any
+from typing import Any, Self
 
-from pymodbus.exceptions import ConnectionException
+from pymodbus.exceptions import ConnectionException, ModbusException
 
 from firmware_protocol import (
     AXIS_STRIDE,
@@ -34,6 +34,12 @@ from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .client import checked, endpoint, modbus_client, retry_policy
 
 _ID_WORDS = 3
+
+
+class ShortAnswer(ModbusException):
+    """A read answered with fewer registers than asked (retried like a garbled frame)."""
+
+
 _TARGET = register("TARGET_ANGLE")
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
@@ -84,9 +90,29 @@ class ModbusDrive(DriveLink):
         it again first."""
 
         async def attempt() -> Any:
-            if not self.client.connected and not await self.client.connect():
-                raise ConnectionException(f"{self.label}: the link is down and does not reopen")
+            await self._reopen()
             return await checked(request, *args, device_id=self.device_id, **kwargs)
+
+        return await self.policy.run(attempt, what=what, label=self.label, stats=self.stats)
+
+    async def _reopen(self) -> None:
+        """Open the client again if it lost its connection (an attempt fails if it cannot)."""
+        if not getattr(self.client, "connected", True) and not await self.client.connect():
+            raise ConnectionException(f"{self.label}: the link is down and does not reopen")
+
+    async def _read(
+        self, what: str, words: int, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
+    ) -> list[int]:
+        """The first ``words`` registers of a read; an answer with fewer is garbled (and
+        retried like one): a slave may send any byte count."""
+
+        async def attempt() -> list[int]:
+            await self._reopen()
+            rr = await checked(request, *args, device_id=self.device_id, **kwargs)
+            regs = list(getattr(rr, "registers", None) or ())
+            if len(regs) < words:
+                raise ShortAnswer(f"{len(regs)} register(s) in the answer, {words} asked")
+            return regs[:words]
 
         return await self.policy.run(attempt, what=what, label=self.label, stats=self.stats)
 
@@ -97,9 +123,9 @@ class ModbusDrive(DriveLink):
                 self.client = self.reopen()
         if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
-        words = (
-            await self._call("identification read", self.client.read_holding_registers, 0, count=_ID_WORDS)
-        ).registers
+        words = await self._read(
+            "identification read", _ID_WORDS, self.client.read_holding_registers, 0, count=_ID_WORDS
+        )
         if words[0] != MAGIC:
             raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
         if words[1] >> 8 != PROTOCOL_VERSION >> 8:
@@ -138,13 +164,11 @@ class ModbusDrive(DriveLink):
         return DriveState(self.axis_count, tuple(axes), dev)
 
     async def read_state(self) -> DriveState:
-        rr = await self._call(
-            "state read",
-            self.client.read_holding_registers,
-            axis_block_address(0),
-            count=AXIS_STRIDE * self.axis_count,
+        n = AXIS_STRIDE * self.axis_count
+        words = await self._read(
+            "state read", n, self.client.read_holding_registers, axis_block_address(0), count=n
         )
-        return self._decode_state(rr.registers)
+        return self._decode_state(words)
 
     def _check(self, angles_deg: Sequence[float]) -> None:
         if len(angles_deg) != self.axis_count:
@@ -167,15 +191,16 @@ class ModbusDrive(DriveLink):
                 _TARGET.address(k),
                 encode(_TARGET, angles_deg[k]),
             )
-        rr = await self._call(
+        words = await self._read(
             "target write + state read",
+            AXIS_STRIDE * self.axis_count,
             self.client.readwrite_registers,
             read_address=axis_block_address(0),
             read_count=AXIS_STRIDE * self.axis_count,
             write_address=_TARGET.address(0),
             values=encode(_TARGET, angles_deg[0]),
         )
-        return self._decode_state(rr.registers)
+        return self._decode_state(words)
 
     async def heartbeat(self) -> None:
         self._beat = (self._beat + 1) & 0xFFFF
@@ -218,13 +243,10 @@ class ModbusDrive(DriveLink):
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
-        rr = await self._call(
-            "soft limit read",
-            self.client.read_holding_registers,
-            _LIMIT_MIN.address(k),
-            count=_LIMIT_MIN.words + _LIMIT_MAX.words,
+        n = _LIMIT_MIN.words + _LIMIT_MAX.words
+        words = await self._read(
+            "soft limit read", n, self.client.read_holding_registers, _LIMIT_MIN.address(k), count=n
         )
-        words = rr.registers
         return (
             float(decode(_LIMIT_MIN, words[: _LIMIT_MIN.words])),
             float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words :])),
@@ -233,10 +255,9 @@ class ModbusDrive(DriveLink):
     async def identify(self) -> DriveIdentity:
         first, last = register("MAGIC"), register("UPTIME")
         n = last.address() + last.words - first.address()
-        rr = await self._call(
-            "identification read", self.client.read_holding_registers, first.address(), count=n
+        w = await self._read(
+            "identification read", n, self.client.read_holding_registers, first.address(), count=n
         )
-        w = rr.registers
 
         def val(name: str) -> float:
             reg = register(name)
@@ -249,10 +270,24 @@ class ModbusDrive(DriveLink):
 
     async def read_register(self, name: str, axis: int | None = None) -> float | int:
         reg = register(name)
-        rr = await self._call(
-            f"read {name}", self.client.read_holding_registers, reg.address(axis), count=reg.words
+        words = await self._read(
+            f"read {name}", reg.words, self.client.read_holding_registers, reg.address(axis), count=reg.words
         )
-        return decode(reg, rr.registers)
+        return decode(reg, words)
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> Self:
+        """Slave (or unit) ``device_id`` on ``link``: an RTU line's shared client, or a TCP
+        connection of its own (see :func:`~controller.drives.modbus.client.modbus_client`)."""
+        if not isinstance(link, cls.config_type):
+            raise TypeError(f"{cls.__name__} needs a {cls.config_type.__name__}, got {type(link).__name__}")
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )
 
 
 class ModbusRtuDrive(ModbusDrive):
@@ -260,35 +295,8 @@ class ModbusRtuDrive(ModbusDrive):
 
     config_type = ModbusRtuLink
 
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusRtuDrive:
-        """Slave ``device_id`` on the line's shared client (see
-        :func:`~controller.drives.modbus.client.modbus_client`)."""
-        if not isinstance(link, ModbusRtuLink):
-            raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
-        return cls(
-            modbus_client(link),
-            device_id,
-            link.retries,
-            label=f"{endpoint(link)} id {device_id}",
-            reopen=lambda: modbus_client(link),
-        )
-
 
 class ModbusTcpDrive(ModbusDrive):
     """A drive behind Modbus TCP (link kind ``modbus-tcp``)."""
 
     config_type = ModbusTcpLink
-
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusTcpDrive:
-        """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
-        if not isinstance(link, ModbusTcpLink):
-            raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
-        return cls(
-            modbus_client(link),
-            device_id,
-            link.retries,
-            label=f"{endpoint(link)} id {device_id}",
-            reopen=lambda: modbus_client(link),
-        )

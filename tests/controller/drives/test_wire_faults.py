@@ -110,7 +110,7 @@ def test_replies_are_checked_against_their_request():
         verify_reply(
             "read_holding_registers", ReadInputRegistersResponse(registers=[1, 2]), (0,), {"count": 2}
         )
-    with pytest.raises(ReplyMismatch, match="3 registers"):
+    with pytest.raises(ReplyMismatch, match="3 register"):
         verify_reply(
             "read_holding_registers", ReadHoldingRegistersResponse(registers=[1, 2, 3]), (0,), {"count": 2}
         )

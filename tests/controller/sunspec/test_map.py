@@ -13,6 +13,7 @@ from controller.schema import load
 from controller.sunspec import PlantSnapshot, SunSpecConfig, SunSpecMap, TrackerSnapshot
 from controller.sunspec.control import ControlTable, WriteRefused
 from controller.sunspec.encode import Encoder, decode_point, deg_to_raw, encode_point, raw_to_deg
+from controller.sunspec.vendor import WEATHER_MODEL_ID, weather_model_definition
 
 
 def _plant(n, kind="dual-axis", **kw):
@@ -32,7 +33,9 @@ def test_model_601_length_is_26_plus_22n(n):
     assert m.common_length == 66
     assert m.common_address == 40002
     assert m.tracker_model_address == 40070
-    assert m.end_address == 40070 + 2 + 26 + 22 * n
+    assert m.weather_model_address == 40070 + 2 + 26 + 22 * n  # vendor model 64601 follows
+    assert m.weather_model_length == 24
+    assert m.end_address == m.weather_model_address + 2 + 24
 
 
 def test_offsets_follow_the_json():
@@ -46,6 +49,10 @@ def test_offsets_follow_the_json():
         for p in d["group"]["groups"][0]["points"]:
             assert m.slot(p["name"], i).address == addr
             addr += p["size"]
+    assert addr == m.weather_model_address
+    for p in weather_model_definition()["group"]["points"]:
+        assert m.slot(p["name"], model=WEATHER_MODEL_ID).address == addr
+        addr += p["size"]
     assert addr == m.end_address
 
 
@@ -178,9 +185,9 @@ def test_parse_sunspec_errors_name_file_and_key(table, key):
 
 
 def test_largest_plant_that_fits_below_65536():
-    assert SunSpecMap(1156).end_address + 1 <= 0xFFFF
-    with pytest.raises(ValueError, match="at most 1156"):
-        SunSpecMap(1157)
+    assert SunSpecMap(1155).end_address + 1 <= 0xFFFF
+    with pytest.raises(ValueError, match="at most 1155"):  # 1156 before the vendor model
+        SunSpecMap(1156)
 
 
 @pytest.mark.parametrize(

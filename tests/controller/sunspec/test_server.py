@@ -81,7 +81,7 @@ def test_pysunspec2_scans_and_reads_every_tracker_with_scale_factor(serve, n):
     srv = serve(plant)
     dev = scan(srv)
     try:
-        assert model_ids(dev) == [1, 601]
+        assert model_ids(dev) == [1, 601, 64601]  # 64601: heliotrack's weather model
         common = dev.common[0]
         assert common.Mn.value == "heliotrack"
         assert common.Vr.value
