@@ -20,7 +20,16 @@ from pathlib import Path
 from controller.atomic import atomic_write
 
 #: Registered benchmarks (module names under ``benchmarks``).
-BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot", "persistence")
+BENCHMARKS: tuple[str, ...] = (
+    "loop",
+    "plant",
+    "sunpath",
+    "skytype",
+    "diffuse",
+    "hotspot",
+    "persistence",
+    "soak",
+)
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 

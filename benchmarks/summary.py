@@ -243,6 +243,62 @@ def _persistence(r: dict) -> list[Headline]:
     ]
 
 
+def _soak(r: dict) -> list[Headline]:
+    t = r["targets"]
+    acc = r["acceptance"]
+    worst = r["recovery_worst_periods"]
+    stow = r["wind_stow_worst_s"]
+    rss = r["rss_growth_pct"]
+    return [
+        Headline("soak", "simulated days", _f(r["days"])),
+        Headline("soak", "crashes", _f(r["crashes"]), "0", ok=acc["no_crash"]),
+        Headline(
+            "soak",
+            "commands outside the limits",
+            _f(r["out_of_limit_commands"]),
+            "0",
+            ok=acc["no_out_of_limit_command"],
+        ),
+        Headline(
+            "soak",
+            "faults survived / injected",
+            f"{r['faults_survived']:,}/{r['faults_injected']:,}",
+            "all (bar the last minutes')",
+            ok=acc["every_fault_survived"],
+        ),
+        Headline(
+            "soak",
+            "setpoints lost after recovery",
+            _f(r["setpoints_lost_after_recovery"]),
+            "0",
+            ok=acc["no_setpoint_lost_after_recovery"],
+        ),
+        Headline(
+            "soak",
+            "worst recovery (drives, links)",
+            _f(worst, 3, " periods"),
+            f"<= {t['recovery_worst_periods_max']:g} periods",
+            ok=acc["recovery_within_2_periods"],
+        ),
+        Headline(
+            "soak",
+            "wind alarm to every row in STOW mode, worst",
+            _f(stow, 3, " s"),
+            f"<= {t['wind_stow_worst_s_max']:g} s",
+            ok=acc["wind_stow_within_60_s"],
+        ),
+        Headline("soak", "wind alarm to every axis stowed, worst", _f(r["wind_stowed_worst_s"], 3, " s")),
+        Headline("soak", "state corruptions", _f(r["state_corruptions"]), "0", ok=acc["no_state_corruption"]),
+        Headline(
+            "soak",
+            "RSS growth, last day vs first",
+            _f(rss, 3, " %"),
+            f"< {t['rss_growth_pct_max']:g} %",
+            ok=acc["rss_growth_under_10_pct"],
+        ),
+    ]
+
+
 def _generic(name: str) -> Callable[[dict], list[Headline]]:
     """For a benchmark with an ``acceptance`` (or ``passed``) block and no extractor yet."""
 
@@ -269,6 +325,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "diffuse": _diffuse,
     "hotspot": _hotspot,
     "persistence": _persistence,
+    "soak": _soak,
 }
 
 

@@ -6,8 +6,10 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
   it ``lost``, and the loop then closes the link and reconnects with exponential backoff
   (one period, doubling, at most ``max_backoff_s``);
 * faults: a latched fault (stall, limit switch, encoder...) is named, and CLEAR_FAULT is sent
-  at most ``max_fault_clears`` times, ``clear_interval_s`` apart; a fault that survives them
-  leaves the drive ``lost`` until someone fixes it (the count restarts once it clears);
+  ``max_fault_clears`` times, ``clear_interval_s`` apart; a fault that survives them leaves
+  the drive ``lost`` ("needs service"), and CLEAR_FAULT is tried again ever more rarely
+  (the interval doubling up to ``service_retry_s``), so that a drive whose cause went away
+  (ice melted, a switch released) comes back by itself (the count restarts once it clears);
 * stow: a drive in STOW because its watchdog fired (COMM_LOST) is resumed once the link is
   back; a STOW the controller commanded is resumed when the weather allows; any other
   STOW (a local wind switch, a maintenance panel, another master) is left alone and
@@ -38,7 +40,8 @@ class HealthPolicy:
 
     lost_after: int = 3
     max_fault_clears: int = 3
-    clear_interval_s: float = 120.0
+    clear_interval_s: float = 60.0
+    service_retry_s: float = 900.0
     min_backoff_s: float = 60.0
     max_backoff_s: float = 960.0
 
@@ -58,6 +61,8 @@ class DriveHealth:
     #: The drive was seen stowed by its own watchdog (COMM_LOST) before a heartbeat
     #: cleared the flag: resume it once the link is back.
     watchdog_stow: bool = False
+    #: When the drive last answered an exchange (the clock's monotonic time, s).
+    last_ok: float = -math.inf
 
     # -- link -----------------------------------------------------------------------
     def comm_failed(self, now: float, why: str) -> bool:
@@ -77,6 +82,7 @@ class DriveHealth:
     # -- what the drive says -----------------------------------------------------------
     def assess(self, st: DriveState, now: float, *, weather_stow: bool) -> list[Command]:
         """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME)."""
+        self.last_ok = now
         self.errors_in_row = 0
         self.backoff_s = 0.0
         problems: list[str] = []
@@ -93,7 +99,14 @@ class DriveHealth:
                 problems.append(f"{names} (clear {self.fault_clears}/{self.policy.max_fault_clears})")
             else:
                 lost = True
-                problems.append(f"{names} persists after {self.fault_clears} clears: needs service")
+                if now - self.last_clear >= self._service_wait():
+                    commands.append(Command.CLEAR_FAULT)
+                    self.fault_clears += 1
+                    self.last_clear = now
+                problems.append(
+                    f"{names} persists after {self.fault_clears} clears: needs service "
+                    f"(next clear in {max(self.last_clear + self._service_wait() - now, 0.0):.0f} s)"
+                )
         else:
             self.fault_clears = 0
         modes = {a.mode for a in st.axes}
@@ -119,6 +132,11 @@ class DriveHealth:
             self.state = Health.OK
         self.reason = "; ".join(problems)
         return commands
+
+    def _service_wait(self) -> float:
+        """Time between two clears once ``max_fault_clears`` are spent (s): doubling."""
+        extra = self.fault_clears - self.policy.max_fault_clears + 1
+        return min(self.policy.clear_interval_s * 2 ** min(extra, 30), self.policy.service_retry_s)
 
 
 def _fault_text(fault: Fault, status: Status) -> str:

@@ -39,6 +39,11 @@ log = logging.getLogger("heliotrack.controller")
 __all__ = ["Controller", "CycleRecord", "TrackerRuntime"]
 
 
+class LinkDownError(DriveCommError):
+    """The drive's link is closed and waits for its reconnection time: nothing was tried, so
+    nothing failed again (the backoff does not grow, the reason is not wrapped anew)."""
+
+
 class Controller(WindPolling):
     """Drives every configured tracker from one sun source.
 
@@ -115,9 +120,20 @@ class Controller(WindPolling):
             tr.errors += 1
             self._link_failed(tr, str(exc) or "no answer at start-up")
 
+    def _unheard(self, tr: TrackerRuntime) -> bool:
+        """The drive has not answered an exchange for longer than its watchdog allows (it has
+        stowed itself since); False before its first answer."""
+        silent = self.clock.monotonic() - tr.health.last_ok
+        return math.isfinite(silent) and silent >= self.config.control.heartbeat_timeout_s
+
     @staticmethod
-    def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState) -> None:
-        if any(a.mode == Mode.STOW for a in st.axes) and any(a.status & Status.COMM_LOST for a in st.axes):
+    def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState, unheard: bool = False) -> None:
+        """A STOW is the drive's watchdog's (ours to resume) when it says COMM_LOST, or when
+        it went unheard longer than its watchdog allows or rebooted (``unheard``): a heartbeat
+        for another drive on a CAN bus, or after its reboot, may have cleared the flag."""
+        if any(a.mode == Mode.STOW for a in st.axes) and (
+            unheard or any(a.status & Status.COMM_LOST for a in st.axes)
+        ):
             tr.health.watchdog_stow = True
 
     def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:
@@ -127,7 +143,7 @@ class Controller(WindPolling):
             return self.safety.angles(tr.cfg, "wind")
         return tr.cfg.stow_angles
 
-    async def _configure(self, tr: TrackerRuntime) -> None:
+    async def _configure(self, tr: TrackerRuntime, rebooted: bool = False) -> None:
         await tr.drive.connect()
         if tr.drive.axis_count < tr.cfg.axes:
             raise DriveCommError(
@@ -135,7 +151,7 @@ class Controller(WindPolling):
                 f"a {tr.cfg.type} tracker needs {tr.cfg.axes}"
             )
         # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
-        self._note_watchdog_stow(tr, await tr.drive.read_state())
+        self._note_watchdog_stow(tr, await tr.drive.read_state(), rebooted or self._unheard(tr))
         tr.uptime_s = None
         await tr.drive.configure(
             heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
@@ -180,7 +196,7 @@ class Controller(WindPolling):
             )
             self._event("drive_reboot", tracker=tr.cfg.name)
             tr.uptime_s = None
-            await self._configure(tr)
+            await self._configure(tr, rebooted=True)
 
     # -- one cycle ----------------------------------------------------------------
     async def cycle(self) -> list[CycleRecord]:
@@ -366,7 +382,8 @@ class Controller(WindPolling):
         except DriveCommError as exc:
             tr.errors += 1
             rec.error = str(exc)
-            self._link_failed(tr, str(exc))
+            if not isinstance(exc, LinkDownError):
+                self._link_failed(tr, str(exc))
         rec.latency_s = time.perf_counter() - t_wall
 
     def _link_failed(self, tr: TrackerRuntime, why: str) -> None:
@@ -391,7 +408,7 @@ class Controller(WindPolling):
         if not tr.configured:
             now = self.clock.monotonic()
             if not tr.health.may_reconnect(now):
-                raise DriveCommError(
+                raise LinkDownError(
                     f"{tr.cfg.name}: link down ({tr.health.reason}); next "
                     f"attempt in {tr.health.reconnect_at - now:.0f} s"
                 )
@@ -401,7 +418,7 @@ class Controller(WindPolling):
         ):
             # Back after failures or a stall: the watchdog may have fired; look before the
             # heartbeat clears its COMM_LOST flag.
-            self._note_watchdog_stow(tr, await tr.drive.read_state())
+            self._note_watchdog_stow(tr, await tr.drive.read_state(), self._unheard(tr))
         await self._heartbeat(tr)
         if tr.index in self._home_requested:
             await tr.drive.command(Command.HOME)

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 from controller.config import Config, load_config, parse_config
 from controller.schema import Where, setting
@@ -15,6 +15,61 @@ from hil.drive import AxisParams
 
 SkyKind = Literal["clear", "overcast", "partly-cloudy"]
 WindKind = Literal["calm", "gusty", "storm"]
+#: Faults that last a while: switched on and off on the simulated clock.
+TimedFault = Literal[
+    "drive_stall",
+    "limit_switch",
+    "encoder_glitch",
+    "emulator_restart",
+    "can_error_passive",
+    "can_bus_off",
+    "pyranometer_out_of_range",
+    "pyranometer_frozen",
+    "pyranometer_nan",
+    "anemometer_out_of_range",
+    "anemometer_frozen",
+    "anemometer_nan",
+    "camera_black",
+    "camera_saturated",
+    "camera_truncated",
+    "camera_wrong_size",
+    "camera_missing",
+    "wall_clock_step",
+]
+#: Faults on single Modbus replies (a scheduled one hits every reply of its target).
+WireFault = Literal[
+    "modbus_timeout", "crc_error", "garbled_reply", "split_reply", "late_reply", "wrong_id_reply"
+]
+#: Any fault a scheduled event may be.
+EventFault = Literal[TimedFault, WireFault]
+TIMED_FAULTS: tuple[str, ...] = get_args(TimedFault)
+WIRE_FAULTS: tuple[str, ...] = get_args(WireFault)
+#: Every fault kind, as counted in summary.json.
+FAULT_KINDS: tuple[str, ...] = (*WIRE_FAULTS, "can_frame_lost", *TIMED_FAULTS)
+
+#: Default (duration range s, magnitude range) of each timed fault; the magnitude is the
+#: step of the wall clock (s, either sign), the encoder's error (deg, either sign), or the
+#: out-of-range reading (W/m2, m/s), and means nothing for the others.
+FAULT_DEFAULTS: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
+    "drive_stall": ((30.0, 300.0), (0.0, 0.0)),
+    "limit_switch": ((10.0, 120.0), (0.0, 0.0)),
+    "encoder_glitch": ((1.0, 10.0), (0.5, 3.0)),
+    "emulator_restart": ((5.0, 120.0), (0.0, 0.0)),
+    "can_error_passive": ((10.0, 120.0), (0.0, 0.0)),
+    "can_bus_off": ((5.0, 60.0), (0.0, 0.0)),
+    "pyranometer_out_of_range": ((60.0, 1800.0), (1700.0, 3000.0)),
+    "pyranometer_frozen": ((600.0, 7200.0), (0.0, 0.0)),
+    "pyranometer_nan": ((60.0, 1800.0), (0.0, 0.0)),
+    "anemometer_out_of_range": ((30.0, 600.0), (80.0, 200.0)),
+    "anemometer_frozen": ((30.0, 900.0), (0.0, 0.0)),
+    "anemometer_nan": ((30.0, 600.0), (0.0, 0.0)),
+    "camera_black": ((60.0, 1800.0), (0.0, 0.0)),
+    "camera_saturated": ((60.0, 1800.0), (0.0, 0.0)),
+    "camera_truncated": ((60.0, 1800.0), (0.0, 0.0)),
+    "camera_wrong_size": ((60.0, 1800.0), (0.0, 0.0)),
+    "camera_missing": ((60.0, 1800.0), (0.0, 0.0)),
+    "wall_clock_step": ((60.0, 7200.0), (30.0, 3600.0)),
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -105,6 +160,107 @@ class HilWind:
 
 
 @dataclass(frozen=True, kw_only=True)
+class HilWireRates:
+    """Probability of each wire fault per transaction (each reply of a Modbus device, each
+    CAN frame), on every link of its kind."""
+
+    modbus_timeout: float = setting(0.0, doc="No reply (RTU and TCP).", ge=0, le=1)
+    crc_error: float = setting(0.0, doc="Reply with a bad CRC (RTU).", ge=0, le=1)
+    garbled_reply: float = setting(
+        0.0, doc="Reply damaged by line noise (RTU), or with a damaged header (TCP).", ge=0, le=1
+    )
+    split_reply: float = setting(0.0, doc="Reply in two writes with a gap.", ge=0, le=1)
+    late_reply: float = setting(0.0, doc="Reply after the link's timeout.", ge=0, le=1)
+    wrong_id_reply: float = setting(0.0, doc="Reply from another slave or unit id.", ge=0, le=1)
+    can_frame_lost: float = setting(0.0, doc="A CAN frame lost (either way), per frame.", ge=0, le=1)
+
+    def wire_rates(self) -> dict[str, float]:
+        """The Modbus wire-fault probabilities by kind."""
+        return {k: getattr(self, k) for k in WIRE_FAULTS}
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilFaultRate:
+    """A timed fault at random: a Poisson process over the run, each occurrence on a
+    target drawn at random among those it can hit."""
+
+    type: TimedFault = setting(doc="The fault (see docs/faults.md).")
+    per_hour: float = setting(doc="Mean occurrences per hour, over the whole plant.", ge=0, le=3600)
+    duration_s: tuple[float, float] | None = setting(
+        None, doc="Duration range [min, max], drawn uniformly (none: the fault's default).", unit="s", ge=0
+    )
+    magnitude: tuple[float, float] | None = setting(
+        None,
+        doc="Magnitude range [min, max] (wall_clock_step: s, encoder_glitch: deg, both "
+        "either sign; *_out_of_range: the reading); none: the fault's default.",
+    )
+
+    def __schema_check__(self, at: Where) -> HilFaultRate:
+        for key in ("duration_s", "magnitude"):
+            r = getattr(self, key)
+            if r is not None and not r[0] <= r[1]:
+                raise at.child(key).error("[min, max] with min <= max", list(r))
+        return self
+
+    def durations(self) -> tuple[float, float]:
+        return self.duration_s or FAULT_DEFAULTS[self.type][0]
+
+    def magnitudes(self) -> tuple[float, float]:
+        return self.magnitude or FAULT_DEFAULTS[self.type][1]
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilFaultEvent:
+    """A fault at a given time."""
+
+    type: EventFault = setting(doc="The fault (a wire fault hits every reply of its target while it lasts).")
+    at: str = setting(doc="When it starts (a time with a zone).", example="2024-03-20T10:00:00Z")
+    duration_s: float = setting(60.0, doc="How long it lasts.", unit="s", ge=0, le=864000)
+    target: str = setting(
+        "",
+        doc='What it hits: a tracker or link name, "pyranometer", "anemometer", "camera" '
+        "(empty: drawn at random among the fault's possible targets).",
+    )
+    magnitude: float | None = setting(
+        None, doc="The fault's magnitude (see `magnitude` above; none: drawn from the default range)."
+    )
+
+    def __schema_check__(self, at: Where) -> HilFaultEvent:
+        from controller.errors import InputError
+
+        try:
+            parse_timestamp(self.at, "at", require_zone=True)
+        except InputError as exc:
+            raise at.child("at").error("a time with a zone, e.g. 2024-03-20T10:00:00Z", self.at) from exc
+        return self
+
+    @property
+    def start(self) -> float:
+        """POSIX s."""
+        return parse_timestamp(self.at, "at", require_zone=True)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilFaults:
+    """Faults injected in the world, at random rates and at given times (docs/faults.md)."""
+
+    seed: int = setting(0, doc="Random seed of the faults (what, when, where).", ge=0)
+    per_transaction: HilWireRates = setting(default_factory=HilWireRates, doc="Wire faults.")
+    random: tuple[HilFaultRate, ...] = setting((), doc="Timed faults at random.")
+    events: tuple[HilFaultEvent, ...] = setting((), doc="Faults at given times.")
+
+    @property
+    def enabled(self) -> bool:
+        """Any fault at all (the world then adds its fault hooks)."""
+        w = self.per_transaction
+        return bool(
+            self.events
+            or any(r.per_hour > 0 for r in self.random)
+            or any(getattr(w, k) > 0 for k in (*WIRE_FAULTS, "can_frame_lost"))
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilConfig:
     """The emulated world.  Each day runs from local mean midnight (UTC - longitude/15 h)."""
 
@@ -120,6 +276,7 @@ class HilConfig:
     drive: HilDrive = setting(default_factory=HilDrive, doc="Drive mechanics.")
     camera: HilCamera = setting(default_factory=HilCamera, doc="Hotspot camera.")
     wind: HilWind = setting(default_factory=HilWind, doc="Wind.")
+    faults: HilFaults = setting(default_factory=HilFaults, doc="Fault injection.")
 
     @property
     def skies(self) -> tuple[str, ...]:
@@ -137,6 +294,44 @@ class ScenarioConfig(Config):
     """A plant configuration run by the simulator: the plant, and the world around it."""
 
     hil: HilConfig = setting(default_factory=HilConfig, doc="The emulated world.")
+
+    def __schema_check__(self, at: Where) -> ScenarioConfig:
+        c = super().__schema_check__(at)
+        assert isinstance(c, ScenarioConfig)
+        targets = fault_targets(c)
+        for i, ev in enumerate(c.hil.faults.events):
+            if ev.target and ev.target not in targets.get(ev.type, ()):
+                here = at.child("hil").child("faults").child("events").item(i).child("target")
+                known = ", ".join(targets.get(ev.type, ())) or "nothing in this plant"
+                raise here.error(f"something a {ev.type} fault can hit ({known})", ev.target)
+        return c
+
+
+def fault_targets(config: Config) -> dict[str, tuple[str, ...]]:
+    """What each fault kind can hit in ``config``: tracker names, link names, sensors."""
+    kinds = {link.name: link.kind for link in config.links}
+    trackers = tuple(tr.name for tr in config.trackers)
+    modbus = tuple(n for n, k in kinds.items() if k.startswith("modbus"))
+    can = tuple(n for n, k in kinds.items() if k == "canopen")
+    modbus_trackers = tuple(tr.name for tr in config.trackers if kinds.get(tr.link, "").startswith("modbus"))
+    sensors = (("pyranometer",) if config.pyranometer is not None else ()) + (
+        ("anemometer",) if config.wind is not None else ()
+    )
+    camera = ("camera",) if config.control.sun_source == "hotspot" and config.hotspot is not None else ()
+    out: dict[str, tuple[str, ...]] = {}
+    for k in ("drive_stall", "limit_switch", "encoder_glitch", "emulator_restart"):
+        out[k] = trackers
+    for k in ("can_error_passive", "can_bus_off"):
+        out[k] = can
+    for k in WIRE_FAULTS:
+        out[k] = modbus + modbus_trackers + sensors
+    for sensor in ("pyranometer", "anemometer"):
+        for k in ("out_of_range", "frozen", "nan"):
+            out[f"{sensor}_{k}"] = (sensor,) if sensor in sensors else ()
+    for k in ("black", "saturated", "truncated", "wrong_size", "missing"):
+        out[f"camera_{k}"] = camera
+    out["wall_clock_step"] = ("plant",)
+    return out
 
 
 def load_scenario(path: str | Path) -> ScenarioConfig:
@@ -174,12 +369,18 @@ def axis_params(hil: HilConfig, soft: tuple[float, float], stow: float, margin: 
 
 
 __all__ = [
+    "FAULT_KINDS",
     "HilCamera",
     "HilConfig",
     "HilDrive",
+    "HilFaultEvent",
+    "HilFaultRate",
+    "HilFaults",
+    "HilWireRates",
     "ScenarioConfig",
     "as_scenario",
     "axis_params",
+    "fault_targets",
     "load_scenario",
     "parse_scenario",
 ]

@@ -21,8 +21,8 @@ import logging
 import math
 import time
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass
-from datetime import UTC, date, datetime, timedelta
+from dataclasses import asdict
+from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +31,6 @@ from tqdm import tqdm
 
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
-from controller.errors import ConfigError
 from controller.loop import Controller, CycleRecord
 from controller.store import open_store_or_none
 from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
@@ -40,6 +39,7 @@ from controller.sunpath.ephemeris import wrap180
 from hil.drive import DriveFirmware
 
 from .devices import open_anemometer, open_drives, open_pyranometer
+from .faults import FaultScheduler, FaultyFrameSource
 from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
 from .renderers import frames_setting, world_renderer
 from .scenario import ScenarioConfig, as_scenario
@@ -53,9 +53,10 @@ from .scoring import (
     panel,
     truth_grid,
 )
+from .span import MAX_DAYS, Span, cycles_per_day, day_samples, day_start, simulation_span
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
-from .world import build_world
+from .world import World, build_world
 
 log = logging.getLogger("heliotrack.simulate")
 
@@ -71,56 +72,6 @@ __all__ = [
     "summary_table",
     "world_truth",
 ]
-
-#: The longest run ``simulate`` accepts (days): about ten years.
-MAX_DAYS = 3660
-
-
-def day_start(d: date, longitude: float) -> float:
-    """POSIX time of local mean midnight starting day ``d`` at this longitude."""
-    midnight_utc = datetime(d.year, d.month, d.day, tzinfo=UTC)
-    return (midnight_utc - timedelta(hours=longitude / 15.0)).timestamp()
-
-
-@dataclass(frozen=True)
-class Span:
-    """What a run covers: its first cycle (POSIX s), its number of cycles and how its start
-    is shown (a date, or an ISO time)."""
-
-    t0: float
-    n_cycles: int
-    label: str
-
-
-def simulation_span(
-    config: Config, days: int = 1, start: date | datetime | None = None, hours: float | None = None
-) -> Span:
-    """``days`` whole days from local mean midnight of ``start`` (a date), or from an aware
-    datetime; ``hours`` instead of days when given."""
-    scenario = as_scenario(config)
-    if not 1 <= days <= MAX_DAYS:
-        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", days)
-    first = start or scenario.hil.start
-    t0 = first.timestamp() if isinstance(first, datetime) else day_start(first, scenario.site.longitude)
-    seconds = days * 86400 if hours is None else hours * 3600
-    n = max(1, round(seconds / scenario.control.period_s))
-    return Span(t0, n, first.isoformat())
-
-
-def cycles_per_day(period_s: float) -> int:
-    """Cycles in one stretch of truth (a day, to the nearest whole cycle)."""
-    return max(1, round(86400 / period_s))
-
-
-def day_samples(span: Span, period_s: float, substeps: int, day: int) -> tuple[np.ndarray, np.ndarray]:
-    """The cycle times of day ``day`` of a run, and its truth sample times (``substeps``
-    per cycle, at the middles of equal parts of the period)."""
-    per_day = cycles_per_day(period_s)
-    i0 = day * per_day
-    i1 = min(span.n_cycles, i0 + per_day)
-    cycles = span.t0 + np.arange(i0, i1) * period_s
-    offsets = (np.arange(substeps) + 0.5) / substeps * period_s
-    return cycles, (cycles[:, None] + offsets[None, :]).ravel()
 
 
 def world_truth(config: Config) -> WorldTruth:
@@ -195,6 +146,9 @@ class ScenarioRun:
         self.interrupted = False
         self.writer: CyclesWriter | None = None
         self._frames = frames
+        #: Fault injection ([hil.faults]): the scheduler, and the camera it damages.
+        self.faults: FaultScheduler | None = None
+        self._faulty_frames: FaultyFrameSource | None = None
         self._sun: SunSource | None = None
         self._sensor: CameraSunSensor | None = None
         wind = self.config.wind
@@ -254,7 +208,12 @@ class ScenarioRun:
         if frames_setting(self.config) != "hil":
             return None
         render = world_renderer(self.config, self.transmittance_at)
-        return CallableFrameSource(render) if render is not None else None
+        if render is None:
+            return None
+        if not self.hil.faults.enabled:
+            return CallableFrameSource(render)
+        self._faulty_frames = FaultyFrameSource(CallableFrameSource(render), self.hil.faults.seed)
+        return self._faulty_frames
 
     # -- running -----------------------------------------------------------------------
     def execute(self, out_dir: Path | None = None) -> dict:
@@ -279,6 +238,9 @@ class ScenarioRun:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
+            if self.hil.faults.enabled:
+                t1 = self.t0 + self.n_cycles * self.period
+                self.faults = FaultScheduler(self.config, world, self.clock, self.t0, t1, self._faulty_frames)
             store = (
                 open_store_or_none(self.config.store.path, log.warning)
                 if self.config.store.path is not None
@@ -306,8 +268,9 @@ class ScenarioRun:
                     if day != self.day:
                         self._leave_day()
                         self._enter_day(day)
-                    self.clock.advance_to(self.t0 + i * self.period)
-                    records = await controller.cycle()
+                    self._advance(self.t0 + i * self.period)
+                    records = await self._cycle(controller)
+                    self._after_cycle(records, controller, world)
                     tracking = {r.tracker for r in records if r.mode == "TRACK" and not r.error}
                     errors = await self._sample_truth(j, world.firmwares, tracking, controller)
                     self._log(records, errors, j, controller)
@@ -329,6 +292,29 @@ class ScenarioRun:
             if ahead > 0:
                 await asyncio.sleep(ahead)
 
+    # -- hooks (fault injection; a soak overrides them to count and carry on) -----------------
+    def _advance(self, t: float) -> None:
+        """Move the clock to ``t`` and let the fault scheduler act."""
+        self.clock.advance_to(t)
+        if self.faults is not None:
+            self.faults.advance(t)
+
+    async def _cycle(self, controller: Controller) -> list[CycleRecord]:
+        return await controller.cycle()
+
+    async def _poll(self, controller: Controller) -> None:
+        await controller.poll_weather()
+
+    def _after_cycle(self, records: list[CycleRecord], controller: Controller, world: World) -> None:
+        if self.faults is not None:
+            self.faults.after_cycle(self.clock.monotonic(), records, controller.safety.order() is not None)
+
+    def _reachable(self, firmwares: dict[str, DriveFirmware]) -> dict[str, DriveFirmware]:
+        """The drives no fault cuts off from the controller (the others cannot obey)."""
+        if self.faults is None:
+            return firmwares
+        return {n: fw for n, fw in firmwares.items() if self.faults.ledger.state[n].blocked == 0}
+
     async def _weather_until(
         self, t: float, controller: Controller, firmwares: dict[str, DriveFirmware]
     ) -> None:
@@ -337,10 +323,10 @@ class ScenarioRun:
         if self.weather is None:
             return
         while controller.next_weather_poll <= t:
-            self.clock.advance_to(max(controller.next_weather_poll, self.clock.monotonic()))
-            self.weather.sample(self.clock.monotonic(), firmwares)
-            await controller.poll_weather()
-            self.weather.sample(self.clock.monotonic(), firmwares)
+            self._advance(max(controller.next_weather_poll, self.clock.monotonic()))
+            self.weather.sample(self.clock.monotonic(), self._reachable(firmwares))
+            await self._poll(controller)
+            self.weather.sample(self.clock.monotonic(), self._reachable(firmwares))
 
     async def _sample_truth(
         self, j: int, firmwares: dict[str, DriveFirmware], tracking: set[str], controller: Controller
@@ -357,9 +343,9 @@ class ScenarioRun:
         for k in range(j * self.sub, (j + 1) * self.sub):
             t = float(grid.t[k])
             await self._weather_until(t, controller, firmwares)
-            self.clock.advance_to(t)
+            self._advance(t)
             if self.weather is not None:
-                self.weather.sample(t, firmwares)
+                self.weather.sample(t, self._reachable(firmwares))
             if grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
@@ -378,7 +364,7 @@ class ScenarioRun:
     ) -> None:
         ghi = None
         samples = controller.diffuse.samples
-        if controller.pyranometer is not None and samples and samples[-1][0] == records[0].time:
+        if controller.pyranometer is not None and samples and records and samples[-1][0] == records[0].time:
             ghi = samples[-1][1]
         true_sun = (float(self.cycle_sun[j, 0]), float(self.cycle_sun[j, 1]))
         rows = []
@@ -466,6 +452,7 @@ class ScenarioRun:
             "modes": self.modes,
             "sources": self.sources,
             **self._sun_path_summary(),
+            **({"faults": self.faults.summary()} if self.faults is not None else {}),
             **self._weather_summary(controller),
             "trackers": {
                 tr.name: {

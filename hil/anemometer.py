@@ -15,7 +15,8 @@ class Anemometer:
     """A read-only register device reading the world's wind.
 
     Fault injection: ``fault`` (status bit 0), ``frozen_at`` (the values and the sample
-    counter stop at that time), ``override`` (speed, m/s: an out-of-range or absurd value).
+    counter stop at that time), ``override`` (speed, m/s: an out-of-range or absurd value;
+    NaN puts the instrument's "no value" word, 0xFFFF, in the speed registers).
     """
 
     def __init__(self, wind: WindScript, now: Callable[[], float]):
@@ -31,7 +32,7 @@ class Anemometer:
         gust = self.wind.gust(t, GUST_HOLD_S, SAMPLE_HZ) if self.override is None else self.override
         mean = self.wind.mean_10min(t) if self.override is None else self.override
         out_of_range = max(speed, gust, mean) > 75.0
-        clip = lambda v: min(max(v, 0.0), 655.0)  # noqa: E731 - the register's range
+        clip = lambda v: min(max(v, 0.0), 655.0) if v == v else v  # noqa: E731 - the register's range
         return {
             "ANE_DEVICE_TYPE": ANEMOMETER_DEVICE_TYPE,
             "ANE_SPEED": clip(speed),
@@ -48,6 +49,9 @@ class Anemometer:
         words = [0] * ANEMOMETER_SPACE
         for name, value in self.values().items():
             reg = ANE[name]
+            if value != value:  # NaN: the instrument's "no value" word
+                words[reg.offset] = 0xFFFF
+                continue
             words[reg.offset : reg.offset + reg.words] = encode(reg, value)
         return words[address : address + count]
 

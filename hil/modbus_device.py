@@ -5,7 +5,8 @@ writes are applied to, a device object with ``read(address, count)`` and
 ``write(address, values)`` methods (see :class:`hil.drive.firmware.DriveFirmware`); a
 :class:`~hil.drive.firmware.FirmwareReject` becomes the Modbus exception it names.
 Requests for a slave id nobody here owns are ignored (:class:`MultidropCore`), as on a
-real multidrop RS-485 line.
+real multidrop RS-485 line; so are requests for a device that is switched off
+(:class:`DeviceSlot`: fault injection, an emulator killed and restarted).
 """
 
 from __future__ import annotations
@@ -31,6 +32,25 @@ class RegisterDevice(Protocol):
 
     def read(self, address: int, count: int) -> list[int]: ...
     def write(self, address: int, values: Sequence[int]) -> None: ...
+
+
+class DeviceSlot:
+    """The place of one device behind a slave id: it can be switched off (it then answers
+    nothing, as a device without power) and replaced (a restart with fresh firmware)."""
+
+    def __init__(self, device: RegisterDevice):
+        self.device = device
+        self.powered = True
+
+    @property
+    def response_delay_s(self) -> float:
+        return float(getattr(self.device, "response_delay_s", 0.0))
+
+    def read(self, address: int, count: int) -> list[int]:
+        return self.device.read(address, count)
+
+    def write(self, address: int, values: Sequence[int]) -> None:
+        self.device.write(address, values)
 
 
 def sim_device(device_id: int, device: RegisterDevice, size: int = REGISTER_SPACE) -> SimDevice:
@@ -67,14 +87,21 @@ def sim_device(device_id: int, device: RegisterDevice, size: int = REGISTER_SPAC
 
 class MultidropCore(SimCore):
     """SimCore that raises NoSuchIdException for foreign ids instead of a KeyError, so the
-    server stays silent for them (pymodbus's own core answers exception 4)."""
+    server stays silent for them (pymodbus's own core answers exception 4); silent too for
+    a device whose ``powered`` attribute is false (see :class:`DeviceSlot`)."""
 
-    async def async_getValues(self, device_id, func_code, address, count=1):  # type: ignore[no-untyped-def]
-        if device_id not in self.devices:
-            raise NoSuchIdException(device_id)
+    def __init__(self, devices: list[SimDevice], targets: dict[int, Any] | None = None):
+        super().__init__(devices)
+        self.targets = targets or {}
+
+    def _check(self, device_id: int) -> None:
+        if device_id not in self.devices or not getattr(self.targets.get(device_id), "powered", True):
+            raise NoSuchIdException(str(device_id))
+
+    async def async_getValues(self, device_id, func_code, address, count=1):
+        self._check(device_id)
         return await super().async_getValues(device_id, func_code, address, count)
 
-    async def async_setValues(self, device_id, func_code, address, values):  # type: ignore[no-untyped-def]
-        if device_id not in self.devices:
-            raise NoSuchIdException(device_id)
+    async def async_setValues(self, device_id, func_code, address, values):
+        self._check(device_id)
         return await super().async_setValues(device_id, func_code, address, values)

@@ -16,9 +16,9 @@ from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServe
 from firmware_protocol.server_thread import ServerThread, ServerThreadError
 
 from .errors import HilError
-from .modbus_device import MultidropCore, RegisterDevice, sim_device
+from .modbus_device import DeviceSlot, MultidropCore, RegisterDevice, sim_device
 
-__all__ = ["ModbusServerThread", "RegisterDevice", "sim_device"]
+__all__ = ["DeviceSlot", "ModbusServerThread", "RegisterDevice", "sim_device"]
 
 
 class ModbusServerThread(ServerThread):
@@ -88,5 +88,5 @@ class ModbusServerThread(ServerThread):
         else:
             assert self.tcp is not None
             server = ModbusTcpServer(sims, address=self.tcp, ignore_missing_devices=True)
-        server.context = MultidropCore(sims)
+        server.context = MultidropCore(sims, dict(self.devices))
         return server

@@ -11,9 +11,16 @@ from firmware_protocol.pyranometer import PYR, PYRANOMETER_DEVICE_TYPE, PYRANOME
 
 from .drive.firmware import FirmwareReject
 
+#: What an instrument puts in an int16 register for "no valid value" (its NaN).
+NAN_WORD_INT16 = 0x7FFF
+
 
 class Pyranometer:
     """A read-only register device (see :mod:`firmware_protocol.pyranometer`).
+
+    Fault injection, as on the anemometer: ``fault`` (status bit 0), ``frozen_at`` (the
+    registers keep the words of that moment), ``override`` (irradiance, W/m2: an
+    out-of-range value; NaN puts the instrument's "no value" word in the registers).
 
     Parameters
     ----------
@@ -38,14 +45,19 @@ class Pyranometer:
         self.noise = noise_w_m2
         self.rng = np.random.default_rng(seed)
         self.fault = False  # fault injection: the sensor reports a fault status
+        self.frozen_at: float | None = None
+        self.override: float | None = None
+        self._frozen: tuple[float | None, list[int]] | None = None
 
     def values(self) -> dict[str, float]:
         g = float(self.ghi_at(self.now()))
         g = max(g + self.rng.normal(0, self.noise), 0.0) if g > 0 else 0.0
+        if self.override is not None:
+            g = self.override
         return {
             "PYR_DEVICE_TYPE": PYRANOMETER_DEVICE_TYPE,
-            "PYR_IRRADIANCE": round(g),
-            "PYR_IRRADIANCE_RAW": round(g * 1.01),
+            "PYR_IRRADIANCE": round(g) if np.isfinite(g) else g,
+            "PYR_IRRADIANCE_RAW": round(g * 1.01) if np.isfinite(g) else g,
             "PYR_BODY_TEMPERATURE": 25.0,
             "PYR_STATUS": 1 if self.fault else 0,
         }
@@ -53,10 +65,18 @@ class Pyranometer:
     def read(self, address: int, count: int) -> list[int]:
         if address < 0 or address + count > PYRANOMETER_SPACE:
             raise FirmwareReject(2, "outside the pyranometer's registers")
+        frozen = self.frozen_at is not None and self.now() >= self.frozen_at
+        if frozen and self._frozen is not None and self._frozen[0] == self.frozen_at:
+            return self._frozen[1][address : address + count]
         words = [0] * PYRANOMETER_SPACE
         for name, value in self.values().items():
             reg = PYR[name]
-            words[reg.offset : reg.offset + reg.words] = encode(reg, value)
+            if name.startswith("PYR_IRRADIANCE") and not np.isfinite(value):
+                words[reg.offset] = NAN_WORD_INT16
+                continue
+            words[reg.offset : reg.offset + reg.words] = encode(reg, min(max(value, -32768), 32767))
+        if frozen:  # the words it keeps from now on
+            self._frozen = (self.frozen_at, words)
         return words[address : address + count]
 
     def write(self, address: int, values: Sequence[int]) -> None:

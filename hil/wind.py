@@ -16,6 +16,12 @@ import numpy as np
 WIND_KINDS = ("calm", "gusty", "storm")
 _MEAN = {"calm": 2.5, "gusty": 7.0, "storm": 7.0}  # m/s outside the storm peak
 _TI = {"calm": 0.15, "gusty": 0.25, "storm": 0.22}  # turbulence intensity
+_MEAN_BY_KIND = np.array([_MEAN[k] for k in WIND_KINDS])
+_TI_BY_KIND = np.array([_TI[k] for k in WIND_KINDS])
+#: Turbulence samples on the instrument's 4-Hz grid are kept for reuse (the anemometer's
+#: gust and 10-min mean, read every few seconds, share almost all of their samples).
+_GRID_HZ = 4
+_CACHE_MAX = 50_000
 
 
 @dataclass(frozen=True)
@@ -62,21 +68,28 @@ class WindScript:
         self.amp = amp / np.sqrt(np.sum(amp**2) / 2)  # unit standard deviation
         self.phase = rng.uniform(0, 2 * np.pi, self.freq.size)
         self.dir_phase = rng.uniform(0, 2 * np.pi)
+        self._kind_index = np.array([WIND_KINDS.index(k) for k in self.day_kinds])
+        self._turb_cache: dict[int, float] = {}
 
     def kind(self, t: float) -> str:
         day = int(np.floor((t - self.t0) / 86400.0))
         return self.day_kinds[day % len(self.day_kinds)]
 
+    def _kinds(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Day number (from ``t0``) and index in ``WIND_KINDS`` of every time."""
+        day = np.floor((t - self.t0) / 86400.0).astype(int)
+        return day, self._kind_index[day % len(self.day_kinds)]
+
     def mean(self, t: np.ndarray) -> np.ndarray:
         """Slowly varying mean speed, m/s."""
         t = np.asarray(t, float)
-        day = np.floor((t - self.t0) / 86400.0).astype(int)
-        kinds = np.asarray(self.day_kinds)[day % len(self.day_kinds)]
-        base = np.vectorize(_MEAN.__getitem__, otypes=[float])(kinds)
+        day, kinds = self._kinds(t)
+        base = _MEAN_BY_KIND[kinds]
         diurnal = 1.0 + 0.3 * np.sin(2 * np.pi * ((t - self.t0) % 86400.0 / 86400.0 - 0.3))
         m = base * diurnal
+        storm = WIND_KINDS.index("storm")
         storm_days = [
-            Storm(self.t0 + d * 86400.0 + STORM_DAY_START_S) for d in np.unique(day[kinds == "storm"])
+            Storm(self.t0 + d * 86400.0 + STORM_DAY_START_S) for d in np.unique(day[kinds == storm])
         ]
         for s in (*self.storms, *storm_days):
             up = np.clip((t - s.start) / s.ramp_s, 0.0, 1.0)
@@ -87,9 +100,29 @@ class WindScript:
     def speed(self, t) -> np.ndarray:
         """Instantaneous wind speed, m/s (>= 0)."""
         t = np.atleast_1d(np.asarray(t, float))
-        ti = np.vectorize(lambda x: _TI[self.kind(x)], otypes=[float])(t)
-        turb = np.sin(2 * np.pi * self.freq[None, :] * t[:, None] + self.phase[None, :]) @ self.amp
-        return np.maximum(self.mean(t) * (1.0 + ti * turb), 0.0)
+        ti = _TI_BY_KIND[self._kinds(t)[1]]
+        return np.maximum(self.mean(t) * (1.0 + ti * self._turbulence(t)), 0.0)
+
+    def _turbulence_direct(self, t: np.ndarray) -> np.ndarray:
+        return np.sin(2 * np.pi * self.freq[None, :] * t[:, None] + self.phase[None, :]) @ self.amp
+
+    def _turbulence(self, t: np.ndarray) -> np.ndarray:
+        """The unit turbulent factor at ``t``; samples on the 4-Hz grid come from a cache
+        (the same numbers: each is computed once, by the same expression)."""
+        k = t * _GRID_HZ
+        if t.size < 8 or not np.array_equal(k, np.round(k)):
+            return self._turbulence_direct(t)
+        keys = k.astype(np.int64).tolist()
+        cache = self._turb_cache
+        vals = np.fromiter((cache.get(x, np.nan) for x in keys), float, len(keys))
+        miss = np.isnan(vals)
+        if miss.any():
+            fresh = self._turbulence_direct(t[miss])
+            vals[miss] = fresh
+            if len(cache) > _CACHE_MAX:
+                cache.clear()
+            cache.update(zip(np.asarray(keys)[miss].tolist(), fresh.tolist()))
+        return vals
 
     def direction(self, t) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t, float))

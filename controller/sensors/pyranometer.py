@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from firmware_protocol import decode
 from firmware_protocol.pyranometer import PYR
@@ -11,6 +12,11 @@ from ..drives.base import DriveCommError
 from .modbus_sensor import ModbusSensor
 
 MAX_PLAUSIBLE_W_M2 = 1600.0  # above the solar constant plus cloud enhancement: a fault
+#: Identical readings in a row (irradiance and raw signal, in daylight) that mean a frozen
+#: instrument: its noise alone changes the last digit between two readings a minute apart.
+FROZEN_AFTER = 10
+#: Below this the sky is dark enough for a steady reading (night: 0).
+FROZEN_MIN_W_M2 = 20.0
 _FIRST = PYR["PYR_IRRADIANCE"].offset
 _LAST = PYR["PYR_STATUS"].offset
 
@@ -27,10 +33,16 @@ class ModbusPyranometer(ModbusSensor):
     """A pyranometer (map in :mod:`firmware_protocol.pyranometer`).
 
     :meth:`read` raises :class:`DriveCommError` on a link error (after the link's retries),
-    a fault status or an implausible value, so a bad sample is never used.
+    a fault status, an implausible value, or a frozen instrument (``FROZEN_AFTER`` identical
+    daylight readings in a row: the map has no sample counter), so a bad sample is never
+    used.
     """
 
     kind = "pyranometer"
+
+    def __init__(self, client: Any, device_id: int, label: str = "", retries: int = 0):
+        super().__init__(client, device_id, label, retries)
+        self._same: tuple[tuple[int, ...], int] = ((), 0)
 
     async def read(self, t: float) -> IrradianceSample:
         """The irradiance now, stamped ``t`` (POSIX s)."""
@@ -41,4 +53,9 @@ class ModbusPyranometer(ModbusSensor):
         ghi = float(decode(PYR["PYR_IRRADIANCE"], [words[0]]))
         if not -10.0 <= ghi <= MAX_PLAUSIBLE_W_M2:
             raise DriveCommError(f"{self.label}: implausible irradiance {ghi} W/m2")
+        key = tuple(words[: PYR["PYR_IRRADIANCE_RAW"].offset - _FIRST + 1])
+        last, n = self._same
+        self._same = (key, n + 1 if key == last and ghi >= FROZEN_MIN_W_M2 else 1)
+        if self._same[1] >= FROZEN_AFTER:
+            raise DriveCommError(f"{self.label}: frozen ({self._same[1]} identical readings of {ghi:g} W/m2)")
         return IrradianceSample(t, max(ghi, 0.0))

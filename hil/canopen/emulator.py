@@ -121,6 +121,7 @@ class CanopenNetworkEmulator:
         else:
             self.network.notifier = can.Notifier(bus, self.network.listeners, self.network.NOTIFIER_CYCLE)
         self.period_s = period_s
+        self.network.subscribe(0x000, self._on_nmt)
         self.drives: list[CanopenDriveEmulator] = []
         self._lock = threading.Lock()
         self._stop = threading.Event()
@@ -146,6 +147,15 @@ class CanopenNetworkEmulator:
         with self._lock:
             self.drives.remove(drive)
         drive.detach()
+
+    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """An NMT start sends every TPDO of its nodes again, so that a master connecting again
+        to a node already OPERATIONAL learns the whole state without waiting for timers."""
+        if len(data) >= 2 and data[0] == 0x01:
+            for drive in list(self.drives):
+                for node in drive.nodes:
+                    if data[1] in (0, node.id):
+                        node.resend_tpdos()
 
     def service(self) -> None:
         """Service every drive once (the thread calls this; tests may call it directly)."""

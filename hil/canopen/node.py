@@ -436,6 +436,11 @@ class AxisNode:
                     continue
                 self._send(no, pdo, snap, self.wall())
 
+    def resend_tpdos(self) -> None:
+        """Every TPDO goes out again at the next service, as after boot (on an NMT start)."""
+        with self.drive.lock:
+            self._last_tx.clear()
+
     def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:
             self.drive.beat()

@@ -69,12 +69,19 @@ class AxisModel:
         self.stall_timer = 0.0
         self.stalled = False
         self.hard_limit = False
+        #: Fault injection: a limit switch reads pressed (a trip latches HARD_LIMIT, and it
+        #: cannot be cleared while the switch stays pressed).
+        self.limit_stuck = False
+        #: Fault injection: an encoder glitch, deg added to the reading (the position loop
+        #: closes on it, so the panel really moves off by this much while it lasts).
+        self.encoder_offset = 0.0
 
     # -- measurements -------------------------------------------------------------
     @property
     def encoder(self) -> float:
         q = self.p.encoder_resolution
-        return round(self.output / q) * q if q > 0 else self.output
+        reading = self.output + self.encoder_offset
+        return round(reading / q) * q if q > 0 else reading
 
     @property
     def at_target(self) -> bool:
@@ -135,12 +142,18 @@ class AxisModel:
             self.output = min(max(self.output, p.hard_min), p.hard_max)
             self.motor = self.output
 
+    def trip_limit(self) -> None:
+        """Fault injection: a limit switch trips (and stays pressed until released)."""
+        self.limit_stuck = True
+        self.hard_limit = True
+        self.velocity = 0.0
+
     def clear_faults(self) -> bool:
         """Clear latched faults whose cause is gone; True when clear."""
         if self.stalled and not self.jammed:
             self.stalled = False
             self.stall_timer = 0.0
-        if self.hard_limit and self.p.soft_min <= self.target <= self.p.soft_max:
+        if self.hard_limit and not self.limit_stuck and self.p.soft_min <= self.target <= self.p.soft_max:
             # The switch is still pressed, but the new target leads back inside.
             self.hard_limit = False
         return not (self.stalled or self.hard_limit)

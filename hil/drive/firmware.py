@@ -82,6 +82,10 @@ class DriveFirmware:
         The firmware's own time for physics, the watchdog and UPTIME (a real drive counts
         its own ticks); default ``now``.  Give a monotonic clock when ``now`` is a wall
         clock: a step of the wall clock must neither fire nor delay the watchdog.
+    audit_limits : sequence of (min, max), optional
+        Per axis, the travel the plant's configuration allows (deg): every target written
+        outside it (or outside the axis's soft limits of the moment) is counted in
+        :attr:`out_of_limit_writes`, whether the firmware clamps it or not.
     """
 
     def __init__(
@@ -90,6 +94,7 @@ class DriveFirmware:
         now: Callable[[], float],
         heartbeat_timeout: float = 10.0,
         monotonic: Callable[[], float] | None = None,
+        audit_limits: Sequence[tuple[float, float]] | None = None,
     ):
         if not 1 <= len(axes) <= 2:
             raise ValueError("a drive has 1 or 2 axes")
@@ -112,6 +117,13 @@ class DriveFirmware:
         self.transactions = 0
         #: Fault injection for transports: answer every request this much later (s).
         self.response_delay_s = 0.0
+        # -- audit (what the world checks the controller against; not on the wire) --
+        self.audit_limits = [tuple(lim) for lim in audit_limits] if audit_limits is not None else None
+        #: TARGET_ANGLE writes received, and those outside the limits (see audit_limits).
+        self.target_writes = 0
+        self.out_of_limit_writes = 0
+        #: The last target written to each axis (deg), whatever the mode did with it.
+        self.last_target_written: list[float | None] = [None for _ in axes]
 
     # -- time ---------------------------------------------------------------------
     def update(self) -> None:
@@ -356,6 +368,7 @@ class DriveFirmware:
         ax = self.axes[k]
         match name:
             case "TARGET_ANGLE":
+                self._audit_target(k, value)
                 if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                     clamped = min(max(value, ax.p.soft_min), ax.p.soft_max)
                     self.clamped[k] = clamped != value
@@ -372,6 +385,16 @@ class DriveFirmware:
                 ax.p.stow_angle = value
                 if self.modes[k] == Mode.STOW:
                     ax.target = value
+
+    def _audit_target(self, k: int, value: float) -> None:
+        self.target_writes += 1
+        self.last_target_written[k] = value
+        tol = 0.0005  # half the register's quantum
+        lo, hi = self.axes[k].p.soft_min, self.axes[k].p.soft_max
+        if self.audit_limits is not None and k < len(self.audit_limits):
+            lo, hi = max(lo, self.audit_limits[k][0]), min(hi, self.audit_limits[k][1])
+        if not lo - tol <= value <= hi + tol:
+            self.out_of_limit_writes += 1
 
     def _command(self, cmd: Command) -> None:
         for k, ax in enumerate(self.axes):

@@ -56,7 +56,15 @@ def test_a_fault_that_survives_the_clears_leaves_the_drive_lost(default_plant):
         clock.sleep(cfg.control.period_s)
         recs = run(ctl.cycle())
     assert recs[1].health == "lost" and "needs service" in recs[1].health_reason
-    assert ctl.trackers[1].health.fault_clears == 3
+    # three clears a period apart, then ever more rarely (not every cycle)
+    assert 3 < ctl.trackers[1].health.fault_clears < 6
+    # the switch stops tripping (repaired): a later clear brings the drive back by itself
+    for _ in range(16):
+        clock.sleep(cfg.control.period_s)
+        recs = run(ctl.cycle())
+        if recs[1].health == "ok":
+            break
+    assert recs[1].health == "ok" and not ax.hard_limit
 
 
 class FakeAnemometer:

@@ -37,11 +37,8 @@ from canopen.sdo import SdoAbortedError, SdoCommunicationError
 from firmware_protocol import MAGIC, PROTOCOL_VERSION, Command, Status, register
 from firmware_protocol.canopen import (
     AXIS_INDEX_OBJECT,
-    CW_ENABLE_OPERATION,
-    CW_NEW_SET_POINT,
     MASTER_NODE_ID,
     State402,
-    Statusword,
     check_node_id,
     mirror_index,
 )
@@ -58,6 +55,7 @@ from ..base import (
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
 from .axis import Axis402, load_od
+from .axis_control import SetPointNotAcknowledged, reenable, set_point
 from .network import SharedNetwork, send_master_heartbeat
 
 log = logging.getLogger(__name__)
@@ -76,10 +74,6 @@ _SDO_RETRY_ON = (
     OSError,
     RuntimeError,
 )
-
-
-class SetPointNotAcknowledged(Exception):
-    """The drive did not raise statusword bit 12 for a new set-point in time."""
 
 
 class CanopenDrive(DriveLink):
@@ -189,6 +183,9 @@ class CanopenDrive(DriveLink):
         self.stats = LinkStats()
         self._loop: asyncio.AbstractEventLoop | None = None
         self._tpdo_event: asyncio.Event | None = None
+        #: After a failed transaction the TPDOs held may predate what the drive did while
+        #: we could not hear it: a state needs TPDOs received after this (time.monotonic()).
+        self._fresh_after = 0.0
 
     # -- helpers ------------------------------------------------------------------------
     @property
@@ -199,9 +196,13 @@ class CanopenDrive(DriveLink):
 
     async def sdo(self, what: str, fn: Callable[[], Any]) -> Any:
         """Run a blocking SDO operation in a thread, under the SDO retry policy."""
-        return await self.sdo_policy.run(
-            lambda: asyncio.to_thread(fn), what=what, label=self.label, stats=self.stats
-        )
+        try:
+            return await self.sdo_policy.run(
+                lambda: asyncio.to_thread(fn), what=what, label=self.label, stats=self.stats
+            )
+        except DriveCommError:
+            self._fresh_after = time.monotonic()
+            raise
 
     def _on_tpdo(self, axis: Axis402, number: int) -> Callable[[Any], None]:
         def callback(_pdo: Any) -> None:  # canopen's receive thread
@@ -216,7 +217,7 @@ class CanopenDrive(DriveLink):
     def _heard(axis: Axis402, _state: int) -> None:  # canopen's receive thread
         axis.heartbeat_time = time.monotonic()
 
-    async def _wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
+    async def wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` holds, re-checking whenever a TPDO arrives."""
         assert self._tpdo_event is not None
         deadline = time.monotonic() + timeout
@@ -314,7 +315,7 @@ class CanopenDrive(DriveLink):
         # Every TPDO goes out once after NMT start; waiting for them means the state is
         # known before the 402 helper starts switching (a drive that stays silent fails
         # in _enable with a clear timeout).
-        await self._wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()), self.timeout_s * 2)
+        await self.wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()), self.timeout_s * 2)
         actual = await self.sdo("position read", lambda: node.sdo[0x6064].raw)
         if 0x607A in node.rpdo_pointers:
             target: Any = node.rpdo_pointers[0x607A]
@@ -360,9 +361,30 @@ class CanopenDrive(DriveLink):
             self.network = None
 
     # -- state --------------------------------------------------------------------------
+    async def _restart_if_rebooted(self) -> None:
+        """A node of this drive that announced itself again (a reboot: its heartbeat says
+        PRE-OPERATIONAL) is started afresh before it is used, the CANopen side of reopening
+        a link; the loop's uptime check then configures the drive again."""
+        if any(
+            a.heartbeat_time and a.node.nmt.state not in ("OPERATIONAL", "INITIALISING") for a in self.axes
+        ):
+            log.warning("%s: a node rebooted; starting the drive again", self.label)
+            await self.connect()
+
     async def read_state(self) -> DriveState:
         if not self.axes:
             raise DriveCommError(f"{self.label}: not connected")
+        await self._restart_if_rebooted()
+        if self._fresh_after:
+            # after a failure, wait for TPDOs sent since: the cache may hold a past state
+            since = self._fresh_after
+            fresh = await self.wait(
+                lambda: all(a.tpdo_time.get(n, 0.0) > since for a in self.axes for n in a.enabled_tpdos()),
+                self.stale_s,
+            )
+            if not fresh:
+                raise DriveCommError(f"{self.label}: no TPDOs since the link failed")
+            self._fresh_after = 0.0
         now = time.monotonic()
         axes = []
         for axis in self.axes:
@@ -379,6 +401,7 @@ class CanopenDrive(DriveLink):
             raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
         # Encode everything first: a bad angle (NaN, out of range) sends nothing at all.
         raws = [to_raw(_TARGET, angle) for angle in angles_deg]
+        await self._restart_if_rebooted()
         for k, (axis, raw) in enumerate(zip(self.axes, raws)):
             state = axis.state
             if state == State402.FAULT:
@@ -389,7 +412,11 @@ class CanopenDrive(DriveLink):
                     f"{state.name if state else 'in an unknown state'}, not "
                     "OPERATION ENABLED; not re-enabled automatically"
                 )
-            await self._set_point(k, axis, raw)
+            try:
+                await set_point(self, k, axis, raw)
+            except DriveCommError:
+                self._fresh_after = time.monotonic()
+                raise
 
     async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
         """Write targets, then read the state once it reflects them (like Modbus FC23).
@@ -402,46 +429,11 @@ class CanopenDrive(DriveLink):
         t_written = time.monotonic()
         raws = [to_raw(_TARGET, a) for a in angles_deg]
 
-        await self._wait(
+        await self.wait(
             lambda: all(axis.reflects_target(raw, t_written) for axis, raw in zip(self.axes, raws)),
             self.timeout_s,
         )
         return await self.read_state()
-
-    async def _set_point(self, k: int, axis: Axis402, raw: int) -> None:
-        """Profile-position handshake: target, controlword bit 4 up, wait for statusword
-        bit 12, bit 4 down; an attempt without the acknowledge is retried."""
-        node = axis.node
-
-        def ack() -> bool:
-            return bool(axis.statusword & Statusword.SET_POINT_ACK)
-
-        async def attempt() -> None:
-            # The previous set-point's acknowledge must be down first.
-            if ack():
-                self._controlword(node, CW_ENABLE_OPERATION)
-                await self._wait(lambda: not ack(), self.timeout_s)
-            pointers: dict[int, Any] = node.rpdo_pointers
-            if 0x607A in pointers:
-                pointers[0x607A].raw = raw
-                target_pdo = pointers[0x607A].pdo_parent
-                if 0x6040 not in pointers or pointers[0x6040].pdo_parent is not target_pdo:
-                    target_pdo.transmit()
-            else:
-                await self.sdo("target write", lambda: setattr(node.sdo[0x607A], "raw", raw))
-            self._controlword(node, CW_NEW_SET_POINT)
-            taken = await self._wait(ack, self.timeout_s)
-            self._controlword(node, CW_ENABLE_OPERATION)
-            if not taken:
-                raise SetPointNotAcknowledged(f"not acknowledged within {self.timeout_s:g} s")
-
-        await self.set_point_policy.run(
-            attempt, what=f"axis {k} set-point", label=self.label, stats=self.stats
-        )
-
-    @staticmethod
-    def _controlword(node: canopen.BaseNode402, cw: int) -> None:
-        node.controlword = int(cw)  # RPDO transmit (non-blocking) or SDO fallback
 
     # -- heartbeat, commands, configuration -------------------------------------------------
     async def heartbeat(self) -> None:
@@ -480,10 +472,7 @@ class CanopenDrive(DriveLink):
             # An explicit operator command: bring every axis back to OPERATION ENABLED
             # (from FAULT through a fault-reset edge, which the 402 helper sends).
             for axis in self.axes:
-                if axis.state != State402.OPERATION_ENABLED:
-                    if axis.state == State402.FAULT:
-                        self._controlword(axis.node, 0)  # bit 7 low, so the next is an edge
-                    await self.sdo("re-enable", partial(setattr, axis.node, "state", "OPERATION ENABLED"))
+                await reenable(self, axis, fault_reset=cmd == Command.CLEAR_FAULT)
 
     async def configure(
         self,

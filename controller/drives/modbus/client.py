@@ -43,15 +43,67 @@ class ModbusBusy(Exception):
     """The device (or a gateway) answered "busy" or "no response from the target"."""
 
 
+class ReplyMismatch(Exception):
+    """A reply that does not answer the request sent: another function code, another
+    number of registers, another address echoed.  On a serial line that is a reply late
+    for an earlier request, or line noise that passed the CRC; never data to use."""
+
+
 def retry_policy(retries: int) -> RetryPolicy:
-    """The retry policy of every Modbus device: no answer, a garbled answer or "busy" is
-    retried; an exception response saying the request is wrong is final."""
-    return RetryPolicy(retries, retry_on=(ModbusException, OSError, ModbusBusy), final=(ModbusRefused,))
+    """The retry policy of every Modbus device: no answer, a garbled answer, a reply to
+    another request or "busy" is retried; an exception response saying the request is
+    wrong is final."""
+    return RetryPolicy(
+        retries, retry_on=(ModbusException, OSError, ModbusBusy, ReplyMismatch), final=(ModbusRefused,)
+    )
+
+
+#: Function code of the reply to each pymodbus client request we send.
+_FUNCTION_CODES = {
+    "read_holding_registers": 3,
+    "read_input_registers": 4,
+    "write_register": 6,
+    "write_registers": 16,
+    "readwrite_registers": 23,
+}
+
+
+def _arg(args: tuple[Any, ...], kwargs: dict[str, Any], i: int, name: str, default: Any = None) -> Any:
+    return args[i] if len(args) > i else kwargs.get(name, default)
+
+
+def verify_reply(name: str, rr: Any, args: tuple[Any, ...], kwargs: dict[str, Any]) -> None:
+    """Raise :class:`ReplyMismatch` unless ``rr`` answers the request ``name(*args, **kwargs)``
+    (a pymodbus client method): the function code, the number of registers read, the
+    address (and count) echoed by a write.  A field the reply does not carry is not judged."""
+    fc = _FUNCTION_CODES.get(name)
+    if fc is None:
+        return
+    got = getattr(rr, "function_code", None)
+    if got is not None and got != fc:
+        raise ReplyMismatch(f"reply with function code {got} to a request with {fc}")
+    words = list(getattr(rr, "registers", None) or [])
+    if name in ("read_holding_registers", "read_input_registers", "readwrite_registers"):
+        n = kwargs.get("read_count" if fc == 23 else "count", 1)
+        if len(words) != n:
+            raise ReplyMismatch(f"{len(words)} register(s) in the answer, {n} asked")
+        return
+    address = _arg(args, kwargs, 0, "address")
+    echoed = getattr(rr, "address", None)
+    if echoed is not None and echoed != address:
+        raise ReplyMismatch(f"a write at {address} echoed at {echoed}")
+    if name == "write_registers":
+        n, count = len(_arg(args, kwargs, 1, "values", [])), getattr(rr, "count", None)
+        if count is not None and count != n:
+            raise ReplyMismatch(f"a write of {n} registers echoed as {count}")
+    # write_register: the address only: a register that executes and clears itself
+    # (COMMAND) is echoed by some devices with what it holds after the write
 
 
 async def checked(request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any) -> Any:
     """Await one pymodbus request; an exception response raises :class:`ModbusRefused` or
-    :class:`ModbusBusy` (for :func:`retry_policy`) instead of being returned."""
+    :class:`ModbusBusy`, and a reply to another request :class:`ReplyMismatch` (for
+    :func:`retry_policy`), instead of being returned."""
     rr = await request(*args, **kwargs)
     if rr.isError():
         code = getattr(rr, "exception_code", None)
@@ -60,6 +112,7 @@ async def checked(request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: 
         except ValueError:
             text = f"exception {code}"
         raise (ModbusBusy if code is None or code in _TRANSIENT_CODES else ModbusRefused)(text)
+    verify_reply(getattr(request, "__name__", ""), rr, args, kwargs)
     return rr
 
 
@@ -149,8 +202,10 @@ class SharedSerialClient:
         return bool(self.client.connected)
 
     async def connect(self) -> bool:
-        # One opening at a time: the drives of a line connect at once at start-up, and a
-        # second open of the port while the first is under way fails its exclusive lock.
+        """Open the port (once, however many devices of the line ask at the same time: a
+        second concurrent open of one pymodbus client fails)."""
+        if self.client.connected:
+            return True
         if self._connecting is None:
             self._connecting = asyncio.Lock()
         async with self._connecting:

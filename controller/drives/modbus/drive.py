@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Awaitable, Callable, Sequence
 from typing import Any, Self
 
-from pymodbus.exceptions import ModbusException
+from pymodbus.exceptions import ConnectionException, ModbusException
 
 from firmware_protocol import (
     AXIS_STRIDE,
@@ -85,13 +85,20 @@ class ModbusDrive(DriveLink):
     async def _call(
         self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
     ) -> Any:
-        """One request to this slave under the link's retry policy."""
-        return await self.policy.run(
-            lambda: checked(request, *args, device_id=self.device_id, **kwargs),
-            what=what,
-            label=self.label,
-            stats=self.stats,
-        )
+        """One request to this slave under the link's retry policy; an attempt on a client
+        that lost its connection (a gateway restarted, a reply it could not decode) opens
+        it again first."""
+
+        async def attempt() -> Any:
+            await self._reopen()
+            return await checked(request, *args, device_id=self.device_id, **kwargs)
+
+        return await self.policy.run(attempt, what=what, label=self.label, stats=self.stats)
+
+    async def _reopen(self) -> None:
+        """Open the client again if it lost its connection (an attempt fails if it cannot)."""
+        if not getattr(self.client, "connected", True) and not await self.client.connect():
+            raise ConnectionException(f"{self.label}: the link is down and does not reopen")
 
     async def _read(
         self, what: str, words: int, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
@@ -100,6 +107,7 @@ class ModbusDrive(DriveLink):
         retried like one): a slave may send any byte count."""
 
         async def attempt() -> list[int]:
+            await self._reopen()
             rr = await checked(request, *args, device_id=self.device_id, **kwargs)
             regs = list(getattr(rr, "registers", None) or ())
             if len(regs) < words:
