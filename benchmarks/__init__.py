@@ -16,6 +16,8 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+from controller.atomic import atomic_write
+
 #: Registered benchmarks (module names under ``benchmarks``).
 BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot")
 
@@ -44,9 +46,7 @@ def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = Non
     out_dir = results_dir or RESULTS_DIR
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{name}{'-quick' if quick else ''}.json"
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(record, indent=2, default=_json_default) + "\n")
-    os.replace(tmp, path)
+    atomic_write(path, json.dumps(record, indent=2, default=_json_default) + "\n")
     record["path"] = str(path)
     return record
 

@@ -19,14 +19,15 @@ DAYS = ["2024-01-15", "2024-03-20", "2024-05-10", "2024-06-21", "2024-09-05", "2
 
 def _one(args) -> tuple[str, str, int, bool, float, dict]:
     sky, day, seed, enabled = args
-    from controller.config import load_config, parse_config
+    from controller.schema import read_toml
     from heliotrack.commands.simulate import DEFAULT_CONFIG
+    from heliotrack.scenario import parse_scenario
     from heliotrack.simulate import run_simulation
 
-    raw = dict(load_config(DEFAULT_CONFIG).raw)
+    raw = read_toml(DEFAULT_CONFIG)
     raw["hil"] = dict(raw["hil"], sky=sky, seed=seed)
     raw["diffuse"] = dict(raw.get("diffuse", {}), enabled=enabled)
-    cfg = parse_config(raw, f"<diffuse benchmark {sky} {day}>")
+    cfg = parse_scenario(raw, f"<diffuse benchmark {sky} {day}>")
     s = run_simulation(cfg, days=1, start=date.fromisoformat(day), progress=False)
     return sky, day, seed, enabled, s["poa_global_kwh_m2"], s["modes"]
 

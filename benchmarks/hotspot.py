@@ -33,7 +33,7 @@ DAYS = [(2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21)]
 
 
 def _bundle(scn, zenith=None):
-    from controller.calibration.bundle import (CalibrationBundle, CameraCal, LevelCal, PoseCal,
+    from controller.calibration import (AzimuthCal, CalibrationBundle, CameraCal, LevelCal, PoseCal,
                                                SurfaceCal)
     from controller.sun.types import enu_to_azel
     from controller.vision import level_rotation
@@ -50,12 +50,12 @@ def _bundle(scn, zenith=None):
         camera=CameraCal(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy, tuple(cam.dist)),
         surface=SurfaceCal(kind="sphere", center=(0.0, 0.0, 0.0), radius=scn.globe.radius),
         pose=PoseCal(rvec=tuple(scn.pose.rvec), tvec=tuple(scn.pose.tvec)),
-        level=LevelCal(zenith_model=tuple(float(x) for x in z)), azimuth_offset_deg=off)
+        level=LevelCal(zenith_model=tuple(float(x) for x in z)), azimuth=AzimuthCal(off))
 
 
 def _measured_zenith(scn):
-    from hil.camera.render import render_plumb_view
-    from controller.calibration.bundle import CameraCal
+    from hil.camera.views import render_plumb_view
+    from controller.calibration import CameraCal
     from controller.calibration.level import detect_plumb_lines, zenith_from_lines
 
     cam = scn.camera

@@ -19,7 +19,8 @@ def _rtu_latency(n: int) -> dict:
     import asyncio
 
     from controller.clock import SimClock
-    from controller.drives import open_drive
+    from controller.drives.links import ModbusRtuLink
+    from controller.drives.registry import open_drive
     from hil.drive import AxisParams, DriveFirmware
     from hil.modbus_server import ModbusServerThread
     from hil.pty import PtyLink
@@ -28,7 +29,7 @@ def _rtu_latency(n: int) -> dict:
     fw = DriveFirmware([AxisParams(), AxisParams()], clock.now, heartbeat_timeout=0)
 
     async def measure(path: str) -> list[float]:
-        d = open_drive("modbus-rtu", port=path, device_id=1)
+        d = open_drive(ModbusRtuLink(name="bench", port=path), 1)
         await d.connect()
         lat = []
         for i in range(n):
@@ -48,11 +49,11 @@ def _rtu_latency(n: int) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    from controller.config import load_config
     from heliotrack.commands.simulate import DEFAULT_CONFIG
+    from heliotrack.scenario import load_scenario
     from heliotrack.simulate import run_simulation
 
-    cfg = load_config(DEFAULT_CONFIG)
+    cfg = load_scenario(DEFAULT_CONFIG)
     days = {"equinox": "2024-03-20", "summer solstice": "2024-06-21",
             "winter solstice": "2024-12-21"}
     if quick:

@@ -128,7 +128,7 @@ def hil_loop(days: int = len(LOOP_SKIES), interval_s: float = 900.0) -> dict:
     import tomllib
     from datetime import date
 
-    from controller.config import parse_config
+    from heliotrack.scenario import parse_scenario
     from heliotrack.simulate import run_simulation
 
     path = Path(__file__).resolve().parents[1] / "config" / "hil-hotspot.toml"
@@ -136,7 +136,7 @@ def hil_loop(days: int = len(LOOP_SKIES), interval_s: float = 900.0) -> dict:
     data["hotspot"]["interval_s"] = interval_s
     data["sunpath"]["site_known"] = False
     data["hil"]["sky"] = list(LOOP_SKIES[:days])
-    cfg = parse_config(data, path)
+    cfg = parse_scenario(data, path)
     s = run_simulation(cfg, days=days, start=date.fromisoformat(LOOP_START), progress=False)
     return {
         "config": "config/hil-hotspot.toml with [hotspot] interval_s = "

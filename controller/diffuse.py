@@ -11,38 +11,41 @@ dwell time before entering again, so broken clouds do not make the drives hunt.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
+from .schema import setting
 from .sky import SkyConfig, classify_window
 from .sun.source import Site, solar_position
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class DiffuseConfig:
-    """Settings (seconds, hours).
+    """The DIFFUSE mode: panels flat under an overcast sky, with hysteresis and dwell."""
 
-    enabled : switch DIFFUSE on at all.
-    window_h : length of the classified window.
-    dwell_s : after leaving DIFFUSE, the minimum time before entering it again.
-    exit_window_h : the shorter window whose class must no longer be overcast to leave
-        DIFFUSE (reacts faster to the sun coming out than the entry window).
-    min_elevation_deg : only samples with the sun above this count, degrees.
-    """
-
-    enabled: bool = True
-    window_h: float = 2.0
-    exit_window_h: float = 0.25
-    dwell_s: float = 900.0
-    method: str = "default"
-    min_elevation_deg: float = 10.0
+    enabled: bool | None = setting(None, doc="Switch DIFFUSE on at all.",
+                                   derived="true when a [pyranometer] is configured")
+    window_h: float = setting(2.0, doc="Overcast over this window (sun above 10 deg) enters "
+                              "DIFFUSE.", unit="h", ge=0.25, le=24)
+    exit_window_h: float = setting(0.25, doc="Anything but overcast over this shorter window "
+                                   "leaves DIFFUSE.", unit="h", ge=0.25, le=24)
+    dwell_s: float = setting(900.0, doc="After leaving, the minimum time before entering "
+                             "again.", unit="s", ge=0, le=86400)
+    method: Literal["default", "seed"] = setting("default", doc="Sky classifier rule (see "
+                                                 "docs/skytype.md).")
+    min_elevation_deg: float = setting(10.0, doc="Only samples with the sun above this count.",
+                                       unit="deg", ge=0, le=45)
 
 
 class DiffuseSwitch:
     """Rolling-window sky classification with hysteresis and dwell."""
 
-    def __init__(self, site: Site, config: DiffuseConfig = DiffuseConfig()):
+    def __init__(self, site: Site, config: DiffuseConfig | None = None):
+        config = config if config is not None else DiffuseConfig()
+        if config.enabled is None:     # built on its own (no [pyranometer] to decide): on
+            config = replace(config, enabled=True)
         self.site = site
         self.config = config
         # Near sunrise and sunset the pyranometer's view of the sunshine is unreliable (and

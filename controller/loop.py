@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from firmware_protocol import Command, Mode
 
 from .clock import Clock
-from .config import Config, TrackerConfig
+from .config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
 from .drives import DriveCommError, DriveLink, DriveState
 from .geometry import dual_axis_setpoint, single_axis_setpoints, wrap_into_range
 from .diffuse import DiffuseSwitch
@@ -109,7 +109,7 @@ class Controller:
             raise DriveCommError(f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
                                  f"a {tr.cfg.type} tracker needs {tr.cfg.axes}")
         await tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
-                                 soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow)
+                                 soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow_angles)
         await self._heartbeat(tr, force=True)
         # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
         tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
@@ -192,9 +192,7 @@ class Controller:
         self._saved_day = day
 
     def _save_sun_state(self) -> None:
-        save = getattr(self.sun, "save", None)
-        if save is not None:
-            save()   # atomic; once a day and at shutdown
+        self.sun.save()   # atomic; once a day and at shutdown
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
@@ -250,21 +248,22 @@ class Controller:
 
         Single-axis rows are computed together in one vectorised call.
         """
-        out: list[tuple[list[float], bool]] = [(list(tr.cfg.stow), False) for tr in self.trackers]
+        out: list[tuple[list[float], bool]] = [(list(tr.cfg.stow_angles), False)
+                                               for tr in self.trackers]
         if decision.mode == ControlMode.STOW or est is None:
             return out
         if decision.mode == ControlMode.DIFFUSE:
             return [self._facing_sky(tr) for tr in self.trackers]
-        rows = [i for i, tr in enumerate(self.trackers) if tr.cfg.type == "single-axis"]
+        rows = [(i, tr.cfg) for i, tr in enumerate(self.trackers)
+                if isinstance(tr.cfg, SingleAxisTracker)]
         if rows:
-            sps = single_axis_setpoints(est.az_deg, est.el_deg,
-                                        [self.trackers[i].cfg.row_geometry for i in rows])
-            for i, sp in zip(rows, sps):
+            sps = single_axis_setpoints(est.az_deg, est.el_deg, [cfg for _, cfg in rows])
+            for (i, _), sp in zip(rows, sps):
                 if not math.isnan(sp.rotation_deg):  # NaN: sun still below the horizon
                     out[i] = ([sp.rotation_deg], sp.backtracking)
         for i, tr in enumerate(self.trackers):
-            if tr.cfg.type == "dual-axis":
-                cfg = tr.cfg
+            cfg = tr.cfg
+            if isinstance(cfg, DualAxisTracker):
                 current = tr.last_state.axes[0].actual_deg if tr.last_state else None
                 az, el = dual_axis_setpoint(est.az_deg, est.el_deg, cfg.azimuth_limits,
                                             cfg.elevation_limits, current)
@@ -283,21 +282,22 @@ class Controller:
         indices = range(len(self.trackers)) if tracker is None else [tracker]
         for i in indices:
             tr = self.trackers[i]
+            cfg = tr.cfg
             if ctl == "Automatic":
                 self.overrides.pop(i, None)
             elif ctl == "Calibrate":
                 self._home_requested.add(i)
             elif ctl == "Manual":
                 now = tr.last_state.axes if tr.last_state else None
-                if tr.cfg.type == "single-axis":
-                    rot = el_deg if el_deg is not None else (now[0].actual_deg if now else tr.cfg.stow[0])
-                    self.overrides[i] = (min(max(rot, -tr.cfg.max_angle), tr.cfg.max_angle),)
-                else:
-                    az = az_deg if az_deg is not None else (now[0].actual_deg if now else tr.cfg.stow[0])
-                    el = el_deg if el_deg is not None else (now[1].actual_deg if now else tr.cfg.stow[1])
-                    az = wrap_into_range(az, *tr.cfg.azimuth_limits,
+                if isinstance(cfg, SingleAxisTracker):
+                    rot = el_deg if el_deg is not None else (now[0].actual_deg if now else cfg.stow)
+                    self.overrides[i] = (min(max(rot, -cfg.max_angle), cfg.max_angle),)
+                elif isinstance(cfg, DualAxisTracker):
+                    az = az_deg if az_deg is not None else (now[0].actual_deg if now else cfg.stow[0])
+                    el = el_deg if el_deg is not None else (now[1].actual_deg if now else cfg.stow[1])
+                    az = wrap_into_range(az, *cfg.azimuth_limits,
                                          near=now[0].actual_deg if now else None)
-                    lo, hi = tr.cfg.elevation_limits
+                    lo, hi = cfg.elevation_limits
                     self.overrides[i] = (az, min(max(el, lo), hi))
             else:
                 raise ValueError(f"unknown control {ctl!r}")
@@ -305,10 +305,11 @@ class Controller:
     @staticmethod
     def _facing_sky(tr: TrackerRuntime) -> tuple[list[float], bool]:
         """Flat: the panel faces the zenith and sees the whole overcast dome."""
-        if tr.cfg.type == "single-axis":
+        cfg = tr.cfg
+        if not isinstance(cfg, DualAxisTracker):
             return [0.0], False
-        az = tr.last_state.axes[0].actual_deg if tr.last_state else tr.cfg.stow[0]
-        el = min(90.0, tr.cfg.elevation_limits[1])
+        az = tr.last_state.axes[0].actual_deg if tr.last_state else cfg.stow[0]
+        el = min(90.0, cfg.elevation_limits[1])
         return [az, el], False
 
     async def run(self, duration_s: float, on_cycle=None) -> dict:

@@ -1,9 +1,11 @@
 """The control mode machine: which kind of setpoint the trackers get this cycle.
 
-Priorities follow commercial practice: STOW (wind, snow, operator) > MANUAL > night
-stow > DIFFUSE (overcast) > TRACK / PREDICT.  Night STOW comes from the sun's elevation, with a
-small wake margin so that trackers are already on the sunrise azimuth when the sun clears
-the horizon; DIFFUSE from the sky switch (:mod:`controller.diffuse`).
+Priorities follow commercial practice: MANUAL (an operator's setpoint) > night stow >
+DIFFUSE (overcast) > TRACK.  Night STOW comes from the sun's elevation, with a small wake
+margin so that trackers are already on the sunrise azimuth when the sun clears the horizon;
+DIFFUSE from the sky switch (:mod:`controller.diffuse`).  TRACK follows the sun estimate
+whatever its source (observed, predicted through a cloud gap, or the ephemeris): the source
+is recorded with every setpoint.
 """
 
 from __future__ import annotations
@@ -13,8 +15,7 @@ from enum import Enum
 
 
 class ControlMode(str, Enum):
-    TRACK = "TRACK"        # follow the sun estimate (observed or ephemeris)
-    PREDICT = "PREDICT"    # follow the sun-path filter's prediction (cloud gap)
+    TRACK = "TRACK"        # follow the sun estimate (observed, predicted or ephemeris)
     DIFFUSE = "DIFFUSE"    # overcast: the orientation that maximises diffuse light
     STOW = "STOW"          # safe position (night, wind, fault, lost link)
     MANUAL = "MANUAL"      # operator setpoints
@@ -27,8 +28,7 @@ class ModeDecision:
 
 
 def decide_mode(sun_el_deg: float, min_elevation_deg: float = 0.0,
-                wake_margin_deg: float = 2.0, forced_stow: str | None = None,
-                overcast: bool = False) -> ModeDecision:
+                wake_margin_deg: float = 2.0, overcast: bool = False) -> ModeDecision:
     """Pick the mode for this cycle.
 
     Parameters
@@ -39,13 +39,9 @@ def decide_mode(sun_el_deg: float, min_elevation_deg: float = 0.0,
         Below this the sun is not worth tracking, degrees.
     wake_margin_deg : float
         Start tracking this far below ``min_elevation_deg`` (pre-positioning), degrees.
-    forced_stow : str, optional
-        Reason for an override stow (wind, operator...); wins over everything.
     overcast : bool
         The sky switch says overcast: face the sky dome instead of the hidden sun.
     """
-    if forced_stow:
-        return ModeDecision(ControlMode.STOW, forced_stow)
     if sun_el_deg < min_elevation_deg - wake_margin_deg:
         return ModeDecision(ControlMode.STOW, "night")
     if overcast:

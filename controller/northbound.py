@@ -11,6 +11,7 @@ from __future__ import annotations
 import queue
 from datetime import datetime, timedelta, timezone
 
+from .config import DualAxisTracker, SingleAxisTracker
 from .loop import Controller, CycleRecord
 from .sunspec import OverrideCommand, PlantSnapshot, TrackerSnapshot
 
@@ -58,11 +59,11 @@ class Northbound:
             mode = rec.mode if rec else "STOW"
             alarm = _ALARM_SETPOINT if rec is not None and rec.error else 0
             manual = self.controller.overrides.get(tr.index)
-            if cfg.type == "single-axis":
+            if isinstance(cfg, SingleAxisTracker):
                 trackers.append(TrackerSnapshot.row(
                     cfg.name, tgt[0] if tgt else None, pos[0] if pos else None, mode, alarm,
                     manual[0] if manual else None, (-cfg.max_angle, cfg.max_angle)))
-            else:
+            elif isinstance(cfg, DualAxisTracker):
                 trackers.append(TrackerSnapshot(
                     cfg.name, tgt[1] if tgt else None, tgt[0] % 360 if tgt else None,
                     pos[1] if pos else None, pos[0] % 360 if pos else None, mode, alarm,
@@ -75,6 +76,7 @@ class Northbound:
         site = self.controller.config.site
         t = records[0].time if records else self.controller.clock.now()
         local = datetime.fromtimestamp(t, tz=timezone.utc) + timedelta(hours=site.longitude / 15)
-        tilts = [tr.cfg.axis_tilt for tr in self.controller.trackers if tr.cfg.type == "single-axis"]
+        tilts = [tr.cfg.axis_tilt for tr in self.controller.trackers
+                 if isinstance(tr.cfg, SingleAxisTracker)]
         return PlantSnapshot(self.name, plant_type, local.replace(tzinfo=None), tuple(trackers),
                              axis_tilt_deg=max(tilts, default=0.0))

@@ -11,6 +11,7 @@ import asyncio
 import sys
 import time
 from contextlib import ExitStack
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,11 +19,11 @@ from controller.clock import RealClock
 from controller.config import Config
 from controller.loop import Controller
 from controller.northbound import Northbound
-from controller.sun.factory import build_sun_source
-from controller.sunspec import SunSpecServer, parse_sunspec
+from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
-from .scenario import parse_hil
+from .scenario import as_scenario
+from .sun_sources import build_sun_source
 from .simulate import _build_world, _open_drives, _open_pyranometer
 
 
@@ -33,12 +34,13 @@ def run_realtime(config: Config, duration_s: float, sunspec: tuple[str, int] | N
 
 
 async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
-    hil = parse_hil(config)
+    config = as_scenario(config)
+    hil = config.hil
     clock = RealClock()
     t0 = clock.now()
     grid = t0 + np.arange(0.0, duration_s + 120.0, 15.0)
     sky = sky_series(grid, config.site.latitude, config.site.longitude, config.site.altitude,
-                     {0: hil.sky[0]}, hil.linke_turbidity, seed=hil.seed)
+                     {0: hil.skies[0]}, hil.linke_turbidity, seed=hil.seed)
 
     def ghi_at(t: float) -> float:
         return float(np.interp(t, grid, sky.ghi))
@@ -52,9 +54,7 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
                                 pyranometer=_open_pyranometer(config, endpoints))
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:
-            cfg = parse_sunspec(config.raw, config.file)
-            cfg = type(cfg)(**{**cfg.__dict__, "enabled": True, "host": sunspec[0],
-                               "port": sunspec[1]})
+            cfg = replace(config.sunspec, enabled=True, host=sunspec[0], port=sunspec[1])
             server = SunSpecServer.from_config(cfg, bridge.snapshot, bridge.on_override).start()
             stack.callback(server.stop)
             print(f"SUNSPEC {cfg.host}:{server.port}", file=out, flush=True)

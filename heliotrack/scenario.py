@@ -1,77 +1,97 @@
-"""The ``[hil]`` table of a scenario file: what the emulated world looks like."""
+"""A scenario file: a plant configuration plus the ``[hil]`` table describing the emulated
+world (sky, drive mechanics, camera), read by the one schema validator."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from datetime import date
+from pathlib import Path
+from typing import Any, Literal
 
-from controller.config import Config, TableReader
-from controller.errors import ConfigError
+from controller.config import Config, load_config, parse_config
+from controller.schema import Where, setting
 from hil.drive import AxisParams
 
+SkyKind = Literal["clear", "overcast", "partly-cloudy"]
 
-@dataclass(frozen=True)
+
+@dataclass(frozen=True, kw_only=True)
+class HilDrive:
+    """Mechanics of every emulated drive axis."""
+
+    max_speed_dps: float = setting(1.0, doc="Top speed.", unit="deg/s", ge=0.01, le=10)
+    accel_dps2: float = setting(2.0, doc="Acceleration.", unit="deg/s^2", ge=0.01, le=100)
+    backlash_deg: float = setting(0.05, doc="Gear backlash.", unit="deg", ge=0, le=2)
+    encoder_resolution_deg: float = setting(0.01, doc="Output-side encoder step.", unit="deg",
+                                            ge=0, le=1)
+    deadband_deg: float = setting(0.02, doc="Position-loop deadband.", unit="deg", ge=0, le=1)
+
+    def axis_kwargs(self) -> dict[str, float]:
+        """Keyword arguments of :class:`hil.drive.AxisParams`."""
+        return dict(max_speed=self.max_speed_dps, accel=self.accel_dps2,
+                    backlash=self.backlash_deg, encoder_resolution=self.encoder_resolution_deg,
+                    deadband=self.deadband_deg)
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilCamera:
+    """The world's hotspot camera (``control.sun_source = "hotspot"``)."""
+
+    profile: Literal["seed", "recommended"] = setting("recommended", doc="Camera profile: the "
+                                                      "paper's, or the recommended one.")
+    noise: bool = setting(True, doc="Shot and read noise (and JPEG for the seed camera).")
+    tilt_deg: float = setting(0.3, doc="Base not level by this much: the installation the "
+                              "shipped bundles were calibrated on.", unit="deg", ge=0, le=10)
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilConfig:
-    """World settings (degrees, seconds).
+    """The emulated world.  Each day runs from local mean midnight (UTC - longitude/15 h)."""
 
-    ``start``: first simulated day; each day runs from local mean midnight
-    (UTC - longitude/15 h).  ``substeps``: truth samples per control period used for the
-    pointing-error and energy figures.
-    """
+    start: date = setting(date(2024, 3, 20), doc="First simulated day.")
+    sky: SkyKind | tuple[SkyKind, ...] = setting("clear", doc="Sky regime, or a list: one per "
+                                                 "day, repeated cyclically.")
+    seed: int = setting(0, doc="Random seed of the sky and the sensors.", ge=0)
+    linke_turbidity: float = setting(3.0, doc="Clear-sky Linke turbidity.", ge=1, le=8)
+    substeps: int = setting(4, doc="Truth samples per control period for the pointing-error "
+                            "and energy figures.", ge=1, le=60)
+    drive: HilDrive = setting(default_factory=HilDrive, doc="Drive mechanics.")
+    camera: HilCamera = setting(default_factory=HilCamera, doc="Hotspot camera.")
 
-    start: date = date(2024, 3, 20)
-    sky: tuple[str, ...] = ("clear",)   # regime per day, repeated cyclically
-    seed: int = 0
-    linke_turbidity: float = 3.0
-    substeps: int = 4
-    drive: dict = field(default_factory=dict)
-    camera_profile: str = "recommended"
-    camera_noise: bool = True
-    camera_tilt_deg: float = 0.3   # the installation the shipped bundles were calibrated on
+    @property
+    def skies(self) -> tuple[str, ...]:
+        """The sky regime of each day of the cycle."""
+        return (self.sky,) if isinstance(self.sky, str) else self.sky
+
+    def __schema_check__(self, at: Where) -> HilConfig:
+        if not isinstance(self.sky, str) and not self.sky:
+            raise at.child("sky").error("at least one sky kind", list(self.sky))
+        return self
 
 
-def parse_hil(config: Config) -> HilConfig:
-    root = TableReader(config.raw, config.file)
-    t = root.table("hil", {})
-    start = t.get("start", (str, date), "2024-03-20", expected="a date (YYYY-MM-DD)")
-    if isinstance(start, str):
-        try:
-            start = date.fromisoformat(start)
-        except ValueError:
-            raise ConfigError(config.file, "hil.start", "a date YYYY-MM-DD", start) from None
-    d = t.table("drive", {})
-    d.unknown_keys({"max_speed_dps", "accel_dps2", "backlash_deg", "encoder_resolution_deg",
-                    "deadband_deg"})
-    drive = dict(
-        max_speed=d.number("max_speed_dps", 1.0, lo=0.01, hi=10, unit="deg/s"),
-        accel=d.number("accel_dps2", 2.0, lo=0.01, hi=100, unit="deg/s^2"),
-        backlash=d.number("backlash_deg", 0.05, lo=0, hi=2, unit="deg"),
-        encoder_resolution=d.number("encoder_resolution_deg", 0.01, lo=0, hi=1, unit="deg"),
-        deadband=d.number("deadband_deg", 0.02, lo=0, hi=1, unit="deg"),
-    )
-    from hil.sky import SKY_KINDS
+@dataclass(frozen=True, kw_only=True)
+class ScenarioConfig(Config):
+    """A plant configuration run by the simulator: the plant, and the world around it."""
 
-    sky = t.get("sky", (str, list), "clear", expected=f"a sky kind or a list of them ({', '.join(SKY_KINDS)})")
-    sky = [sky] if isinstance(sky, str) else sky
-    for i, kind in enumerate(sky):
-        if kind not in SKY_KINDS:
-            raise ConfigError(config.file, f"hil.sky[{i}]" if len(sky) > 1 else "hil.sky",
-                              f"one of {', '.join(SKY_KINDS)}", kind)
-    if not sky:
-        raise ConfigError(config.file, "hil.sky", "at least one sky kind", sky)
-    cam = t.table("camera", {})
-    cam.unknown_keys({"profile", "noise", "tilt_deg"})
-    return HilConfig(
-        camera_profile=cam.choice("profile", ("seed", "recommended"), "recommended"),
-        camera_noise=cam.get("noise", bool, True),
-        camera_tilt_deg=cam.number("tilt_deg", 0.3, lo=0, hi=10, unit="deg"),
-        start=start,
-        sky=tuple(sky),
-        seed=t.integer("seed", 0, lo=0),
-        linke_turbidity=t.number("linke_turbidity", 3.0, lo=1, hi=8),
-        substeps=t.integer("substeps", 4, lo=1, hi=60),
-        drive=drive,
-    )
+    hil: HilConfig = setting(default_factory=HilConfig, doc="The emulated world.")
+
+
+def load_scenario(path: str | Path) -> ScenarioConfig:
+    """Read and validate a scenario file."""
+    return load_config(path, ScenarioConfig)
+
+
+def parse_scenario(data: dict[str, Any], file: str | Path | None = None) -> ScenarioConfig:
+    """Validate an already parsed scenario document."""
+    return parse_config(data, file, ScenarioConfig)
+
+
+def as_scenario(config: Config) -> ScenarioConfig:
+    """A plant configuration as a scenario (the default world when it has no ``[hil]``)."""
+    if isinstance(config, ScenarioConfig):
+        return config
+    fields = {f: getattr(config, f) for f in Config.__dataclass_fields__}
+    return ScenarioConfig(**fields)
 
 
 def axis_params(hil: HilConfig, soft: tuple[float, float], stow: float, margin: float = 5.0
@@ -80,6 +100,10 @@ def axis_params(hil: HilConfig, soft: tuple[float, float], stow: float, margin: 
 
     Hard limits sit ``margin`` degrees outside the soft limits; the drive powers up stowed.
     """
-    return AxisParams(**hil.drive, soft_min=soft[0], soft_max=soft[1],
+    return AxisParams(**hil.drive.axis_kwargs(), soft_min=soft[0], soft_max=soft[1],
                       hard_min=soft[0] - margin, hard_max=soft[1] + margin,
                       stow_angle=stow, initial_angle=stow)
+
+
+__all__ = ["HilCamera", "HilConfig", "HilDrive", "ScenarioConfig", "as_scenario",
+           "axis_params", "load_scenario", "parse_scenario"]

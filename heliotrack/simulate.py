@@ -15,7 +15,7 @@ import json
 import math
 import time
 from contextlib import ExitStack
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import date, datetime, timedelta, timezone
 from pathlib import Path
 
@@ -23,14 +23,14 @@ import numpy as np
 from tqdm import tqdm
 
 from controller.clock import SimClock
-from controller.config import Config, TrackerConfig
-from controller.drives import open_drive
+from controller.config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
+from controller.drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from controller.drives.modbus import shared_client
+from controller.drives.registry import open_drive
 from controller.errors import ConfigError
 from controller.sensors.pyranometer import ModbusPyranometer
 from controller.loop import Controller
 from controller.sun.camera import CallableFrameSource
-from controller.sun.factory import build_sun_source
 from controller.sunpath.ephemeris import wrap180
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
@@ -39,7 +39,8 @@ from hil.pyranometer import Pyranometer
 from hil.sky import sky_series
 from hil import truth
 
-from .scenario import HilConfig, axis_params, parse_hil
+from .scenario import HilConfig, as_scenario, axis_params
+from .sun_sources import build_sun_source
 
 
 @dataclass
@@ -61,16 +62,18 @@ def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitSta
                  ghi_at=None):
     """Firmware per tracker (and the pyranometer), a server per link.
 
-    Returns (firmwares by tracker name, endpoints by link name).
+    Returns (firmwares by tracker name, the links as the controller reaches the emulators
+    by link name).
     """
     firmwares: dict[str, DriveFirmware] = {}
-    endpoints: dict[str, dict] = {}
-    for link in config.links.values():
+    endpoints: dict[str, LinkConfig] = {}
+    for link in config.links:
         devices = {}
         for tr in config.trackers:
             if tr.link != link.name:
                 continue
-            axes = [axis_params(hil, soft, stow) for soft, stow in zip(tr.soft_limits, tr.stow)]
+            axes = [axis_params(hil, soft, stow)
+                    for soft, stow in zip(tr.soft_limits, tr.stow_angles)]
             fw = DriveFirmware(axes, clock.now, heartbeat_timeout=config.control.heartbeat_timeout_s)
             firmwares[tr.name] = fw
             devices[tr.device_id] = fw
@@ -79,44 +82,45 @@ def _build_world(config: Config, hil: HilConfig, clock: SimClock, stack: ExitSta
             devices[pyr.device_id] = Pyranometer(ghi_at, clock.now, seed=hil.seed)
         if not devices:
             continue
-        if link.kind == "modbus-rtu":
+        if isinstance(link, ModbusRtuLink):
             pty = stack.enter_context(PtyLink.open())
             stack.enter_context(ModbusServerThread(devices, serial_url=pty.url,
                                                    baudrate=link.baudrate))
-            endpoints[link.name] = dict(port=pty.path, baudrate=link.baudrate)
-        elif link.kind == "modbus-tcp":
+            endpoints[link.name] = replace(link, port=pty.path)
+        elif isinstance(link, ModbusTcpLink):
             srv = stack.enter_context(ModbusServerThread(devices, tcp=("127.0.0.1", 0)))
-            endpoints[link.name] = dict(host="127.0.0.1", port=srv.tcp_port)
+            endpoints[link.name] = replace(link, host="127.0.0.1", tcp_port=srv.tcp_port)
         else:
             raise ConfigError(config.file, f"links.{link.name}.kind",
                               "a link kind the simulator emulates (modbus-rtu, modbus-tcp)", link.kind)
     return firmwares, endpoints
 
 
-def _open_drives(config: Config, endpoints: dict[str, dict]):
-    drives = {}
-    for tr in config.trackers:
-        link = config.links[tr.link]
-        drives[tr.name] = open_drive(link.kind, device_id=tr.device_id,
-                                     timeout_s=link.timeout_s, retries=link.retries,
-                                     **endpoints[link.name])
-    return drives
+def _open_drives(config: Config, endpoints: dict[str, LinkConfig]):
+    return {tr.name: open_drive(endpoints[tr.link], tr.device_id) for tr in config.trackers}
 
 
-def _open_pyranometer(config: Config, endpoints: dict[str, dict]):
+def _open_pyranometer(config: Config, endpoints: dict[str, LinkConfig]):
     if config.pyranometer is None:
         return None
-    link = config.links[config.pyranometer.link]
-    client = shared_client(link.kind, timeout_s=link.timeout_s, **endpoints[link.name])
+    link = endpoints[config.pyranometer.link]
+    if isinstance(link, ModbusRtuLink):
+        client = shared_client(link.kind, port=link.port, baudrate=link.baudrate,
+                               timeout_s=link.timeout_s)
+    else:
+        assert isinstance(link, ModbusTcpLink)
+        client = shared_client(link.kind, host=link.host, port=link.tcp_port,
+                               timeout_s=link.timeout_s)
     return ModbusPyranometer(client, config.pyranometer.device_id)
 
 
 def _panel(tr: TrackerConfig, angles: list[float], sun: np.ndarray) -> tuple[np.ndarray, float]:
     """The panel normal from the drive's true angles, and its pointing error (NaN when the
     sample does not count: backtracking, or the sun outside the rotation limits)."""
-    if tr.type == "dual-axis":
+    if isinstance(tr, DualAxisTracker):
         n = truth.dual_axis_normal(angles[0], angles[1])
         return n, float(truth.angle_deg(n, sun))
+    assert isinstance(tr, SingleAxisTracker)
     n = truth.row_normal(angles[0], tr.axis_azimuth, tr.axis_tilt)
     _, true_rot, bt = truth.row_ideal_rotation(
         sun[None, :], tr.axis_azimuth, tr.axis_tilt, 180.0, tr.gcr, tr.cross_axis_tilt,
@@ -128,8 +132,9 @@ def _panel(tr: TrackerConfig, angles: list[float], sun: np.ndarray) -> tuple[np.
 
 def _ideal_normals(tr: TrackerConfig, sun: np.ndarray) -> np.ndarray:
     """Normals of an ideal tracker of the same kind (exact angles, exact backtracking)."""
-    if tr.type == "dual-axis":
+    if isinstance(tr, DualAxisTracker):
         return sun
+    assert isinstance(tr, SingleAxisTracker)
     rot, _, _ = truth.row_ideal_rotation(sun, tr.axis_azimuth, tr.axis_tilt, tr.max_angle,
                                          tr.gcr, tr.cross_axis_tilt, tr.backtrack)
     return truth.row_normal(rot, tr.axis_azimuth, tr.axis_tilt)
@@ -163,8 +168,8 @@ class ScenarioRun:
 
     def __init__(self, config: Config, days: int, start: date | datetime | None,
                  progress: bool, hours: float | None = None):
-        self.config = config
-        self.hil = parse_hil(config)
+        self.config = config = as_scenario(config)
+        self.hil = config.hil
         self.days = days if hours is None else max(1, math.ceil(hours / 24))
         self.start = start or self.hil.start
         self.progress = progress
@@ -184,7 +189,8 @@ class ScenarioRun:
         self.sun = truth.sun_truth(self.t_samples, site.latitude, site.longitude,
                                    site.altitude, site.temperature_c, self.hil.linke_turbidity)
         self.sun_vecs = self.sun.vectors
-        kinds = {d: self.hil.sky[d % len(self.hil.sky)] for d in range(days + 1)}
+        skies = self.hil.skies
+        kinds = {d: skies[d % len(skies)] for d in range(days + 1)}
         self.sky = sky_series(self.t_samples, site.latitude, site.longitude, site.altitude,
                               kinds, self.hil.linke_turbidity, seed=self.hil.seed)
         self.clock = SimClock(self.t0)
@@ -202,8 +208,8 @@ class ScenarioRun:
         from hil.camera import Site as CameraSite, profile, render_frame
 
         site = self.config.site
-        scn = profile(self.hil.camera_profile, noise=self.hil.camera_noise,
-                      tilt_deg=self.hil.camera_tilt_deg).with_(
+        cam = self.hil.camera
+        scn = profile(cam.profile, noise=cam.noise, tilt_deg=cam.tilt_deg).with_(
             site=CameraSite(site.latitude, site.longitude, site.altitude))
 
         def render(t: float):
@@ -295,9 +301,8 @@ class ScenarioRun:
         if self._sensor is None:
             return {}
         out = {"camera_frames": dict(self._sensor.outcomes)}
-        learned = getattr(self._sun, "summary", None)
-        if learned is not None:
-            sp = learned()
+        sp = self._sun.summary() if self._sun is not None else {}
+        if sp:
             if "lat_deg" in sp:
                 site = self.config.site
                 sp["lat_error_deg"] = sp["lat_deg"] - site.latitude
@@ -315,7 +320,7 @@ class ScenarioRun:
             "hours": round(self.n_cycles * self.period / 3600, 4),
             "start": self.start.isoformat(),
             "site": asdict(self.config.site),
-            "sky": [self.hil.sky[d % len(self.hil.sky)] for d in range(self.days)],
+            "sky": [self.hil.skies[d % len(self.hil.skies)] for d in range(self.days)],
             "control_period_s": self.period,
             "cycles": self.n_cycles,
             "wall_s": round(wall, 2),

@@ -55,23 +55,25 @@ def default_plant():
     Yields (run, controller, firmwares by tracker name, clock, config); ``run`` runs a
     coroutine on the fixture's event loop (pymodbus clients belong to their loop).
     """
-    from controller.config import load_config
-    from controller.drives import open_drive
+    from dataclasses import replace
+
+    from controller.drives.registry import open_drive
     from controller.loop import Controller
     from controller.sun.source import EphemerisSource
+    from heliotrack.scenario import load_scenario
 
-    cfg = load_config(DEFAULT_CONFIG)
+    cfg = load_scenario(DEFAULT_CONFIG)
     clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=timezone.utc))  # ~11:15 solar time
     fws = {tr.name: DriveFirmware(
         [AxisParams(soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5, stow_angle=s,
-                    initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow)],
+                    initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow_angles)],
         clock.now, cfg.control.heartbeat_timeout_s) for tr in cfg.trackers}
     loop = asyncio.new_event_loop()
     with PtyLink.open() as link, ModbusServerThread(
             {tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url):
         async def make():
-            drives = {tr.name: open_drive("modbus-rtu", port=link.path, device_id=tr.device_id,
-                                          timeout_s=0.3, retries=0) for tr in cfg.trackers}
+            rtu = replace(cfg.links[0], port=link.path, timeout_s=0.3, retries=0)
+            drives = {tr.name: open_drive(rtu, tr.device_id) for tr in cfg.trackers}
             ctl = Controller(cfg, drives, EphemerisSource(cfg.site), clock)
             await ctl.start()
             return ctl

@@ -1,7 +1,9 @@
 """Calibration chain of the hotspot sensor: intrinsics, surface model, exterior orientation,
 levelling, azimuth alignment, and the bundle TOML that the estimator reads."""
 
-from .bundle import CalibrationBundle, CameraCal, LevelCal, PoseCal, SurfaceCal, load_bundle, save_bundle
+from .bundle import (AzimuthCal, CalibrationBundle, LevelCal, LobeCal, PoseCal, SurfaceCal, load_bundle,
+                     save_bundle)
+from .camera import CameraCal
 
-__all__ = ["CalibrationBundle", "CameraCal", "SurfaceCal", "PoseCal", "LevelCal", "load_bundle",
-           "save_bundle"]
+__all__ = ["AzimuthCal", "CalibrationBundle", "CameraCal", "LevelCal", "LobeCal", "PoseCal",
+           "SurfaceCal", "load_bundle", "save_bundle"]

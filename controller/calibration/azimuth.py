@@ -70,11 +70,11 @@ def ephemeris_rotation(s_model, s_enu, weights=None):
 def fit_lobe_coeff(s_meas, vbar, s_ref) -> float:
     """Least-squares coefficient (deg) of the lobe-offset model: the in-plane-of-incidence
     error of the measured directions against reference directions, proportional to tan(theta_i)."""
-    from ..vision.estimator import _incidence_frame
+    from ..vision.mirror import incidence_frame
 
     num = den = 0.0
     for s, vb, r in zip(np.asarray(s_meas, float), np.asarray(vbar, float), np.asarray(s_ref, float)):
-        t, inc = _incidence_frame(s, vb)
+        t, inc = incidence_frame(s, vb)
         e = float(np.degrees((s - r) @ inc))
         num += t * e
         den += t * t
@@ -84,7 +84,7 @@ def fit_lobe_coeff(s_meas, vbar, s_ref) -> float:
 def fit_rotation_and_lobe(s_meas, vbar, s_enu, iters: int = 4):
     """Alternate the full ephemeris rotation fit and the lobe coefficient fit.
     Returns (zenith_model, offset_deg, coeff_deg)."""
-    from ..vision.estimator import lobe_correct, level_rotation
+    from ..vision.mirror import level_rotation, lobe_correct
 
     s_meas = np.asarray(s_meas, float)
     s_enu = np.asarray(s_enu, float)

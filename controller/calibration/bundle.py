@@ -38,77 +38,154 @@ mask = "mask.png"   # optional (top level); relative paths resolve against this 
 
 from __future__ import annotations
 
-import math
-import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 
+from ..atomic import atomic_write
 from ..errors import ConfigError
+from ..schema import Where, internal, load, load_file, setting
+from .camera import CameraCal
 
-
-@dataclass(frozen=True)
-class CameraCal:
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    dist: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
-    rms_px: float | None = None
-
-    @property
-    def K(self) -> np.ndarray:
-        return np.array([[self.fx, 0, self.cx], [0, self.fy, self.cy], [0, 0, 1.0]])
-
-    @property
-    def dist_array(self) -> np.ndarray:
-        return np.asarray(self.dist, float)
+Vec3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True)
 class SurfaceCal:
-    kind: str  # "sphere" or "cloud"
-    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    radius: float = 0.0
-    min_z: float | None = None
-    cloud: Path | None = None
-    rmse_m: float | None = None
-    radial_poly_degree: int | None = None  # optional shape correction of the sphere
-    radial_poly: tuple[float, ...] | None = None
+    """The convex surface in the model frame (metres): an analytic sphere or a point cloud."""
+
+    kind: Literal["sphere", "cloud"] | None = setting(
+        None, doc='"sphere" (center, radius) or "cloud" (cloud = path).',
+        derived='"cloud" when cloud is given')
+    center: Vec3 = setting((0.0, 0.0, 0.0), doc="Sphere centre.", unit="m")
+    radius: float = setting(0.0, doc="Sphere radius.", unit="m", ge=0)
+    min_z: float | None = setting(None, doc="The hemisphere is z >= min_z (default: the "
+                                  "centre's z).", unit="m")
+    cloud: Path | None = setting(None, doc="Point cloud of the surface (PLY, XYZ or NPZ; "
+                                 "normals by local plane fit when absent).", path="file")
+    rmse_m: float | None = setting(None, doc="RMS residual of the sphere fit.", unit="m", ge=0)
+    radial_poly_degree: int | None = setting(None, doc="Degree of the sphere's radial shape "
+                                             "correction.", ge=0, le=12)
+    radial_poly: tuple[float, ...] | None = setting(None, doc="Coefficients of the radial "
+                                                    "shape correction.")
+
+    def __schema_check__(self, at: Where) -> SurfaceCal:
+        if self.kind is None:
+            if self.cloud is None:
+                raise at.child("kind").error('"sphere" (center, radius) or "cloud" (cloud = path)')
+            return replace(self, kind="cloud").__schema_check__(at)
+        if self.kind == "sphere" and not self.radius > 0:
+            raise at.child("radius").error("a positive number (m) for a sphere", self.radius)
+        if self.kind == "cloud" and self.cloud is None:
+            raise at.child("cloud").error("a path to a PLY, XYZ or NPZ point cloud")
+        if (self.radial_poly is None) != (self.radial_poly_degree is None):
+            raise at.child("radial_poly").error("both radial_poly_degree and radial_poly, or "
+                                                "neither")
+        if self.radial_poly_degree is not None and self.radial_poly is not None:
+            n = sum((d + 1) * (d + 2) // 2 for d in range(self.radial_poly_degree + 1))
+            if len(self.radial_poly) != n:
+                raise at.child("radial_poly").error(f"{n} coefficients for degree "
+                                                    f"{self.radial_poly_degree}", len(self.radial_poly))
+        return self
 
 
 @dataclass(frozen=True)
 class PoseCal:
-    rvec: tuple[float, float, float] | None = None
-    tvec: tuple[float, float, float] | None = None
-    markers_model: tuple[tuple[float, float, float], ...] | None = None
-    markers_image: tuple[tuple[float, float], ...] | None = None
-    rms_px: float | None = None
+    """Model -> camera (``X_cam = R X_model + t``): rvec/tvec, or markers to solve by PnP."""
+
+    rvec: Vec3 | None = setting(None, doc="Rotation vector (OpenCV, model to camera).",
+                                unit="rad")
+    tvec: Vec3 | None = setting(None, doc="Translation (model to camera).", unit="m")
+    markers_model: tuple[Vec3, ...] | None = setting(None, doc="Surveyed marker points in "
+                                                     "the model frame (at least 4).", unit="m")
+    markers_image: tuple[tuple[float, float], ...] | None = setting(
+        None, doc="The markers' image points, in the same order.", unit="px")
+    rms_px: float | None = setting(None, doc="Reprojection RMS of the pose.", unit="px", ge=0)
+
+    def __schema_check__(self, at: Where) -> PoseCal:
+        if self.rvec is not None or self.tvec is not None:
+            if self.rvec is None or self.tvec is None:
+                raise at.error("both rvec and tvec")
+            return self
+        if self.markers_model is None and self.markers_image is None:
+            raise at.error("rvec and tvec, or markers_model and markers_image")
+        mm, mi = self.markers_model or (), self.markers_image or ()
+        if len(mm) < 4:
+            raise at.child("markers_model").error("at least 4 points", len(mm))
+        if len(mm) != len(mi):
+            raise at.child("markers_image").error(
+                f"as many points as pose.markers_model ({len(mm)})", len(mi))
+        return self
 
 
 @dataclass(frozen=True)
 class LevelCal:
-    zenith_model: tuple[float, float, float] | None = None
-    plumb_lines_image: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    """Which way is up in the model frame: the zenith, or plumb lines seen in an image."""
+
+    zenith_model: Vec3 | None = setting(None, doc="Zenith direction in the model frame.")
+    plumb_lines_image: tuple[tuple[tuple[float, float], ...], ...] | None = setting(
+        None, doc="Plumb lines in the plumb view: at least 2 lines of >= 2 image points.",
+        unit="px")
+
+    def __schema_check__(self, at: Where) -> LevelCal:
+        if self.zenith_model is not None:
+            if np.linalg.norm(self.zenith_model) < 1e-9:
+                raise at.child("zenith_model").error("a non-zero vector", list(self.zenith_model))
+            return self
+        lines = self.plumb_lines_image
+        if lines is None:
+            raise at.error("zenith_model or plumb_lines_image")
+        if len(lines) < 2:
+            raise at.child("plumb_lines_image").error(
+                "at least 2 lines, each [[u1, v1], [u2, v2], ...]", len(lines))
+        for i, line in enumerate(lines):
+            if len(line) < 2:
+                raise at.child("plumb_lines_image").item(i).error("at least 2 points", len(line))
+        return self
 
 
 @dataclass(frozen=True)
+class AzimuthCal:
+    """Azimuth alignment: ``az_enu = (az_levelled - offset_deg) mod 360``."""
+
+    offset_deg: float = setting(doc="Azimuth offset of the levelled model frame.", unit="deg")
+
+
+@dataclass(frozen=True)
+class LobeCal:
+    """The glint centre sits ``coeff_deg * tan(incidence)`` off the mirror direction, away
+    from the camera (fitted against the ephemeris)."""
+
+    coeff_deg: float = setting(doc="Lobe-offset coefficient.", unit="deg")
+
+
+@dataclass(frozen=True, kw_only=True)
 class CalibrationBundle:
-    camera: CameraCal
-    surface: SurfaceCal | None = None
-    pose: PoseCal | None = None
-    level: LevelCal | None = None
-    azimuth_offset_deg: float | None = None
-    lobe_coeff_deg: float | None = None  # [lobe] coeff_deg: glint-centre offset model
-    mask: Path | None = None
-    path: Path | None = None
-    notes: dict = field(default_factory=dict)
+    """The hotspot sensor's calibration bundle."""
+
+    camera: CameraCal = setting(doc="Intrinsics.")
+    surface: SurfaceCal | None = setting(None, doc="The convex surface.")
+    pose: PoseCal | None = setting(None, doc="Model-to-camera pose.")
+    level: LevelCal | None = setting(None, doc="Levelling.")
+    azimuth: AzimuthCal | None = setting(None, doc="Azimuth alignment.")
+    lobe: LobeCal | None = setting(None, doc="Glint lobe offset.")
+    mask: Path | None = setting(None, doc="Mask image (white = use).", path="file")
+    notes: dict[str, Any] = setting(default_factory=dict, doc="Free-form notes of the "
+                                    "calibration run (ignored).")
+    path: Path | None = internal(None)
+
+    @property
+    def azimuth_offset_deg(self) -> float | None:
+        return self.azimuth.offset_deg if self.azimuth is not None else None
+
+    @property
+    def lobe_coeff_deg(self) -> float | None:
+        return self.lobe.coeff_deg if self.lobe is not None else None
 
     # -- derived -------------------------------------------------------------------------
-    def require(self, what: str):
+    def require(self, what: str) -> None:
         if what == "surface" and self.surface is None:
             raise ConfigError(self.path, "surface", "a [surface] table (sphere or cloud)")
         if what == "pose" and self.pose is None:
@@ -118,6 +195,7 @@ class CalibrationBundle:
         """(rvec, tvec) model -> camera; solves PnP from markers when only those are given."""
         self.require("pose")
         p = self.pose
+        assert p is not None
         if p.rvec is not None and p.tvec is not None:
             return np.asarray(p.rvec, float), np.asarray(p.tvec, float)
         from .pose import solve_pose
@@ -140,173 +218,16 @@ class CalibrationBundle:
                                  rvec).zenith_model
 
 
-# ------------------------------------------------------------------------------------------
-def _num(v, file, key, *, positive=False):
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ConfigError(file, key, "a finite number", v)
-    if positive and v <= 0:
-        raise ConfigError(file, key, "a positive number", v)
-    return float(v)
-
-
-def _vec(v, n, file, key):
-    if not isinstance(v, list) or len(v) != n:
-        raise ConfigError(file, key, f"a list of {n} numbers", v)
-    return tuple(_num(x, file, f"{key}[{i}]") for i, x in enumerate(v))
-
-
-def _vecs(v, n, file, key, min_len=1):
-    if not isinstance(v, list) or len(v) < min_len:
-        raise ConfigError(file, key, f"a list of at least {min_len} [{n} numbers] items", v)
-    return tuple(_vec(x, n, file, f"{key}[{i}]") for i, x in enumerate(v))
-
-
-def _table(doc, name, file):
-    t = doc.get(name)
-    if t is None:
-        return None
-    if not isinstance(t, dict):
-        raise ConfigError(file, name, "a table", t)
-    return t
-
-
-def _radial(srf: dict, file) -> dict:
-    if "radial_poly" not in srf and "radial_poly_degree" not in srf:
-        return {}
-    deg = srf.get("radial_poly_degree")
-    if not isinstance(deg, int) or isinstance(deg, bool) or not 0 <= deg <= 12:
-        raise ConfigError(file, "surface.radial_poly_degree", "an integer 0..12", deg)
-    n = sum((d + 1) * (d + 2) // 2 for d in range(deg + 1))
-    return {"radial_poly_degree": deg,
-            "radial_poly": _vec(srf.get("radial_poly"), n, file, "surface.radial_poly")}
-
-
 def load_bundle(path: str | Path) -> CalibrationBundle:
     """Read and validate a bundle; errors name the file, the key and what was expected."""
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(path, "", f"a readable calibration bundle ({exc.strerror})") from None
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(path, "", f"valid TOML ({exc})") from None
-    return bundle_from_dict(doc, path)
+    b = load_file(CalibrationBundle, path)
+    return replace(b, path=Path(path))
 
 
-def bundle_from_dict(doc: dict, path: Path | None = None) -> CalibrationBundle:
-    file = path
-    folder = path.parent if path is not None else Path(".")
-    known = {"camera", "surface", "pose", "level", "azimuth", "lobe", "mask", "notes"}
-    for k in doc:
-        if k not in known:
-            raise ConfigError(file, k, f"one of {sorted(known)}", k)
-    cam = _table(doc, "camera", file)
-    if cam is None:
-        raise ConfigError(file, "camera", "a [camera] table with width height fx fy cx cy dist")
-    for k in ("width", "height"):
-        if not isinstance(cam.get(k), int) or isinstance(cam.get(k), bool) or cam[k] <= 0:
-            raise ConfigError(file, f"camera.{k}", "a positive integer", cam.get(k))
-    for k in ("fx", "fy", "cx", "cy"):
-        if k not in cam:
-            raise ConfigError(file, f"camera.{k}", "a number")
-    dist = cam.get("dist", [0.0] * 5)
-    if not isinstance(dist, list) or len(dist) not in (4, 5, 8, 12, 14):
-        raise ConfigError(file, "camera.dist", "[k1, k2, p1, p2, k3] (OpenCV order)", dist)
-    camera = CameraCal(
-        width=cam["width"], height=cam["height"],
-        fx=_num(cam["fx"], file, "camera.fx", positive=True),
-        fy=_num(cam["fy"], file, "camera.fy", positive=True),
-        cx=_num(cam["cx"], file, "camera.cx"), cy=_num(cam["cy"], file, "camera.cy"),
-        dist=tuple(_num(x, file, f"camera.dist[{i}]") for i, x in enumerate(dist)),
-        rms_px=_num(cam["rms_px"], file, "camera.rms_px") if "rms_px" in cam else None,
-    )
-
-    surface = None
-    srf = _table(doc, "surface", file)
-    if srf is not None:
-        kind = srf.get("kind", "cloud" if "cloud" in srf else None)
-        if kind == "sphere":
-            surface = SurfaceCal(
-                kind="sphere", center=_vec(srf.get("center"), 3, file, "surface.center"),
-                radius=_num(srf.get("radius"), file, "surface.radius", positive=True),
-                min_z=_num(srf["min_z"], file, "surface.min_z") if "min_z" in srf else None,
-                rmse_m=_num(srf["rmse_m"], file, "surface.rmse_m") if "rmse_m" in srf else None,
-                **_radial(srf, file))
-        elif kind == "cloud":
-            c = srf.get("cloud")
-            if not isinstance(c, str) or not c:
-                raise ConfigError(file, "surface.cloud", "a path to a PLY, XYZ or NPZ point cloud", c)
-            cp = (folder / c) if not Path(c).is_absolute() else Path(c)
-            if not cp.is_file():
-                raise ConfigError(file, "surface.cloud", "an existing point-cloud file", str(cp))
-            surface = SurfaceCal(kind="cloud", cloud=cp,
-                                 min_z=_num(srf["min_z"], file, "surface.min_z") if "min_z" in srf else None)
-        else:
-            raise ConfigError(file, "surface.kind", '"sphere" (center, radius) or "cloud" (cloud = path)', kind)
-
-    pose = None
-    ps = _table(doc, "pose", file)
-    if ps is not None:
-        if "rvec" in ps or "tvec" in ps:
-            pose = PoseCal(rvec=_vec(ps.get("rvec"), 3, file, "pose.rvec"),
-                           tvec=_vec(ps.get("tvec"), 3, file, "pose.tvec"),
-                           rms_px=_num(ps["rms_px"], file, "pose.rms_px") if "rms_px" in ps else None)
-        elif "markers_model" in ps or "markers_image" in ps:
-            mm = _vecs(ps.get("markers_model"), 3, file, "pose.markers_model", 4)
-            mi = _vecs(ps.get("markers_image"), 2, file, "pose.markers_image", 4)
-            if len(mm) != len(mi):
-                raise ConfigError(file, "pose.markers_image",
-                                  f"as many points as pose.markers_model ({len(mm)})", len(mi))
-            pose = PoseCal(markers_model=mm, markers_image=mi)
-        else:
-            raise ConfigError(file, "pose", "rvec and tvec, or markers_model and markers_image")
-
-    level = None
-    lv = _table(doc, "level", file)
-    if lv is not None:
-        if "zenith_model" in lv:
-            z = _vec(lv["zenith_model"], 3, file, "level.zenith_model")
-            if np.linalg.norm(z) < 1e-9:
-                raise ConfigError(file, "level.zenith_model", "a non-zero vector", list(z))
-            level = LevelCal(zenith_model=z)
-        elif "plumb_lines_image" in lv:
-            pl = lv["plumb_lines_image"]
-            if not isinstance(pl, list) or len(pl) < 2:
-                raise ConfigError(file, "level.plumb_lines_image",
-                                  "at least 2 lines, each [[u1, v1], [u2, v2], ...]", pl)
-            lines = tuple(_vecs(line, 2, file, f"level.plumb_lines_image[{i}]", 2)
-                          for i, line in enumerate(pl))
-            level = LevelCal(plumb_lines_image=lines)
-        else:
-            raise ConfigError(file, "level", "zenith_model or plumb_lines_image")
-
-    az = None
-    at = _table(doc, "azimuth", file)
-    if at is not None:
-        az = _num(at.get("offset_deg"), file, "azimuth.offset_deg")
-
-    lobe = None
-    lt = _table(doc, "lobe", file)
-    if lt is not None:
-        lobe = _num(lt.get("coeff_deg"), file, "lobe.coeff_deg")
-
-    mask = None
-    if "mask" in doc:
-        m = doc["mask"]
-        if not isinstance(m, str) or not m:
-            raise ConfigError(file, "mask", "a path to a mask image", m)
-        mp = folder / m if not Path(m).is_absolute() else Path(m)
-        if not mp.is_file():
-            raise ConfigError(file, "mask", "an existing mask image file", str(mp))
-        mask = mp
-    notes = doc.get("notes", {})
-    if surface is None or pose is None:
-        pass  # intrinsics-only bundles are valid (calibration in progress)
-    return CalibrationBundle(camera=camera, surface=surface, pose=pose, level=level,
-                             azimuth_offset_deg=az, lobe_coeff_deg=lobe, mask=mask, path=path,
-                             notes=notes if isinstance(notes, dict) else {})
+def bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> CalibrationBundle:
+    """Validate an already parsed bundle (``path``: where relative paths resolve)."""
+    b = load(CalibrationBundle, doc, str(path) if path is not None else None)
+    return replace(b, path=path)
 
 
 # ------------------------------------------------------------------------------------------
@@ -340,7 +261,8 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
     if b.mask is not None:
         out.append(f"mask = {_fmt(rel(b.mask))}")
     c = b.camera
-    out += ["", "[camera]", f"width = {c.width}", f"height = {c.height}",
+    out += ["", "[camera]"] + ([f"model = {_fmt(c.model)}"] if c.model != "pinhole" else []) + [
+            f"width = {c.width}", f"height = {c.height}",
             f"fx = {_fmt(c.fx)}", f"fy = {_fmt(c.fy)}", f"cx = {_fmt(c.cx)}", f"cy = {_fmt(c.cy)}",
             f"dist = {_fmt(list(c.dist))}"]
     if c.rms_px is not None:
@@ -388,15 +310,9 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
 
 
 def save_bundle(b: CalibrationBundle, path: str | Path) -> Path:
-    """Write atomically (temp file + rename), so a failure loses nothing already stored."""
-    import os
-
+    """Write atomically, so a failure loses nothing already stored."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(bundle_to_toml(b, path.parent))
-    os.replace(tmp, path)
-    return path
+    return atomic_write(path, bundle_to_toml(b, path.parent))
 
 
 def update_bundle(path: str | Path, **changes) -> CalibrationBundle:

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..timestamps import time_from_name
-from .bundle import CalibrationBundle, LevelCal, PoseCal, SurfaceCal, save_bundle
+from .bundle import AzimuthCal, CalibrationBundle, LevelCal, LobeCal, PoseCal, SurfaceCal, save_bundle
 
 
 def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: float | None = 0.0,
@@ -89,13 +89,13 @@ def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: f
         sp = solar_position(site, ts)
         s_enu = azel_to_enu(sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
         zen, off, kappa = fit_rotation_and_lobe(np.array(sm), np.array(vb), s_enu)
-        b = replace(b, lobe_coeff_deg=kappa)
+        b = replace(b, lobe=LobeCal(kappa))
         log({"step": "lobe", "coeff_deg": round(kappa, 4)})
         b = replace(b, level=LevelCal(zenith_model=tuple(map(float, zen))),
                     notes={**b.notes, "plumb_zenith_model": [float(x) for x in zr.zenith_model]})
         log({"step": "azimuth+level", "method": method, "observations": len(sm),
              "offset_deg": round(off, 4)})
-        b = replace(b, azimuth_offset_deg=off)
+        b = replace(b, azimuth=AzimuthCal(off))
         if out is not None:
             save_bundle(b, out)
             b = replace(b, path=Path(out))
@@ -111,7 +111,7 @@ def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: f
         south = site is None or site.latitude > 0
         off = noon_offset(az, el, "south" if south else "north")
     log({"step": "azimuth", "method": method, "observations": len(az), "offset_deg": round(off, 4)})
-    b = replace(b, azimuth_offset_deg=off)
+    b = replace(b, azimuth=AzimuthCal(off))
     if out is not None:
         save_bundle(b, out)
         b = replace(b, path=Path(out))

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from ..errors import InputError
-from .bundle import CameraCal
+from .camera import CameraCal
 
 
 @dataclass

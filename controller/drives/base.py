@@ -5,8 +5,12 @@ from __future__ import annotations
 import abc
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, ClassVar
 
 from firmware_protocol import Command, Fault, Mode, Status
+
+if TYPE_CHECKING:
+    from .links import LinkConfig
 
 
 class DriveCommError(Exception):
@@ -56,6 +60,13 @@ class DriveLink(abc.ABC):
     stats: LinkStats
     axis_count: int = 0
     label: str = ""
+    #: The settings dataclass of this backend's ``[[links]]`` table.
+    config_type: ClassVar[type[LinkConfig]]
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> DriveLink:
+        """The drive ``device_id`` (slave or node id) on ``link``, not yet connected."""
+        raise NotImplementedError(f"{cls.__name__} cannot be built from a configuration")
 
     @abc.abstractmethod
     async def connect(self) -> None:

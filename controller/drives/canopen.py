@@ -41,6 +41,7 @@ from firmware_protocol.canopen import (
 from firmware_protocol.codec import to_raw
 
 from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
+from .links import CanopenLink, LinkConfig
 
 log = logging.getLogger(__name__)
 
@@ -156,6 +157,15 @@ class CanopenDrive(DriveLink):
     label : str
         For error messages.
     """
+
+    config_type = CanopenLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> "CanopenDrive":
+        assert isinstance(link, CanopenLink)
+        return cls(device_id, channel=link.channel, interface=link.interface,
+                   bitrate=link.bitrate if link.interface != "virtual" else None,
+                   timeout_s=link.timeout_s, retries=link.retries)
 
     def __init__(self, node_id: int, *, channel: str | None = None, interface: str = "virtual",
                  bitrate: int | None = None, eds: str | Path | None = None,

@@ -15,6 +15,7 @@ from firmware_protocol import (
 from firmware_protocol.codec import axis_block_address, decode_axis
 
 from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkStats, register_backend
+from .links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 
 _ID_WORDS = 3
 _TARGET = register("TARGET_ANGLE")
@@ -210,6 +211,32 @@ def _tcp(host: str, port: int, device_id: int, timeout_s: float = 0.5, retries: 
     client = AsyncModbusTcpClient(host, port=port, timeout=timeout_s, retries=0,
                                   reconnect_delay=0)
     return ModbusDrive(client, device_id, retries, label=f"{host}:{port} id {device_id}")
+
+
+class ModbusRtuDrive(ModbusDrive):
+    """A drive on a Modbus RTU line (link kind ``modbus-rtu``)."""
+
+    config_type = ModbusRtuLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> "ModbusRtuDrive":
+        assert isinstance(link, ModbusRtuLink)
+        client = _SharedSerialClient.acquire(link.port, link.baudrate, link.timeout_s)
+        return cls(client, device_id, link.retries, label=f"{link.port} id {device_id}")
+
+
+class ModbusTcpDrive(ModbusDrive):
+    """A drive behind Modbus TCP (link kind ``modbus-tcp``)."""
+
+    config_type = ModbusTcpLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> "ModbusTcpDrive":
+        assert isinstance(link, ModbusTcpLink)
+        client = AsyncModbusTcpClient(link.host, port=link.tcp_port, timeout=link.timeout_s,
+                                      retries=0, reconnect_delay=0)
+        return cls(client, device_id, link.retries,
+                   label=f"{link.host}:{link.tcp_port} id {device_id}")
 
 
 register_backend("modbus-rtu", _rtu)

@@ -15,25 +15,22 @@ from dataclasses import dataclass
 import numpy as np
 import pvlib
 
+from ..schema import setting
+
 
 @dataclass(frozen=True)
 class RowGeometry:
-    """Geometry of one row (degrees; ``gcr`` dimensionless).
+    """Geometry of one row (degrees; ``gcr`` dimensionless), pvlib's conventions."""
 
-    axis_azimuth : compass direction of the axis (180: north-south row).
-    axis_tilt : slope along the row, degrees.
-    max_angle : rotation limit (symmetric), degrees.
-    gcr : ground coverage ratio (collector width / row pitch).
-    cross_axis_tilt : slope across the rows (pvlib's sign convention), degrees.
-    backtrack : avoid row-to-row shading when the sun is low.
-    """
-
-    axis_azimuth: float = 180.0
-    axis_tilt: float = 0.0
-    max_angle: float = 55.0
-    gcr: float = 0.4
-    cross_axis_tilt: float = 0.0
-    backtrack: bool = True
+    axis_azimuth: float = setting(180.0, doc="Compass direction of the rotation axis "
+                                  "(180: a north-south row).", unit="deg", ge=0, le=360)
+    axis_tilt: float = setting(0.0, doc="Slope along the row.", unit="deg", ge=0, le=45)
+    max_angle: float = setting(55.0, doc="Rotation limit, symmetric.", unit="deg", ge=1, le=90)
+    gcr: float = setting(0.4, doc="Ground coverage ratio (collector width / row pitch).",
+                         ge=0.01, le=1.0)
+    cross_axis_tilt: float = setting(0.0, doc="Slope across the rows (pvlib's sign "
+                                     "convention).", unit="deg", ge=-30, le=30)
+    backtrack: bool = setting(True, doc="Avoid row-to-row shading when the sun is low.")
 
 
 @dataclass(frozen=True)

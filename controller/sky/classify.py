@@ -13,12 +13,13 @@ Classes (paper 002): I clear, II partly cloudy, III overcast; stored as 1, 2, 3 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 import pandas as pd
 
+from controller.schema import Where, load, setting
 from controller.sun.source import Site
 
 from .baselines import classify_by_fraction, classify_by_kt, detect_clearsky_fraction
@@ -33,48 +34,33 @@ ThresholdRule = Literal["range", "tertiles", "fixed"]
 CLASS_NAMES = {0: "", 1: "I", 2: "II", 3: "III"}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SkyConfig:
-    """Settings of the day-type classifier (all have the paper's or a documented default).
+    """Settings of the day-type classifier (all have the paper's or a documented default)."""
 
-    Attributes
-    ----------
-    method : {"default", "seed"}
-        Which rule fills the ``class`` column.
-    scales_s : tuple of float
-        Fractal scales, s (paper: 1, 2, 5, 7, 10, 14, 35 min).
-    criterion : {"slope-se", "mean-distance", "all"}
-        Fit-range rule (see :mod:`controller.sky.fractal`).
-    increments : {"all-offsets", "non-overlapping"}
-        Pair set for S(dt).
-    min_elevation_deg : float
-        The fractal window is the part of the day with the sun above this elevation, deg.
-    max_missing_s : float
-        Days with more daylight than this missing are excluded, s (paper: one hour).
-    kt_threshold : float
-        K_T,I (paper: 0.5).
-    threshold_rule : {"range", "tertiles", "fixed"}
-        How D_I, D_II are set per year for ``seed``.
-    d_thresholds : tuple of float
-        (D_I, D_II) when fixed, for windows and for years with too few days; defaults are
-        the means of the paper's three years (Table 1: 1.19, 1.37).
-    sunshine_bands : tuple of float
-        (clear, overcast) fractions of daylight for the sunshine-based rules and truth.
-    kt_bands : tuple of float
-        (clear, overcast) K_T bands of the K_T-only baseline.
-    """
-
-    method: Method = "default"
-    scales_s: tuple[float, ...] = PAPER_SCALES_S
-    criterion: Criterion = "slope-se"
-    increments: Increments = "all-offsets"
-    min_elevation_deg: float = 0.0
-    max_missing_s: float = 3600.0
-    kt_threshold: float = 0.5
-    threshold_rule: ThresholdRule = "range"
-    d_thresholds: tuple[float, float] = (1.19, 1.37)
-    sunshine_bands: tuple[float, float] = (0.8, 0.2)
-    kt_bands: tuple[float, float] = (0.65, 0.35)
+    method: Method = setting("default", doc="Which rule fills the class column: the paper's "
+                             "(fractal D + K_T) or the default (pyranometric sunshine).")
+    scales_s: tuple[float, ...] = setting(PAPER_SCALES_S, doc="Fractal scales (paper: 1, 2, 5, "
+                                          "7, 10, 14, 35 min); at least three.", unit="s", gt=0)
+    criterion: Criterion = setting("slope-se", doc="Fit-range rule of the fractal dimension "
+                                   "(see controller.sky.fractal).")
+    increments: Increments = setting("all-offsets", doc="Pair set of the variation S(dt).")
+    min_elevation_deg: float = setting(0.0, doc="The fractal window is the part of the day "
+                                       "with the sun above this elevation.", unit="deg",
+                                       ge=-5, le=60)
+    max_missing_s: float = setting(3600.0, doc="Days with more daylight than this missing are "
+                                   "excluded (paper: one hour).", unit="s", ge=0)
+    kt_threshold: float = setting(0.5, doc="K_T,I of the paper's rule.", ge=0, le=1.5)
+    threshold_rule: ThresholdRule = setting("range", doc="How D_I, D_II are set per year for "
+                                            "the paper's rule.")
+    d_thresholds: tuple[float, float] = setting((1.19, 1.37), doc="(D_I, D_II) when fixed, "
+                                                "and for years with too few days (paper's "
+                                                "Table 1 means).", ge=1, le=2)
+    sunshine_bands: tuple[float, float] = setting((0.8, 0.2), doc="(clear, overcast) fractions "
+                                                  "of daylight for the sunshine rules and "
+                                                  "truth.", ge=0, le=1)
+    kt_bands: tuple[float, float] = setting((0.65, 0.35), doc="(clear, overcast) K_T bands of "
+                                            "the K_T-only baseline.", ge=0, le=1.5)
 
     @classmethod
     def from_mapping(cls, data: dict, file=None, prefix: str = "sky") -> "SkyConfig":
@@ -84,47 +70,23 @@ class SkyConfig:
         ------
         controller.errors.ConfigError
         """
-        from controller.errors import ConfigError
+        return load(cls, data, file if file is not None else "<sky settings>", prefix)
 
-        known = {f.name: f for f in fields(cls)}
-        kwargs = {}
-        for key, value in dict(data).items():
-            if key not in known:
-                raise ConfigError(file, f"{prefix}.{key}", f"one of {sorted(known)}", key)
-            default = getattr(cls(), key)
-            if isinstance(default, tuple):
-                if not isinstance(value, (list, tuple)) or len(value) != len(default) and key != "scales_s":
-                    raise ConfigError(file, f"{prefix}.{key}",
-                                      f"a list of {len(default)} numbers", value)
-                try:
-                    value = tuple(float(v) for v in value)
-                except (TypeError, ValueError):
-                    raise ConfigError(file, f"{prefix}.{key}", "numbers", value) from None
-            elif isinstance(default, float):
-                if isinstance(value, bool) or not isinstance(value, (int, float)):
-                    raise ConfigError(file, f"{prefix}.{key}", "a number", value)
-                value = float(value)
-            kwargs[key] = value
-        try:
-            return cls(**kwargs)
-        except ValueError as exc:
-            raise ConfigError(file, prefix, str(exc)) from None
-
-    def __post_init__(self) -> None:
-        if self.method not in ("default", "seed"):
-            raise ValueError(f"method must be 'default' or 'seed', got {self.method!r}")
-        if self.threshold_rule not in ("range", "tertiles", "fixed"):
-            raise ValueError(f"threshold_rule must be range, tertiles or fixed, got {self.threshold_rule!r}")
+    def __schema_check__(self, at: Where) -> "SkyConfig":
         if not self.d_thresholds[0] <= self.d_thresholds[1]:
-            raise ValueError("d_thresholds must be (D_I, D_II) with D_I <= D_II")
-        if self.criterion not in ("slope-se", "mean-distance", "all"):
-            raise ValueError(f"criterion must be slope-se, mean-distance or all, got {self.criterion!r}")
-        if self.increments not in ("all-offsets", "non-overlapping"):
-            raise ValueError(f"increments must be all-offsets or non-overlapping, got {self.increments!r}")
-        if len(self.scales_s) < 3 or min(self.scales_s) <= 0:
-            raise ValueError("scales_s must hold at least three positive scales (s)")
-        if self.max_missing_s < 0:
-            raise ValueError("max_missing_s must be >= 0")
+            raise at.child("d_thresholds").error("(D_I, D_II) with D_I <= D_II",
+                                                 list(self.d_thresholds))
+        if len(self.scales_s) < 3:
+            raise at.child("scales_s").error("at least three positive scales (s)",
+                                             list(self.scales_s))
+        return self
+
+
+@dataclass(frozen=True, kw_only=True)
+class SkySettings:
+    """A sky-settings file (``heliotrack classify --settings FILE``): one ``[sky]`` table."""
+
+    sky: SkyConfig = setting(default_factory=SkyConfig, doc="Day-type classifier settings.")
 
 
 # --------------------------------------------------------------------------- rules

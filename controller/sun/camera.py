@@ -19,6 +19,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..timestamps import CANONICAL_EXAMPLE, time_from_name
+from ..vision.imageio import read_image
 from .types import SunObservation
 
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm"}
@@ -55,9 +56,6 @@ class FolderFrameSource(FrameSource):
     """
 
     def __init__(self, folder: str | Path, max_age_s: float = 120.0):
-        import cv2
-
-        self._cv2 = cv2
         self.folder = Path(folder)
         if not self.folder.is_dir():
             raise ConfigError(None, "hotspot.frames", "a folder of timestamped images", str(folder))
@@ -77,8 +75,8 @@ class FolderFrameSource(FrameSource):
         if i < 0 or t - self.times[i] > self.max_age_s:
             return None
         ts, path = self.frames[i]
-        img = self._cv2.imread(str(path), self._cv2.IMREAD_UNCHANGED)
-        if img is None:  # unreadable or truncated: no frame, the estimator is not fed junk
+        img, _ = read_image(path)
+        if img is None:  # unreadable, truncated or oversized: the estimator is not fed junk
             return None
         return CameraFrame(img, ts, path.name)
 

@@ -10,24 +10,29 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 import pvlib
 
-from .types import EstimateSource, SunEstimate
+from ..schema import setting
+from .types import EstimateSource, SunEstimate, SunObservation
 
 
 @dataclass(frozen=True)
 class Site:
     """Geographic site.  Latitude north-positive, longitude east-positive, degrees."""
 
-    latitude: float
-    longitude: float
-    altitude: float = 0.0
-    pressure_pa: float | None = None  # None: from altitude (pvlib.atmosphere.alt2pres)
-    temperature_c: float = 12.0
-    name: str = ""
+    latitude: float = setting(doc="Latitude, north positive.", unit="deg", ge=-90, le=90)
+    longitude: float = setting(doc="Longitude, east positive.", unit="deg", ge=-180, le=180)
+    altitude: float = setting(0.0, doc="Height above sea level.", unit="m", ge=-500, le=9000)
+    pressure_pa: float | None = setting(None, doc="Mean air pressure (none: from the "
+                                        "altitude) for refraction.", unit="Pa",
+                                        ge=30000, le=110000)
+    temperature_c: float = setting(12.0, doc="Mean air temperature, for refraction.",
+                                   unit="degC", ge=-60, le=60)
+    name: str = setting("", doc="Name (reports, SunSpec).")
 
     @property
     def pressure(self) -> float:
@@ -67,6 +72,18 @@ class SunSource(abc.ABC):
 
         ``now`` is the present when ``t`` is ahead of it (setpoints aim at mid-period).
         """
+
+    def observe(self, obs: SunObservation) -> bool:
+        """Take a sensor's observation; True when it was used.  Sources that learn nothing
+        from observations (the ephemeris) ignore it."""
+        return False
+
+    def save(self) -> None:
+        """Persist what the source has learned (atomically); a no-op for stateless sources."""
+
+    def summary(self) -> dict[str, Any]:
+        """What the source has learned, for reports (empty for stateless sources)."""
+        return {}
 
 
 class EphemerisSource(SunSource):

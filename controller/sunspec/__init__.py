@@ -5,13 +5,12 @@ serves it to SCADA and hands accepted operator writes back as :class:`OverrideCo
 See ``docs/sunspec.md`` for the register map and the write policy.
 """
 
-from .config import SunSpecConfig, parse_sunspec
+from .config import SunSpecConfig
 from .encode import DGR_SF, Identity
-from .latency import PollLatency, poll_latency
 from .models import SUNSPEC_BASE_ADDRESS, SunSpecMap
 from .server import SunSpecServer, SunSpecServerError
 from .snapshot import OverrideCommand, PlantSnapshot, TrackerSnapshot
 
-__all__ = ["DGR_SF", "Identity", "OverrideCommand", "PlantSnapshot", "PollLatency",
+__all__ = ["DGR_SF", "Identity", "OverrideCommand", "PlantSnapshot",
            "SUNSPEC_BASE_ADDRESS", "SunSpecConfig", "SunSpecMap", "SunSpecServer",
-           "SunSpecServerError", "TrackerSnapshot", "parse_sunspec", "poll_latency"]
+           "SunSpecServerError", "TrackerSnapshot"]

@@ -11,82 +11,43 @@
     allow = ["127.0.0.1"]       # client addresses or networks allowed to write
     serial_number = ""          # model 1 SN
 
-Errors name the file and key (:class:`controller.errors.ConfigError`) like the rest of
-the configuration.
+A table of :class:`controller.config.Config`, read by the one schema validator.
 """
 
 from __future__ import annotations
 
 import ipaddress
 from dataclasses import dataclass
-from pathlib import Path
 
-from ..config import TableReader
-from ..errors import ConfigError
-
-_KEYS = {"enabled", "host", "port", "device_address", "writes_enabled", "allow", "serial_number"}
+from ..schema import Where, setting
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SunSpecConfig:
-    """Northbound SunSpec server settings (see the module docstring for the TOML)."""
+    """The northbound SunSpec (model 601) Modbus TCP server, for plant SCADA."""
 
-    enabled: bool = False
-    host: str = "127.0.0.1"
-    port: int = 1502
-    writes_enabled: bool = False
-    allow: tuple[str, ...] = ("127.0.0.1",)
-    device_address: int = 1
-    serial_number: str = ""
+    enabled: bool = setting(False, doc="Serve SunSpec.")
+    host: str = setting("127.0.0.1", doc='Address to bind, an IP literal ("0.0.0.0" only on '
+                        "a plant network).")
+    port: int = setting(1502, doc="TCP port (0: any free port, reported at start).",
+                        ge=0, le=65535)
+    writes_enabled: bool = setting(False, doc="Take operator overrides from SCADA.")
+    allow: tuple[str, ...] = setting(("127.0.0.1",), doc="Client addresses or networks "
+                                     "allowed to write.")
+    device_address: int = setting(1, doc="Modbus unit id (model 1 DA).", ge=1, le=247)
+    serial_number: str = setting("", doc="Model 1 serial number.")
 
-
-def parse_sunspec(config_raw: dict, file: str | Path | None = None) -> SunSpecConfig:
-    """Read the ``[sunspec]`` table of a parsed TOML document.
-
-    Parameters
-    ----------
-    config_raw : dict
-        The whole configuration document (``Config.raw`` or ``tomllib.load`` output).
-    file : str or Path, optional
-        Named in error messages.
-
-    Returns
-    -------
-    SunSpecConfig
-        Defaults (disabled) when the table is absent.
-
-    Raises
-    ------
-    ConfigError
-        A key has the wrong type or value, or is unknown.
-    """
-    root = TableReader(config_raw, file)
-    if not root.has("sunspec"):
-        return SunSpecConfig()
-    t = root.table("sunspec")
-    t.unknown_keys(_KEYS)
-    d = SunSpecConfig()
-    host = t.get("host", str, d.host, expected="an IP address to bind")
-    try:
-        ipaddress.ip_address(host)
-    except ValueError:
-        # a literal address only: a host name could resolve to an unexpected interface
-        raise ConfigError(file, f"{t.path}.host", "an IP address literal such as \"127.0.0.1\"", host) from None
-    allow = t.get("allow", list, list(d.allow), expected="an array of IP addresses or networks")
-    for i, a in enumerate(allow):
+    def __schema_check__(self, at: Where) -> SunSpecConfig:
         try:
-            if not isinstance(a, str):
-                raise ValueError
-            ipaddress.ip_network(a, strict=False)
+            ipaddress.ip_address(self.host)
         except ValueError:
-            raise ConfigError(file, f"{t.path}.allow[{i}]",
-                              "an IP address or network such as \"10.0.0.5\" or \"10.0.0.0/24\"", a) from None
-    return SunSpecConfig(
-        enabled=t.get("enabled", bool, d.enabled),
-        host=host,
-        port=t.integer("port", d.port, lo=0, hi=65535),
-        writes_enabled=t.get("writes_enabled", bool, d.writes_enabled),
-        allow=tuple(allow),
-        device_address=t.integer("device_address", d.device_address, lo=1, hi=247),
-        serial_number=t.get("serial_number", str, d.serial_number),
-    )
+            # a literal address only: a host name could resolve to an unexpected interface
+            raise at.child("host").error('an IP address literal such as "127.0.0.1"',
+                                         self.host) from None
+        for i, a in enumerate(self.allow):
+            try:
+                ipaddress.ip_network(a, strict=False)
+            except ValueError:
+                raise at.child("allow").item(i).error(
+                    'an IP address or network such as "10.0.0.5" or "10.0.0.0/24"', a) from None
+        return self

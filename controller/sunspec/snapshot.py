@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from datetime import datetime
 
-TRACKER_MODES = ("TRACK", "PREDICT", "DIFFUSE", "STOW", "MANUAL", "CALIBRATE")
+TRACKER_MODES = ("TRACK", "DIFFUSE", "STOW", "MANUAL", "CALIBRATE")
 PLANT_TYPES = ("dual-axis", "single-axis")
 
 # model 601 Ctl / GlblCtl symbol names (checked against the JSON at import of encode.py)

@@ -9,11 +9,13 @@ API for the loop::
     obs = res.observation()                      # SunObservation or None
 
 In the control loop, :class:`controller.sun.camera.CameraSunSensor` runs the estimator on
-each frame and feeds the sun-path filter (:mod:`controller.sun.factory`).
+each frame and feeds the sun-path filter (built by `heliotrack.sun_sources`).
 """
 
-from .estimator import HotspotEstimator, HotspotResult, level_rotation, mirror_sun_direction
+from .estimator import HotspotEstimator
 from .hotspot import segment_fast, segment_seed
+from .mirror import level_rotation, mirror_sun_direction
+from .result import HotspotResult
 
 __all__ = ["HotspotEstimator", "HotspotResult", "mirror_sun_direction", "level_rotation",
            "segment_fast", "segment_seed"]

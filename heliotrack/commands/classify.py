@@ -19,13 +19,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--time-col", help="CSV time column (UTC); guessed if omitted")
     p.add_argument("--ghi-col", help="GHI column; guessed if omitted")
     p.add_argument("--dni-col", help="DNI column (adds the sunshine-duration truth)")
-    p.add_argument("--method", choices=("default", "seed"), default="default",
-                   help="rule for the class column (seed: the paper's D and K_T rule)")
-    p.add_argument("--threshold-rule", choices=("range", "tertiles", "fixed"), default="range",
-                   help="how the seed rule sets D_I, D_II per year")
+    p.add_argument("--settings", type=Path, default=None,
+                   help="TOML file with a [sky] table (docs/config.md); options below override it")
+    p.add_argument("--method", choices=("default", "seed"), default=None,
+                   help="rule for the class column (seed: the paper's D and K_T rule; default: default)")
+    p.add_argument("--threshold-rule", choices=("range", "tertiles", "fixed"), default=None,
+                   help="how the seed rule sets D_I, D_II per year (default: range)")
     p.add_argument("--d-thresholds", type=float, nargs=2, metavar=("D_I", "D_II"),
                    help="fixed D_I D_II (implies --threshold-rule fixed)")
-    p.add_argument("--max-missing-min", type=float, default=60.0,
+    p.add_argument("--max-missing-min", type=float, default=None,
                    help="exclude days with more daylight than this missing, min (default 60)")
     p.add_argument("--out", type=Path, default=Path("skytype-out"), help="output directory")
     p.set_defaults(func=run)
@@ -35,10 +37,13 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from controller.errors import InputError
-    from controller.sky.classify import SkyConfig, analyse_grid
+    from dataclasses import replace
+
+    from controller.schema import load_file
+    from controller.sky.classify import SkyConfig, SkySettings, analyse_grid
     from controller.sky.grid import build_day_grid
     from controller.sky.io import read_records
-    from controller.sky.report import write_figures, write_tables
+    from heliotrack.reports.skytype import write_figures, write_tables
     from controller.sun.source import Site
 
     progress = sys.stderr.isatty()
@@ -51,13 +56,20 @@ def run(args: argparse.Namespace) -> int:
     if not (-90 <= lat <= 90 and -180 <= lon <= 360):
         raise InputError(f"--lat/--lon out of range: {lat}, {lon}")
     alt = args.alt if args.alt is not None else (rec.altitude or 0.0)
-    kwargs = {}
+    config = load_file(SkySettings, args.settings).sky if args.settings else SkyConfig()
+    overrides: dict = {}
+    if args.method is not None:
+        overrides["method"] = args.method
+    if args.max_missing_min is not None:
+        if not 0 <= args.max_missing_min <= 1440:
+            raise InputError(f"--max-missing-min: expected minutes in [0, 1440], got {args.max_missing_min}")
+        overrides["max_missing_s"] = 60.0 * args.max_missing_min
     if args.d_thresholds:
-        kwargs.update(threshold_rule="fixed", d_thresholds=tuple(args.d_thresholds))
-    else:
-        kwargs.update(threshold_rule=args.threshold_rule)
+        overrides.update(threshold_rule="fixed", d_thresholds=tuple(args.d_thresholds))
+    elif args.threshold_rule is not None:
+        overrides["threshold_rule"] = args.threshold_rule
+    config = replace(config, **overrides)
     try:
-        config = SkyConfig(method=args.method, max_missing_s=60.0 * args.max_missing_min, **kwargs)
         grid = build_day_grid(rec.times, rec.ghi, lon, dni=rec.dni)
     except ValueError as exc:
         raise InputError(f"{', '.join(rec.sources)}: {exc}") from None

@@ -7,7 +7,6 @@ import sys
 from datetime import date, datetime, timezone
 from pathlib import Path
 
-from controller.config import load_config
 from controller.errors import ConfigError
 
 DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "hil-default.toml"
@@ -40,7 +39,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from heliotrack.simulate import run_simulation, summary_table
 
-    config = load_config(args.config)
+    from heliotrack.scenario import load_scenario
+
+    config = load_scenario(args.config)
     if args.realtime:
         return _realtime(args, config)
     if args.sunspec:

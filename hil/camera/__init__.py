@@ -10,9 +10,9 @@ The world never imports the controller.
 """
 
 from .camera import CameraModel, Pose
-from .render import (Frame, checkerboard_poses, render_checkerboard, render_frame,
-                     render_marker_view, render_plumb_view)
+from .render import Frame, render_frame
 from .scene import PROFILES, Base, Globe, Scenario, Sensor, Site, profile
+from .views import checkerboard_poses, render_checkerboard, render_marker_view, render_plumb_view
 
 __all__ = [
     "CameraModel", "Pose", "Frame", "render_frame", "render_checkerboard", "checkerboard_poses",

@@ -22,8 +22,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .render import (checkerboard_poses, render_checkerboard, render_frame, render_marker_view,
-                     render_plumb_view)
+from .render import render_frame
+from .views import checkerboard_poses, render_checkerboard, render_marker_view, render_plumb_view
 from .scene import Scenario, profile
 
 

@@ -40,7 +40,7 @@ def test_night_stows(plant):
     clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=timezone.utc).timestamp())
     recs = run(ctl.cycle())
     assert all(r.mode == "STOW" and r.reason == "night" for r in recs)
-    assert recs[0].targets_deg == cfg.trackers[0].stow
+    assert recs[0].targets_deg == cfg.trackers[0].stow_angles
 
 
 def test_watchdog_stow_is_recovered(plant):

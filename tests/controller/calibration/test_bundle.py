@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from controller.calibration.bundle import (CalibrationBundle, CameraCal, LevelCal, PoseCal,
+from controller.calibration import (AzimuthCal, CalibrationBundle, CameraCal, LevelCal, PoseCal,
                                            SurfaceCal, load_bundle, save_bundle)
 from controller.errors import ConfigError
 
@@ -11,7 +11,7 @@ CAM = CameraCal(640, 480, 500.0, 501.0, 320.0, 240.0, (-0.1, 0.01, 0.0, 0.0, 0.0
 def test_round_trip(tmp_path):
     b = CalibrationBundle(camera=CAM, surface=SurfaceCal("sphere", (0.0, 0.0, 0.001), 0.2, rmse_m=2e-4),
                           pose=PoseCal(rvec=(0.1, 0.2, 0.3), tvec=(0.0, 0.0, 1.0)),
-                          level=LevelCal(zenith_model=(0.0, 0.01, 1.0)), azimuth_offset_deg=12.5)
+                          level=LevelCal(zenith_model=(0.0, 0.01, 1.0)), azimuth=AzimuthCal(12.5))
     p = save_bundle(b, tmp_path / "x" / "b.toml")
     r = load_bundle(p)
     assert r.camera == b.camera and r.surface == b.surface and r.pose == b.pose

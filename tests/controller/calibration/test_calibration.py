@@ -11,7 +11,7 @@ from controller.calibration.surface import (estimate_normals, fit_radial_poly, f
                                             radial_poly_eval, read_cloud)
 from controller.errors import InputError
 from controller.sun.types import angle_between_deg
-from controller.vision.estimator import lobe_correct
+from controller.vision.mirror import lobe_correct
 
 CAM = CameraCal(800, 600, 700.0, 702.0, 401.0, 298.0, (-0.12, 0.05, 1e-4, -2e-4, 0.0))
 

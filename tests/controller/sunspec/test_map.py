@@ -9,8 +9,8 @@ from importlib import resources
 import pytest
 
 from controller.errors import ConfigError
-from controller.sunspec import (PlantSnapshot, SunSpecConfig, SunSpecMap, TrackerSnapshot,
-                                parse_sunspec)
+from controller.schema import load
+from controller.sunspec import PlantSnapshot, SunSpecConfig, SunSpecMap, TrackerSnapshot
 from controller.sunspec.control import ControlTable, WriteRefused
 from controller.sunspec.encode import Encoder, decode_point, deg_to_raw, encode_point, raw_to_deg
 
@@ -122,6 +122,10 @@ def test_control_write_must_cover_whole_writable_points():
              + encode_point(m.slot("Ctl", 0).point, 1))
     cmds = ct.apply_write(plant, el.address, words)
     assert [(c.tracker, c.ctl, c.el_deg, c.az_deg) for c in cmds] == [(0, "Manual", 45.0, 90.0)]
+
+
+def parse_sunspec(doc, file="<config>"):
+    return load(SunSpecConfig, doc.get("sunspec", {}), file, "sunspec")
 
 
 def test_parse_sunspec_defaults_and_values():

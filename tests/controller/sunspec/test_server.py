@@ -10,7 +10,8 @@ import pytest
 from sunspec2.modbus.client import SunSpecModbusClientDeviceTCP, SunSpecModbusClientError
 from sunspec2.modbus.modbus import ModbusClientError
 
-from controller.sunspec import PlantSnapshot, SunSpecServer, TrackerSnapshot, poll_latency
+from controller.sunspec import PlantSnapshot, SunSpecServer, TrackerSnapshot
+from heliotrack.sunspec_latency import poll_latency
 
 HOST = "127.0.0.1"      # never anything else in tests
 

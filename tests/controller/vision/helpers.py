@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from datetime import datetime, timezone
 
-from controller.calibration.bundle import (CalibrationBundle, CameraCal, LevelCal, PoseCal,
+from controller.calibration import (AzimuthCal, CalibrationBundle, CameraCal, LevelCal, PoseCal,
                                            SurfaceCal)
 from hil.camera import CameraModel, profile
 
@@ -25,7 +25,7 @@ def truth_bundle(scn, *, level=True, offset=None) -> CalibrationBundle:
         surface=SurfaceCal(kind="sphere", center=(0.0, 0.0, 0.0), radius=scn.globe.radius),
         pose=PoseCal(rvec=tuple(scn.pose.rvec), tvec=tuple(scn.pose.tvec)),
         level=LevelCal(zenith_model=tuple(scn.zenith_model)) if level else None,
-        azimuth_offset_deg=offset)
+        azimuth=AzimuthCal(offset))
 
 
 def utc(*a) -> float:

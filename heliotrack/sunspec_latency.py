@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .models import TRACKER_MODEL_ID
+from controller.sunspec.models import TRACKER_MODEL_ID
 
 
 @dataclass(frozen=True)

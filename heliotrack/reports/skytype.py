@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .classify import DayResults
-from .grid import DayGrid
+from controller.sky.classify import DayResults
+from controller.sky.grid import DayGrid
 
 CLASSES = ("I", "II", "III")
 #: Leading columns of days.csv, in this order; the rest follow.

@@ -1,0 +1,190 @@
+"""The one generic validator: a parsed TOML document against a schema dataclass."""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import MISSING
+from pathlib import Path
+from typing import Any, Literal, TypeVar, get_args, get_origin, get_type_hints
+
+from ..errors import ConfigError
+from .fields import NONE_TYPE, Spec, Where, is_dataclass_type, keys_of, spec_of, union_args
+from .words import expected_text
+
+T = TypeVar("T")
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file; a missing, unreadable, non-UTF-8 or invalid file is a ConfigError."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ConfigError(path, "", f"a readable TOML file ({exc.strerror})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(path, "", f"UTF-8 text (byte {exc.start} is not)") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(path, "", f"valid TOML ({exc})") from None
+
+
+def load_file(schema: type[T], path: str | Path) -> T:
+    """Read ``path`` and validate it against ``schema``."""
+    return load(schema, read_toml(path), str(path))
+
+
+def load(schema: type[T], data: Any, file: str | Path | None = None, key: str = "") -> T:
+    """Validate a parsed document (or one table of it) against the dataclass ``schema``.
+
+    An internal field named ``file`` is set to ``file``.
+    """
+    at = Where(str(file) if file is not None else None, key)
+    obj = _table(schema, data, at)
+    if file is not None and any(f.name == "file" for f in dataclasses.fields(obj)):  # type: ignore[arg-type]
+        obj = dataclasses.replace(obj, file=str(file))  # type: ignore[type-var]
+    return obj
+
+
+def _table(cls: type[T], data: Any, at: Where) -> T:
+    if not isinstance(data, dict):
+        raise at.error("a table", data)
+    fields = keys_of(cls)
+    names = {f.name for f in fields}
+    for k in data:
+        if k not in names:
+            known = ", ".join(sorted(names))
+            raise at.child(k).error(f"one of the known keys ({known})", "unknown key")
+    hints = get_type_hints(cls)
+    kwargs: dict[str, Any] = {}
+    for f in fields:
+        here = at.child(f.name)
+        if f.name in data:
+            kwargs[f.name] = _value(hints[f.name], data[f.name], here, spec_of(f))
+        elif f.default is MISSING and f.default_factory is MISSING:
+            raise here.error(f"a value ({expected_text(hints[f.name], spec_of(f))}); the key is missing")
+    obj = cls(**kwargs)
+    check = getattr(cls, "__schema_check__", None)
+    if check is not None:
+        obj = check(obj, at)
+    return obj
+
+
+def _value(tp: Any, v: Any, at: Where, spec: Spec) -> Any:
+    args = union_args(tp)
+    if args is not None:
+        rest = tuple(a for a in args if a is not NONE_TYPE)
+        if len(rest) == 1:
+            return _value(rest[0], v, at, spec)
+        if spec.variants is not None:
+            return _variant(v, at, spec)
+        for a in rest:       # simple unions (str | date): the first that fits
+            try:
+                return _value(a, v, at, spec)
+            except ConfigError:
+                continue
+        raise at.error(expected_text(tp, spec), v)
+    if spec.variants is not None and is_dataclass_type(tp):
+        return _variant(v, at, spec)
+    origin = get_origin(tp)
+    if origin is Literal:
+        choices = get_args(tp)
+        if v not in choices or isinstance(v, bool):
+            raise at.error(expected_text(tp, spec), v)
+        return v
+    if tp is bool:
+        if not isinstance(v, bool):
+            raise at.error("true or false", v)
+        return v
+    if tp is int:
+        if not isinstance(v, int) or isinstance(v, bool):
+            raise at.error(expected_text(tp, spec), v)
+        _bounds(v, at, spec, tp)
+        return v
+    if tp is float:
+        if not isinstance(v, (int, float)) or isinstance(v, bool):
+            raise at.error(expected_text(tp, spec), v)
+        v = float(v)
+        if not math.isfinite(v):
+            raise at.error("a finite number", v)
+        _bounds(v, at, spec, tp)
+        return v
+    if tp is str:
+        if not isinstance(v, str) or (spec.nonempty and not v):
+            raise at.error(expected_text(tp, spec), v)
+        return v
+    if tp is Path:
+        return _path(v, at, spec)
+    if tp is _dt.date:
+        if isinstance(v, _dt.date) and not isinstance(v, _dt.datetime):
+            return v
+        if isinstance(v, str):
+            try:
+                return _dt.date.fromisoformat(v)
+            except ValueError:
+                pass
+        raise at.error(expected_text(tp, spec), v)
+    if origin in (tuple, list):
+        return _sequence(tp, v, at, spec)
+    if origin in (dict, Mapping) or tp is dict:
+        if not isinstance(v, dict):
+            raise at.error("a table", v)
+        return v
+    if tp is Any:
+        return v
+    if is_dataclass_type(tp):
+        return _table(tp, v, at)
+    raise TypeError(f"schema: unsupported type {tp!r} at {at.key}")
+
+
+def _bounds(v: float, at: Where, spec: Spec, tp: Any) -> None:
+    if ((spec.ge is not None and v < spec.ge) or (spec.le is not None and v > spec.le)
+            or (spec.gt is not None and v <= spec.gt) or (spec.lt is not None and v >= spec.lt)):
+        raise at.error(expected_text(tp, spec), v)
+
+
+def _sequence(tp: Any, v: Any, at: Where, spec: Spec) -> tuple[Any, ...]:
+    if not isinstance(v, (list, tuple)):
+        raise at.error(expected_text(tp, spec), v)
+    args = get_args(tp)
+    if get_origin(tp) is tuple and not (len(args) == 2 and args[1] is Ellipsis):
+        if len(v) != len(args):
+            raise at.error(expected_text(tp, spec), v)
+        items = [_value(a, x, at.item(i), spec) for i, (a, x) in enumerate(zip(args, v))]
+    else:
+        item = args[0] if args else Any
+        if spec.nonempty and not v:
+            raise at.error(expected_text(tp, spec), v)
+        items = [_value(item, x, at.item(i), spec) for i, x in enumerate(v)]
+    return tuple(items)
+
+
+def _variant(v: Any, at: Where, spec: Spec) -> Any:
+    if not isinstance(v, dict):
+        raise at.error("a table", v)
+    assert spec.variants is not None
+    key, resolve, known = spec.variants
+    if key not in v:
+        raise at.child(key).error(f"one of {', '.join(sorted(known()))}; the key is missing")
+    cls = resolve(v[key]) if isinstance(v[key], str) else None
+    if cls is None:
+        raise at.child(key).error(f"one of {', '.join(sorted(known()))}", v[key])
+    return _table(cls, v, at)
+
+
+def _path(v: Any, at: Where, spec: Spec) -> Path:
+    if not isinstance(v, str) or not v:
+        raise at.error("a path", v)
+    p = Path(v).expanduser()
+    if not p.is_absolute():
+        p = (at.folder / p).resolve()
+    if spec.path == "file" and not p.is_file():
+        raise at.error("an existing file", str(p))
+    if spec.path == "dir" and not p.is_dir():
+        raise at.error("an existing folder", str(p))
+    return p

@@ -1,0 +1,41 @@
+"""``heliotrack config docs|validate``: the configuration reference, and checking a file."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("config", help="configuration reference and validation")
+    p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
+    s = p.add_subparsers(dest="config_command", metavar="ACTION")
+    d = s.add_parser("docs", help="write the configuration reference (docs/config.md)")
+    d.add_argument("--out", type=Path, default=None, help="file to write (default docs/config.md; - for stdout)")
+    d.set_defaults(func=_docs)
+    v = s.add_parser("validate", help="validate a plant or scenario file (exit 2 on an error)")
+    v.add_argument("file", type=Path)
+    v.add_argument("--scenario", action="store_true", help="allow the simulator's [hil] table")
+    v.set_defaults(func=_validate)
+
+
+def _docs(args: argparse.Namespace) -> int:
+    from controller.atomic import atomic_write
+    from heliotrack.config_docs import DOCS_PATH, reference
+
+    text = reference()
+    if str(args.out) == "-":
+        print(text, end="")
+        return 0
+    path = atomic_write(args.out or DOCS_PATH, text)
+    print(f"wrote {path}")
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from controller.config import load_config
+    from heliotrack.scenario import load_scenario
+
+    cfg = load_scenario(args.file) if args.scenario else load_config(args.file)
+    print(f"{args.file}: ok ({len(cfg.links)} link(s), {len(cfg.trackers)} tracker(s))")
+    return 0
