@@ -30,6 +30,7 @@ transpose.  Read with the project's one schema (:mod:`controller.schema`): unkno
 errors, and every error names the file, the key and what was expected.
 """
 
+# ruff: noqa: RUF009  (setting() and internal() return dataclasses.field(...), as in the schema)
 from __future__ import annotations
 
 from dataclasses import dataclass, replace

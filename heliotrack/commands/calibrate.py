@@ -68,6 +68,8 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
                     help="degree of the radial shape polynomial fitted to the scan (0: sphere only)")
     al.add_argument("--bundle", type=Path, required=True)
     al.set_defaults(func=_all)
+    from . import calibrate_fisheye
+    calibrate_fisheye.add_parser(sp)
 
 
 def _grey(path):

@@ -108,7 +108,8 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
                                scn.sky.zenith_level)
 
     if scn.sensor.auto_exposure:
-        grey = L[::7] @ np.array([0.299, 0.587, 0.114], np.float32)
+        away = L[::7][chi[::7] > np.radians(20.0)]  # the metering ignores the sun's surroundings
+        grey = away @ np.array([0.299, 0.587, 0.114], np.float32)
         p97 = float(np.percentile(grey, 97)) if grey.size else 1.0
         auto = float(np.clip(scn.sensor.auto_target / max(p97, 1e-6), 0.25, 4.0))
     else:

@@ -37,7 +37,8 @@ class SkySensor:
     """Colour sensor: ``full_well_e`` electrons at full scale, ``read_noise_e``, optional
     JPEG, ``vignetting`` (relative fall-off at the image circle's edge), ``exposure``
     (relative to nominal: > 1 brighter, larger glare).  With ``auto_exposure`` the exposure
-    is set per frame so that the 97th percentile of the sky's grey level (sun excluded) is
+    is set per frame so that the 97th percentile of the sky's grey level (20 deg round the
+    sun excluded) is
     ``auto_target``; ``exposure`` then multiplies that."""
 
     full_well_e: float = 6000.0
@@ -46,7 +47,7 @@ class SkySensor:
     jpeg_quality: int | None = None
     vignetting: float = 0.15
     exposure: float = 1.0
-    auto_exposure: bool = True
+    auto_exposure: bool = False
     auto_target: float = 0.70
 
 

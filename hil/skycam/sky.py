@@ -32,11 +32,12 @@ GROUND = np.array([0.55, 0.50, 0.36], np.float32)
 
 @dataclass(frozen=True)
 class SkyModel:
-    """Clear-sky look.  ``zenith_level``: blue-channel signal of the zenith (full scale = 1);
+    """Clear-sky look.  ``zenith_level``: the dome's mean blue-channel signal for the zenith
+    sun (full scale = 1; the sky dims with the sun's elevation like the diffuse irradiance);
     ``terrain_deg``: peak height of the distant terrain above the true horizon (deg);
     ``ground_level``: mean ground signal."""
 
-    zenith_level: float = 0.36
+    zenith_level: float = 0.30
     terrain_deg: float = 0.3
     terrain_seed: int = 3
     ground_level: float = 0.22
@@ -49,6 +50,23 @@ def _gradation(cos_z: np.ndarray) -> np.ndarray:
 
 def _indicatrix(chi: np.ndarray) -> np.ndarray:
     return 1.0 + _C * (np.exp(_D * chi) - np.exp(_D * np.pi / 2)) + _E * np.cos(chi) ** 2
+
+
+_DOME = None
+
+
+def _dome_mean(sun_enu: np.ndarray) -> float:
+    """Mean of indicatrix x gradation over the upper hemisphere (equal-area samples)."""
+    global _DOME
+    if _DOME is None:
+        n = 800
+        k = np.arange(n) + 0.5
+        z = 1.0 - k / n                         # uniform in cos(zenith): equal area
+        az = np.pi * (1 + 5 ** 0.5) * k         # golden-angle spiral
+        r = np.sqrt(1 - z * z)
+        _DOME = np.stack([r * np.cos(az), r * np.sin(az), z], 1).astype(np.float32)
+    chi = np.arccos(np.clip(_DOME @ np.asarray(sun_enu, np.float32), -1.0, 1.0))
+    return float(np.mean(_indicatrix(chi) * _gradation(_DOME[:, 2])))
 
 
 def terrain_elevation_deg(model: SkyModel, az_rad: np.ndarray) -> np.ndarray:
@@ -86,16 +104,17 @@ def sky_radiance(model: SkyModel, dirs_enu: np.ndarray, sun_enu: np.ndarray, sun
     cz = d[:, 2]
     cos_chi = np.clip(d @ sun_enu.astype(np.float32), -1.0, 1.0)
     chi = np.arccos(cos_chi)
-    zs = np.radians(90.0 - max(sun_el_deg, -5.0))
-    norm = float(_indicatrix(np.array(zs)) * _gradation(np.array(1.0)))
-    rel = _indicatrix(chi) * _gradation(cz) / norm
+    # normalised to the dome's mean radiance (not the zenith's, which for a high sun lies in
+    # the aureole), so a camera's auto-exposure sees a similar sky all day
+    rel = _indicatrix(chi) * _gradation(cz) / _dome_mean(sun_enu)
     # whiteness: near the sun (aureole) and near the horizon (long path)
     aureole = np.exp(-chi / 0.35)
     horizon = np.exp(-np.maximum(cz, 0.0) / 0.12)
     w = np.clip(0.12 + 0.75 * aureole + 0.45 * horizon, 0.0, 1.0)[:, None]
     colour = (1.0 - w) * BLUE + w * WHITE
-    # dimmer sky at twilight; the auto-exposure recovers most of it
-    day = 0.35 + 0.65 * float(np.sin(np.radians(min(3.0 * max(sun_el_deg, 0.0), 90.0))))
+    # the sky's brightness follows the clear-sky diffuse irradiance (relative to the zenith
+    # sun's): 25 + 90 sqrt(sin(el)) W m-2
+    day = (25.0 + 90.0 * float(np.sqrt(max(np.sin(np.radians(sun_el_deg)), 0.0)))) / 115.0
     L = (model.zenith_level * day * rel)[:, None] * colour
     L = np.where(is_sky[:, None], L, ground * day)
     return L.astype(np.float32)

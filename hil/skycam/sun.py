@@ -42,9 +42,9 @@ class GlareModel:
     warm : colour of the glare's unsaturated edge at low sun (R, G, B weights at sunrise).
     """
 
-    radius_deg: float = 2.0
+    radius_deg: float = 3.2
     core_deg: float = 0.6
-    power: float = 2.5
+    power: float = 3.0
     image_weight: float = 0.25
     halo_level: float = 0.12
     halo_deg: float = 9.0
