@@ -9,6 +9,7 @@ run; published figures come from full runs.
 from __future__ import annotations
 
 import importlib
+import inspect
 import json
 import os
 import platform
@@ -19,18 +20,25 @@ from pathlib import Path
 from controller.atomic import atomic_write
 
 #: Registered benchmarks (module names under ``benchmarks``).
-BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot")
+BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot",
+                               "persistence")
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 
 
-def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None) -> dict:
-    """Run one benchmark and write its JSON; return the result dict."""
+def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None,
+                  **options: object) -> dict:
+    """Run one benchmark and write its JSON; return the result dict.
+
+    ``options`` (e.g. ``kills``, ``days``) go to the benchmark's ``run`` when it takes them.
+    """
     if name not in BENCHMARKS:
         raise KeyError(name)
     module = importlib.import_module(f"benchmarks.{name}")
+    accepted = inspect.signature(module.run).parameters
+    kwargs = {k: v for k, v in options.items() if v is not None and k in accepted}
     t0 = time.perf_counter()
-    result = module.run(quick=quick)
+    result = module.run(quick=quick, **kwargs)
     record = {
         "benchmark": name,
         "quick": quick,

@@ -28,8 +28,6 @@ import pvlib
 
 DESCRIPTION = "sky-type classifier: D accuracy, speed, agreement with sunshine truth"
 
-REGIMES = ("clear", "broken", "overcast", "cirrus", "mixed")
-
 #: Datasets of the agreement benchmark: differently generated (site, climate mix, sampling).
 DATASETS: dict[str, dict] = {
     "arid-1min": dict(lat=35.8, lon=50.95, alt=1293.0, step_s=60, year=2015, days=365,

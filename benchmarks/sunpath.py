@@ -16,13 +16,14 @@ its figures next to the paper's.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from controller.sun.source import Site, solar_position
 from controller.sun.types import SunObservation, angle_between_deg, azel_to_enu
-from controller.sunpath.days import split_days
+from controller.sunpath.days import DayResult, split_days
 from controller.sunpath.ephemeris import geocentric_sun, transit_time, wrap180
 from controller.sunpath.kalman import KalmanConfig, SunPathKalman
 from controller.sunpath.parabola import fit_parabola, run_seed
@@ -85,12 +86,12 @@ def make_dataset(site: Site, utc_offset_h: float, dates=PAPER_DATES, noise_deg: 
                  first_sample_h: float = PAPER_FIRST_SAMPLE_H) -> Dataset:
     """The paper's sampling on the paper's days: every 15 min from 08:00 local (35 or 36)."""
     rng = np.random.default_rng(seed)
-    t = []
+    times: list[float] = []
     for d in dates:
         t0 = (pd.Timestamp(d, tz="UTC").timestamp() - utc_offset_h * 3600
               + first_sample_h * 3600)
-        t.extend(t0 + 900.0 * np.arange(paper_samples_per_day(d)))
-    t = np.asarray(t)
+        times.extend(t0 + 900.0 * np.arange(paper_samples_per_day(d)))
+    t = np.asarray(times)
     sp = solar_position(site, t)
     az, el = sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy()
     n = t.size
@@ -110,7 +111,8 @@ def _truth_noon(site, noon_guess):
     return tr, geocentric_sun(tr).dec_deg
 
 
-def _stats(e) -> dict:
+def stats(e) -> dict:
+    """n, mean, std (ddof 1), rms and max |e| of the finite values of ``e``."""
     e = np.asarray(e, float)
     e = e[np.isfinite(e)]
     if e.size == 0:
@@ -119,7 +121,7 @@ def _stats(e) -> dict:
             else 0.0, "rms": float(np.sqrt(np.mean(e ** 2))), "max_abs": float(np.abs(e).max())}
 
 
-def _day_table(site, results) -> dict:
+def day_table(site, results) -> dict:
     """Noon, declination and location errors of per-day rows against SPA."""
     if not results:
         return {"days": 0}
@@ -137,11 +139,11 @@ def _day_table(site, results) -> dict:
     return {
         "days": len(results),
         "days_with_site": int(has_site.sum()),
-        "noon_error_s": _stats(noon - tr),
-        "declination_error_deg": _stats(dec - dec_true),
-        "lat_error_deg": _stats(dlat),
-        "lon_error_deg": _stats(dlon),
-        "location_error_deg": _stats(loc),
+        "noon_error_s": stats(noon - tr),
+        "declination_error_deg": stats(dec - dec_true),
+        "lat_error_deg": stats(dlat),
+        "lon_error_deg": stats(dlon),
+        "location_error_deg": stats(loc),
         "final": {"lat_error_deg": float(dlat[last]) if last is not None else None,
                   "lon_error_deg": float(dlon[last]) if last is not None else None},
         "after_day_1": {"max_abs_lat_error_deg": float(np.nanmax(later[0]))
@@ -163,7 +165,7 @@ PAPER_TABLE4_ER_S = {
     "11": [15, -17, 13, -18, 34, 14, 14, 4, -54, -67, 14, -28, -13, -21, -41, -16, 12, 10,
            9, 7],
 }
-PAPER = {
+PAPER: dict[str, Any] = {
     "noon_mean_s": 0.44, "noon_std_s": 29.72, "declination_rmse_deg": 0.311,
     "location_error_deg": "about 0.5 (histogram, 'better than half a degree')",
     "table4_abs_error_range_s": {k: [int(min(map(abs, v))), int(max(map(abs, v)))]
@@ -182,17 +184,24 @@ PAPER_RANGES = {
     "declination_rmse_deg": (0.311 - 0.073, 0.311 + 0.073),
     "location_error_mean_deg": (0.25, 0.75),
 }
-SEED_VARIANTS = (
-    ("seed", {}, "the paper's method: whole-day parabola with yesterday's prior, noon at its "
-                 "extremum, Elv_n the elevation measured at the transit (section 3-2; the "
-                 "frame within half a sampling interval of noon, else no declination or "
-                 "latitude that day)"),
+SEED_VARIANTS: tuple[tuple[str, dict, str], ...] = (
+    ("seed", {}, (
+        "the paper's method: each day's own parabola fitted on the samples mirrored about "
+        "the fitted noon (grid point or half-step nearest it, iterated), noon at its "
+        "extremum, Elv_n the elevation measured at the transit (section 3-2; the frame "
+        "within half a sampling interval of noon, else no declination or latitude that "
+        "day)")),
+    ("variant_whole_day", {"fit": "whole-day"},
+     "labelled variant: as seed, but the parabola of every sample of the day"),
+    ("variant_whole_day_chained_prior", {"fit": "whole-day", "use_prior": True},
+     ("labelled variant (this benchmark's 'seed' before issue #15): whole-day parabola "
+      "with yesterday's fit as prior, chained over consecutive days")),
     ("variant_vertex_noon_el", {"noon_elevation": "vertex"},
      "labelled variant: as seed, but Elv_n is the parabola's extremum value"),
-    ("variant_window_2h", {"window_h": 2.0, "noon_elevation": "vertex"},
-     "labelled variant: vertex of a fit within +-2 h of noon"),
-    ("variant_window_1.5h", {"window_h": 1.5, "noon_elevation": "vertex"},
-     "labelled variant: vertex of a fit within +-1.5 h of noon"),
+    ("variant_window_2h", {"fit": "whole-day", "window_h": 2.0, "noon_elevation": "vertex"},
+     "labelled variant: vertex of a fit within |T - noon| <= 2 h"),
+    ("variant_window_1.5h", {"fit": "whole-day", "window_h": 1.5, "noon_elevation": "vertex"},
+     "labelled variant: vertex of a fit within |T - noon| <= 1.5 h"),
 )
 
 
@@ -202,20 +211,27 @@ def _seed_runs(ds: Dataset, mask=None) -> dict:
     for name, kw, what in SEED_VARIANTS:
         res, _ = run_seed(ds.t[m], ds.az_obs[m], ds.el_obs[m], ds.utc_offset_h,
                           lat_deg=ds.site.latitude, **kw)
-        out[name] = {"description": what, **_day_table(ds.site, res)}
+        out[name] = {"description": what, **day_table(ds.site, res)}
     return out
 
 
-def _seed_predictions(ds: Dataset, mask=None) -> dict:
-    """Table 4 and cloud-gap elevation prediction for the paper's method (full-day prior)."""
+def seed_predictions(ds: Dataset, mask=None, fit: str = "mirrored", gaps_too: bool = True
+                     ) -> dict:
+    """Table 4 and cloud-gap elevation prediction for the paper's method.
+
+    The prior is the base day's own parabola (its Table 3 fit: the paper's base-day Er in
+    Table 4 equals its Table 3 error), with the fit window ``fit``.  ``gaps_too=False``
+    skips the cloud-gap part (the SPA truth along each gap is most of the cost).
+    """
     m = ds.clear if mask is None else mask
     t, el = ds.t[m], ds.el_obs[m]
-    _, fits = run_seed(t, ds.az_obs[m], el, ds.utc_offset_h)
+    _, fits = run_seed(t, ds.az_obs[m], el, ds.utc_offset_h, fit=fit)
     days = split_days(t, ds.utc_offset_h)
     midnight_to_num = {d.midnight: d.day_number for d in days}
     fit_by_num = {midnight_to_num[f.midnight]: f for f in fits}
-    table4 = {n0: {"err_s": [], "lead_h": []} for n0 in N0_LIST}
-    gaps = {L: [] for L in GAP_MINUTES}
+    table4: dict[int, dict[str, list[float]]] = {n0: {"err_s": [], "lead_h": []}
+                                                  for n0 in N0_LIST}
+    gaps: dict[int, list[float]] = {L: [] for L in GAP_MINUTES}
     for day in days:
         prior = fit_by_num.get(day.day_number - 1)
         if prior is None:
@@ -227,7 +243,7 @@ def _seed_predictions(ds: Dataset, mask=None) -> dict:
                 f = fit_parabola(T[:n0], el[day.index][:n0], prior, midnight=day.midnight)
                 table4[n0]["err_s"].append(f.noon_utc - tn_true)
                 table4[n0]["lead_h"].append((tn_true - t[day.index][n0 - 1]) / 3600.0)
-        for L in GAP_MINUTES:
+        for L in GAP_MINUTES if gaps_too else ():
             for h0 in GAP_STARTS_LOCAL_H:
                 g0 = day.midnight + h0 * 3600.0
                 before = t[day.index] < g0
@@ -237,13 +253,13 @@ def _seed_predictions(ds: Dataset, mask=None) -> dict:
                 gaps[L].append(float(np.abs(f.elevation(tg) - truth).max()))
     return {
         "table4_noon_prediction": {
-            str(n0): {"error_s": _stats(v["err_s"]),
+            str(n0): {"error_s": stats(v["err_s"]),
                       "median_abs_error_s": float(np.median(np.abs(v["err_s"])))
                       if v["err_s"] else None,
                       "lead_time_to_noon_h_mean": float(np.mean(v["lead_h"]))
                       if v["lead_h"] else None}
             for n0, v in table4.items()},
-        "gap_prediction_max_el_error_deg": {str(L): _stats(v) for L, v in gaps.items()},
+        "gap_prediction_max_el_error_deg": {str(L): stats(v) for L, v in gaps.items()},
     }
 
 
@@ -268,20 +284,6 @@ def _paper_comparison(seed_block: dict, pred: dict) -> dict:
     return out
 
 
-def _seed_noise_sweep(site: Site, utc_offset_h: float, dates) -> dict:
-    """Paper's method at other noise levels (cloud-free): which noise its figures imply."""
-    out = {}
-    for noise in (0.0, 0.1, 0.3, 0.5):
-        ds = make_dataset(site, utc_offset_h, dates=dates, noise_deg=noise, clouds_per_day=0.0)
-        runs = _seed_runs(ds)
-        out[str(noise)] = {name: {"noon_std_s": v["noon_error_s"]["std"],
-                                  "noon_mean_s": v["noon_error_s"]["mean"],
-                                  "declination_rmse_deg": v["declination_error_deg"]["rms"],
-                                  "location_error_mean_deg": v["location_error_deg"]["mean"]}
-                           for name, v in runs.items()}
-    return out
-
-
 def _kalman_run(ds: Dataset, config: KalmanConfig, site_known: bool) -> dict:
     """One pass of the filter with checkpoints for Table 4 and cloud-gap prediction."""
     kf = SunPathKalman(config, ds.site if site_known else None)
@@ -289,9 +291,11 @@ def _kalman_run(ds: Dataset, config: KalmanConfig, site_known: bool) -> dict:
     t = ds.t[m]
     obs = ds.observations()
     days = split_days(t, ds.utc_offset_h)
-    rows = []
-    table4 = {n0: {"err_s": [], "lead_h": []} for n0 in N0_LIST}
-    gaps = {L: {"ang": [], "el": [], "after_break": []} for L in GAP_MINUTES}
+    rows: list[DayResult] = []
+    table4: dict[int, dict[str, list[float]]] = {n0: {"err_s": [], "lead_h": []}
+                                                  for n0 in N0_LIST}
+    gaps: dict[int, dict[str, list[float]]] = {L: {"ang": [], "el": [], "after_break": []}
+                                               for L in GAP_MINUTES}
     gap_times = {L: np.arange(0, L * 60.0 + 1, 300.0) for L in GAP_MINUTES}
     prev_num = None
     for day in days:
@@ -327,7 +331,7 @@ def _kalman_run(ds: Dataset, config: KalmanConfig, site_known: bool) -> dict:
             rows.append(kf.day_result(float(np.median(t[day.index])), day.date,
                                       int(day.index.size), kf.n_rejected - rej0))
         prev_num = day.day_number
-    out = _day_table(ds.site, rows)
+    out = day_table(ds.site, rows)
     out["mode"] = kf.mode
     out["declination_source"] = ("sky only (orbit law, obliquity constant)" if kf.mode == "free"
                                  else "SPA declination plus a learnt correction")
@@ -342,13 +346,13 @@ def _kalman_run(ds: Dataset, config: KalmanConfig, site_known: bool) -> dict:
                        "lat_sigma_deg": r.lat_sigma_deg, "dec_sigma_deg": r.dec_sigma_deg}
                       for r in rows]
     out["table4_noon_prediction"] = {
-        str(n0): {"error_s": _stats(v["err_s"]), "lead_time_to_noon_h_mean":
+        str(n0): {"error_s": stats(v["err_s"]), "lead_time_to_noon_h_mean":
                   float(np.mean(v["lead_h"])) if v["lead_h"] else None}
         for n0, v in table4.items()}
-    out["gap_prediction"] = {str(L): {"max_angular_error_deg": _stats(v["ang"]),
-                                      "max_el_error_deg": _stats(v["el"]),
+    out["gap_prediction"] = {str(L): {"max_angular_error_deg": stats(v["ang"]),
+                                      "max_el_error_deg": stats(v["el"]),
                                       "first_day_after_a_break_of_over_7_days_deg":
-                                          _stats(v["after_break"])}
+                                          stats(v["after_break"])}
                              for L, v in gaps.items()}
     return out
 
@@ -371,16 +375,18 @@ def _acceptance(k: dict) -> dict:
         "noon_from_5_morning_obs_max_abs_s": (n5.get("max_abs"), ACCEPT["noon_pred_n0_5_s"]),
         "gap_120min_max_angular_error_deg": (gap.get("max_abs"), ACCEPT["gap_120_deg"]),
     }
-    out = {k2: {"measured": v, "target": lim, "pass": bool(v is not None and v <= lim)}
-           for k2, (v, lim) in checks.items()}
+    out: dict[str, Any] = {
+        k2: {"measured": v, "target": lim, "pass": bool(v is not None and v <= lim)}
+        for k2, (v, lim) in checks.items()}
     out["all_pass"] = all(v["pass"] for v in out.values())
     return out
 
 
 def _site_block(ds: Dataset) -> dict:
     seed = _seed_runs(ds)
-    pred = _seed_predictions(ds)
+    pred = seed_predictions(ds)
     seed["seed"].update(pred)
+    seed["variant_whole_day"].update(seed_predictions(ds, fit="whole-day"))
     kal = {
         "kalman_free": _kalman_run(ds, KalmanConfig(declination="free"), False),
         "kalman_ephemeris": _kalman_run(ds, KalmanConfig(declination="ephemeris"), False),
@@ -399,7 +405,7 @@ def _clear_sky_paper_comparison(site: Site, utc_offset_h: float, dates) -> dict:
     """The paper's method on cloud-free days (same noise): the paper's best case."""
     ds = make_dataset(site, utc_offset_h, dates=dates, clouds_per_day=0.0)
     runs = _seed_runs(ds)
-    pred = _seed_predictions(ds)
+    pred = seed_predictions(ds)
     return {name: _paper_comparison(runs[name], pred) for name, _, _ in SEED_VARIANTS}
 
 
@@ -409,9 +415,11 @@ def run(quick: bool = False) -> dict:
     south = make_dataset(SANTIAGO, -4.0, dates=dates, seed=7)
     res_n = _site_block(north)
     res_s = _site_block(south)
-    res_n["seed_noise_sweep_clear_sky"] = _seed_noise_sweep(ANDIMESHK, 3.5, dates)
     res_n["paper_comparison"]["clear_sky"] = _clear_sky_paper_comparison(ANDIMESHK, 3.5, dates)
-    summary = {}
+    from .sunpath_table3 import table3_block
+
+    table3 = table3_block(quick)
+    summary: dict[str, dict] = {"table3_seed": table3["summary"]}
     for name, r in (("north", res_n), ("south", res_s)):
         for mode in ("kalman_free", "kalman_ephemeris"):
             summary[f"{name}_{mode}"] = {k: v["pass"] for k, v in r["acceptance"][mode].items()
@@ -436,6 +444,7 @@ def run(quick: bool = False) -> dict:
         "acceptance_targets": ACCEPT,
         "default_mode": KalmanConfig().declination,
         "summary": summary,
+        "table3": table3,
         "north": res_n,
         "south": res_s,
         "hil_hotspot_sensor": hotspot,
@@ -444,8 +453,15 @@ def run(quick: bool = False) -> dict:
 
 def _hotspot_blocks(north: Dataset, south: Dataset | None) -> dict:
     """The same tables with the project's hotspot sensor in the HIL (rendered frames)."""
-    from .sunpath_hotspot import BUNDLE, CLOUD_TRANSMITTANCE, PROFILE, TILT_DEG, \
-        hil_loop, hotspot_dataset, sensor_errors
+    from .sunpath_hotspot import (
+        BUNDLE,
+        CLOUD_TRANSMITTANCE,
+        PROFILE,
+        TILT_DEG,
+        hil_loop,
+        hotspot_dataset,
+        sensor_errors,
+    )
 
     out = {"camera": {"profile": PROFILE, "base_tilt_deg": TILT_DEG,
                       "calibration": BUNDLE.name, "cloud_transmittance": CLOUD_TRANSMITTANCE},

@@ -40,7 +40,8 @@ def _init(site: tuple[float, float, float], profile_name: str, tilt_deg: float,
 
     from controller.calibration.bundle import load_bundle
     from controller.vision import HotspotEstimator
-    from hil.camera import Site as CameraSite, profile
+    from hil.camera import Site as CameraSite
+    from hil.camera import profile
 
     cv2.setNumThreads(1)  # one frame per process: threads inside would only contend
 

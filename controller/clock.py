@@ -14,17 +14,23 @@ from typing import Protocol
 
 class Clock(Protocol):
     def now(self) -> float:
-        """Current time, POSIX seconds (UTC)."""
+        """Current time, POSIX seconds (UTC): for records and the sun.  May step (NTP)."""
+
+    def monotonic(self) -> float:
+        """Seconds on a clock that never steps: for intervals, schedules and timeouts."""
 
     def sleep(self, seconds: float) -> None:
         """Wait ``seconds`` of this clock's time."""
 
 
 class RealClock:
-    """The wall clock."""
+    """The wall clock, and the system's monotonic clock for intervals."""
 
     def now(self) -> float:
         return time.time()
+
+    def monotonic(self) -> float:
+        return time.monotonic()
 
     def sleep(self, seconds: float) -> None:
         if seconds > 0:
@@ -34,8 +40,10 @@ class RealClock:
 class SimClock:
     """A simulated clock; :meth:`sleep` advances it instantly.
 
-    Thread-safe: an emulator serving Modbus in another thread may read it while the
-    control loop advances it.
+    :meth:`monotonic` is the true time of the simulation (what the world runs on);
+    :meth:`now` is the controller's wall clock, which :meth:`step_wall` can set off by an
+    offset to emulate an NTP step.  Thread-safe: an emulator serving Modbus in another
+    thread may read it while the control loop advances it.
     """
 
     def __init__(self, start: float | datetime):
@@ -44,11 +52,22 @@ class SimClock:
                 raise ValueError("SimClock start must be timezone-aware")
             start = start.timestamp()
         self._t = float(start)
+        self._wall_offset = 0.0
         self._lock = threading.Lock()
 
     def now(self) -> float:
         with self._lock:
+            return self._t + self._wall_offset
+
+    def monotonic(self) -> float:
+        with self._lock:
             return self._t
+
+    def step_wall(self, seconds: float) -> None:
+        """Fault injection: the wall clock jumps by ``seconds`` (either way); true time and
+        :meth:`monotonic` do not."""
+        with self._lock:
+            self._wall_offset += seconds
 
     def sleep(self, seconds: float) -> None:
         if seconds < 0:

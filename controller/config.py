@@ -20,8 +20,8 @@ from .geometry.single_axis import RowGeometry
 from .schema import DERIVED, Where, internal, load, load_file, setting, variants
 from .sun.source import Site
 from .sunspec.config import SunSpecConfig
+from .weather import StowConfig, WindConfig
 
-TRACKER_TYPES = ("dual-axis", "single-axis")
 SunSourceKind = Literal["ephemeris", "hotspot"]
 C = TypeVar("C", bound="Config")
 
@@ -39,8 +39,9 @@ class ControlConfig:
                             "the panel leads then lags it by the same amount.", unit="s",
                             ge=0, le=3600, derived="period_s / 2")
     heartbeat_timeout_s: float = setting(doc="Drive watchdog: a drive that hears nothing "
-                                         "for this long stows itself (0 disables it; must "
-                                         "exceed period_s).", unit="s", ge=0, le=6553,
+                                         "for this long stows itself (must exceed "
+                                         "period_s; the drives refuse to switch it off "
+                                         "outside MAINTENANCE).", unit="s", gt=0, le=6553,
                                          derived="3 x period_s, at least 5")
     sun_source: SunSourceKind = setting("ephemeris", doc="Where the sun's direction comes "
                                         "from: the ephemeris at the configured site, or the "
@@ -52,10 +53,9 @@ class ControlConfig:
             c = replace(c, lead_s=c.period_s / 2)
         if c.heartbeat_timeout_s != c.heartbeat_timeout_s:
             c = replace(c, heartbeat_timeout_s=max(3 * c.period_s, 5.0))
-        if 0 < c.heartbeat_timeout_s <= c.period_s:
+        if c.heartbeat_timeout_s <= c.period_s:
             raise at.child("heartbeat_timeout_s").error(
-                f"more than control.period_s ({c.period_s:g} s), or 0 to disable",
-                c.heartbeat_timeout_s)
+                f"more than control.period_s ({c.period_s:g} s)", c.heartbeat_timeout_s)
         return c
 
 
@@ -210,14 +210,13 @@ class Config:
     hotspot: HotspotConfig | None = setting(None, doc="Hotspot camera sensor.")
     sunpath: SunPathSettings = setting(default_factory=SunPathSettings, doc="Sun-path filter.")
     sunspec: SunSpecConfig = setting(default_factory=SunSpecConfig, doc="SunSpec server.")
+    wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
+    stow: StowConfig = setting(default_factory=StowConfig, doc="Snow and hail stow.")
     file: str = internal("<config>")
 
     @property
     def links_by_name(self) -> dict[str, LinkConfig]:
         return {link.name: link for link in self.links}
-
-    def link_of(self, tracker: TrackerConfig) -> LinkConfig:
-        return self.links_by_name[tracker.link]
 
     def __schema_check__(self, at: Where) -> Config:
         links: dict[str, LinkConfig] = {}
@@ -267,9 +266,38 @@ class Config:
             raise at.child("diffuse").child("enabled").error(
                 "false when control.period_s > 60 s (the sky classifier needs a pyranometer "
                 "sample at least every minute)", True)
+        if self.wind is not None:
+            self._check_wind(at.child("wind"), links, used)
         if self.control.sun_source == "hotspot" and self.hotspot is None:
             raise at.child("hotspot").error('a [hotspot] table when control.sun_source = "hotspot"')
         return c
+
+
+    def _check_wind(self, at: Where, links: dict[str, LinkConfig],
+                    used: dict[tuple[str, int], str]) -> None:
+        wind = self.wind
+        assert wind is not None
+        if wind.link not in links:
+            raise at.child("link").error("the name of a [[links]] table", wind.link)
+        if not isinstance(links[wind.link], (ModbusRtuLink, ModbusTcpLink)):
+            raise at.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", wind.link)
+        pyr = self.pyranometer
+        if (wind.link, wind.device_id) in used or (
+                pyr is not None and (pyr.link, pyr.device_id) == (wind.link, wind.device_id)):
+            raise at.child("device_id").error(f"an id not used on {wind.link!r} already",
+                                              wind.device_id)
+        # the wind stow angle becomes each drive's STOW_ANGLE: it must be reachable
+        for tr in self.trackers:
+            if isinstance(tr, SingleAxisTracker) and abs(wind.single_axis_deg) > tr.max_angle:
+                raise at.child("single_axis_deg").error(
+                    f"a rotation within every row's max_angle ({tr.name}: {tr.max_angle:g} deg)",
+                    wind.single_axis_deg)
+            if isinstance(tr, DualAxisTracker):
+                lo, hi = tr.elevation_limits
+                if not lo <= wind.dual_axis_elevation_deg <= hi:
+                    raise at.child("dual_axis_elevation_deg").error(
+                        f"an elevation within every tracker's limits ({tr.name}: [{lo:g}, {hi:g}])",
+                        wind.dual_axis_elevation_deg)
 
 
 def _addresses(link: LinkConfig, device_id: int, axes: int) -> range:

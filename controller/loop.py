@@ -1,85 +1,92 @@
 """The control loop: one cycle = sun estimate -> mode -> setpoints -> drives -> record.
 
 All trackers are served concurrently (asyncio) under one deadline per cycle, so a dead
-or slow drive costs its own row that cycle and never delays the others.
+or slow drive costs its own row that cycle and never delays the others.  Priorities: the
+drives' own watchdog, then a weather stow (wind, hail, snow: :mod:`controller.safety`),
+then an operator's manual setpoint, night stow, DIFFUSE and tracking.  Wind is polled
+between cycles (:meth:`Controller.poll_weather`) and stows every drive at once.
 """
 
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
-from collections.abc import Mapping
-from dataclasses import dataclass
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import Any, Protocol
 
-from firmware_protocol import Command, Mode
+from firmware_protocol import Command, Mode, Status
 
+from . import setpoints as sp
 from .clock import Clock
-from .config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
-from .drives import DriveCommError, DriveLink, DriveState
-from .geometry import dual_axis_setpoint, single_axis_setpoints, wrap_into_range
+from .config import Config
 from .diffuse import DiffuseSwitch
+from .drives.base import DriveCommError, DriveLink, DriveState
+from .health import Health
 from .modes import ControlMode, ModeDecision, decide_mode
+from .records import CycleRecord, TrackerRuntime
+from .safety import SafetyState, StowOrder, clamp_targets
 from .sun.source import SunSource
 from .sun.types import SunEstimate
+from .weather import WindSample, WindState
+
+log = logging.getLogger("heliotrack.controller")
+
+__all__ = ["Controller", "CycleRecord", "TrackerRuntime"]
 
 
-@dataclass
-class CycleRecord:
-    """What happened to one tracker in one cycle (degrees; time in POSIX seconds)."""
-
-    time: float
-    tracker: str
-    mode: str
-    reason: str
-    source: str
-    sun_az_deg: float
-    sun_el_deg: float
-    targets_deg: tuple[float, ...] = ()
-    actual_deg: tuple[float, ...] = ()
-    status: int = 0
-    backtracking: bool = False
-    error: str = ""
-    latency_s: float = 0.0   # wall time from the cycle's start until this row was done
-
-
-@dataclass
-class TrackerRuntime:
-    cfg: TrackerConfig
-    drive: DriveLink
-    last_targets: tuple[float, ...] = ()
-    last_state: DriveState | None = None
-    last_heartbeat: float = -math.inf
-    configured: bool = False
-    index: int = 0
-    start_error: str = ""
-    errors: int = 0
+class WindSensor(Protocol):
+    async def read(self, t: float) -> WindSample: ...
+    async def close(self) -> None: ...
 
 
 class Controller:
     """Drives every configured tracker from one sun source.
 
     A failing drive is recorded and skipped for that cycle; it never stops the others.
+
+    Parameters
+    ----------
+    config : the plant
+    drives : tracker name -> drive link (not yet connected)
+    sun : the sun source
+    clock : wall-clock time for records and the sun (a simulated clock in the HIL)
+    realtime : pace :meth:`run` on the event loop's monotonic clock
+    pyranometer, anemometer : sensors (or None)
+    sensor : a camera sun sensor feeding ``sun``
     """
 
+    #: Time budget for connecting and configuring one drive at start-up (s): SDO
+    #: configuration of a hundred drives on one CAN bus takes seconds, not a cycle.
+    START_TIMEOUT_S = 60.0
+
     def __init__(self, config: Config, drives: Mapping[str, DriveLink], sun: SunSource,
-                 clock: Clock, realtime: bool = False, pyranometer=None, sensor=None):
+                 clock: Clock, realtime: bool = False, pyranometer: Any = None,
+                 sensor: Any = None, anemometer: WindSensor | None = None):
         self.config = config
         self.realtime = realtime
         self.pyranometer = pyranometer
+        self.anemometer = anemometer
         self.sensor = sensor          # a camera sun sensor feeding ``sun`` (sun-path filter)
         self._saved_day: int | None = None
         self._last_el_deg = math.inf
         self._last_frame_t = -math.inf
+        self._next_wind_poll = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
+        self.safety = SafetyState(config.wind, config.stow, clock.now(), warn=log.warning)
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
         self.overrides: dict[int, tuple[float, ...]] = {}
         self._home_requested: set[int] = set()
         self.sun = sun
         self.clock = clock
-        self.trackers = [TrackerRuntime(t, drives[t.name]) for t in config.trackers]
+        self.trackers = [TrackerRuntime(t, drives[t.name], index=i)
+                         for i, t in enumerate(config.trackers)]
         self.cycles = 0
+        #: Machine-readable events (weather stow and resume, health changes), newest last.
+        self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
 
     # -- start-up -----------------------------------------------------------------
     async def start(self) -> None:
@@ -88,28 +95,38 @@ class Controller:
         A drive that fails here is recorded and retried by the next cycles; the others
         start regardless.
         """
-        for index, tr in enumerate(self.trackers):
-            tr.index = index
         await asyncio.gather(*(self._start_one(tr) for tr in self.trackers))
-
-    #: Time budget for connecting and configuring one drive at start-up (s): SDO
-    #: configuration of a hundred drives on one CAN bus takes seconds, not a cycle.
-    START_TIMEOUT_S = 60.0
 
     async def _start_one(self, tr: TrackerRuntime) -> None:
         try:
             await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
         except (DriveCommError, asyncio.TimeoutError) as exc:
             tr.errors += 1
-            tr.start_error = str(exc) or "timeout"
+            self._link_failed(tr, str(exc) or "no answer at start-up")
+
+    @staticmethod
+    def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState) -> None:
+        if (any(a.mode == Mode.STOW for a in st.axes)
+                and any(a.status & Status.COMM_LOST for a in st.axes)):
+            tr.health.watchdog_stow = True
+
+    def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:
+        """What a drive's STOW_ANGLE holds: the wind stow when wind is watched (the safest
+        place to be unattended, and where the watchdog sends it), else the night stow."""
+        if self.config.wind is not None:
+            return self.safety.angles(tr.cfg, "wind")
+        return tr.cfg.stow_angles
 
     async def _configure(self, tr: TrackerRuntime) -> None:
         await tr.drive.connect()
         if tr.drive.axis_count < tr.cfg.axes:
             raise DriveCommError(f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
                                  f"a {tr.cfg.type} tracker needs {tr.cfg.axes}")
+        # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
+        self._note_watchdog_stow(tr, await tr.drive.read_state())
         await tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
-                                 soft_limits=tr.cfg.soft_limits, stow_angles=tr.cfg.stow_angles)
+                                 soft_limits=tr.cfg.soft_limits,
+                                 stow_angles=self.drive_stow_angles(tr))
         await self._heartbeat(tr, force=True)
         # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
         tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
@@ -121,9 +138,9 @@ class Controller:
 
     async def _heartbeat(self, tr: TrackerRuntime, force: bool = False) -> None:
         # Three heartbeats per watchdog timeout are plenty and spare the bus.
-        t = self.clock.now()
+        t = self.clock.monotonic()
         timeout = self.config.control.heartbeat_timeout_s
-        if force or timeout <= 0 or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
+        if force or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
             await tr.drive.heartbeat()
             tr.last_heartbeat = t
 
@@ -135,22 +152,23 @@ class Controller:
         est = self.sun.estimate(aim_t, now=t)
         self._last_el_deg = est.el_deg if est is not None else math.inf
         overcast = await self._sky(t)
-        decision = (decide_mode(est.el_deg, self.config.control.min_elevation_deg,
-                                overcast=overcast)
-                    if est is not None else ModeDecision(ControlMode.STOW, "no sun estimate"))
-        setpoints = self.setpoints(est, decision)
+        await self._poll_weather_if_due()
+        self.safety.read_flag()
+        order = self.safety.order()
+        decision = self.decide(est, overcast, order)
+        targets = self.targets(est, decision, order)
         t_wall = time.perf_counter()
-        records = [self._record(tr, t, est, decision, sp)
-                   for tr, sp in zip(self.trackers, setpoints)]
-        safety_stow = (decision.mode == ControlMode.STOW
-                       and decision.reason not in ("night", "no sun estimate"))
-        for i, targets in ({} if safety_stow else self.overrides).items():
-            # An operator's manual setpoint outranks tracking, DIFFUSE and night stow,
-            # never a safety stow.
-            setpoints[i] = (list(targets), False)
-            records[i].mode, records[i].reason = ControlMode.MANUAL.value, "operator override"
-        tasks = [asyncio.ensure_future(self._drive_one(tr, rec, sp[0], decision, t_wall))
-                 for tr, rec, sp in zip(self.trackers, records, setpoints)]
+        alarms = tuple(self.safety.alarms)
+        records = [self._record(tr, t, est, decision, s, alarms)
+                   for tr, s in zip(self.trackers, targets)]
+        if order is None:
+            for i, manual in self.overrides.items():
+                # An operator's manual setpoint outranks tracking, DIFFUSE and night stow,
+                # never a weather stow.
+                targets[i] = (list(manual), False)
+                records[i].mode, records[i].reason = ControlMode.MANUAL.value, "operator override"
+        tasks = [asyncio.ensure_future(self._drive_one(tr, rec, s[0], order, t_wall))
+                 for tr, rec, s in zip(self.trackers, records, targets)]
         # One deadline for the cycle: a row still waiting then is cancelled and marked;
         # the others have long finished, so a dead drive costs only its own row.
         _, late = await asyncio.wait(tasks, timeout=self._deadline())
@@ -169,8 +187,27 @@ class Controller:
                 tr.errors += 1
                 rec.error = f"{tr.cfg.name}: no answer within {self._deadline():g} s"
                 rec.latency_s = time.perf_counter() - t_wall
+                self._link_failed(tr, rec.error)
+            rec.health, rec.health_reason = tr.health.state.value, tr.health.reason
         self.cycles += 1
         return records
+
+    def decide(self, est: SunEstimate | None, overcast: bool,
+               order: StowOrder | None) -> ModeDecision:
+        """The plant's mode this cycle (a weather stow outranks everything)."""
+        if order is not None:
+            return ModeDecision(ControlMode.STOW, order.reason)
+        if est is None:
+            return ModeDecision(ControlMode.STOW, "no sun estimate")
+        return decide_mode(est.el_deg, self.config.control.min_elevation_deg, overcast=overcast)
+
+    def targets(self, est: SunEstimate | None, decision: ModeDecision,
+                order: StowOrder | None) -> list[sp.Setpoint]:
+        """Axis targets (deg) of every tracker, and whether each row is backtracking."""
+        if order is not None:
+            return [(list(self.safety.angles(tr.cfg, order.kind)), False) for tr in self.trackers]
+        return sp.for_mode(decision.mode, est, [tr.cfg for tr in self.trackers],
+                           [tr.last_state for tr in self.trackers])
 
     async def _observe(self, t: float) -> None:
         """Feed the sun-path filter from the camera (in a thread: frames take time).
@@ -188,11 +225,8 @@ class Controller:
                 self.sun.observe(obs)
         day = int(t // 86400)
         if self._saved_day is not None and day != self._saved_day:
-            self._save_sun_state()
+            self.sun.save()   # atomic; once a day and at shutdown
         self._saved_day = day
-
-    def _save_sun_state(self) -> None:
-        self.sun.save()   # atomic; once a day and at shutdown
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
@@ -201,75 +235,147 @@ class Controller:
         try:
             sample = await asyncio.wait_for(self.pyranometer.read(t), self._deadline())
             self.diffuse.add(sample.time, sample.ghi_w_m2)
-        except (DriveCommError, asyncio.TimeoutError):
+        except (DriveCommError, asyncio.TimeoutError) as exc:
             self.sensor_errors += 1
+            log.warning("pyranometer: %s", exc or "no answer")
         return self.diffuse.update(t)
 
-    @staticmethod
-    def _record(tr: TrackerRuntime, t: float, est: SunEstimate | None, decision: ModeDecision,
-                setpoint: tuple[list[float], bool]) -> CycleRecord:
+    # -- weather between cycles ------------------------------------------------------------
+    def weather_due(self) -> bool:
+        """True when the anemometer should be read now (every ``[wind] poll_s``)."""
+        return self.anemometer is not None and self.clock.monotonic() >= self._next_wind_poll
+
+    async def _poll_weather_if_due(self) -> None:
+        if self.weather_due():
+            await self.poll_weather()
+
+    async def poll_weather(self) -> WindState:
+        """Read the anemometer, update the wind stow, and stow (or resume) every drive at
+        once when it changes.  Returns the wind state."""
+        wind = self.config.wind
+        if self.anemometer is None or wind is None:
+            return self.safety.wind
+        self._next_wind_poll = self.clock.monotonic() + wind.poll_s
+        t = self.clock.now()
+        try:
+            sample: WindSample | None = await asyncio.wait_for(self.anemometer.read(t),
+                                                               max(wind.poll_s, 1.0))
+        except (DriveCommError, asyncio.TimeoutError) as exc:
+            self.sensor_errors += 1
+            log.warning("anemometer: %s", exc or "no answer")
+            sample = None
+        before = self.safety.wind
+        state = self.safety.update_wind(t, sample)
+        if state.alarm and not before.alarm:
+            log.warning("WIND ALARM: %s", state.reason)
+            self._event("wind_alarm", reason=state.reason, stow=state.stow)
+        if state.stow and not before.stow:
+            await self._stow_all(state.reason)
+        elif before.stow and not state.stow:
+            log.warning("wind stow over: resuming")
+            self._event("wind_clear")
+        return state
+
+    async def _stow_all(self, reason: str) -> None:
+        """Command STOW to every drive at once and read each back."""
+        self._event("stow_commanded", reason=reason)
+
+        async def one(tr: TrackerRuntime) -> None:
+            try:
+                await tr.drive.command(Command.STOW)
+                tr.health.stowed_by_us = True
+                st = await tr.drive.read_state()
+                if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes):
+                    self._event("stow_confirmed", tracker=tr.cfg.name)
+            except DriveCommError as exc:
+                log.warning("%s: wind stow command failed: %s", tr.cfg.name, exc)
+
+        await asyncio.wait([asyncio.ensure_future(one(tr)) for tr in self.trackers],
+                           timeout=self._deadline())
+
+    def _event(self, kind: str, **detail: Any) -> None:
+        self.events.append({"time": self.clock.now(), "kind": kind, **detail})
+
+    # -- one drive ------------------------------------------------------------------
+    def _record(self, tr: TrackerRuntime, t: float, est: SunEstimate | None,
+                decision: ModeDecision, setpoint: sp.Setpoint,
+                alarms: tuple[str, ...]) -> CycleRecord:
         return CycleRecord(
             time=t, tracker=tr.cfg.name, mode=decision.mode.value, reason=decision.reason,
             source=est.source.value if est else "none",
             sun_az_deg=est.az_deg if est else math.nan,
-            sun_el_deg=est.el_deg if est else math.nan, backtracking=setpoint[1])
+            sun_el_deg=est.el_deg if est else math.nan, backtracking=setpoint[1],
+            alarms=alarms)
 
     async def _drive_one(self, tr: TrackerRuntime, rec: CycleRecord, targets: list[float],
-                         decision: ModeDecision, t_wall: float) -> None:
+                         order: StowOrder | None, t_wall: float) -> None:
         try:
-            state = await self._exchange(tr, targets, decision)
+            targets = clamp_targets(tr.cfg, targets)
+            state = await self._exchange(tr, targets, order)
             rec.targets_deg = tuple(targets)
             rec.actual_deg = tuple(a.actual_deg for a in state.axes)
             rec.status = int(state.device_status)
+            rec.axis_modes = tuple(a.mode.name for a in state.axes)
         except DriveCommError as exc:
             tr.errors += 1
             rec.error = str(exc)
+            self._link_failed(tr, str(exc))
         rec.latency_s = time.perf_counter() - t_wall
 
+    def _link_failed(self, tr: TrackerRuntime, why: str) -> None:
+        before = tr.health.state
+        if tr.health.comm_failed(self.clock.monotonic(), why) and tr.configured:
+            tr.configured = False          # reconnect (and reconfigure) after the backoff
+            asyncio.ensure_future(self._close_quietly(tr.drive))
+        if tr.health.state != before:
+            log.warning("%s: %s: %s", tr.cfg.name, tr.health.state.value, tr.health.reason)
+            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value,
+                        reason=tr.health.reason)
+
+    @staticmethod
+    async def _close_quietly(drive: DriveLink) -> None:
+        try:
+            await drive.close()
+        except Exception:  # noqa: BLE001 - closing a dead link must not hide the real error
+            pass
+
     async def _exchange(self, tr: TrackerRuntime, targets: list[float],
-                        decision: ModeDecision) -> DriveState:
+                        order: StowOrder | None) -> DriveState:
         if not tr.configured:
+            now = self.clock.monotonic()
+            if not tr.health.may_reconnect(now):
+                raise DriveCommError(f"{tr.cfg.name}: link down ({tr.health.reason}); next "
+                                     f"attempt in {tr.health.reconnect_at - now:.0f} s")
             await self._configure(tr)
+        elif tr.health.errors_in_row or (self.clock.monotonic() - tr.last_heartbeat
+                                          >= 0.9 * self.config.control.heartbeat_timeout_s):
+            # Back after failures or a stall: the watchdog may have fired; look before the
+            # heartbeat clears its COMM_LOST flag.
+            self._note_watchdog_stow(tr, await tr.drive.read_state())
         await self._heartbeat(tr)
         if tr.index in self._home_requested:
             await tr.drive.command(Command.HOME)
             self._home_requested.discard(tr.index)
         state = await tr.drive.exchange(targets)
-        if decision.mode != ControlMode.STOW and any(a.mode == Mode.STOW for a in state.axes):
-            # The firmware stowed itself (watchdog) and the link is alive again: resume.
-            await self._heartbeat(tr, force=True)
-            await tr.drive.command(Command.RESUME)
+        wind = order is not None and order.kind == "wind"
+        if wind and any(a.mode not in (Mode.STOW, Mode.MAINTENANCE) for a in state.axes):
+            await tr.drive.command(Command.STOW)       # a drive the fast path missed
+            tr.health.stowed_by_us = True
+        before = tr.health.state
+        for cmd in tr.health.assess(state, self.clock.monotonic(), weather_stow=wind):
+            if cmd == Command.RESUME:
+                await self._heartbeat(tr, force=True)
+            await tr.drive.command(cmd)
+        if tr.health.state != before:
+            level = logging.INFO if tr.health.state == Health.OK else logging.WARNING
+            log.log(level, "%s: %s%s", tr.cfg.name, tr.health.state.value,
+                    f": {tr.health.reason}" if tr.health.reason else "")
+            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value,
+                        reason=tr.health.reason)
         tr.last_targets, tr.last_state = tuple(targets), state
         return state
 
-    def setpoints(self, est: SunEstimate | None, decision: ModeDecision
-                  ) -> list[tuple[list[float], bool]]:
-        """Axis targets (deg) for every tracker, and whether each row is backtracking.
-
-        Single-axis rows are computed together in one vectorised call.
-        """
-        out: list[tuple[list[float], bool]] = [(list(tr.cfg.stow_angles), False)
-                                               for tr in self.trackers]
-        if decision.mode == ControlMode.STOW or est is None:
-            return out
-        if decision.mode == ControlMode.DIFFUSE:
-            return [self._facing_sky(tr) for tr in self.trackers]
-        rows = [(i, tr.cfg) for i, tr in enumerate(self.trackers)
-                if isinstance(tr.cfg, SingleAxisTracker)]
-        if rows:
-            sps = single_axis_setpoints(est.az_deg, est.el_deg, [cfg for _, cfg in rows])
-            for (i, _), sp in zip(rows, sps):
-                if not math.isnan(sp.rotation_deg):  # NaN: sun still below the horizon
-                    out[i] = ([sp.rotation_deg], sp.backtracking)
-        for i, tr in enumerate(self.trackers):
-            cfg = tr.cfg
-            if isinstance(cfg, DualAxisTracker):
-                current = tr.last_state.axes[0].actual_deg if tr.last_state else None
-                az, el = dual_axis_setpoint(est.az_deg, est.el_deg, cfg.azimuth_limits,
-                                            cfg.elevation_limits, current)
-                out[i] = ([az, el], False)
-        return out
-
+    # -- operator -------------------------------------------------------------------
     def set_override(self, tracker: int | None, ctl: str, el_deg: float | None,
                      az_deg: float | None) -> None:
         """Apply an operator command (SunSpec model 601 semantics).
@@ -282,63 +388,74 @@ class Controller:
         indices = range(len(self.trackers)) if tracker is None else [tracker]
         for i in indices:
             tr = self.trackers[i]
-            cfg = tr.cfg
             if ctl == "Automatic":
                 self.overrides.pop(i, None)
             elif ctl == "Calibrate":
                 self._home_requested.add(i)
             elif ctl == "Manual":
-                now = tr.last_state.axes if tr.last_state else None
-                if isinstance(cfg, SingleAxisTracker):
-                    rot = el_deg if el_deg is not None else (now[0].actual_deg if now else cfg.stow)
-                    self.overrides[i] = (min(max(rot, -cfg.max_angle), cfg.max_angle),)
-                elif isinstance(cfg, DualAxisTracker):
-                    az = az_deg if az_deg is not None else (now[0].actual_deg if now else cfg.stow[0])
-                    el = el_deg if el_deg is not None else (now[1].actual_deg if now else cfg.stow[1])
-                    az = wrap_into_range(az, *cfg.azimuth_limits,
-                                         near=now[0].actual_deg if now else None)
-                    lo, hi = cfg.elevation_limits
-                    self.overrides[i] = (az, min(max(el, lo), hi))
+                self.overrides[i] = sp.manual(tr.cfg, tr.last_state, el_deg, az_deg)
             else:
                 raise ValueError(f"unknown control {ctl!r}")
 
-    @staticmethod
-    def _facing_sky(tr: TrackerRuntime) -> tuple[list[float], bool]:
-        """Flat: the panel faces the zenith and sees the whole overcast dome."""
-        cfg = tr.cfg
-        if not isinstance(cfg, DualAxisTracker):
-            return [0.0], False
-        az = tr.last_state.axes[0].actual_deg if tr.last_state else cfg.stow[0]
-        el = min(90.0, cfg.elevation_limits[1])
-        return [az, el], False
+    # -- running ----------------------------------------------------------------------
+    async def run(self, duration_s: float, on_cycle: Callable[[list[CycleRecord]], Any] | None = None,
+                  stop: asyncio.Event | None = None) -> dict[str, int]:
+        """Cycle on period boundaries for ``duration_s`` (or until ``stop`` is set).
 
-    async def run(self, duration_s: float, on_cycle=None) -> dict:
-        """Cycle on period boundaries of ``self.clock`` for ``duration_s``.
-
-        ``on_cycle(records)`` is called after every cycle.  A cycle that overruns its
-        period makes the loop skip to the next boundary (counted in ``overruns``) rather
-        than queue late cycles.
+        On the simulated clock, the clock is advanced.  In real time the schedule runs on
+        the event loop's monotonic clock (a wall-clock step moves neither the next cycle nor
+        the end), the anemometer is polled between cycles, and the call returns at the end
+        of ``duration_s`` whatever the period.  ``on_cycle(records)`` is called after every
+        cycle; a cycle that overruns its period makes the loop skip to the next boundary
+        (counted in ``overruns``) rather than queue late cycles.
         """
+        if not self.realtime:
+            return await self._run_simulated(duration_s, on_cycle)
+        loop = asyncio.get_running_loop()
+        period = self.config.control.period_s
+        end = loop.time() + duration_s
+        next_cycle = loop.time()
+        stop = stop or asyncio.Event()
+        overruns = 0
+        while not stop.is_set():
+            now = loop.time()
+            if now >= end:
+                break
+            if now >= next_cycle:
+                records = await self.cycle()
+                if on_cycle is not None:
+                    on_cycle(records)
+                next_cycle += period
+                while loop.time() > next_cycle:
+                    next_cycle += period
+                    overruns += 1
+                continue
+            wake = min(next_cycle, end)
+            if self.anemometer is not None:
+                if self.weather_due():
+                    await self.poll_weather()
+                    continue
+                wake = min(wake, loop.time() + max(self._next_wind_poll - self.clock.monotonic(), 0))
+            try:
+                await asyncio.wait_for(stop.wait(), max(wake - loop.time(), 0.0))
+            except asyncio.TimeoutError:
+                pass
+        return {"cycles": self.cycles, "overruns": overruns}
+
+    async def _run_simulated(self, duration_s: float,
+                             on_cycle: Callable[[list[CycleRecord]], Any] | None) -> dict[str, int]:
         period = self.config.control.period_s
         t_end = self.clock.now() + duration_s
         next_t = self.clock.now()
-        overruns = 0
         while next_t < t_end:
-            delay = max(next_t - self.clock.now(), 0.0)
-            if self.realtime:
-                await asyncio.sleep(delay)   # keep the event loop (other rows, servers) alive
-            else:
-                self.clock.sleep(delay)
+            self.clock.sleep(max(next_t - self.clock.now(), 0.0))
             records = await self.cycle()
             if on_cycle is not None:
                 on_cycle(records)
             next_t += period
-            while self.clock.now() > next_t:
-                next_t += period
-                overruns += 1
-        return {"cycles": self.cycles, "overruns": overruns}
+        return {"cycles": self.cycles, "overruns": 0}
 
-    def stats(self) -> dict:
+    def stats(self) -> dict[str, int]:
         tx = sum(tr.drive.stats.transactions for tr in self.trackers)
         err = sum(tr.drive.stats.errors for tr in self.trackers)
         return {"transactions": tx, "errors": err,
@@ -347,11 +464,9 @@ class Controller:
 
     async def close(self) -> None:
         if self.sensor is not None:
-            self._save_sun_state()
-        if self.pyranometer is not None:
-            await self.pyranometer.close()
+            self.sun.save()
+        for sensor in (self.pyranometer, self.anemometer):
+            if sensor is not None:
+                await sensor.close()
         for tr in self.trackers:
-            try:
-                await tr.drive.close()
-            except Exception:  # closing a dead link must not hide the real error
-                pass
+            await self._close_quietly(tr.drive)

@@ -57,7 +57,8 @@ class Northbound:
             tgt = rec.targets_deg if rec and rec.targets_deg else ()
             pos = rec.actual_deg if rec and rec.actual_deg else ()
             mode = rec.mode if rec else "STOW"
-            alarm = _ALARM_SETPOINT if rec is not None and rec.error else 0
+            # Alm SetPoint: the tracker cannot reach or hold its setpoint (link or drive)
+            alarm = _ALARM_SETPOINT if rec is not None and (rec.error or rec.health != "ok") else 0
             manual = self.controller.overrides.get(tr.index)
             if isinstance(cfg, SingleAxisTracker):
                 trackers.append(TrackerSnapshot.row(

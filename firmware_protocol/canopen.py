@@ -86,7 +86,6 @@ FAULT_ERROR_CODES: dict[Fault, int] = {
     Fault.ENCODER: 0x7305,          # incremental sensor 1 fault
     Fault.OVERTEMPERATURE: 0x4310,  # excess temperature drive
 }
-ERROR_CODE_FAULTS: dict[int, Fault] = {v: k for k, v in FAULT_ERROR_CODES.items()}
 
 
 class Controlword(IntFlag):
@@ -438,21 +437,3 @@ def eds() -> str:
         for e in o.entries:
             out += _entry_lines(f"{o.index:04X}sub{e.subindex:X}", e)
     return "\n".join(out)
-
-
-def markdown_table() -> str:
-    """The object dictionary as a Markdown table (for docs)."""
-    tnames = {INTEGER8: "INTEGER8", INTEGER16: "INTEGER16", INTEGER32: "INTEGER32",
-              UNSIGNED8: "UNSIGNED8", UNSIGNED16: "UNSIGNED16", UNSIGNED32: "UNSIGNED32",
-              VISIBLE_STRING: "VISIBLE_STRING", BOOLEAN: "BOOLEAN"}
-    rows = ["| index:sub | name | type | access | PDO | register | scale | unit |",
-            "|---|---|---|---|---|---|---:|---|"]
-    for o in OBJECTS:
-        if 0x1400 <= o.index < 0x1C00:
-            continue
-        for e in o.entries:
-            label = e.name if o.object_type == VAR else f"{o.name}: {e.name}"
-            rows.append(f"| 0x{e.index:04X}:{e.subindex:02X} | {label} | {tnames[e.data_type]} "
-                        f"| {e.access} | {'yes' if e.pdo else ''} | {e.register} | "
-                        f"{e.scale:g} | {e.unit} |")
-    return "\n".join(rows)

@@ -7,7 +7,7 @@ observation time is put at 12:00, so no day straddles local midnight anywhere on
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -59,7 +59,7 @@ def split_days(times, utc_offset_h: float | None = None) -> list[Day]:
     for n in np.unique(num):
         idx = np.flatnonzero(num == n)
         idx = idx[np.argsort(t[idx], kind="stable")]
-        date = datetime.fromtimestamp(n * 86400.0, tz=timezone.utc).date().isoformat()
+        date = datetime.fromtimestamp(n * 86400.0, tz=UTC).date().isoformat()
         days.append(Day(date, int(n), n * 86400.0 - off, idx))
     return days
 
@@ -108,7 +108,7 @@ class DayResult:
     def as_row(self) -> dict:
         """Plain dict with ``noon_utc`` as ISO 8601 and floats rounded for output."""
         row = asdict(self)
-        row["noon_utc"] = datetime.fromtimestamp(self.noon_utc, tz=timezone.utc).isoformat(
+        row["noon_utc"] = datetime.fromtimestamp(self.noon_utc, tz=UTC).isoformat(
             timespec="seconds") if np.isfinite(self.noon_utc) else ""
         for k, v in row.items():
             if isinstance(v, float):

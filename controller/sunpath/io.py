@@ -12,8 +12,8 @@ import math
 from pathlib import Path
 
 from ..errors import InputError
-from ..timestamps import parse_timestamp
 from ..sun.types import SunObservation
+from ..timestamps import parse_timestamp
 
 REQUIRED = ("time", "az_deg", "el_deg")
 DEFAULT_SIGMA_DEG = 0.3
@@ -24,9 +24,9 @@ def parse_time(text: str, where: str) -> float:
     return parse_timestamp(text, where, require_zone=True)
 
 
-def _number(text: str, where: str, lo: float, hi: float, what: str) -> float:
+def _number(text: str | None, where: str, lo: float, hi: float, what: str) -> float:
     try:
-        v = float(text)
+        v = float(text)  # type: ignore[arg-type]  # None (a short row) -> TypeError below
     except (TypeError, ValueError):
         raise InputError(f"{where}: expected {what}, got {text!r}") from None
     if not (math.isfinite(v) and lo <= v <= hi):

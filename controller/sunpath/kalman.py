@@ -1,16 +1,9 @@
 """A physical sun-path model in an extended Kalman filter (filterpy).
 
-State vector (degrees unless stated)::
-
-    0 lat      site latitude, north-positive
-    1 lon      site longitude, east-positive (equivalently the noon offset: 1 deg = 240 s)
-    2 dec      ``declination="free"``: u = sin(eps) sin(lambda) = sin(declination)
-               (dimensionless); ``declination="ephemeris"``: a correction (deg) added to
-               SPA's geocentric declination
-    3 dec_rate ``free``: v = sin(eps) cos(lambda) (dimensionless); ``ephemeris``: the
-               correction's daily drift, deg/day
-    4 az_off   sensor azimuth minus true azimuth
-    5 refr     refraction scale (1 = SPA's standard atmosphere)
+The state vector (latitude, longitude, declination state, its rate, azimuth offset,
+refraction scale) and the filter's records are in :mod:`.kalman_config`; the orbit law in
+:mod:`.orbit`; the batch fit that starts the filter in :mod:`.initial_fit`; the JSON
+snapshot in :mod:`.persistence`.  This module is the EKF itself.
 
 The measurement model ``h(x, t)`` is spherical astronomy: the hour angle is SPA's apparent
 sidereal time plus ``lon`` minus the sun's right ascension (i.e. UTC, longitude and the
@@ -20,8 +13,8 @@ expressed in the sky's tangent plane, ``(d_az cos(el), d_el)``, so it stays well
 near the zenith and one isotropic sigma describes the sensor.  The Jacobian is numeric.
 
 In ``free`` mode (sky only: declination from the observations alone) the declination
-follows the law of the sun's orbit, ``sin(dec) = sin(eps) sin(lambda)``: the state holds the vector
-``(u, v) = sin(eps) (sin lambda, cos lambda)``, whose length is ``sin(eps)`` (obliquity)
+follows the law of the sun's orbit, ``sin(dec) = sin(eps) sin(lambda)``: the state holds
+the vector ``(u, v) = sin(eps) (sin lambda, cos lambda)``, whose length is ``sin(eps)`` (obliquity)
 and whose angle is the sun's ecliptic longitude ``lambda``.  Between two times the vector
 is rotated by the advance of ``lambda``: the orbital rate, i.e. the mean motion
 0.98564736 deg/day plus Kepler's equation of centre (eccentricity 0.0167, perihelion in
@@ -37,159 +30,53 @@ ascension (the equation of time) in the hour angle, as the paper's longitude for
 Without a site the filter starts from a batch fit (scipy least squares from a coarse grid)
 of the first few hours of observations; with a site it starts from the site after the
 first observation (``ephemeris`` mode) or after three observations half an hour apart
-(``free`` mode, whose declination comes from a grid and a fit, not from the ephemeris).  Process noise is continuous in time, so a night
-or a cloudy week widens the covariance by the right amount and the state carries over.
+(``free`` mode, whose declination comes from a grid and a fit, not from the ephemeris).
+Process noise is continuous in time, so a night or a cloudy week widens the covariance by
+the right amount and the state carries over.
 """
 
 from __future__ import annotations
 
 import copy
-from dataclasses import asdict, dataclass, field
 
 import numpy as np
 from filterpy.kalman import ExtendedKalmanFilter
-from scipy import optimize
 
 from ..sun.source import Site
 from ..sun.types import SunObservation
 from .days import DayResult, split_days
-from .ephemeris import (GeocentricSun, azel_from_hour_angle, geocentric_sun, transit_time,
-                        wrap180)
+from .ephemeris import GeocentricSun, azel_from_hour_angle, geocentric_sun, transit_time, wrap180
+from .initial_fit import initial_fit
+from .kalman_config import (
+    AZOFF,
+    DEC,
+    DECLINATION_MODES,
+    FREE_MODEL,
+    LAT,
+    LON,
+    RATE,
+    REFR,
+    STATE_NAMES,
+    STATE_NAMES_FREE,
+    KalmanConfig,
+    Prediction,
+    UpdateResult,
+)
+from .orbit import (
+    DAY_S,
+    MEAN_MOTION_DEG_PER_DAY,
+    OBLIQUITY_DEG,
+    OMEGA_YEAR,
+    orbit_advance_deg,
+    orbit_rotation,
+)
+from .persistence import kalman_from_dict, kalman_to_dict
 
-LAT, LON, DEC, RATE, AZOFF, REFR = range(6)
-STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg",
-               "refraction_scale")
-STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg",
-                    "refraction_scale")
-#: Version tag of the ``free`` mode's declination states (u, v); older state files held
-#: (declination deg, rate deg/day) and are converted on load.
-FREE_MODEL = "orbit-uv-1"
-#: Mean obliquity of the ecliptic (deg), IAU, J2000 (drifts 0.013 deg per century).
-OBLIQUITY_DEG = 23.4393
-#: Mean motion of the sun in ecliptic longitude, deg/day (tropical year).
-MEAN_MOTION_DEG_PER_DAY = 0.98564736
-_DAY = 86400.0
-#: Angular frequency of the seasons, rad/day (tropical year 365.2422 days).
-OMEGA_YEAR = 2.0 * np.pi / 365.2422
-
-
-def orbit_advance_deg(t0, t1, rate: str = "kepler"):
-    """Advance of the sun's ecliptic longitude (deg) from POSIX ``t0`` to ``t1``.
-
-    ``"mean"``: the mean motion only.  ``"kepler"``: plus the change of Kepler's equation of
-    centre, ``C(M) = 1.914602 sin M + 0.019993 sin 2M + 0.000289 sin 3M`` with the mean
-    anomaly ``M = 357.52911 + 0.98560028 d`` (d = days from J2000), i.e. the orbital rate
-    of a Keplerian orbit with eccentricity 0.0167.  Only differences of longitude are
-    returned; the longitude itself (the date in the tropical year, hence the declination)
-    is the filter's state, learnt from the sky.
-    """
-    d0 = (np.asarray(t0, dtype=float) / _DAY) - 10957.5
-    d1 = (np.asarray(t1, dtype=float) / _DAY) - 10957.5
-    adv = MEAN_MOTION_DEG_PER_DAY * (d1 - d0)
-    if rate == "mean":
-        return adv
-    if rate != "kepler":
-        raise ValueError(f"orbit_rate must be 'kepler' or 'mean', got {rate!r}")
-
-    def centre(d):
-        m = np.radians(357.52911 + 0.98560028 * d)
-        return 1.914602 * np.sin(m) + 0.019993 * np.sin(2 * m) + 0.000289 * np.sin(3 * m)
-
-    return adv + centre(d1) - centre(d0)
-
-
-@dataclass
-class KalmanConfig:
-    """Tuning of :class:`SunPathKalman` (variances in deg^2, rates per day).
-
-    Attributes
-    ----------
-    declination : str
-        ``"ephemeris"`` (default: SPA's geocentric declination, which needs only UTC, plus
-        a learnt correction) or ``"free"`` (sky only: declination learnt from the
-        observations through the orbit law; the mode in which declination is measured, as
-        the paper measures it).
-    orbit_rate : str
-        ``free`` mode: advance of the ecliptic longitude between two times, ``"kepler"``
-        (mean motion plus equation of centre) or ``"mean"`` (mean motion only).
-    obliquity_deg, obliquity_sigma_deg : float
-        ``free`` mode: the obliquity pseudo-observation (``sigma <= 0`` disables it).
-    q_orbit : float
-        ``free`` mode: random walk on (u, v), 1/day (covers nutation, aberration and the
-        lunar and planetary terms the orbit law leaves out).
-    iterations : int
-        Measurement-update iterations (1 = filterpy's EKF update; more = iterated EKF).
-    gate_chi2 : float
-        Innovation gate on the squared Mahalanobis distance (2 dof; 13.8 = 99.9 %).
-    max_consecutive_rejects : int
-        After this many gated observations in a row the covariance is inflated, so a
-        filter that has drifted cannot lock itself out.
-    q_site, q_dec, q_rate, q_az_off, q_refr : float
-        Process noise densities: random walks on site (deg^2/day), declination
-        (deg^2/day), declination rate (deg^2/day^3, integrated random walk), azimuth
-        offset (deg^2/day) and refraction scale (1/day).
-    sigma_lat, sigma_lon, sigma_dec, sigma_rate, sigma_az_off, sigma_refr : float
-        Prior one-sigma values when that quantity is not given.
-    site_sigma_deg : float
-        One-sigma of a given site's latitude and longitude.
-    init_min_obs, init_min_span_h, init_max_sigma_deg : float
-        Without a site, start the filter once this many observations span this many hours
-        and the batch fit gives latitude and longitude to within this one-sigma.
-    pressure_hpa, temp_c : float
-        Atmosphere for the refraction model (scaled by the ``refr`` state).
-    """
-
-    declination: str = "ephemeris"
-    orbit_rate: str = "kepler"
-    obliquity_deg: float = OBLIQUITY_DEG
-    obliquity_sigma_deg: float = 0.01
-    q_orbit: float = 1e-9
-    iterations: int = 1
-    gate_chi2: float = 13.8
-    max_consecutive_rejects: int = 6
-    q_site: float = 1e-8
-    q_dec: float = 1e-6
-    q_rate: float = 2e-5  # unused since the orbit model; kept so old state files load
-    q_rate_ephemeris: float = 3e-8
-    q_az_off: float = 1e-4
-    q_refr: float = 1e-4
-    sigma_lat: float = 30.0
-    sigma_lon: float = 30.0
-    sigma_dec: float = 15.0
-    sigma_rate: float = 0.3
-    sigma_az_off: float = 30.0
-    sigma_refr: float = 0.1
-    site_sigma_deg: float = 0.01
-    init_min_obs: int = 12
-    init_min_span_h: float = 3.0
-    init_max_sigma_deg: float = 2.0
-    pressure_hpa: float = 1013.25
-    temp_c: float = 12.0
-
-
-@dataclass(frozen=True)
-class UpdateResult:
-    """What the filter did with one observation."""
-
-    accepted: bool
-    mahalanobis2: float
-    initialised: bool
-    reason: str = ""
-
-
-@dataclass(frozen=True)
-class Prediction:
-    """Predicted sun direction (ENU) with covariance of (azimuth, elevation), deg^2."""
-
-    time: float
-    az_deg: float
-    el_deg: float
-    covariance: np.ndarray = field(repr=False)
-
-    @property
-    def sigma_deg(self) -> float:
-        c = np.cos(np.radians(self.el_deg))
-        return float(np.sqrt(max(self.covariance[0, 0] * c * c + self.covariance[1, 1], 0.0)))
+# Callers import the filter's records and the orbit law from here too.
+__all__ = ["AZOFF", "DEC", "FREE_MODEL", "LAT", "LON", "MEAN_MOTION_DEG_PER_DAY",
+           "OBLIQUITY_DEG", "OMEGA_YEAR", "RATE", "REFR", "STATE_NAMES", "STATE_NAMES_FREE",
+           "KalmanConfig", "Prediction", "SunPathKalman", "UpdateResult", "orbit_advance_deg",
+           "run_kalman"]
 
 
 class SunPathKalman:
@@ -206,7 +93,7 @@ class SunPathKalman:
         self.config = config or KalmanConfig()
         self.site = site
         mode = self.config.declination
-        if mode not in ("free", "ephemeris"):
+        if mode not in DECLINATION_MODES:
             raise ValueError(f"declination mode must be 'free' or 'ephemeris', got {mode!r}")
         self.mode = mode
         self.ekf = ExtendedKalmanFilter(dim_x=6, dim_z=2)
@@ -245,7 +132,7 @@ class SunPathKalman:
 
     def _jacobian(self, x, geo, i=0, scaled=True):
         """Numeric Jacobian of ``(az cos(el), el)`` (``scaled``) or ``(az, el)`` w.r.t. x."""
-        az0, el0 = self._azel(x, geo, i)
+        _, el0 = self._azel(x, geo, i)
         c = np.cos(np.radians(el0)) if scaled else 1.0
         J = np.zeros((2, 6))
         for k, step in enumerate((1e-4, 1e-4, 1e-4, 1e-4, 1e-4, 1e-4)):
@@ -267,16 +154,16 @@ class SunPathKalman:
     # ------------------------------------------------------------------ time update
     def _transition(self, t0: float, t1: float):
         """Transition matrix and process noise from POSIX ``t0`` to ``t1``."""
-        d = (t1 - t0) / _DAY
+        d = (t1 - t0) / DAY_S
         ad = abs(d)
         F = np.eye(6)
         c = self.config
         Q = np.zeros((6, 6))
         if self.mode == "free":  # rotate (u, v) by the advance of the ecliptic longitude
-            th = np.radians(orbit_advance_deg(t0, t1, c.orbit_rate))
-            F[DEC, DEC] = F[RATE, RATE] = np.cos(th)
-            F[DEC, RATE] = np.sin(th)
-            F[RATE, DEC] = -np.sin(th)
+            cos_th, sin_th = orbit_rotation(t0, t1, c.orbit_rate)
+            F[DEC, DEC] = F[RATE, RATE] = cos_th
+            F[DEC, RATE] = sin_th
+            F[RATE, DEC] = -sin_th
             Q[DEC, DEC] = Q[RATE, RATE] = c.q_orbit * ad
         else:  # correction to SPA: constant plus slow drift
             F[DEC, RATE] = d
@@ -289,14 +176,20 @@ class SunPathKalman:
         Q[REFR, REFR] = c.q_refr * ad
         return F, Q
 
+    def _state_time(self) -> float:
+        """Time the state refers to (POSIX s); RuntimeError before the filter has started."""
+        if self.t is None:
+            raise RuntimeError("the sun-path filter has not been initialised yet")
+        return self.t
+
     def _propagate(self, t: float) -> None:
-        F, Q = self._transition(self.t, float(t))
+        F, Q = self._transition(self._state_time(), float(t))
         self.ekf.F, self.ekf.Q = F, Q
         self.ekf.predict()
         self.t = float(t)
 
-    def _propagated(self, t: float):
-        F, Q = self._transition(self.t, float(t))
+    def _propagated(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        F, Q = self._transition(self._state_time(), float(t))
         return F @ self.ekf.x, F @ self.ekf.P @ F.T + Q
 
     def _apply_obliquity(self) -> None:
@@ -336,7 +229,7 @@ class SunPathKalman:
             if self._try_initialise():
                 return UpdateResult(True, 0.0, True, "initialised")
             return UpdateResult(False, float("nan"), False, "waiting to initialise")
-        if obs.time < self.t - 1e-6:
+        if obs.time < self._state_time() - 1e-6:
             return UpdateResult(False, float("nan"), True, "older than the state")
         self._propagate(obs.time)
         geo = geocentric_sun(obs.time)
@@ -397,133 +290,25 @@ class SunPathKalman:
         self.ekf.P = 0.5 * (self.ekf.P + self.ekf.P.T)
 
     # ------------------------------------------------------------------ initialisation
-    def _prior(self):
-        """Prior mean and sigmas (for the batch fit) given what is known."""
-        c = self.config
-        x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
-        s0 = np.array([c.sigma_lat, c.sigma_lon, c.sigma_dec, c.sigma_rate, c.sigma_az_off,
-                       c.sigma_refr])
-        if self.site is not None:
-            x0[LAT], x0[LON] = self.site.latitude, self.site.longitude
-            s0[LAT] = s0[LON] = c.site_sigma_deg
-        if self.mode == "ephemeris":
-            s0[DEC], s0[RATE] = 0.05, 1e-3  # correction to SPA's declination
-        return x0, s0
-
     def _try_initialise(self) -> bool:
+        """Start from the batch fit of the buffer (:mod:`.initial_fit`) once it can."""
         obs = sorted(self.buffer, key=lambda o: o.time)
-        t = np.array([o.time for o in obs])
-        c = self.config
-        known = self.site is not None
-        if not known:
-            if len(obs) < c.init_min_obs or t[-1] - t[0] < c.init_min_span_h * 3600.0:
-                return False
-        elif self.mode == "free" and (len(obs) < 3 or t[-1] - t[0] < 1800.0):
-            return False  # declination from the sky: a few observations half an hour apart
-        t_ref = float(t[-1])
-        geo = geocentric_sun(t)
-        az = np.array([o.az_deg for o in obs])
-        el = np.array([o.el_deg for o in obs])
-        sig = np.array([o.sigma_deg for o in obs])
-        x0, s0 = self._prior()
-        free = [LAT, LON, AZOFF] + ([DEC] if self.mode == "free" else [])
-        if known:
-            free = [AZOFF] + ([DEC] if self.mode == "free" else [])
-
-        def model(p, fixed):
-            x = fixed.copy()
-            x[free] = p
-            h = wrap180(geo.sidereal_deg + x[LON] - geo.ra_deg)
-            d = x[DEC] + (geo.dec_deg if self.mode == "ephemeris" else 0.0)
-            m_az, m_el = azel_from_hour_angle(h, d, x[LAT], x[REFR], c.pressure_hpa, c.temp_c)
-            return m_az + x[AZOFF], m_el
-
-        def resid(p, fixed):
-            m_az, m_el = model(p, fixed)
-            r = np.concatenate([wrap180(az - m_az) * np.cos(np.radians(el)) / sig,
-                                (el - m_el) / sig])
-            x = fixed.copy()
-            x[free] = p
-            pri = [(x[k] - x0[k]) / s0[k] for k in free if s0[k] < 1.0]
-            return np.concatenate([r, pri])
-
-        fixed = x0.copy()
-        starts = self._grid_starts(geo, az, el, fixed, free, known)
-        best = None
-        for p in starts:
-            sol = optimize.least_squares(resid, p, args=(fixed,), loss="soft_l1", f_scale=3.0)
-            if best is None or sol.cost < best.cost:
-                best = sol
-        J = best.jac
-        n = len(obs)
-        # Drop gross outliers before judging the fit.
-        r = best.fun[:2 * n].reshape(2, n)
-        ok = np.hypot(r[0], r[1]) < 5.0
-        try:
-            cov = np.linalg.inv(J.T @ J)
-        except np.linalg.LinAlgError:
+        fit = initial_fit(obs, self.config, self.mode, self.site)
+        if fit is None:
             return False
-        x = fixed.copy()
-        x[free] = best.x
-        sd = np.sqrt(np.clip(np.diag(cov), 0, None))
-        fi = {k: i for i, k in enumerate(free)}
-        if not known and (max(sd[fi[LAT]], sd[fi[LON]]) > c.init_max_sigma_deg
-                          or ok.mean() < 0.7):
-            return False
-        P = np.diag(s0 ** 2)
-        idx = np.array(free)
-        P[np.ix_(idx, idx)] = cov * 4.0  # inflate: the batch fit ignored the rate and refr
-        if self.mode == "free":
-            # Declination (deg) -> u = sin(dec); v (the direction of motion) still unknown:
-            # one sigma sin(eps), i.e. a rate anywhere within the orbit's +-0.4 deg/day.
-            dd = float(x[DEC])
-            Jc = np.eye(6)
-            Jc[DEC, DEC] = np.cos(np.radians(dd)) * np.pi / 180.0
-            P = Jc @ P @ Jc.T
-            x[DEC] = np.sin(np.radians(dd))
-            x[RATE] = 0.0
-            P[RATE, :] = P[:, RATE] = 0.0
-            P[RATE, RATE] = np.sin(np.radians(c.obliquity_deg)) ** 2
-        x[LON] = float(wrap180(x[LON]))
-        x[AZOFF] = float(x[AZOFF] % 360.0)
-        self.ekf.x = x
-        self.ekf.P = 0.5 * (P + P.T)
-        self.t = t_ref if not known else float(t[0])
+        self.ekf.x = fit.x
+        self.ekf.P = fit.P
+        self.t = fit.t
         self.initialised = True
         self.buffer = []
-        if known:  # the site gave the geometry: now assimilate every buffered observation
+        if self.site is not None:
+            # the site gave the geometry: now assimilate every buffered observation
             self.n_accepted += 1  # the first one started the filter
-            rest = obs[1:] if len(obs) > 1 else []
-            for o in rest:
+            for o in obs[1:]:
                 self.update(o)
         else:
-            self.n_accepted += int(ok.sum())
+            self.n_accepted += fit.n_used
         return True
-
-    def _grid_starts(self, geo, az, el, fixed, free, known):
-        """Starting points: a coarse grid scored with the best constant azimuth offset."""
-        c = self.config
-        lats = [fixed[LAT]] if known else np.arange(-75.0, 76.0, 7.5)
-        lons = [fixed[LON]] if known else np.arange(-180.0, 180.0, 10.0)
-        decs = [fixed[DEC]] if self.mode == "ephemeris" else np.arange(-24.0, 24.1, 6.0)
-        L, G, D = np.meshgrid(lats, lons, decs, indexing="ij")
-        L, G, D = L.ravel()[:, None], G.ravel()[:, None], D.ravel()[:, None]
-        h = wrap180(geo.sidereal_deg[None, :] + G - geo.ra_deg[None, :])
-        d = D + (geo.dec_deg[None, :] if self.mode == "ephemeris" else 0.0)
-        m_az, m_el = azel_from_hour_angle(h, d, L, 1.0, c.pressure_hpa, c.temp_c)
-        daz = np.radians(az[None, :] - m_az)
-        off = np.degrees(np.arctan2(np.sin(daz).mean(1), np.cos(daz).mean(1)))
-        raz = wrap180(az[None, :] - m_az - off[:, None]) * np.cos(np.radians(el))[None, :]
-        cost = np.sum(np.minimum(raz ** 2 + (el[None, :] - m_el) ** 2, 25.0), axis=1)
-        order = np.argsort(cost)[:4]
-        starts = []
-        for j in order:
-            x = fixed.copy()
-            x[LAT], x[LON], x[AZOFF] = L[j, 0], G[j, 0], off[j] % 360.0
-            if DEC in free:
-                x[DEC] = D[j, 0]
-            starts.append(x[free])
-        return starts
 
     # ------------------------------------------------------------------ outputs
     def predict(self, t) -> Prediction:
@@ -575,68 +360,20 @@ class SunPathKalman:
             noon_sigma_s=sn, lat_sigma_deg=float(np.sqrt(P[LAT, LAT])),
             lon_sigma_deg=float(np.sqrt(P[LON, LON])), dec_sigma_deg=sdec)
 
-    def copy(self) -> "SunPathKalman":
+    def copy(self) -> SunPathKalman:
+        """Independent deep copy (e.g. to predict from a checkpoint)."""
         return copy.deepcopy(self)
 
     # ------------------------------------------------------------------ persistence
     def to_dict(self) -> dict:
-        """JSON-ready snapshot (see :mod:`controller.sunpath.state`)."""
-        return {
-            "kind": "sunpath-kalman",
-            "mode": self.mode,
-            "config": asdict(self.config),
-            "site": None if self.site is None else asdict(self.site),
-            "initialised": self.initialised,
-            "t": self.t,
-            "state_names": list(STATE_NAMES_FREE if self.mode == "free" else STATE_NAMES),
-            "free_model": FREE_MODEL if self.mode == "free" else None,
-            "obliquity_applied": self.obliquity_applied,
-            # ravel: filterpy starts with a column vector until the filter initialises
-            "x": [float(v) for v in np.asarray(self.ekf.x, float).ravel()],
-            "P": [[float(v) for v in row] for row in self.ekf.P],
-            "buffer": [[o.time, o.az_deg, o.el_deg, o.sigma_deg] for o in self.buffer],
-            "n_accepted": self.n_accepted,
-            "n_rejected": self.n_rejected,
-        }
+        """JSON-ready snapshot (:func:`.persistence.kalman_to_dict`, :mod:`.state`)."""
+        return kalman_to_dict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "SunPathKalman":
+    def from_dict(cls, d: dict) -> SunPathKalman:
         """Inverse of :meth:`to_dict`; raises ValueError/KeyError/TypeError when malformed."""
-        if d.get("kind") != "sunpath-kalman":
-            raise ValueError("not a sun-path Kalman state")
-        cfg = KalmanConfig(**d["config"])
-        site = Site(**d["site"]) if d.get("site") else None
-        kf = cls(cfg, site)
-        kf.mode = d["mode"]
-        x = np.asarray(d["x"], dtype=float)
-        P = np.asarray(d["P"], dtype=float)
-        if x.shape != (6,) or P.shape != (6, 6) or not (np.all(np.isfinite(x))
-                                                         and np.all(np.isfinite(P))):
-            raise ValueError("state vector must have 6 finite values and P 6x6")
-        if kf.mode == "free" and d.get("free_model") != FREE_MODEL:
-            x, P = _free_state_from_dec_rate(x, P)  # state file from before the orbit model
-        kf.ekf.x, kf.ekf.P = x, P
-        kf.obliquity_applied = bool(d.get("obliquity_applied", False))
-        kf.t = None if d["t"] is None else float(d["t"])
-        kf.initialised = bool(d["initialised"])
-        kf.buffer = [SunObservation(float(a), float(b), float(c), float(s))
-                     for a, b, c, s in d.get("buffer", [])]
-        kf.n_accepted = int(d.get("n_accepted", 0))
-        kf.n_rejected = int(d.get("n_rejected", 0))
-        return kf
+        return kalman_from_dict(d, cls)
 
-
-def _free_state_from_dec_rate(x, P):
-    """Convert an old ``free`` state (dec deg, rate deg/day) to the orbit's (u, v)."""
-    x = x.copy()
-    d, r = np.radians(x[DEC]), np.radians(x[RATE])
-    n = np.radians(MEAN_MOTION_DEG_PER_DAY)
-    J = np.eye(6)
-    J[DEC, DEC] = np.cos(d) * np.pi / 180.0
-    J[RATE, DEC] = -np.sin(d) * r / n * np.pi / 180.0
-    J[RATE, RATE] = np.cos(d) / n * np.pi / 180.0
-    x[DEC], x[RATE] = np.sin(d), np.cos(d) * r / n
-    return x, J @ P @ J.T
 
 
 def run_kalman(observations: list[SunObservation], config: KalmanConfig | None = None,

@@ -1,10 +1,13 @@
 """The seed paper's sun-path model: a daily least-squares parabola of elevation over time.
 
 ``Elv(T) = c0 + c1 T + c2 T^2`` with ``T`` in hours of the local clock (since the local
-midnight of the day).  Yesterday's coefficients enter today's adjustment as weighted
-pseudo-observations (weight = inverse of their covariance), and today's elevations are
-weighted by the inverse of yesterday's a-posteriori variance factor, so that even one
-morning observation gives today's parabola.  Solar noon is the parabola's extremum.
+midnight of the day).  Solar noon is the parabola's extremum.  Each day's noon (the
+paper's Table 3) comes from that day's own observations, fitted on samples balanced about
+noon (:func:`fit_mirrored`; the paper fits "over the interval before to after solar
+noon").  For prediction (the paper's Table 4) yesterday's coefficients enter today's
+adjustment as weighted pseudo-observations (weight = inverse of their covariance), and
+today's elevations are weighted by the inverse of yesterday's a-posteriori variance
+factor, so that even one morning observation gives today's parabola.
 """
 
 from __future__ import annotations
@@ -13,13 +16,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .days import DayResult, split_days
+from .days import Day, DayResult, split_days
 from .ephemeris import geocentric_sun, wrap180
-from .localisation import (culmination_side, declination_from_noon, latitude_from_noon,
-                           longitude_from_noon)
+from .localisation import culmination_side, declination_from_noon, latitude_from_noon, longitude_from_noon
+from .mirror import default_tolerance, mirrored_mask, nearest_centre
 
 #: Variance (deg^2) of one elevation observation assumed when no fit can tell it.
 DEFAULT_VARIANCE = 0.3 ** 2
+#: Fit windows of the daily parabola: balanced about noon (default) or every sample.
+FITS = ("mirrored", "whole-day")
+#: What ``Elv_n`` (the noon elevation of the declination and latitude formulas) is.
+NOON_ELEVATIONS = ("measured", "vertex")
 
 
 @dataclass(frozen=True)
@@ -53,7 +60,7 @@ class ParabolaFit:
     @property
     def noon_hours(self) -> float:
         """Extremum ``T = -c1 / (2 c2)`` (local hours)."""
-        c0, c1, c2 = self.coef
+        _, c1, c2 = self.coef
         return float(-c1 / (2.0 * c2))
 
     @property
@@ -70,7 +77,7 @@ class ParabolaFit:
     @property
     def noon_sigma_s(self) -> float:
         """One-sigma of the noon time (s), first-order propagation of ``cov``."""
-        c0, c1, c2 = self.coef
+        _, c1, c2 = self.coef
         g = np.array([0.0, -1.0 / (2 * c2), c1 / (2 * c2 * c2)])
         return float(3600.0 * np.sqrt(max(g @ self.cov @ g, 0.0)))
 
@@ -148,71 +155,179 @@ def azimuth_offset_at_culmination(az_deg, el_deg, culmination: str = "south") ->
     return float(wrap180(az_top - true) % 360.0)
 
 
+@dataclass(frozen=True)
+class MirroredFit:
+    """A day's parabola fitted on samples mirrored about noon (:func:`fit_mirrored`).
+
+    Attributes
+    ----------
+    fit : ParabolaFit
+        The parabola of the balanced set.
+    keep : ndarray of bool
+        Which of the input samples form the balanced set.
+    centre_h : float
+        Centre of symmetry, hours (a grid point or half-step of the sampling).
+    iterations : int
+        Fits on balanced sets until the centre stopped moving.
+    converged : bool
+        False when the centre cycled between neighbours; then the fit whose vertex lies
+        nearest its own centre is kept.
+    """
+
+    fit: ParabolaFit
+    keep: np.ndarray
+    centre_h: float
+    iterations: int
+    converged: bool
+
+
+def fit_mirrored(T_h, el_deg, prior: ParabolaFit | None = None, midnight: float = 0.0,
+                 tolerance_h: float | None = None, half_width_h: float | None = None,
+                 max_iter: int = 10) -> MirroredFit | None:
+    """Parabola fitted on the samples mirrored about the fitted noon, iterated.
+
+    Starts from the fit of every sample, then repeats: centre = the grid point or
+    half-step nearest the fitted noon (:func:`~controller.sunpath.mirror.nearest_centre`),
+    keep the samples paired symmetrically about it
+    (:func:`~controller.sunpath.mirror.mirrored_mask`), refit.  It stops when the centre
+    no longer moves.  No truth is used.
+
+    Parameters
+    ----------
+    T_h : array_like
+        Local hours since ``midnight``.
+    el_deg : array_like
+        Observed elevations, deg.
+    prior : ParabolaFit, optional
+        Yesterday's fit as pseudo-observations (see :func:`fit_parabola`); not used for the
+        paper's Table 3, where each day stands alone.
+    midnight : float
+        POSIX seconds of ``T = 0``.
+    tolerance_h : float, optional
+        Pairing tolerance, hours (default a tenth of the median sampling interval).
+    half_width_h : float, optional
+        Keep only pairs within this many hours of the centre (a balanced window).
+    max_iter : int
+        Most refits.
+
+    Returns
+    -------
+    MirroredFit or None
+        None when no balanced set of at least 3 samples exists (e.g. clouds all
+        afternoon) or a fit has no maximum.
+    """
+    T = np.asarray(T_h, dtype=float)
+    y = np.asarray(el_deg, dtype=float)
+    if T.size == 0 or (T.size < 3 and prior is None):
+        return None
+    tol = default_tolerance(T) if tolerance_h is None else float(tolerance_h)
+    fit = fit_parabola(T, y, prior=prior, midnight=midnight)
+    tried: dict[float, MirroredFit] = {}
+    for it in range(1, max_iter + 1):
+        if not fit.coef[2] < 0:
+            return None  # no maximum: no noon to centre on
+        centre = nearest_centre(T, fit.noon_hours)
+        if centre in tried:  # cycling between neighbouring centres
+            best = min(tried.values(), key=lambda m: abs(m.fit.noon_hours - m.centre_h))
+            return MirroredFit(best.fit, best.keep, best.centre_h, it - 1, False)
+        keep = mirrored_mask(T, centre, tol, half_width_h)
+        if keep.sum() < 3 and prior is None:
+            return None
+        fit = fit_parabola(T[keep], y[keep], prior=prior, midnight=midnight)
+        tried[centre] = MirroredFit(fit, keep, centre, it, True)
+        if fit.coef[2] < 0 and nearest_centre(T, fit.noon_hours) == centre:
+            return tried[centre]
+    return None if not fit.coef[2] < 0 else MirroredFit(fit, keep, centre, max_iter, False)
+
+
 def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
-             lat_deg: float | None = None, use_prior: bool = True,
+             lat_deg: float | None = None, use_prior: bool = False,
              window_h: float | None = None, noon_elevation: str = "measured",
-             transit_tolerance_s: float | None = None
+             transit_tolerance_s: float | None = None, fit: str = "mirrored"
              ) -> tuple[list[DayResult], list[ParabolaFit]]:
     """The paper's method over a series of observations, one result per local day.
 
-    Each day is fitted with yesterday's fit as prior when yesterday (the previous local
-    date) was fitted too; after a longer break the day is fitted alone, because the prior
-    assumes the noon elevation changed little.  Latitude comes from the noon elevation and
-    the SPA declination; longitude from the noon time and SPA's equation of time; the
-    declination ``el_noon + lat - 90`` needs ``lat_deg`` (nan without it).  The culmination
-    side is read from the observed azimuth at the elevation maximum (ENU azimuths).
+    Each day's noon is the extremum of that day's own parabola (the paper's Table 3).
+    Latitude comes from the noon elevation and the SPA declination; longitude from the noon
+    time and SPA's equation of time; the declination ``el_noon + lat - 90`` needs
+    ``lat_deg`` (nan without it).  The culmination side is read from the observed azimuth
+    nearest the noon (ENU azimuths).
 
-    ``window_h`` (not in the paper) keeps only observations within that many hours of
-    noon (located by a first fit of the whole day): elevation is a parabola of time only
-    near noon, and a whole-day fit biases the extremum (see docs/sunpath.md).
-
-    ``noon_elevation`` is the ``Elv_n`` of the declination and latitude formulas:
-
-    * ``"measured"`` (default, the paper's section 3-2: "the sun's elevation measured at
-      the moment it crosses the meridian"): the observation nearest the fitted noon, if it
-      is within ``transit_tolerance_s`` of it (default: half the day's median sampling
-      interval, i.e. the frame at the transit).  Without one (clouds at noon) the day has
-      no measured ``Elv_n``, and its declination and latitude are nan.
-    * ``"vertex"`` (a labelled variant): the parabola's extremum value.  Over a whole day
-      the elevation is not a parabola of time and this value lies 1-6 deg below the true
-      noon elevation (docs/sunpath.md).
+    Parameters
+    ----------
+    times : array_like
+        POSIX seconds (UTC).
+    az_deg, el_deg : array_like
+        Observed azimuth (clockwise from north) and elevation, deg.
+    utc_offset_h : float, optional
+        Civil offset that cuts the days (default: a pseudo-solar clock, see
+        :func:`~controller.sunpath.days.local_offset_s`).
+    lat_deg : float, optional
+        Known latitude, deg north, for the declination formula.
+    use_prior : bool
+        A labelled variant, not the paper's Table 3: fit each day with yesterday's fit as
+        prior when yesterday (the previous local date) was fitted too.  Chained over a run
+        of consecutive days without any widening, this averages the days.
+    window_h : float, optional
+        Keep only observations within this many hours of noon (not in the paper).  With
+        ``fit="whole-day"`` the window ``|T - noon| <= window_h`` is re-centred twice on the
+        refined noon; with ``"mirrored"`` only the mirrored pairs within it are kept.
+    noon_elevation : {"measured", "vertex"}
+        The ``Elv_n`` of the declination and latitude formulas.  ``"measured"`` (default,
+        the paper's section 3-2: "the sun's elevation measured at the moment it crosses
+        the meridian"): the observation nearest the fitted noon, if it is within
+        ``transit_tolerance_s`` of it (default: half the day's median sampling interval,
+        i.e. the frame at the transit); without one (clouds at noon) the day's
+        declination and latitude are nan.  ``"vertex"`` (a labelled variant): the
+        parabola's extremum value, 1-6 deg below the true noon elevation over a whole day.
+    transit_tolerance_s : float, optional
+        See ``noon_elevation``.
+    fit : {"mirrored", "whole-day"}
+        ``"mirrored"`` (default): the parabola of the samples mirrored about the fitted
+        noon, iterated (:func:`fit_mirrored`); a day without a balanced set of 3 samples
+        gives no row.  ``"whole-day"`` (a labelled variant): every sample of the day; its
+        vertex is pulled towards the centre of the sampling window (docs/sunpath.md).
 
     Returns
     -------
     results : list of DayResult
     fits : list of ParabolaFit (same order)
     """
-    if noon_elevation not in ("measured", "vertex"):
+    if noon_elevation not in NOON_ELEVATIONS:
         raise ValueError(f"noon_elevation must be 'measured' or 'vertex', got "
                          f"{noon_elevation!r}")
+    if fit not in FITS:
+        raise ValueError(f"fit must be 'mirrored' or 'whole-day', got {fit!r}")
     t = np.asarray(times, dtype=float)
     az = np.asarray(az_deg, dtype=float)
     el = np.asarray(el_deg, dtype=float)
-    results, fits = [], []
-    prev_fit, prev_num = None, None
+    fitted: list[tuple[Day, ParabolaFit]] = []
+    prev_fit: ParabolaFit | None = None
+    prev_num: int | None = None
     for day in split_days(t, utc_offset_h):
-        idx = day.index
         prior = prev_fit if (use_prior and prev_num == day.day_number - 1) else None
-        if idx.size < 3 and prior is None:
-            continue
-        T = (t[idx] - day.midnight) / 3600.0
-        fit = fit_parabola(T, el[idx], prior=prior, midnight=day.midnight)
-        if window_h is not None:
-            for _ in range(2):  # re-centre the window on the refined noon
-                keep = np.abs(T - fit.noon_hours) <= window_h
-                if keep.sum() < 3 and prior is None:
-                    break
-                fit = fit_parabola(T[keep], el[idx][keep], prior=prior, midnight=day.midnight)
-        if not (fit.coef[2] < 0 and 0 <= fit.noon_hours <= 24):
+        day_fit = _day_fit((t[day.index] - day.midnight) / 3600.0, el[day.index], prior,
+                           day.midnight, fit, window_h)
+        if day_fit is None or not (day_fit.coef[2] < 0 and 0 <= day_fit.noon_hours <= 24):
             continue  # no maximum inside the day: nothing to learn
-        noon = fit.noon_utc
+        fitted.append((day, day_fit))
+        prev_fit, prev_num = day_fit, day.day_number
+    if not fitted:
+        return [], []
+    # One vectorised SPA call for all days (the per-day calls were most of the run time).
+    noons = np.array([f.noon_utc for _, f in fitted])
+    dec_eph = geocentric_sun(noons).dec_deg
+    lon = longitude_from_noon(noons)
+    results: list[DayResult] = []
+    for k, (day, day_fit) in enumerate(fitted):
+        idx = day.index
+        noon = float(noons[k])
         side = culmination_side(_az_near(t[idx], az[idx], noon))
-        dec_eph = float(geocentric_sun(noon).dec_deg[0])
         if noon_elevation == "vertex":
-            el_n = fit.noon_el_deg
+            el_n = day_fit.noon_el_deg
         else:
             el_n = _measured_at_transit(t[idx], el[idx], noon, transit_tolerance_s)
-        lat = float(latitude_from_noon(el_n, dec_eph, side))
+        lat = float(latitude_from_noon(el_n, float(dec_eph[k]), side))
         dec = (float(declination_from_noon(el_n, lat_deg, side))
                if lat_deg is not None else float("nan"))
         try:
@@ -222,11 +337,28 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
             off = float("nan")
         results.append(DayResult(
             date=day.date, noon_utc=noon, noon_el_deg=el_n, declination_deg=dec,
-            lat_deg=lat, lon_deg=float(longitude_from_noon(noon)[0]), n_obs=int(idx.size),
-            method="seed", az_offset_deg=off, noon_sigma_s=fit.noon_sigma_s))
-        fits.append(fit)
-        prev_fit, prev_num = fit, day.day_number
+            lat_deg=lat, lon_deg=float(lon[k]), n_obs=int(idx.size),
+            method="seed", az_offset_deg=off, noon_sigma_s=day_fit.noon_sigma_s))
+    fits = [f for _, f in fitted]
     return results, fits
+
+
+def _day_fit(T, el, prior: ParabolaFit | None, midnight: float, fit: str,
+             window_h: float | None) -> ParabolaFit | None:
+    """One day's parabola over local hours ``T``; None when the day cannot give one."""
+    if T.size < 3 and prior is None:
+        return None
+    if fit == "mirrored":
+        m = fit_mirrored(T, el, prior=prior, midnight=midnight, half_width_h=window_h)
+        return None if m is None else m.fit
+    out = fit_parabola(T, el, prior=prior, midnight=midnight)
+    if window_h is not None:
+        for _ in range(2):  # re-centre the window on the refined noon
+            keep = np.abs(T - out.noon_hours) <= window_h
+            if keep.sum() < 3 and prior is None:
+                break
+            out = fit_parabola(T[keep], el[keep], prior=prior, midnight=midnight)
+    return out
 
 
 def _measured_at_transit(t, el, noon: float, tolerance_s: float | None) -> float:

@@ -27,7 +27,8 @@ import numpy as np
 from ..sun.source import EphemerisSource, Site, SunSource
 from ..sun.types import EstimateSource, SunEstimate, SunObservation, azel_to_enu, enu_to_azel
 from .ephemeris import wrap180
-from .kalman import AZOFF, LAT, LON, KalmanConfig, SunPathKalman
+from .kalman import SunPathKalman
+from .kalman_config import AZOFF, LAT, LON, KalmanConfig
 
 
 @dataclass(frozen=True)
@@ -97,7 +98,7 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
         dominant = (EstimateSource.EPHEMERIS if ephemeris.sigma_deg < prediction.sigma_deg
                     else EstimateSource.PREDICTED)
         return fuse([prediction, ephemeris], dominant, t)
-    if fresh:
+    if fresh and fresh_observation is not None:
         o = fresh_observation
         s2 = o.sigma_deg ** 2
         c = max(np.cos(np.radians(o.el_deg)), 1e-6)
@@ -172,9 +173,9 @@ class SunPathSource(SunSource):
         self.site = site
         self.state_path = Path(state_path) if state_path is not None else None
         self.policy = policy_config or PolicyConfig()
-        self.kf = load_state(self.state_path) if self.state_path is not None else None
-        if self.kf is None:
-            self.kf = SunPathKalman(kalman_config, site)
+        loaded = load_state(self.state_path) if self.state_path is not None else None
+        self.kf: SunPathKalman = (loaded if loaded is not None
+                                  else SunPathKalman(kalman_config, site))
         self.ephemeris = EphemerisSource(site) if site is not None else None
         self.last_accepted: SunObservation | None = None
 

@@ -184,10 +184,6 @@ class SunSpecMap:
         self._starts = [s.address for s in self.slots]
         self._by_name = {(s.model, s.tracker, s.point.name): s for s in self.slots}
 
-    @property
-    def sf_dgr_point(self) -> PointDef:
-        return self.fixed.point("Dgr_SF")
-
     def block_address(self, tracker: int) -> int:
         """Address of the first register of repeating block ``tracker`` (0-based)."""
         return self.tracker_model_address + self.fixed.length + tracker * self.block.length

@@ -4,6 +4,7 @@ Two modes, chosen by the first positional argument::
 
     heliotrack sunpath OBS.csv [--method seed|kalman] [--lat DEG --lon DEG]
                                [--utc-offset HOURS] [--out FILE] [--state FILE]
+                               [--fit mirrored|whole-day] [--chain-prior]
     heliotrack sunpath predict [OBS.csv] [--state FILE] [--lat DEG --lon DEG]
                                (--at TIME ... | --start TIME --end TIME [--step-min M])
 
@@ -21,7 +22,7 @@ import csv
 import io
 import json
 import sys
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 
@@ -49,6 +50,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "default: the observation within half a sampling interval of the "
                         "fitted noon, else none that day) or the parabola's vertex value "
                         "(a labelled variant, biased by degrees over a whole day)")
+    p.add_argument("--fit", choices=("mirrored", "whole-day"), default="mirrored",
+                   help="seed: each day's parabola on the samples mirrored about the fitted "
+                        "noon, iterated (default; the paper's 'before to after solar noon') "
+                        "or on every sample of the day (a labelled variant, biased by the "
+                        "window's position about noon)")
+    p.add_argument("--chain-prior", action="store_true",
+                   help="seed: fit each day with yesterday's parabola as prior (a labelled "
+                        "variant; the paper uses the prior only to predict, and each day's "
+                        "noon is that day's own fit)")
     p.add_argument("--window-h", type=float, default=None,
                    help="seed: fit only observations within this many hours of noon")
     p.add_argument("--state", type=Path, default=None,
@@ -107,7 +117,8 @@ def _fit(args, path: Path) -> int:
     if args.method == "seed":
         rows, _ = run_seed([o.time for o in obs], [o.az_deg for o in obs],
                            [o.el_deg for o in obs], args.utc_offset, lat_deg=args.lat,
-                           window_h=args.window_h, noon_elevation=args.noon_elevation)
+                           window_h=args.window_h, noon_elevation=args.noon_elevation,
+                           fit=args.fit, use_prior=args.chain_prior)
     else:
         rows, kf = _kalman(args, obs)
         if not kf.initialised:
@@ -150,9 +161,10 @@ def _predict(args, path: Path | None) -> int:
             p = kf.predict(t)
             az, el, cov, src = p.az_deg, p.el_deg, p.covariance, "predicted"
         else:
+            assert eph is not None  # checked above: no filter means a site was given
             e = eph.estimate(t)
             az, el, cov, src = e.az_deg, e.el_deg, e.covariance, "ephemeris"
-        rows.append({"time": datetime.fromtimestamp(t, tz=timezone.utc).isoformat(
+        rows.append({"time": datetime.fromtimestamp(t, tz=UTC).isoformat(
                          timespec="seconds"),
                      "az_deg": round(float(az), 6), "el_deg": round(float(el), 6),
                      "sigma_az_deg": round(float(np.sqrt(cov[0, 0])), 6),

@@ -144,10 +144,6 @@ class Sensor:
     noise: bool = True
     jpeg_quality: int | None = None
 
-    def with_exposure(self, factor: float) -> "Sensor":
-        """``factor`` > 1: longer exposure (brighter image)."""
-        return replace(self, full_scale_radiance=self.full_scale_radiance / factor)
-
 
 @dataclass(frozen=True)
 class Site:

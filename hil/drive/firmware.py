@@ -23,6 +23,24 @@ from .axis import AxisModel, AxisParams
 FIRMWARE_VERSION = 0x0100
 
 
+def check_axis_params(p: AxisParams, k: int = 0) -> None:
+    """Refuse physically meaningless parameters (ValueError naming the axis)."""
+    problems = []
+    if not p.max_speed > 0:
+        problems.append(f"max_speed {p.max_speed} deg/s must be > 0")
+    if not p.accel > 0:
+        problems.append(f"accel {p.accel} deg/s^2 must be > 0")
+    if p.backlash < 0 or p.encoder_resolution < 0 or p.deadband < 0 or p.stall_time <= 0:
+        problems.append("backlash, encoder resolution and deadband must be >= 0, stall time > 0")
+    if not p.hard_min <= p.soft_min < p.soft_max <= p.hard_max:
+        problems.append(f"limits must satisfy hard_min <= soft_min < soft_max <= hard_max "
+                        f"({p.hard_min}, {p.soft_min}, {p.soft_max}, {p.hard_max})")
+    if not p.soft_min <= p.stow_angle <= p.soft_max:
+        problems.append(f"stow angle {p.stow_angle} outside the soft limits")
+    if problems:
+        raise ValueError(f"axis {k}: " + "; ".join(problems))
+
+
 class FirmwareReject(Exception):
     """A request the firmware refuses; ``code`` is the Modbus exception code (2 or 3)."""
 
@@ -47,16 +65,25 @@ class DriveFirmware:
     axes : sequence of AxisParams
         One entry per axis (1 or 2).
     now : callable
-        Returns the current time in seconds (wall clock or simulated).
+        Returns the current time in seconds (simulated, or the wall clock).
     heartbeat_timeout : float
-        Initial watchdog timeout, s (0 disables it).
+        Initial watchdog timeout, s (0 disables it: commissioning only).
+    monotonic : callable, optional
+        The firmware's own time for physics, the watchdog and UPTIME (a real drive counts
+        its own ticks); default ``now``.  Give a monotonic clock when ``now`` is a wall
+        clock: a step of the wall clock must neither fire nor delay the watchdog.
     """
 
     def __init__(self, axes: Sequence[AxisParams], now: Callable[[], float],
-                 heartbeat_timeout: float = 10.0):
+                 heartbeat_timeout: float = 10.0,
+                 monotonic: Callable[[], float] | None = None):
         if not 1 <= len(axes) <= 2:
             raise ValueError("a drive has 1 or 2 axes")
-        self.now = now
+        if not heartbeat_timeout >= 0:
+            raise ValueError(f"heartbeat timeout {heartbeat_timeout} s: must be >= 0")
+        for k, p in enumerate(axes):
+            check_axis_params(p, k)
+        self.now = monotonic if monotonic is not None else now
         self.axes = [AxisModel(p) for p in axes]
         self.modes = [Mode.AUTO for _ in axes]
         self.clamped = [False for _ in axes]
@@ -64,7 +91,7 @@ class DriveFirmware:
         self.homed = [True for _ in axes]
         self.heartbeat = 0
         self.heartbeat_timeout = heartbeat_timeout
-        self._t0 = now()
+        self._t0 = self.now()
         self._t = self._t0
         self._last_heartbeat_change = self._t0
         self._lock = threading.RLock()
@@ -219,6 +246,7 @@ class DriveFirmware:
             self._validate(reg, k, value)
             changes.append((reg, k, value))
             a += reg.words
+        self._validate_together(changes)
         return changes
 
     def _validate(self, reg: Register, k: int | None, value) -> None:
@@ -232,6 +260,36 @@ class DriveFirmware:
             ax = self.axes[k]
             if not ax.p.hard_min <= value <= ax.p.hard_max:
                 raise FirmwareReject(3, f"{reg.name} outside the hard limits")
+        if reg.name == "MODE" and k is not None:
+            # Leaving STOW needs COMMAND RESUME (which checks the link); after a comm
+            # loss only STOW or MAINTENANCE may be chosen.
+            if self.modes[k] == Mode.STOW and value in (Mode.AUTO, Mode.MANUAL):
+                raise FirmwareReject(3, "leave STOW with COMMAND RESUME, not a MODE write")
+            if self.comm_lost and value in (Mode.AUTO, Mode.MANUAL):
+                raise FirmwareReject(3, "communication lost: RESUME after a heartbeat first")
+
+    def _validate_together(self, changes) -> None:
+        """Checks of the state the whole write would leave (limits written in one go)."""
+        lo = {k: ax.p.soft_min for k, ax in enumerate(self.axes)}
+        hi = {k: ax.p.soft_max for k, ax in enumerate(self.axes)}
+        stow = {k: ax.p.stow_angle for k, ax in enumerate(self.axes)}
+        modes = dict(enumerate(self.modes))
+        timeout = None
+        for reg, k, value in changes:
+            match reg.name:
+                case "SOFT_LIMIT_MIN": lo[k] = value
+                case "SOFT_LIMIT_MAX": hi[k] = value
+                case "STOW_ANGLE": stow[k] = value
+                case "MODE": modes[k] = Mode(value)
+                case "HEARTBEAT_TIMEOUT": timeout = value
+        for k in lo:
+            if not lo[k] < hi[k]:
+                raise FirmwareReject(3, f"axis {k}: soft limits [{lo[k]:g}, {hi[k]:g}] inverted")
+            if not lo[k] <= stow[k] <= hi[k]:
+                raise FirmwareReject(3, f"axis {k}: stow angle {stow[k]:g} outside the soft "
+                                        f"limits [{lo[k]:g}, {hi[k]:g}]")
+        if timeout == 0 and any(m != Mode.MAINTENANCE for m in modes.values()):
+            raise FirmwareReject(3, "the watchdog can be switched off only in MAINTENANCE")
 
     def _apply(self, reg: Register, k: int | None, value) -> None:
         ax = self.axes[k] if k is not None else None

@@ -10,16 +10,27 @@ from heliotrack.cli import main
 from ._synth import ANDIMESHK, observations, sample_times
 
 
-@pytest.fixture(scope="module")
-def obs_csv(tmp_path_factory):
-    obs, _, _ = observations(ANDIMESHK, sample_times("2024-03-10", 3, 3.5), seed=21)
-    p = tmp_path_factory.mktemp("cli") / "obs.csv"
+def _write_csv(p, obs):
     with p.open("w") as f:
         f.write("time,az_deg,el_deg,sigma_deg\n")
         for o in obs:
             ts = pd.Timestamp(o.time, unit="s", tz="UTC").tz_convert("Asia/Tehran").isoformat()
             f.write(f"{ts},{o.az_deg:.4f},{o.el_deg:.4f},0.3\n")
     return p
+
+
+@pytest.fixture(scope="module")
+def obs_csv(tmp_path_factory):
+    obs, _, _ = observations(ANDIMESHK, sample_times("2024-03-10", 3, 3.5), seed=21)
+    return _write_csv(tmp_path_factory.mktemp("cli") / "obs.csv", obs)
+
+
+@pytest.fixture(scope="module")
+def paper_csv(tmp_path_factory):
+    """The paper's February sampling (08:00-16:30), uneven about a 12:31 noon."""
+    t = sample_times("2024-02-12", 2, 3.5, start_h=8.0, n_per_day=35)
+    obs, _, _ = observations(ANDIMESHK, t, seed=22)
+    return _write_csv(tmp_path_factory.mktemp("cli") / "paper.csv", obs)
 
 
 def test_kalman_rows_and_state(obs_csv, tmp_path, capsys):
@@ -74,6 +85,29 @@ def test_cli_default_declination_mode_is_the_filter_default():
     args = p.parse_args(["sunpath", "obs.csv"])
     assert args.declination == KalmanConfig().declination == "ephemeris"
     assert args.noon_elevation == "measured"
+    assert args.fit == "mirrored" and not args.chain_prior  # the paper's Table 3
+
+
+def test_seed_fit_variants_are_selectable(paper_csv, capsys):
+    # The same file through --fit mirrored (default), --fit whole-day and --chain-prior:
+    # the CLI rows are run_seed's rows for that choice, and the choices differ.
+    from controller.sunpath.io import read_observations
+    from controller.sunpath.parabola import run_seed
+
+    obs = read_observations(paper_csv)
+    t, az, el = [o.time for o in obs], [o.az_deg for o in obs], [o.el_deg for o in obs]
+    noons = {}
+    for extra, kw in (([], {}), (["--fit", "whole-day"], {"fit": "whole-day"}),
+                      (["--chain-prior"], {"use_prior": True})):
+        assert main(["sunpath", str(paper_csv), "--method", "seed", "--utc-offset", "3.5",
+                     *extra]) == 0
+        rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
+        want, _ = run_seed(t, az, el, 3.5, **kw)
+        assert [r["noon_utc"] for r in rows] == [w.as_row()["noon_utc"] for w in want]
+        noons[" ".join(extra)] = [w.noon_utc for w in want]
+    assert all(abs(a - b) > 1.0 for a, b in zip(noons[""], noons["--fit whole-day"]))
+    assert noons[""][0] == noons["--chain-prior"][0]  # day 1 has no yesterday
+    assert abs(noons[""][1] - noons["--chain-prior"][1]) > 1.0
 
 
 def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):

@@ -4,8 +4,13 @@ import pvlib
 import pytest
 
 from controller.sun.source import solar_position
-from controller.sunpath.ephemeris import (azel_from_hour_angle, equation_of_time_min,
-                                          geocentric_sun, transit_time, wrap180)
+from controller.sunpath.ephemeris import (
+    azel_from_hour_angle,
+    equation_of_time_min,
+    geocentric_sun,
+    transit_time,
+    wrap180,
+)
 
 from ._synth import ANDIMESHK, SANTIAGO
 

@@ -54,7 +54,7 @@ def test_prediction_across_gap_and_covariance(learnt):
 
 
 def test_outliers_are_gated(learnt):
-    site, rows, kf = learnt
+    _site, _rows, kf = learnt
     kf = kf.copy()
     t = kf.t + 900.0
     x0, _ = kf._propagated(t)  # the time update happens whatever the observation

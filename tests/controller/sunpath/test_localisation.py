@@ -1,8 +1,12 @@
 import pytest
 
 from controller.sunpath.ephemeris import transit_time
-from controller.sunpath.localisation import (culmination_side, declination_from_noon,
-                                             latitude_from_noon, longitude_from_noon)
+from controller.sunpath.localisation import (
+    culmination_side,
+    declination_from_noon,
+    latitude_from_noon,
+    longitude_from_noon,
+)
 
 
 @pytest.mark.parametrize("lat,dec,side", [(32.5, -10.0, "south"), (-33.4, 15.0, "north"),

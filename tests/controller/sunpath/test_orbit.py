@@ -5,10 +5,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import controller.sunpath.kalman as kalman
+from controller.sunpath import initial_fit, kalman
 from controller.sunpath.ephemeris import GeocentricSun, geocentric_sun
-from controller.sunpath.kalman import (DEC, RATE, KalmanConfig, SunPathKalman,
-                                       orbit_advance_deg, run_kalman)
+from controller.sunpath.kalman import DEC, RATE, KalmanConfig, SunPathKalman, orbit_advance_deg, run_kalman
 
 from ._synth import ANDIMESHK, SANTIAGO, observations, sample_times
 
@@ -51,7 +50,7 @@ def february(request):
 
 
 def test_declination_bridged_across_a_five_week_break(february):
-    site, off, rows, kf = february
+    _site, off, _rows, kf = february
     assert kf.mode == "free" and kf.obliquity_applied
     assert kf.obliquity_deg() == pytest.approx(23.44, abs=0.05)
     for day in ("2024-02-23", "2024-03-27", "2024-04-30"):  # 1, 34 and 68 days on
@@ -77,7 +76,8 @@ def test_free_mode_never_reads_spa_declination(monkeypatch):
         g = geocentric_sun(tt)
         return GeocentricSun(g.sidereal_deg, g.ra_deg, g.dec_deg + 7.0)
 
-    monkeypatch.setattr(kalman, "geocentric_sun", poisoned)
+    monkeypatch.setattr(kalman, "geocentric_sun", poisoned)  # the EKF's updates
+    monkeypatch.setattr(initial_fit, "geocentric_sun", poisoned)  # and its start
     rows_b, kf_b = run_kalman(obs, KalmanConfig(declination="free"), utc_offset_h=off)
     assert [r.declination_deg for r in rows_a] == pytest.approx(
         [r.declination_deg for r in rows_b], abs=1e-12)
@@ -88,9 +88,9 @@ def test_free_mode_never_reads_spa_declination(monkeypatch):
 
 
 def test_old_free_state_file_is_converted(february):
-    site, off, rows, kf = february
+    _site, _off, _rows, kf = february
     d = kf.to_dict()
-    dec, sig = kf.declination(kf.t)
+    dec, _sig = kf.declination(kf.t)
     # An old-format state: declination (deg) and rate (deg/day), no "free_model" tag.
     old = dict(d)
     old.pop("free_model")

@@ -48,12 +48,13 @@ def test_azimuth_alignment_at_culmination(site, offset, side):
 
 @pytest.mark.parametrize("site,off", [(ANDIMESHK, 3.5), (SANTIAGO, -4.0)])
 def test_seed_noon_windowed_near_transit(site, off):
-    # Noise-free, +-1.5 h window: the parabola extremum is near the true transit and the
-    # localisation formulas recover the site to within the model error of a parabola.
+    # Noise-free, whole-day fit trimmed to +-1.5 h with yesterday's prior chained (labelled
+    # variants): the parabola extremum is near the true transit and the localisation
+    # formulas recover the site to within the model error of a parabola.
     t = sample_times("2024-04-01", 2, off)
     obs, az, el = observations(site, t, noise_deg=0.0)
     rows, fits = run_seed([o.time for o in obs], az, el, off, lat_deg=site.latitude,
-                          window_h=1.5)
+                          window_h=1.5, fit="whole-day", use_prior=True)
     assert len(rows) == 2 and fits[1].used_prior
     for r in rows:
         tr = transit_time(r.noon_utc, site.longitude)[0]

@@ -68,7 +68,9 @@ def test_watchdog_stows_when_heartbeat_stops(fw, sim_clock):
     assert not Status(read(fw, "STATUS", 0)) & Status.COMM_LOST
 
 
-def test_watchdog_disabled_with_zero_timeout(fw, sim_clock):
+def test_watchdog_disabled_with_zero_timeout_in_maintenance(fw, sim_clock):
+    write(fw, "MODE", Mode.MAINTENANCE, 0)
+    write(fw, "MODE", Mode.MAINTENANCE, 1)
     write(fw, "HEARTBEAT_TIMEOUT", 0)
     sim_clock.sleep(3600)
     assert not Status(read(fw, "DEVICE_STATUS")) & Status.COMM_LOST

@@ -1,0 +1,129 @@
+"""Per-drive health: ok, degraded or lost, with the reason; what to do about faults.
+
+The loop reports every exchange to a :class:`DriveHealth`, which decides:
+
+* link: a failed cycle makes the drive ``degraded``; ``lost_after`` failures in a row make
+  it ``lost``, and the loop then closes the link and reconnects with exponential backoff
+  (one period, doubling, at most ``max_backoff_s``);
+* faults: a latched fault (stall, limit switch, encoder...) is named, and CLEAR_FAULT is sent
+  at most ``max_fault_clears`` times, ``clear_interval_s`` apart; a fault that survives them
+  leaves the drive ``lost`` until someone fixes it (the count restarts once it clears);
+* stow: a drive in STOW because its watchdog fired (COMM_LOST) is resumed once the link is
+  back; a STOW the controller commanded is resumed when the weather allows; any other
+  STOW (a local wind switch, a maintenance panel, another master) is left alone and
+  reported; MAINTENANCE is reported and left alone too;
+* a target the drive had to clamp means the controller's limits and the drive's disagree.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+
+from firmware_protocol import Command, Fault, Mode, Status
+
+from .drives.base import DriveState
+
+
+class Health(str, Enum):
+    OK = "ok"
+    DEGRADED = "degraded"
+    LOST = "lost"
+
+
+@dataclass(frozen=True)
+class HealthPolicy:
+    """Thresholds (counts, seconds)."""
+
+    lost_after: int = 3
+    max_fault_clears: int = 3
+    clear_interval_s: float = 120.0
+    min_backoff_s: float = 60.0
+    max_backoff_s: float = 960.0
+
+
+@dataclass
+class DriveHealth:
+    policy: HealthPolicy = field(default_factory=HealthPolicy)
+    state: Health = Health.OK
+    reason: str = ""
+    errors_in_row: int = 0
+    fault_clears: int = 0
+    last_clear: float = -math.inf
+    reconnect_at: float = -math.inf
+    backoff_s: float = 0.0
+    #: The controller commanded this drive into STOW (weather) and owns its resume.
+    stowed_by_us: bool = False
+    #: The drive was seen stowed by its own watchdog (COMM_LOST) before a heartbeat
+    #: cleared the flag: resume it once the link is back.
+    watchdog_stow: bool = False
+
+    # -- link -----------------------------------------------------------------------
+    def comm_failed(self, now: float, why: str) -> bool:
+        """Record a failed cycle; True when the link should be closed and reopened later."""
+        self.errors_in_row += 1
+        if self.errors_in_row < self.policy.lost_after:
+            self.state, self.reason = Health.DEGRADED, why
+            return False
+        self.state, self.reason = Health.LOST, f"{why} ({self.errors_in_row} cycles in a row)"
+        self.backoff_s = min(max(2 * self.backoff_s, self.policy.min_backoff_s),
+                             self.policy.max_backoff_s)
+        self.reconnect_at = now + self.backoff_s
+        return True
+
+    def may_reconnect(self, now: float) -> bool:
+        return now >= self.reconnect_at
+
+    # -- what the drive says -----------------------------------------------------------
+    def assess(self, st: DriveState, now: float, *, weather_stow: bool) -> list[Command]:
+        """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME)."""
+        self.errors_in_row = 0
+        self.backoff_s = 0.0
+        problems: list[str] = []
+        commands: list[Command] = []
+        faults = [(k, a) for k, a in enumerate(st.axes) if a.status & Status.FAULT]
+        lost = False
+        if faults:
+            names = ", ".join(f"axis {k} {_fault_text(a.fault, a.status)}" for k, a in faults)
+            if self.fault_clears < self.policy.max_fault_clears:
+                if now - self.last_clear >= self.policy.clear_interval_s:
+                    commands.append(Command.CLEAR_FAULT)
+                    self.fault_clears += 1
+                    self.last_clear = now
+                problems.append(f"{names} (clear {self.fault_clears}/{self.policy.max_fault_clears})")
+            else:
+                lost = True
+                problems.append(f"{names} persists after {self.fault_clears} clears: needs service")
+        else:
+            self.fault_clears = 0
+        modes = {a.mode for a in st.axes}
+        comm_lost = any(a.status & Status.COMM_LOST for a in st.axes)
+        if Mode.MAINTENANCE in modes:
+            problems.append("in MAINTENANCE mode (service)")
+        if Mode.STOW in modes:
+            ours = self.stowed_by_us or self.watchdog_stow or comm_lost
+            if ours and not weather_stow:
+                commands.append(Command.RESUME)          # our stow, or the watchdog's
+                self.stowed_by_us = self.watchdog_stow = False
+            elif not ours:
+                problems.append("stowed by a local switch or another master: left stowed")
+        else:
+            self.watchdog_stow = False
+        if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
+            problems.append("the drive clamped a target (its limits differ from the configuration)")
+        if lost:
+            self.state = Health.LOST
+        elif problems:
+            self.state = Health.DEGRADED
+        else:
+            self.state = Health.OK
+        self.reason = "; ".join(problems)
+        return commands
+
+
+def _fault_text(fault: Fault, status: Status) -> str:
+    text = f"fault {fault.name}"
+    limits = [n for n, bit in (("LIMIT_NEG", Status.LIMIT_NEG), ("LIMIT_POS", Status.LIMIT_POS))
+              if status & bit]
+    return text + (f" ({', '.join(limits)})" if limits else "")
