@@ -145,19 +145,24 @@ class FisheyeEstimator:
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
         cands: list[Candidate] = []
+        low = 0
         for blob in blobs:
             for x, y, r in blob.centres:
                 if any(math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
                        for c in cands):
                     continue  # another centre of a glare already measured
+                if self._below_horizon(x, y, r):
+                    low += 1
+                    continue
                 fit = fit_glare(grey, self.lens, x, y, r, float(peak), o.glare, up_cam=self.up_cam)
                 if fit is not None:
                     cands.append(self._judge(fit))
         sun_like = [c for c in cands if c.reason is None]
         if not sun_like:
             reasons = Counter(c.reason for c in cands)
+            reasons["below_horizon"] += low
             why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
-            return not_found(None, why, t, self.frame, self.algorithm, candidates=len(cands))
+            return not_found(None, why, t, self.frame, self.algorithm, candidates=len(cands) + low)
         gates = self._gates(t, prior)
         passing = [c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg
                                               for g in gates)]
@@ -200,6 +205,16 @@ class FisheyeEstimator:
         elif el is not None and el < -o.horizon_margin_deg:
             reason = "below_horizon"
         return Candidate(fit, d_cam, d_enu, el, reason)
+
+    def _below_horizon(self, x: float, y: float, r_px: float) -> bool:
+        """The whole blob lies below the horizon (orientation known): not worth a fit."""
+        if self.R is None:
+            return False
+        d, ok = self.lens.rays([[x, y]])
+        if not ok[0]:
+            return False
+        el = math.degrees(math.asin(float(np.clip((self.R @ d[0])[2], -1, 1))))
+        return el + r_px * self.lens.deg_per_px(x, y) < -self.options.horizon_margin_deg
 
     def _in(self, c: Candidate, frame: str) -> np.ndarray:
         return c.d_enu if frame == "enu" and c.d_enu is not None else c.d_cam

@@ -281,6 +281,24 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
         g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))
         a = a - g * bias
         a /= np.linalg.norm(a)
+    flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
+    # the same rim, read as a circle in the image: a glare made by the optics (round on the
+    # sensor) fits it better than any cone near the edge of the field
+    uv_rim, ok_rim = lens.project(pts[has])
+    circ = _fit_circle_px(uv_rim[ok_rim], opts.outlier_k, opts.noise_floor_px) if ok_rim.sum() >= 8 else None
+    if circ is not None:
+        (pcx, pcy), p_inl, p_rms = circ
+        n_a, rms_a_px = len(idx), math.degrees(rms) / dpp
+        n_p = int(p_inl.sum())
+        if n_p > n_a + max(2, 0.05 * n_rays) or (n_p >= n_a and p_rms < 0.7 * rms_a_px):
+            d_c, ok_c = lens.rays([[pcx, pcy]])
+            if ok_c[0]:
+                a = d_c[0]
+                idx = np.flatnonzero(has)[np.flatnonzero(ok_rim)[p_inl]]
+                rho = float(np.mean(np.arccos(np.clip(pts[has][ok_rim][p_inl] @ a, -1.0, 1.0))))
+                rms = math.radians(p_rms * dpp)
+                g = 1.0
+                flags.append("round_in_image")
     uv, okp = lens.project(a[None, :])
     if not okp[0]:
         return None
@@ -288,13 +306,33 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
     if not (0 <= xc < W and 0 <= yc < H):
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
-    flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
     return GlareFit(axis=a, radius_deg=math.degrees(rho), rms_deg=math.degrees(rms),
                     n_rays=n_rays, n_valid=int(has.sum()), n_inliers=len(idx),
                     max_gap_deg=_max_gap(idx, n_rays), centre_uv=(xc, yc), radius_px=r_fit,
                     peak=peak, background=bg,
                     core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
                     deg_per_px=dpp, smear=smear_kind, flags=flags, image_share=g)
+
+
+def _fit_circle_px(uv: np.ndarray, k: float, floor_px: float):
+    """Robust algebraic circle through image points (N, 2): (centre, inlier mask, rms px)."""
+    inl = np.ones(len(uv), bool)
+    centre = uv.mean(axis=0)
+    res = np.zeros(len(uv))
+    for _ in range(5):
+        x, y = uv[inl, 0], uv[inl, 1]
+        A = np.stack([x, y, np.ones_like(x)], 1)
+        sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
+        centre = np.array([-sol[0] / 2.0, -sol[1] / 2.0])
+        r = math.sqrt(max(float(centre @ centre - sol[2]), 0.0))
+        res = np.hypot(uv[:, 0] - centre[0], uv[:, 1] - centre[1]) - r
+        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
+        new = np.abs(res - np.median(res[inl])) <= k * max(mad, floor_px)
+        if new.sum() < 6 or np.array_equal(new, inl):
+            break
+        inl = new
+    rms = float(np.sqrt(np.mean((res[inl] - res[inl].mean()) ** 2))) if inl.any() else float("inf")
+    return (float(centre[0]), float(centre[1])), inl, rms
 
 
 def _pixel_round_bias(lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72

@@ -29,28 +29,17 @@ def plane_fit(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
     return a, float(a @ m)
 
 
-def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
-             iters: int = 4) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
-    """Robust small circle (or ellipse) through unit vectors ``v`` (N, 3).
-
-    The plane fit gives the axis (an ellipse's centre too, by its symmetry); the angular
-    residuals are modelled as ``rho + c2 cos(2 psi) + s2 sin(2 psi)`` (``psi``: the point's
-    angle about the axis), so a glare that the lens or the optics made elliptical is not
-    mistaken for outliers.
-
-    Returns (axis, mean angular radius rad, inlier mask, rms of the inliers' residuals
-    about the ellipse rad, (c2, s2) rad).
-    """
-    w = np.ones(len(v))
-    a, c = plane_fit(v, w)
-    inl = np.ones(len(v), bool)
+def _refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
+    """Iterate plane fit / ellipse residuals / MAD selection from the inlier set ``inl``."""
+    a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
     ell = np.zeros(2)
     res = np.zeros(len(v))
     for i in range(iters + 1):
         e1, e2 = tangent_basis(a)
         ang = np.arccos(np.clip(v @ a, -1.0, 1.0))
         psi = np.arctan2(v @ e2, v @ e1)
-        A = np.stack([np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi)], 1)
+        A = np.stack([np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi), np.cos(3 * psi),
+                      np.sin(3 * psi)], 1)
         coef, *_ = np.linalg.lstsq(A[inl], ang[inl], rcond=None)
         ell = coef[1:3]
         res = ang - A @ coef
@@ -61,7 +50,61 @@ def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
         if new.sum() < 6 or np.array_equal(new, inl):
             break
         inl = new
-        a, c = plane_fit(v[inl], w[inl])
+        a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
+    return a, c, inl, res, ell
+
+
+def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 48) -> np.ndarray:
+    """Inliers of the best circle through 3 of the points (a deterministic RANSAC): a start
+    that a contiguous arc of outliers (a saturated cloud edge) cannot drag."""
+    n = len(v)
+    rng = np.random.default_rng(n)
+    idx = np.array([rng.choice(n, 3, replace=False) for _ in range(n_hyp)])
+    p1, p2, p3 = v[idx[:, 0]], v[idx[:, 1]], v[idx[:, 2]]
+    nrm = np.cross(p2 - p1, p3 - p1)
+    ln = np.linalg.norm(nrm, axis=1)
+    ok = ln > 1e-12
+    nrm = nrm[ok] / ln[ok, None]
+    c = np.sum(nrm * p1[ok], axis=1)
+    flip = c < 0
+    nrm[flip], c[flip] = -nrm[flip], -c[flip]
+    rho = np.arccos(np.clip(c, -1.0, 1.0))
+    tol = np.maximum(4.0 * floor_rad, 0.02 * rho) * np.sin(np.maximum(rho, 1e-6))
+    count = (np.abs(v @ nrm.T - c) <= tol).sum(axis=0)
+    best = int(np.argmax(count))
+    return np.abs(v @ nrm[best] - c[best]) <= tol[best]
+
+
+def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
+             iters: int = 4) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
+    """Robust small circle (or ellipse) through unit vectors ``v`` (N, 3).
+
+    The plane fit gives the axis (an ellipse's centre too, by its symmetry); the angular
+    residuals are modelled as ``rho + c2 cos(2 psi) + s2 sin(2 psi) + c3 cos(3 psi) + s3
+    sin(3 psi)`` (``psi``: the point's angle about the axis), so a glare that the lens or
+    the optics made elliptical, or egg-shaped (round in the image near its edge), is not
+    mistaken for outliers.  Two starts are refined by median / MAD rejection, all points and
+    a RANSAC circle; the one that keeps more points within five noise floors wins (else the
+    lower truncated squared residual).
+
+    Returns (axis, mean angular radius rad, inlier mask, rms of the inliers' residuals
+    about the ellipse rad, (c2, s2) rad).
+    """
+    sols = [_refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
+    if len(v) >= 12:
+        start = _ransac_circle(v, floor_rad)
+        if start.sum() >= 6:
+            sols.append(_refine_cone(v, start, k, floor_rad, iters))
+    # the start that keeps the most points within a few noise floors wins; a partial arc
+    # always fits well, so a fit of all the points that also fits is preferred
+    tol = 5.0 * floor_rad
+    rms_of = [float(np.sqrt(np.mean(r[i] ** 2))) if i.any() else np.inf for _, _, i, r, _ in sols]
+    good = [j for j, r in enumerate(rms_of) if r <= tol]
+    if good:
+        best = max(good, key=lambda j: int(sols[j][2].sum()))
+    else:
+        best = int(np.argmin([float(np.minimum(r ** 2, tol * tol).sum()) for _, _, _, r, _ in sols]))
+    a, c, inl, res, ell = sols[best]
     rho = float(np.arccos(np.clip(c, -1.0, 1.0)))
     rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
     return a, rho, inl, rms, ell
