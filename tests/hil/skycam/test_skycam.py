@@ -3,7 +3,7 @@
 import subprocess
 import sys
 from dataclasses import replace
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import cv2
 import numpy as np
@@ -12,11 +12,21 @@ import pvlib
 import pytest
 
 from hil.errors import HilError
-from hil.skycam import (AircraftGlint, CloudField, FisheyeLens, FlareGhost, GlareModel, SpecularReflection,
-                        orientation, render_sky, seed_lens, sky_profile)
+from hil.skycam import (
+    AircraftGlint,
+    CloudField,
+    FisheyeLens,
+    FlareGhost,
+    GlareModel,
+    SpecularReflection,
+    orientation,
+    render_sky,
+    seed_lens,
+    sky_profile,
+)
 from hil.skycam.checkerboard import board_corners, checkerboard_poses, render_checkerboard
 
-T_MORNING = datetime(2025, 3, 20, 6, 0, tzinfo=timezone.utc).timestamp()
+T_MORNING = datetime(2025, 3, 20, 6, 0, tzinfo=UTC).timestamp()
 
 
 def small(noise=False, **kw):
@@ -111,7 +121,7 @@ def test_a_cloud_over_the_sun_hides_it_and_the_truth_says_so():
 def test_ccd_smear_lights_the_sun_column_and_bloom_saturates_it():
     base = small()
     u, v = render_sky(base, T_MORNING).truth["sun_uv"]
-    col, row_far = int(round(u)), int(round(v)) + 60
+    col, row_far = round(u), round(v) + 60
     plain = cv2.cvtColor(render_sky(base, T_MORNING).image, cv2.COLOR_BGR2GRAY)
     ccd = cv2.cvtColor(render_sky(base.with_(glare=replace(base.glare, smear="ccd", smear_level=0.3)),
                                   T_MORNING).image, cv2.COLOR_BGR2GRAY)
@@ -131,7 +141,7 @@ def test_distractors_are_bright_where_the_truth_puts_them():
     kinds = {d["kind"]: d for d in fr.truth["distractors"]}
     assert set(kinds) == {"reflection", "glint", "ghost"}
     for d in kinds.values():
-        u, v = (int(round(x)) for x in d["uv"])
+        u, v = (round(x) for x in d["uv"])
         assert grey[v, u] >= 240, d["kind"]
 
 

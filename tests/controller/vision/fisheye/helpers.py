@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 from controller.calibration.camera import CameraCal
 from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
@@ -10,7 +10,7 @@ from hil.skycam import sky_profile
 
 
 def utc(*a) -> float:
-    return datetime(*a, tzinfo=timezone.utc).timestamp()
+    return datetime(*a, tzinfo=UTC).timestamp()
 
 
 def small_scene(noise: bool = False, scale: float = 0.5, **kw):

@@ -149,7 +149,7 @@ def test_a_mask_hides_what_it_covers(scn, tmp_path):
     import cv2
 
     fr = render_sky(scn, T)
-    u, v = (int(round(x)) for x in fr.truth["sun_uv"])
+    u, v = (round(x) for x in fr.truth["sun_uv"])
     m = np.full((scn.lens.height, scn.lens.width), 255, np.uint8)
     cv2.circle(m, (u, v), 20, 0, -1)
     cv2.imwrite(str(tmp_path / "mask.png"), m)

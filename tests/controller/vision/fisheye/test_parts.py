@@ -45,18 +45,18 @@ def test_cone_fit_ignores_a_bulge_and_a_dent():
     bulge = _circle(a, math.radians(6.0), 120, rng)[:25]      # a saturated cloud edge
     dent = _circle(a, math.radians(2.5), 120, rng)[60:75]      # a cloud over part of the rim
     pts = np.concatenate([v[25:60], v[75:], bulge, dent])
-    axis, rho, inl, rms, _ = fit_cone(pts)
+    axis, rho, inl, _rms, _ = fit_cone(pts)
     assert math.degrees(math.acos(min(1.0, axis @ a))) < 0.01
     assert math.degrees(rho) == pytest.approx(4.0, abs=0.01)
     assert not inl[-40:].any()
 
 
 def test_cone_fit_accepts_an_ellipse_without_calling_it_outliers():
-    a = np.array([0.0, 0.0, 1.0])
+    np.array([0.0, 0.0, 1.0])
     ph = np.linspace(0, 2 * np.pi, 90, endpoint=False)
     r = np.radians(4.0) * (1 + 0.3 * np.cos(2 * ph))
     v = np.stack([np.sin(r) * np.cos(ph), np.sin(r) * np.sin(ph), np.cos(r)], 1)
-    axis, rho, inl, rms, ell = fit_cone(v)
+    axis, _rho, inl, _rms, ell = fit_cone(v)
     assert inl.all() and math.degrees(math.acos(axis[2])) < 1e-6
     assert np.hypot(*ell) == pytest.approx(np.radians(1.2), rel=0.05)
 
@@ -80,9 +80,9 @@ def test_longitude_correction_stretches_each_row_to_the_full_circle():
     est = SeedEstimator(truth_bundle(scn))
     R, x0, y0 = est.radius, est.x0, est.y0
     m = np.zeros((scn.lens.height, scn.lens.width), np.uint8)
-    row = int(round(y0 + 0.6 * R))
+    row = round(y0 + 0.6 * R)
     half = math.sqrt(R * R - (row - y0) ** 2)
-    m[row, int(round(x0 + 0.5 * half))] = 255  # half way to the circle's edge on that row
+    m[row, round(x0 + 0.5 * half)] = 255  # half way to the circle's edge on that row
     ys, xs = np.nonzero(est.correct(m))
     assert set(ys) == {row}
     assert xs.mean() == pytest.approx(x0 + 0.5 * R, abs=1.5)
