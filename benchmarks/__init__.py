@@ -21,7 +21,7 @@ from controller.atomic import atomic_write
 
 #: Registered benchmarks (module names under ``benchmarks``).
 BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot",
-                               "persistence")
+                               "persistence", "fisheye")
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 

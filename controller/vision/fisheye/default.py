@@ -37,12 +37,13 @@ from ...sun.types import enu_to_azel
 from .frames import as_bgr8, load_frame
 from .gates import Ephemeris, Gate, GateOptions, prior_direction
 from .glare import GlareFit, GlareOptions, find_blobs, fit_glare
+from .history import GlareHistory
 from .lens import FisheyeLens
 from .result import FisheyeResult, not_found
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
-REASON_ORDER = ("below_horizon", "irregular_glare", "incomplete_glare", "low_contrast",
-                "glare_too_small", "glare_too_large", "no_rim")
+REASON_ORDER = ("static_glare", "glare_shrunk", "below_horizon", "irregular_glare",
+                "incomplete_glare", "low_contrast", "glare_too_small", "glare_too_large", "no_rim")
 
 
 @dataclass(frozen=True)
@@ -50,18 +51,21 @@ class FisheyeOptions:
     """Decision thresholds of the default pipeline (angles in degrees).
 
     All are physical or geometric (angular sizes, fractions of the rim), none in pixels of
-    one particular camera except ``max_rms_px``, the rim's roughness relative to the pixel.
+    one particular camera except ``max_rms_px``, the rim's roughness relative to the pixel
+    (a cloud-mangled sun's rim is rough by a few per cent of its radius, a saturated cloud
+    patch by tens of per cent).
     """
 
     glare: GlareOptions = field(default_factory=GlareOptions)
     gates: GateOptions = field(default_factory=GateOptions)
     min_peak: float = 200.0            # grey level: below it nothing is saturated
     sat_margin: float = 4.0            # grey levels under the peak that count as saturated
-    min_radius_deg: float = 0.6        # the sun's disk is 0.27 deg; the glare is wider
+    min_radius_deg: float = 0.8        # the sun's disk is 0.27 deg; smaller: a point source, or too dim
     max_radius_deg: float = 20.0
-    min_inlier_fraction: float = 0.5
-    max_gap_deg: float = 110.0         # largest arc of the rim without an inlier
-    max_rms_px: float = 0.6            # rim residual RMS, in pixels at the glare
+    min_inlier_fraction: float = 0.35
+    max_gap_deg: float = 150.0         # largest arc of the rim without an inlier
+    max_rms_px: float = 0.6            # rim residual RMS: this many pixels at the glare ...
+    max_rms_rel: float = 0.08          # ... plus this fraction of its radius
     min_core_fill: float = 0.9
     min_contrast: float = 0.12         # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
@@ -102,6 +106,7 @@ class FisheyeEstimator:
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude,
                                             altitude=s.altitude))
         self._last: tuple[float, np.ndarray] | None = None
+        self.history = GlareHistory()
         dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
         lens_sig = 0.5 * (cam.rms_px or 0.0) * dpp0
         o = bundle.orientation
@@ -112,8 +117,9 @@ class FisheyeEstimator:
 
     # -- sequence --------------------------------------------------------------------------
     def reset_sequence(self) -> None:
-        """Forget the last accepted detection (a new sequence starts)."""
+        """Forget the last accepted detection and the glares seen (a new sequence starts)."""
         self._last = None
+        self.history.clear()
 
     # -- entry points ------------------------------------------------------------------------
     def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
@@ -158,6 +164,8 @@ class FisheyeEstimator:
                 if fit is not None:
                     cands.append(self._judge(fit))
         sun_like = [c for c in cands if c.reason is None]
+        if t is not None and sun_like:
+            sun_like = self._motion_vetoes(t, sun_like, prior)
         if not sun_like:
             reasons = Counter(c.reason for c in cands)
             reasons["below_horizon"] += low
@@ -175,14 +183,21 @@ class FisheyeEstimator:
         flags = ["several_candidates"] if len(sun_like) > 1 else []
         best = passing[0]
         if len(passing) > 1 and passing[1].fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg:
-            if not gates:
+            close = [c for c in passing if c.fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg]
+            movers = [c for c in close if t is not None and self.history.moves_like_the_sun(t, self._gd(c))]
+            if gates:
+                g = gates[0]
+                best = min(passing, key=lambda c: g.distance_deg(self._in(c, g.frame)))
+            elif len(movers) == 1:
+                best = movers[0]
+                flags.append("chosen_by_motion")
+            else:
                 return not_found(None, "ambiguous_candidates", t, self.frame, self.algorithm,
                                  candidates=len(passing))
-            g = gates[0]
-            best = min(passing, key=lambda c: g.distance_deg(self._in(c, g.frame)))
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
         if t is not None:
-            self._last = (float(t), best.d_enu if best.d_enu is not None else best.d_cam)
+            self._last = (float(t), self._gd(best))
+            self.history.accepted(float(t), best.fit.radius_deg)
         return res
 
     # -- internals ---------------------------------------------------------------------------
@@ -192,7 +207,8 @@ class FisheyeEstimator:
         d_enu = self.R @ d_cam if self.R is not None else None
         el = float(math.degrees(math.asin(np.clip(d_enu[2], -1, 1)))) if d_enu is not None else None
         reason = None
-        if fit.rms_deg / fit.deg_per_px > o.max_rms_px or fit.core_fill < o.min_core_fill:
+        if (fit.rms_deg > o.max_rms_px * fit.deg_per_px + o.max_rms_rel * fit.radius_deg
+                or fit.core_fill < o.min_core_fill):
             reason = "irregular_glare"
         elif fit.inlier_fraction < o.min_inlier_fraction or fit.max_gap_deg > o.max_gap_deg:
             reason = "incomplete_glare"
@@ -205,6 +221,26 @@ class FisheyeEstimator:
         elif el is not None and el < -o.horizon_margin_deg:
             reason = "below_horizon"
         return Candidate(fit, d_cam, d_enu, el, reason)
+
+    def _gd(self, c: Candidate) -> np.ndarray:
+        """The candidate's direction in the frame the sequence is judged in."""
+        return c.d_enu if c.d_enu is not None else c.d_cam
+
+    def _motion_vetoes(self, t: float, sun_like: list[Candidate], prior) -> list[Candidate]:
+        """Record the sun-like glares; without the ephemeris or a prior to go by, drop those
+        that stand still or are much smaller than the sun recently seen (:mod:`.history`)."""
+        self.history.add(float(t), [(self._gd(c), c.fit.radius_deg) for c in sun_like])
+        if self.ephemeris is not None or prior is not None:
+            return sun_like
+        kept = []
+        for c in sun_like:
+            if self.history.is_static(float(t), self._gd(c)):
+                c.reason = "static_glare"
+            elif self.history.is_shrunk(float(t), c.fit.radius_deg):
+                c.reason = "glare_shrunk"
+            else:
+                kept.append(c)
+        return kept
 
     def _below_horizon(self, x: float, y: float, r_px: float) -> bool:
         """The whole blob lies below the horizon (orientation known): not worth a fit."""
@@ -227,7 +263,9 @@ class FisheyeEstimator:
             out.append(Gate("prior", pd[0], max(g.prior_min_deg, g.prior_k_sigma * pd[1] + g.base_deg),
                             "enu"))
         if self.ephemeris is not None and t is not None:
-            out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg, "enu"))
+            o = self.bundle.orientation
+            slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
+            out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg + slack, "enu"))
         if self._last is not None and t is not None:
             dt = float(t) - self._last[0]
             if 0.0 <= dt <= g.max_gap_s:
@@ -240,9 +278,13 @@ class FisheyeEstimator:
         f = c.fit
         v = c.d_enu if c.d_enu is not None else c.d_cam
         az, el = enu_to_azel(v)
-        sig_fit = math.radians(f.rms_deg) * math.sqrt(2.0 / max(f.n_inliers, 3))
-        sigma = math.hypot(math.hypot(math.degrees(sig_fit), o.sigma_floor_deg), self.sigma_cal)
-        sigma *= 1.0 + 2.0 * (1.0 - f.inlier_fraction)
+        sig_fit = f.rms_deg * math.sqrt(2.0 / max(f.n_inliers, 3))
+        # a rim bent by a cloud nearby, or partly lost to one, moves the centre by a share of
+        # the bending and of the radius: systematic, not averaged down by the rays
+        sig_rim = 0.5 * f.rms_deg
+        sig_partial = 0.5 * f.radius_deg * (1.0 - f.inlier_fraction) ** 2
+        sigma = math.sqrt(sig_fit ** 2 + sig_rim ** 2 + o.sigma_floor_deg ** 2 + self.sigma_cal ** 2
+                          + sig_partial ** 2)
         if f.inlier_fraction < 0.9:
             flags.append("outliers_rejected")
         if f.smear:

@@ -6,7 +6,8 @@
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
-  the sun is within ``ephemeris_deg`` of pvlib's position.  The ephemeris is evaluated on a
+  the sun is within ``ephemeris_deg`` (plus five times the orientation fit's residual) of
+  pvlib's position.  The ephemeris is evaluated on a
   10-minute grid and interpolated (error < 0.001 deg), so the gate costs nothing per frame.
 """
 
@@ -29,7 +30,7 @@ class GateOptions:
     prior_min_deg: float = 1.0
     prior_k_sigma: float = 3.0
     ephemeris: bool = True
-    ephemeris_deg: float = 2.5
+    ephemeris_deg: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -152,14 +152,22 @@ def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[floa
 # ------------------------------------------------------------------------------------------
 def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float) -> bool:
     """True when a saturated vertical streak (bloom, or a strong CCD smear) leaves the glare:
-    the columns through it are still saturated 2 to 3 radii above or below its centre."""
+    1.6 to 2.6 radii above and below its centre (where the image holds both), the columns
+    through it are saturated and those 1.5 to 2.5 radii aside are not (a streak, not a
+    saturated cloud)."""
     H, W = grey.shape
     x0, x1 = max(int(xc - 0.6 * r), 0), min(int(xc + 0.6 * r) + 1, W)
-    for lo, hi in ((yc - 3.0 * r, yc - 2.0 * r), (yc + 2.0 * r, yc + 3.0 * r)):
+    sides = []
+    for lo, hi in ((yc - 2.6 * r, yc - 1.6 * r), (yc + 1.6 * r, yc + 2.6 * r)):
         r0, r1 = max(int(lo), 0), min(int(hi) + 1, H)
-        if r1 - r0 >= 2 and x1 > x0 and float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level:
-            return True
-    return False
+        if r1 - r0 < 2 or x1 <= x0:
+            continue
+        inner = float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level
+        aside = [grey[r0:r1, max(int(a), 0):min(int(b) + 1, W)] for a, b in
+                 ((xc - 2.5 * r, xc - 1.5 * r), (xc + 1.5 * r, xc + 2.5 * r))]
+        clear = all(float(np.mean(a >= sat_level)) < 0.2 for a in aside if a.size)
+        sides.append(inner and clear)
+    return bool(sides) and all(sides)
 
 
 def _crossings(vals: np.ndarray, radii: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,7 +298,12 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
         (pcx, pcy), p_inl, p_rms = circ
         n_a, rms_a_px = len(idx), math.degrees(rms) / dpp
         n_p = int(p_inl.sum())
-        if n_p > n_a + max(2, 0.05 * n_rays) or (n_p >= n_a and p_rms < 0.7 * rms_a_px):
+        # only a clearly better, nearly complete circle: a rim bent by a cloud edge fits
+        # neither model, and the cone is the default
+        # and only when the cone's rim is elliptical the way the lens makes a round image
+        # (g), which a rim bent by clouds is not
+        if (g >= 0.5 and n_p >= 0.8 * len(uv_rim)
+                and (n_p >= 1.25 * n_a + 2 or (n_p >= n_a and p_rms < 0.5 * rms_a_px))):
             d_c, ok_c = lens.rays([[pcx, pcy]])
             if ok_c[0]:
                 a = d_c[0]
