@@ -7,7 +7,9 @@ and optionally JPEG-encodes.  Output images are BGR (OpenCV's order), uint8.
 Truth per frame (``SkyFrame.truth``): the sun's pvlib azimuth / apparent elevation, its ENU
 and camera-frame unit vectors, its pixel, the cloud optical depth on its line of sight and
 the beam transmittance, the visibility class used by the benchmark (``visible``: beam
-transmittance >= 0.9; ``hidden``: < 0.1 or below the terrain; ``dimmed``: in between), and
+transmittance >= 0.9, a clear line of sight; ``hidden``: the sun's saturated glare, if any,
+is under 0.5 deg in radius (not discernible as a sun), or the sun is below the terrain;
+``dimmed``: in between, a disk seen through cloud), and
 where each distractor is.
 """
 
@@ -28,7 +30,7 @@ from .sky import SkyModel, ground_and_horizon, sky_radiance, terrain_elevation_d
 from .sun import air_mass_dimming, apply_smear, glare_signal
 
 VISIBLE_T = 0.9
-HIDDEN_T = 0.1
+HIDDEN_RADIUS_DEG = 0.5
 
 
 @dataclass
@@ -56,8 +58,9 @@ def _static(lens: FisheyeLens, enu_from_camera: tuple, sky: SkyModel) -> tuple[n
     return out
 
 
-def visibility_class(transmittance: float, above_terrain: bool) -> str:
-    if not above_terrain or transmittance < HIDDEN_T:
+def visibility_class(transmittance: float, glare_radius_deg: float, above_terrain: bool) -> str:
+    """``visible``, ``dimmed`` or ``hidden`` (see the module's docstring)."""
+    if not above_terrain or glare_radius_deg < HIDDEN_RADIUS_DEG:
         return "hidden"
     return "visible" if transmittance >= VISIBLE_T else "dimmed"
 
@@ -124,7 +127,7 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
     glare = None
     if strength > 0:
         pix_deg = np.hypot(px - uv_sun[0], py - uv_sun[1]) * f_deg
-        aur_T = 0.3 + 0.7 * np.exp(-tau)
+        aur_T = 0.8 + 0.2 * np.exp(-tau)  # the aureole is mostly scattered below the clouds
         glare = glare_signal(g, chi_deg, pix_deg, strength, aur_T)
         warm = np.asarray(g.warm, np.float32)
         mix = float(np.clip(el / 20.0, 0.0, 1.0))
@@ -184,7 +187,7 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
         "sun_uv": uv_sun.tolist(), "sun_in_image": bool(in_circle[0]),
         "terrain_deg": terrain, "tau_sun": tau_sun, "transmittance": T_sun,
         "air_mass_dimming": dim, "glare_radius_deg": float(sat_r), "exposure": exposure,
-        "visibility": visibility_class(T_sun, above and bool(in_circle[0])),
+        "visibility": visibility_class(T_sun, float(sat_r), above and bool(in_circle[0])),
         "cloud_fraction": float(np.mean(tau[is_sky] > 0.1)) if scn.clouds is not None else 0.0,
         "distractors": truth_d, "enu_from_camera": R,
     }

@@ -282,8 +282,10 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
             break
     # a glare round in the image rather than on the sky (lens veiling glare) shows as an
     # ellipse in angle whose circle fit is off its centre: correct by the share ``g`` of it
-    bias, ell_pix = _pixel_round_bias(lens, a, rho)
     g = 0.0
+    bias, ell_pix = np.zeros(3), np.zeros(2)
+    if float(np.hypot(*ell)) > 0.01 * rho:  # a round rim needs no such correction
+        bias, ell_pix = _pixel_round_bias(lens, a, rho)
     n2 = float(ell_pix @ ell_pix)
     if n2 > (0.01 * rho) ** 2:
         g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))

@@ -54,12 +54,15 @@ def _refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, ite
     return a, c, inl, res, ell
 
 
-def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 48) -> np.ndarray:
-    """Inliers of the best circle through 3 of the points (a deterministic RANSAC): a start
-    that a contiguous arc of outliers (a saturated cloud edge) cannot drag."""
+def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 32) -> np.ndarray:
+    """Inliers of the best circle through 3 of the points, the triples spread a third of the
+    rim apart (deterministic): a start that a contiguous arc of outliers (a saturated cloud
+    edge) cannot drag, since some triples miss it."""
     n = len(v)
-    rng = np.random.default_rng(n)
-    idx = np.array([rng.choice(n, 3, replace=False) for _ in range(n_hyp)])
+    k = np.unique(np.linspace(0, n - 1, min(n_hyp, n)).astype(int))
+    idx = np.stack([k, (k + n // 3) % n, (k + (2 * n) // 3) % n], 1)
+    jitter = (np.arange(len(k)) * 7) % max(n // 6, 1)  # vary the spacing a little
+    idx[:, 2] = (idx[:, 2] + jitter) % n
     p1, p2, p3 = v[idx[:, 0]], v[idx[:, 1]], v[idx[:, 2]]
     nrm = np.cross(p2 - p1, p3 - p1)
     ln = np.linalg.norm(nrm, axis=1)
@@ -90,14 +93,16 @@ def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
     Returns (axis, mean angular radius rad, inlier mask, rms of the inliers' residuals
     about the ellipse rad, (c2, s2) rad).
     """
-    sols = [_refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
-    if len(v) >= 12:
-        start = _ransac_circle(v, floor_rad)
-        if start.sum() >= 6:
-            sols.append(_refine_cone(v, start, k, floor_rad, iters))
     # the start that keeps the most points within a few noise floors wins; a partial arc
     # always fits well, so a fit of all the points that also fits is preferred
     tol = 5.0 * floor_rad
+    sols = [_refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
+    first_inl, first_res = sols[0][2], sols[0][3]
+    clean = first_inl.mean() >= 0.9 and float(np.sqrt(np.mean(first_res[first_inl] ** 2))) <= tol
+    if len(v) >= 12 and not clean:
+        start = _ransac_circle(v, floor_rad)
+        if start.sum() >= 6:
+            sols.append(_refine_cone(v, start, k, floor_rad, iters))
     rms_of = [float(np.sqrt(np.mean(r[i] ** 2))) if i.any() else np.inf for _, _, i, r, _ in sols]
     good = [j for j, r in enumerate(rms_of) if r <= tol]
     if good:
@@ -112,10 +117,12 @@ def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
 
 def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing ``a`` to a right-handed frame (e1 near the camera's x)."""
-    ref = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = ref - (ref @ a) * a
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(a, e1)
+    ref = (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)
+    d = ref[0] * a[0] + ref[1] * a[1] + ref[2] * a[2]
+    e1 = np.array([ref[0] - d * a[0], ref[1] - d * a[1], ref[2] - d * a[2]])
+    e1 /= math.sqrt(float(e1 @ e1))
+    e2 = np.array([a[1] * e1[2] - a[2] * e1[1], a[2] * e1[0] - a[0] * e1[2], a[0] * e1[1] - a[1] * e1[0]])
+    return e1, e2
 
 
 def sample_sphere(grey: np.ndarray, lens: FisheyeLens, a: np.ndarray, e1: np.ndarray,
