@@ -2,8 +2,10 @@
 
 * ``lens``: ``cv2.fisheye.calibrate`` on checkerboard views -> ``[camera]``.
 * ``orientation``: a day of sky frames (file names with timestamps) and the site -> the
-  rotation to ENU from the camera's own sun detections (Kabsch, then refined on pixels with
-  the lens; ``--refine lens`` also refines the lens) -> ``[orientation]``, ``[site]``.
+  rotation to ENU from the camera's own sun detections (Kabsch, then refined on pixels
+  together with the lens's focal lengths, principal point and k1, k2, held to their
+  checkerboard values by priors; ``--refine rotation`` keeps the lens) -> ``[orientation]``,
+  ``[site]`` and the refined ``[camera]``.
   ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
 * ``level``: the zenith from the horizon in one clear frame; prints the tilt and residual,
   and the disagreement with the bundle's orientation when it has one.
@@ -39,8 +41,9 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     o.add_argument("--lat", type=float, help="site latitude, deg north (else the bundle's [site])")
     o.add_argument("--lon", type=float, help="site longitude, deg east")
     o.add_argument("--alt", type=float, default=0.0, help="site altitude, m")
-    o.add_argument("--refine", choices=("none", "rotation", "lens"), default="rotation",
-                   help="refine on pixels: the rotation (default), also the lens, or not")
+    o.add_argument("--refine", choices=("none", "rotation", "lens"), default="lens",
+                   help="refine on pixels: the rotation and the lens (default; the lens held to "
+                        "its checkerboard values by priors), the rotation only, or not")
     o.add_argument("--horizon", type=Path, help="a clear frame whose horizon constrains the zenith")
     o.add_argument("--bundle", type=Path, required=True)
     o.add_argument("images", nargs="+", type=Path, help="sky frames named with their UTC time")

@@ -47,7 +47,7 @@ def test_calibration_writes_a_fisheye_bundle_with_orientation_and_site(installed
     R_true = np.asarray(truth["enu_from_camera"])
     ang = math.degrees(math.acos(np.clip((np.trace(b.enu_from_camera @ R_true.T) - 1) / 2, -1, 1)))
     assert ang < 0.1
-    assert b.orientation.method == "sun+horizon"
+    assert b.orientation.method == "sun+horizon+lens"
 
 
 def test_estimate_prints_one_line_per_image_in_time_order(installed, capsys):
