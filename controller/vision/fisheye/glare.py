@@ -33,7 +33,7 @@ import numpy as np
 
 from .lens import FisheyeLens
 from .skybg import sky_by_elevation, sky_dipole
-from .sphere import fit_cone, sample_sphere, tangent_basis
+from .sphere import fit_cone, refine_cone, sample_sphere, tangent_basis
 
 
 @dataclass(frozen=True)
@@ -280,17 +280,15 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it >= 1 and moved < 0.5 * floor:
             break
-    # a glare round in the image rather than on the sky (lens veiling glare) shows as an
-    # ellipse in angle whose circle fit is off its centre: correct by the share ``g`` of it
+    # how much the rim's ellipticity is that of a disk round in the image (lens veiling glare)
+    # rather than on the sky: ``g`` (0..1).  Measured, it is not used to shift the cone's
+    # axis (that made every mixed glare worse); it only admits the image-circle reading below
     g = 0.0
-    bias, ell_pix = np.zeros(3), np.zeros(2)
-    if float(np.hypot(*ell)) > 0.01 * rho:  # a round rim needs no such correction
-        bias, ell_pix = _pixel_round_bias(lens, a, rho)
-    n2 = float(ell_pix @ ell_pix)
-    if n2 > (0.01 * rho) ** 2:
-        g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))
-        a = a - g * bias
-        a /= np.linalg.norm(a)
+    if float(np.hypot(*ell)) > 0.01 * rho:  # a round rim is round on the sky
+        _, ell_pix = _pixel_round_bias(lens, a, rho)
+        n2 = float(ell_pix @ ell_pix)
+        if n2 > (0.01 * rho) ** 2:
+            g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
     # the same rim, read as a circle in the image: a glare made by the optics (round on the
     # sensor) fits it better than any cone near the edge of the field
@@ -365,7 +363,8 @@ def _pixel_round_bias(lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72
         if not okd.all():
             return np.zeros(3), np.zeros(2)
         r *= rho / float(np.mean(np.arccos(np.clip(d @ a, -1.0, 1.0))))
-    a_pix, _, _, _, ell = fit_cone(d, iters=0)
+    # all the points, no robust selection: the disk is exact, only its shape matters
+    a_pix, _, _, _, ell = refine_cone(d, np.ones(len(d), bool), 3.0, 1e-5, 0)
     return a_pix - a, ell
 
 

@@ -29,8 +29,9 @@ def plane_fit(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
     return a, float(a @ m)
 
 
-def _refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
-    """Iterate plane fit / ellipse residuals / MAD selection from the inlier set ``inl``."""
+def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
+    """Iterate plane fit / harmonic residuals / MAD selection from the inlier set ``inl``;
+    returns (axis, cos radius, inliers, residuals rad, (c2, s2) rad)."""
     a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
     ell = np.zeros(2)
     res = np.zeros(len(v))
@@ -96,13 +97,13 @@ def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
     # the start that keeps the most points within a few noise floors wins; a partial arc
     # always fits well, so a fit of all the points that also fits is preferred
     tol = 5.0 * floor_rad
-    sols = [_refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
+    sols = [refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
     first_inl, first_res = sols[0][2], sols[0][3]
     clean = first_inl.mean() >= 0.9 and float(np.sqrt(np.mean(first_res[first_inl] ** 2))) <= tol
     if len(v) >= 12 and not clean:
         start = _ransac_circle(v, floor_rad)
         if start.sum() >= 6:
-            sols.append(_refine_cone(v, start, k, floor_rad, iters))
+            sols.append(refine_cone(v, start, k, floor_rad, iters))
     rms_of = [float(np.sqrt(np.mean(r[i] ** 2))) if i.any() else np.inf for _, _, i, r, _ in sols]
     good = [j for j, r in enumerate(rms_of) if r <= tol]
     if good:
