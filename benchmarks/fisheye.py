@@ -105,7 +105,7 @@ def clear_days(profile: str, sites, step_min: int) -> dict:
         scn = sky_profile(profile, site=WORLD_SITES[site_name])
         chain_bundle, chain_info = _calibrate_chain(scn, step_min)
         known = truth_bundle(scn)
-        ests = {"default_known": FisheyeEstimator(known), "default_chain": FisheyeEstimator(chain_bundle),
+        ests: dict = {"default_known": FisheyeEstimator(known), "default_chain": FisheyeEstimator(chain_bundle),
                 "seed": SeedEstimator(known), "seed_centroid_lens": SeedThroughLens(known)}
         rows: dict = {k: [] for k in ests}
         not_found: dict = {k: {} for k in ests}
@@ -170,7 +170,9 @@ def robustness(quick: bool) -> dict:
     step = 60 if quick else 20
     for name, scn in variations(sky_profile("seed")).items():
         est = FisheyeEstimator(truth_bundle(scn))
-        errs, n, missing = [], 0, {}
+        errs: list = []
+        n = 0
+        missing: dict = {}
         for day in ((2025, 3, 20), (2025, 6, 21)):
             est.reset_sequence()
             for t, az, el in day_frames(scn, day, step):
@@ -188,7 +190,7 @@ def fps(quick: bool) -> dict:
     from controller.vision.fisheye import FisheyeEstimator, SeedEstimator
     from hil.skycam import full_hd_lens, render_sky, sky_profile
 
-    out = {"load_average_before": [round(x, 2) for x in os.getloadavg()]}
+    out: dict = {"load_average_before": [round(x, 2) for x in os.getloadavg()]}
     n = 10 if quick else 30
     for label, scn in (("640x480", sky_profile("seed")),
                        ("1920x1080", sky_profile("hd").with_(lens=full_hd_lens()))):

@@ -148,14 +148,14 @@ def cloud_sequences(base, quick: bool):
     coverages = (0.3, 0.45, 0.6)
     n_seq = 2 if quick else 5
     n_frames = 10 if quick else 30
-    out = []
+    out: list = []
     for cov in coverages:
         for k in range(n_seq):
             day = [(2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21)][k % 4]
             frames = day_frames(base, day, 10, min_el=15.0)
             t0 = frames[int(rng.integers(0, max(len(frames) - 4, 1)))][0]
-            wind = tuple(float(x) for x in rng.uniform(-10, 10, 2))
-            clouds = CloudField(coverage=cov, seed=int(rng.integers(1, 10_000)), wind_mps=wind,
+            wx, wy = (float(x) for x in rng.uniform(-10, 10, 2))
+            clouds = CloudField(coverage=cov, seed=int(rng.integers(1, 10_000)), wind_mps=(wx, wy),
                                 tau_max=float(rng.uniform(6, 16)), scale_m=float(rng.uniform(600, 1500)))
             out.append((base.with_(clouds=clouds), [(t0 + 60.0 * i, {}) for i in range(n_frames)]))
     return out
@@ -169,13 +169,14 @@ def distractor_sequences(base, quick: bool):
     rng = np.random.default_rng(77)
     n_seq = 2 if quick else 6
     n_frames = 12 if quick else 30
-    out = []
+    out: list = []
     for kind in ("reflection", "glint", "ghost"):
         for k in range(n_seq):
             day = [(2025, 3, 20), (2025, 6, 21), (2025, 12, 21)][k % 3]
             frames = day_frames(base, day, 10, min_el=15.0)
             t0 = frames[int(rng.integers(0, max(len(frames) - 5, 1)))][0]
             sun = base.sun([t0])
+            dis: SpecularReflection | AircraftGlint | FlareGhost
             if kind == "reflection":
                 dis = SpecularReflection(az_deg=float((sun["azimuth"][0] + rng.uniform(40, 320)) % 360),
                                          el_deg=float(rng.uniform(-8, 45)),
@@ -190,7 +191,8 @@ def distractor_sequences(base, quick: bool):
                 dis = FlareGhost(position=float(rng.uniform(0.4, 1.0)),
                                  radius_px=float(rng.uniform(6, 11)) * base.lens.width / 640,
                                  level=float(rng.uniform(1.1, 1.8)),
-                                 tint=tuple(float(x) for x in rng.uniform(0.7, 1.0, 3)))
+                                 tint=(float(rng.uniform(0.7, 1.0)), float(rng.uniform(0.7, 1.0)),
+                                       float(rng.uniform(0.7, 1.0))))
             scn = base.with_(distractors=(dis,))
             hide = range(n_frames // 3, 2 * n_frames // 3)
             out.append((scn, [(t0 + 60.0 * i, {"sun_transmittance": 0.0} if i in hide else {})
