@@ -94,6 +94,7 @@ class Tally:
         "frames", "correct_detection", "false_detection", "miss", "correct_rejection",
         "dimmed_not_found", "visible", "hidden", "dimmed")})
     errors_visible: list = field(default_factory=list)
+    sigma_ratios: list = field(default_factory=list)
     reasons: dict = field(default_factory=dict)
 
     def add(self, res, truth: dict) -> None:
@@ -109,6 +110,7 @@ class Tally:
                 c["correct_detection"] += 1
                 if vis == "visible":
                     self.errors_visible.append(err)
+                    self.sigma_ratios.append(err / max(float(res.sigma_deg or 1.0), 1e-9))
         elif vis == "visible":
             c["miss"] += 1
             self.reasons[res.reason] = self.reasons.get(res.reason, 0) + 1
@@ -120,7 +122,9 @@ class Tally:
     def summary(self) -> dict:
         c = dict(self.counts)
         c["miss_rate_of_visible"] = round(c["miss"] / max(c["visible"], 1), 4)
+        r = np.asarray(self.sigma_ratios)
         return {"counts": c, "error_where_visible": stats(self.errors_visible),
+                "frac_within_2sigma": round(float(np.mean(r < 2.0)), 3) if r.size else None,
                 "miss_reasons": dict(sorted(self.reasons.items()))}
 
 
