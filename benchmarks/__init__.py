@@ -14,20 +14,27 @@ import json
 import os
 import platform
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 from controller.atomic import atomic_write
 
 #: Registered benchmarks (module names under ``benchmarks``).
-BENCHMARKS: tuple[str, ...] = ("loop", "plant", "sunpath", "skytype", "diffuse", "hotspot",
-                               "persistence", "fisheye")
+BENCHMARKS: tuple[str, ...] = (
+    "loop",
+    "plant",
+    "sunpath",
+    "skytype",
+    "diffuse",
+    "hotspot",
+    "persistence",
+    "fisheye",
+)
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 
 
-def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None,
-                  **options: object) -> dict:
+def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None, **options: object) -> dict:
     """Run one benchmark and write its JSON; return the result dict.
 
     ``options`` (e.g. ``kills``, ``days``) go to the benchmark's ``run`` when it takes them.
@@ -42,7 +49,7 @@ def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = Non
     record = {
         "benchmark": name,
         "quick": quick,
-        "finished_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "finished_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "wall_s": round(time.perf_counter() - t0, 3),
         "machine": {
             "python": platform.python_version(),

@@ -34,10 +34,12 @@ def _one(args) -> tuple[str, str, int, bool, float, dict]:
 
 def run(quick: bool = False) -> dict:
     days = DAYS[1:2] if quick else DAYS
-    jobs = [(sky, day, seed, enabled)
-            for sky in ("overcast", "partly-cloudy", "clear")
-            for seed, day in enumerate(days)
-            for enabled in (True, False)]
+    jobs = [
+        (sky, day, seed, enabled)
+        for sky in ("overcast", "partly-cloudy", "clear")
+        for seed, day in enumerate(days)
+        for enabled in (True, False)
+    ]
     with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
         results = list(pool.map(_one, jobs))
     table: dict[str, list[dict]] = {}
@@ -55,9 +57,12 @@ def run(quick: bool = False) -> dict:
         for r in rows:
             r["gain_pct"] = round(100 * (r["poa_diffuse_kwh_m2"] / r["poa_tracking_kwh_m2"] - 1), 3)
         gains = [r["gain_pct"] for r in rows]
-        summary[sky] = {"days": len(rows), "gain_pct_min": min(gains),
-                        "gain_pct_mean": round(sum(gains) / len(gains), 3),
-                        "gain_pct_max": max(gains)}
+        summary[sky] = {
+            "days": len(rows),
+            "gain_pct_min": min(gains),
+            "gain_pct_mean": round(sum(gains) / len(gains), 3),
+            "gain_pct_max": max(gains),
+        }
     passed = {
         "overcast": summary["overcast"]["gain_pct_min"] >= TARGETS["overcast_gain_min_pct"],
         "partly_cloudy": summary["partly-cloudy"]["gain_pct_min"] > -TARGETS["partly_cloudy_loss_max_pct"],

@@ -21,7 +21,7 @@ detection instead of the true zenith).
 from __future__ import annotations
 
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import cv2
@@ -33,8 +33,7 @@ DAYS = [(2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21)]
 
 
 def _bundle(scn, zenith=None):
-    from controller.calibration import (AzimuthCal, CalibrationBundle, CameraCal, LevelCal, PoseCal,
-                                               SurfaceCal)
+    from controller.calibration import AzimuthCal, CalibrationBundle, CameraCal, LevelCal, PoseCal, SurfaceCal
     from controller.sun.types import enu_to_azel
     from controller.vision import level_rotation
 
@@ -50,17 +49,19 @@ def _bundle(scn, zenith=None):
         camera=CameraCal(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy, tuple(cam.dist)),
         surface=SurfaceCal(kind="sphere", center=(0.0, 0.0, 0.0), radius=scn.globe.radius),
         pose=PoseCal(rvec=tuple(scn.pose.rvec), tvec=tuple(scn.pose.tvec)),
-        level=LevelCal(zenith_model=tuple(float(x) for x in z)), azimuth=AzimuthCal(off))
+        level=LevelCal(zenith_model=tuple(float(x) for x in z)),
+        azimuth=AzimuthCal(off),
+    )
 
 
 def _measured_zenith(scn):
-    from hil.camera.views import render_plumb_view
     from controller.calibration import CameraCal
     from controller.calibration.level import detect_plumb_lines, zenith_from_lines
+    from hil.camera.views import render_plumb_view
 
     cam = scn.camera
     cc = CameraCal(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy, tuple(cam.dist))
-    t = datetime(2025, 3, 20, 7, 0, tzinfo=timezone.utc).timestamp()
+    t = datetime(2025, 3, 20, 7, 0, tzinfo=UTC).timestamp()
     fr = render_plumb_view(scn, t, n_lines=4)
     lines = detect_plumb_lines(fr.image, cc)
     if len(lines) < 2:
@@ -73,9 +74,13 @@ def _stats(errs):
     e = np.asarray(errs, float)
     if e.size == 0:
         return {"n": 0}
-    return {"n": int(e.size), "rms_deg": round(float(np.sqrt(np.mean(e ** 2))), 4),
-            "median_deg": round(float(np.median(e)), 4), "p95_deg": round(float(np.percentile(e, 95)), 4),
-            "max_deg": round(float(e.max()), 4)}
+    return {
+        "n": int(e.size),
+        "rms_deg": round(float(np.sqrt(np.mean(e**2))), 4),
+        "median_deg": round(float(np.median(e)), 4),
+        "p95_deg": round(float(np.percentile(e, 95)), 4),
+        "max_deg": round(float(e.max()), 4),
+    }
 
 
 def accuracy(profile_name: str, source: str, step_min: int) -> dict:
@@ -92,14 +97,13 @@ def accuracy(profile_name: str, source: str, step_min: int) -> dict:
         if zen is None:
             return {"error": f"plumb-line detection found {nlines} lines"}
     b = _bundle(scn, zen)
-    ests = {"default": HotspotEstimator(b, method="subpixel"),
-            "seed": HotspotEstimator(b, method="paper")}
+    ests = {"default": HotspotEstimator(b, method="subpixel"), "seed": HotspotEstimator(b, method="paper")}
     errs = {k: [] for k in ests}
     notfound = {k: {} for k in ests}
     sig = []
     n_frames = 0
-    for (y, m, d) in DAYS:
-        t0 = datetime(y, m, d, 0, 0, tzinfo=timezone.utc).timestamp()
+    for y, m, d in DAYS:
+        t0 = datetime(y, m, d, 0, 0, tzinfo=UTC).timestamp()
         ts = t0 + np.arange(0, 86400, step_min * 60)
         sun = scn.sun(ts)
         for t, el in zip(ts, sun["elevation"]):
@@ -128,32 +132,46 @@ def accuracy(profile_name: str, source: str, step_min: int) -> dict:
 
 
 def timing(n_frames: int) -> dict:
-    from controller.vision.hotspot import segment_fast, segment_seed
     from controller.vision import HotspotEstimator
+    from controller.vision.hotspot import segment_fast, segment_seed
     from hil.camera import profile, render_frame
 
     scn = profile("seed", noise=True)
     est = HotspotEstimator(_bundle(scn))
     M = est.mask
-    ts = [datetime(2025, mo, 21, h, 30, tzinfo=timezone.utc).timestamp()
-          for mo in (3, 6, 9, 12) for h in (5, 7, 9, 11)][:n_frames]
+    ts = [
+        datetime(2025, mo, 21, h, 30, tzinfo=UTC).timestamp() for mo in (3, 6, 9, 12) for h in (5, 7, 9, 11)
+    ][:n_frames]
     t_seed, t_fast, t_est, agree, used = [], [], [], 0, 0
     for t in ts:
         img = render_frame(scn, t).image
-        a = time.perf_counter(); s1 = segment_seed(img, M); b = time.perf_counter()
-        s2 = segment_fast(img, M); c = time.perf_counter()
-        est.estimate_image(img, t); d = time.perf_counter()
+        a = time.perf_counter()
+        s1 = segment_seed(img, M)
+        b = time.perf_counter()
+        s2 = segment_fast(img, M)
+        c = time.perf_counter()
+        est.estimate_image(img, t)
+        d = time.perf_counter()
         if not s1.found:
             continue
         used += 1
-        t_seed.append(b - a); t_fast.append(c - b); t_est.append(d - c)
+        t_seed.append(b - a)
+        t_fast.append(c - b)
+        t_est.append(d - c)
         agree += int(s2.found and np.array_equal(s1.mask, s2.mask) and s1.i_opt == s2.i_opt)
-    ms = lambda x: round(1000 * float(np.median(x)), 3)
-    return {"frames": used, "image": "960x1080 (seed profile, realistic noise)",
-            "seed_median_ms": ms(t_seed), "default_median_ms": ms(t_fast),
-            "default_full_estimate_median_ms": ms(t_est),
-            "speedup_median": round(float(np.median(np.array(t_seed) / np.array(t_fast))), 1),
-            "identical_masks": f"{agree}/{used}"}
+
+    def ms(x: list[float]) -> float:
+        return round(1000 * float(np.median(x)), 3)
+
+    return {
+        "frames": used,
+        "image": "960x1080 (seed profile, realistic noise)",
+        "seed_median_ms": ms(t_seed),
+        "default_median_ms": ms(t_fast),
+        "default_full_estimate_median_ms": ms(t_est),
+        "speedup_median": round(float(np.median(np.array(t_seed) / np.array(t_fast))), 1),
+        "identical_masks": f"{agree}/{used}",
+    }
 
 
 def chain_accuracy(profile_name: str, bumps_m: float, step_min: int) -> dict:
@@ -174,21 +192,25 @@ def chain_accuracy(profile_name: str, bumps_m: float, step_min: int) -> dict:
     ests = {}
     with tempfile.TemporaryDirectory() as tmp:
         write_dataset(scn, Path(tmp), step_min=15)
-        for name, kw, meth in (("paper", dict(method="noon", shape_degree=0), "paper"),
-                               ("default", dict(method="ephemeris-full", shape_degree=6), "subpixel")):
+        for name, kw, meth in (
+            ("paper", dict(method="noon", shape_degree=0), "paper"),
+            ("default", dict(method="ephemeris-full", shape_degree=6), "subpixel"),
+        ):
             log = []
             b = calibrate_folder(tmp, site=site, log=log.append, **kw)
             R1 = cv2.Rodrigues(np.asarray(b.pose.rvec))[0]
             dR = np.degrees(np.linalg.norm(cv2.Rodrigues(R1 @ np.asarray(scn.pose.R).T)[0]))
-            out[name] = {"calibration_log": log,
-                         "pose_rotation_error_deg": round(float(dR), 4),
-                         "zenith_error_deg": round(float(angle_between_deg(b.zenith(), scn.zenith_model)), 4),
-                         "fx_error_px": round(b.camera.fx - scn.camera.fx, 3)}
+            out[name] = {
+                "calibration_log": log,
+                "pose_rotation_error_deg": round(float(dR), 4),
+                "zenith_error_deg": round(float(angle_between_deg(b.zenith(), scn.zenith_model)), 4),
+                "fx_error_px": round(b.camera.fx - scn.camera.fx, 3),
+            }
             ests[name] = HotspotEstimator(b, method=meth)
     errs = {k: [] for k in ests}
     nf = {k: {} for k in ests}
-    for (y, m, d) in DAYS:
-        t0 = datetime(y, m, d, 0, 0, tzinfo=timezone.utc).timestamp()
+    for y, m, d in DAYS:
+        t0 = datetime(y, m, d, 0, 0, tzinfo=UTC).timestamp()
         ts = t0 + np.arange(0, 86400, step_min * 60)
         for t, el in zip(ts, scn.sun(ts)["elevation"]):
             if el < 5.0:
@@ -199,8 +221,7 @@ def chain_accuracy(profile_name: str, bumps_m: float, step_min: int) -> dict:
                 if not r.found:
                     nf[k][r.reason] = nf[k].get(r.reason, 0) + 1
                     continue
-                errs[k].append(float(angle_between_deg(azel_to_enu(r.az_deg, r.el_deg),
-                                                       fr.truth["sun_enu"])))
+                errs[k].append(float(angle_between_deg(azel_to_enu(r.az_deg, r.el_deg), fr.truth["sun_enu"])))
     for k in ests:
         out[k] |= _stats(errs[k]) | {"not_found": nf[k]}
     return out
@@ -210,16 +231,22 @@ def run(quick: bool = False) -> dict:
     import os
 
     step = 60 if quick else 15
-    res = {"step_min": step, "days": [f"{y}-{m:02d}-{d:02d}" for y, m, d in DAYS],
-           "site": "Andimeshk 32.4835N 48.3364E (the paper's)", "threads": os.environ.get("OMP_NUM_THREADS")}
+    res = {
+        "step_min": step,
+        "days": [f"{y}-{m:02d}-{d:02d}" for y, m, d in DAYS],
+        "site": "Andimeshk 32.4835N 48.3364E (the paper's)",
+        "threads": os.environ.get("OMP_NUM_THREADS"),
+    }
     res["timing"] = timing(6 if quick else 16)
     kc = res["known_calibration"] = {}
     ch = res["chain"] = {}
     for prof in ("recommended", "seed"):
         kc[prof] = {src: accuracy(prof, src, step) for src in ("ideal", "noise", "shape", "level")}
-        ch[prof] = {"clean": chain_accuracy(prof, 0.0, step),
-                    "bumps_1mm": chain_accuracy(prof, 0.001, step)}
-    rms = lambda d: d.get("rms_deg", 99.0)
+        ch[prof] = {"clean": chain_accuracy(prof, 0.0, step), "bumps_1mm": chain_accuracy(prof, 0.001, step)}
+
+    def rms(d: dict) -> float:
+        return d.get("rms_deg", 99.0)
+
     res["acceptance"] = {
         "recommended_noise_rms_le_0.1": rms(kc["recommended"]["noise"]["default"]) <= 0.1,
         "seed_noise_rms_le_0.3": rms(kc["seed"]["noise"]["default"]) <= 0.3,
@@ -228,6 +255,7 @@ def run(quick: bool = False) -> dict:
         "chain_seed_rms_le_0.3": rms(ch["seed"]["clean"]["default"]) <= 0.3,
         "speedup_ge_10": res["timing"]["speedup_median"] >= 10,
         "default_median_le_20ms": res["timing"]["default_median_ms"] <= 20,
-        "masks_identical": res["timing"]["identical_masks"].split("/")[0] == res["timing"]["identical_masks"].split("/")[1],
+        "masks_identical": res["timing"]["identical_masks"].split("/")[0]
+        == res["timing"]["identical_masks"].split("/")[1],
     }
     return res

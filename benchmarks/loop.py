@@ -15,7 +15,9 @@ DESCRIPTION = "one simulated day on config/hil-default.toml, plus Modbus RTU lat
 TARGETS = {"wall_s_max": 60.0, "p95_deg_max": 0.2, "energy_ratio_min": 0.999}
 
 
-def _rtu_latency(n: int) -> dict:
+def rtu_latency(n: int) -> dict:
+    """``n`` set-point round trips to a two-axis drive over Modbus RTU on a pty (both
+    targets written, the state read back); latency p50/p99 in ms and round trips per s."""
     import asyncio
 
     from controller.clock import SimClock
@@ -42,10 +44,13 @@ def _rtu_latency(n: int) -> dict:
     with PtyLink.open() as link, ModbusServerThread({1: fw}, serial_url=link.url):
         lat = asyncio.run(measure(link.path))
     a = np.asarray(lat) * 1e3
-    return {"setpoint_round_trips": n, "ms_p50": round(float(np.median(a)), 3),
-            "ms_p99": round(float(np.percentile(a, 99)), 3),
-            "round_trips_per_s": round(n / a.sum() * 1e3, 1),
-            "note": "one round trip = both axes' targets written and the state read back (FC16 + FC23)"}
+    return {
+        "setpoint_round_trips": n,
+        "ms_p50": round(float(np.median(a)), 3),
+        "ms_p99": round(float(np.percentile(a, 99)), 3),
+        "round_trips_per_s": round(n / a.sum() * 1e3, 1),
+        "note": "one round trip = both axes' targets written and the state read back (FC16 + FC23)",
+    }
 
 
 def run(quick: bool = False) -> dict:
@@ -54,23 +59,31 @@ def run(quick: bool = False) -> dict:
     from heliotrack.simulate import run_simulation
 
     cfg = load_scenario(DEFAULT_CONFIG)
-    days = {"equinox": "2024-03-20", "summer solstice": "2024-06-21",
-            "winter solstice": "2024-12-21"}
+    days = {"equinox": "2024-03-20", "summer solstice": "2024-06-21", "winter solstice": "2024-12-21"}
     if quick:
         days = {"equinox": "2024-03-20"}
     from datetime import date
+
     runs = {}
     for label, d in days.items():
         s = run_simulation(cfg, days=1, start=date.fromisoformat(d), progress=False)
         runs[label] = {
-            "start": d, "wall_s": s["wall_s"], "cycles": s["cycles"],
-            "pointing_error_deg": s["pointing_error_deg"], "energy_ratio": s["energy_ratio"],
-            "trackers": s["trackers"], "modbus": s["modbus"],
+            "start": d,
+            "wall_s": s["wall_s"],
+            "cycles": s["cycles"],
+            "pointing_error_deg": s["pointing_error_deg"],
+            "energy_ratio": s["energy_ratio"],
+            "trackers": s["trackers"],
+            "modbus": s["modbus"],
             "pass": {
                 "wall": s["wall_s"] < TARGETS["wall_s_max"],
                 "p95": s["pointing_error_deg"]["p95"] < TARGETS["p95_deg_max"],
                 "energy": s["energy_ratio"] >= TARGETS["energy_ratio_min"],
             },
         }
-    return {"targets": TARGETS, "days": runs, "rtu": _rtu_latency(200 if quick else 1000),
-            "all_pass": all(all(r["pass"].values()) for r in runs.values())}
+    return {
+        "targets": TARGETS,
+        "days": runs,
+        "rtu": rtu_latency(200 if quick else 1000),
+        "all_pass": all(all(r["pass"].values()) for r in runs.values()),
+    }

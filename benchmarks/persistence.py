@@ -33,11 +33,15 @@ def one_kill(path: Path, rng: np.random.Generator, committed: int = 0) -> dict:
     from controller.store import Store, StoreError
 
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    child = subprocess.Popen([sys.executable, "-m", "benchmarks.persistence_writer", str(path)],
-                             stdout=subprocess.PIPE, text=True, env=env,
-                             cwd=Path(__file__).resolve().parents[1])
+    child = subprocess.Popen(
+        [sys.executable, "-m", "benchmarks.persistence_writer", str(path)],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=Path(__file__).resolve().parents[1],
+    )
     assert child.stdout is not None
-    first = child.stdout.readline()          # the writer is up and committing
+    first = child.stdout.readline()  # the writer is up and committing
     time.sleep(float(rng.uniform(0.0, 0.05)))
     os.kill(child.pid, signal.SIGKILL)
     rest = child.stdout.read()
@@ -57,8 +61,12 @@ def one_kill(path: Path, rng: np.random.Generator, committed: int = 0) -> dict:
     except StoreError as exc:
         return {"corrupt": True, "reason": str(exc), "done": done, "found": None}
     at_last = found == done or (begun == done + 1 and found == begun)
-    return {"corrupt": not ok_body or found < done or found > max(done, begun),
-            "at_last_commit": at_last, "done": done, "found": found}
+    return {
+        "corrupt": not ok_body or found < done or found > max(done, begun),
+        "at_last_commit": at_last,
+        "done": done,
+        "found": found,
+    }
 
 
 def run(quick: bool = False, kills: int | None = None) -> dict:
@@ -79,15 +87,14 @@ def run(quick: bool = False, kills: int | None = None) -> dict:
         "corruptions": len(corrupt),
         "at_last_commit": sum(1 for o in outcomes if o.get("at_last_commit")),
         "versions_committed": outcomes[-1]["found"] if outcomes else 0,
-        "in_flight_commits_found_on_disk": sum(
-            1 for o in outcomes if o.get("found") == o["done"] + 1),
+        "in_flight_commits_found_on_disk": sum(1 for o in outcomes if o.get("found") == o["done"] + 1),
         "corruption_examples": corrupt[:5],
         "seconds": round(time.perf_counter() - t0, 1),
         "definitions": {
             "corruption": "integrity check failed, state not JSON, or a version other than "
-                          "the last committed or the one in flight",
+            "the last committed or the one in flight",
             "at_last_commit": "reopened at the last version whose commit returned, or at the "
-                              "one in flight when the kill came after it reached the disk",
+            "one in flight when the kill came after it reached the disk",
         },
         "passed": len(corrupt) == 0 and all(o.get("at_last_commit") for o in outcomes),
     }

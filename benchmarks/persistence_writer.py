@@ -15,13 +15,14 @@ def main(path: str) -> None:
     store = Store(path, check=False)
     rec = store.get_state("sunpath")
     v = rec.version if rec else 0
-    payload = "x" * 2000          # a realistic state is a few kB of JSON
+    payload = "x" * 2000  # a realistic state is a few kB of JSON
     while True:
         print(f"begin {v + 1}", flush=True)
         v = store.put_state("sunpath", {"version_written": v + 1, "payload": payload})
         print(f"done {v}", flush=True)
-        store.add_setpoints([(float(v), f"row-{i}", "TRACK", "ephemeris", [1.0 * i], [1.0 * i], "")
-                             for i in range(20)])
+        store.add_setpoints(
+            [(float(v), f"row-{i}", "TRACK", "ephemeris", [1.0 * i], [1.0 * i], "") for i in range(20)]
+        )
 
 
 if __name__ == "__main__":

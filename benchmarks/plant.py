@@ -18,6 +18,7 @@ import json
 import subprocess
 import sys
 import time
+from typing import Any
 
 import numpy as np
 
@@ -28,16 +29,13 @@ TARGETS = {"tcp_rows_min": 1000, "cycle_p99_s_max": 1.0}
 
 async def _drive_rows(config, seconds: float, kill=None, sunspec_polls: int = 0) -> dict:
     from controller.clock import RealClock
-    from controller.drives import open_drive
     from controller.loop import Controller
     from controller.sun.source import EphemerisSource
+    from heliotrack.devices import open_drives
 
-    drives = {tr.name: open_drive("modbus-tcp", host="127.0.0.1",
-                                  port=config.links[tr.link].tcp_port, device_id=1,
-                                  timeout_s=0.8, retries=0) for tr in config.trackers}
-    ctl = Controller(config, drives, EphemerisSource(config.site), RealClock(), realtime=True)
+    ctl = Controller(config, open_drives(config), EphemerisSource(config.site), RealClock(), realtime=True)
     cycle_s: list[float] = []
-    healthy_s: list[list[float]] = [[], []]    # before / after the kill
+    healthy_s: list[list[float]] = [[], []]  # before / after the kill
     errors = 0
     killed = False
 
@@ -63,70 +61,87 @@ async def _drive_rows(config, seconds: float, kill=None, sunspec_polls: int = 0)
         def publishing(records, inner=on_cycle):
             inner(records)
             bridge.publish(records)
+
     t0 = time.perf_counter()
     await ctl.start()
     start_s = time.perf_counter() - t0
     if server is not None:
-        from controller.sunspec import poll_latency
+        from heliotrack.sunspec_latency import poll_latency
 
         # SCADA polls from its own thread while the controller keeps cycling.
-        poll = asyncio.create_task(asyncio.to_thread(
-            poll_latency, "127.0.0.1", server.port, sunspec_polls))
+        assert server.port is not None
+        poll = asyncio.create_task(asyncio.to_thread(poll_latency, "127.0.0.1", server.port, sunspec_polls))
         run = await ctl.run(seconds, publishing)
         p = await poll
-        sunspec = {**{k: v for k, v in vars(p).items() if isinstance(v, (int, float, str))},
-                   "summary": p.summary()}
+        sunspec = {
+            **{k: v for k, v in vars(p).items() if isinstance(v, (int, float, str))},
+            "summary": p.summary(),
+        }
         server.stop()
     else:
         run = await ctl.run(seconds, on_cycle)
     await ctl.close()
     a = np.asarray(cycle_s)
-    out = {"sunspec_poll_during_run": sunspec} if server is not None else {}
+    out: dict[str, Any] = {"sunspec_poll_during_run": sunspec} if server is not None else {}
     if kill is not None:
-        pct = lambda v, q: round(float(np.percentile(v, q)), 4) if v else None
-        out = {"kill_row_0_after_cycle": len_before,
-               "healthy_rows_cycle_p50_s_before": pct(healthy_s[0], 50),
-               "healthy_rows_cycle_p99_s_before": pct(healthy_s[0], 99),
-               "healthy_rows_cycle_p50_s_after": pct(healthy_s[1], 50),
-               "healthy_rows_cycle_p99_s_after": pct(healthy_s[1], 99)}
-    return {**out, "rows": len(config.trackers), "cycles": len(a), "start_s": round(start_s, 3),
-            "cycle_p50_s": round(float(np.median(a)), 4),
-            "cycle_p99_s": round(float(np.percentile(a, 99)), 4),
-            "cycle_max_s": round(float(a.max()), 4), "overruns": run["overruns"],
-            "row_errors": errors, "transactions": ctl.stats()["transactions"]}
+
+        def pct(v: list[float], q: float) -> float | None:
+            return round(float(np.percentile(v, q)), 4) if v else None
+
+        out = {
+            "kill_row_0_after_cycle": len_before,
+            "healthy_rows_cycle_p50_s_before": pct(healthy_s[0], 50),
+            "healthy_rows_cycle_p99_s_before": pct(healthy_s[0], 99),
+            "healthy_rows_cycle_p50_s_after": pct(healthy_s[1], 50),
+            "healthy_rows_cycle_p99_s_after": pct(healthy_s[1], 99),
+        }
+    return {
+        **out,
+        "rows": len(config.trackers),
+        "cycles": len(a),
+        "start_s": round(start_s, 3),
+        "cycle_p50_s": round(float(np.median(a)), 4),
+        "cycle_p99_s": round(float(np.percentile(a, 99)), 4),
+        "cycle_max_s": round(float(a.max()), 4),
+        "overruns": run["overruns"],
+        "row_errors": errors,
+        "transactions": ctl.stats()["transactions"],
+    }
 
 
-def modbus_tcp(n_rows: int, seconds: float, kill_one: bool = False,
-               sunspec_polls: int = 0) -> dict:
-    proc = subprocess.Popen([sys.executable, "-m", "hil.plant", "--rows", str(n_rows)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+def modbus_tcp(n_rows: int, seconds: float, kill_one: bool = False, sunspec_polls: int = 0) -> dict:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hil.plant", "--rows", str(n_rows)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert proc.stdin is not None and proc.stdout is not None
+    stdin, stdout = proc.stdin, proc.stdout
 
     def kill(i: int) -> None:
-        proc.stdin.write(f"kill {i}\n")
-        proc.stdin.flush()
-        proc.stdout.readline()
+        stdin.write(f"kill {i}\n")
+        stdin.flush()
+        stdout.readline()
 
     try:
-        ports = json.loads(proc.stdout.readline())["ports"]
+        ports = json.loads(stdout.readline())["ports"]
         config = plant_config(n_rows, ports)
-        return asyncio.run(_drive_rows(config, seconds, kill if kill_one else None,
-                                       sunspec_polls))
+        return asyncio.run(_drive_rows(config, seconds, kill if kill_one else None, sunspec_polls))
     finally:
-        proc.stdin.write("quit\n")
-        proc.stdin.flush()
+        stdin.write("quit\n")
+        stdin.flush()
         proc.wait(30)
 
 
-async def _drive_canopen_rows(config, net, seconds: float) -> dict:
+async def _drive_canopen_rows(config, seconds: float) -> dict:
     from controller.clock import RealClock
-    from controller.drives import open_drive
     from controller.loop import Controller
     from controller.sun.source import EphemerisSource
+    from heliotrack.devices import open_drives
 
-    drives = {tr.name: open_drive("canopen", node_id=i + 1, network=net, pdo_from_eds=True,
-                                  timeout_s=0.5)
-              for i, tr in enumerate(config.trackers)}
-    ctl = Controller(config, drives, EphemerisSource(config.site), RealClock(), realtime=True)
+    # One canopen Network for the bus, shared by every drive (the registry's doing).
+    ctl = Controller(config, open_drives(config), EphemerisSource(config.site), RealClock(), realtime=True)
     cycle_s: list[float] = []
     errors = 0
 
@@ -141,48 +156,54 @@ async def _drive_canopen_rows(config, net, seconds: float) -> dict:
     run = await ctl.run(seconds, on_cycle)
     await ctl.close()
     a = np.asarray(cycle_s)
-    return {"drives": len(config.trackers), "cycles": len(a), "start_s": round(start_s, 3),
-            "cycle_p50_s": round(float(np.median(a)), 4),
-            "cycle_p99_s": round(float(np.percentile(a, 99)), 4),
-            "cycle_max_s": round(float(a.max()), 4), "overruns": run["overruns"],
-            "row_errors": errors}
+    return {
+        "drives": len(config.trackers),
+        "cycles": len(a),
+        "start_s": round(start_s, 3),
+        "cycle_p50_s": round(float(np.median(a)), 4),
+        "cycle_p99_s": round(float(np.percentile(a, 99)), 4),
+        "cycle_max_s": round(float(a.max()), 4),
+        "overruns": run["overruns"],
+        "row_errors": errors,
+    }
 
 
 def canopen_virtual(n: int, seconds: float) -> dict:
     """``n`` single-axis CANopen drives on one python-can virtual bus, one process."""
-    import canopen
-
     from hil.canopen import CanopenNetworkEmulator
     from hil.plant import row_firmware
 
     channel = f"plant-bench-{n}"
     emu = CanopenNetworkEmulator(channel, period_s=0.02).start()
-    net = canopen.Network()
     try:
         for i in range(n):
             emu.add_drive(row_firmware(), i + 1)
-        net.connect(interface="virtual", channel=channel)
-        config = plant_config(n, link_kind="canopen")
-        return asyncio.run(_drive_canopen_rows(config, net, seconds))
+        config = plant_config(n, link_kind="canopen", channel=channel)
+        return asyncio.run(_drive_canopen_rows(config, seconds))
     finally:
-        net.disconnect()
         emu.stop()
 
 
 def run(quick: bool = False) -> dict:
-    from benchmarks.loop import _rtu_latency
+    from benchmarks.loop import rtu_latency
 
     seconds = 10.0 if quick else 60.0
     sizes = [1000] if quick else [250, 1000, 1500]
     # RTU first: pyserial uses select(), which cannot watch fds above 1024, and the TCP
     # runs leave the process with high fd numbers.
-    rtu = _rtu_latency(500 if quick else 2000)
+    rtu = rtu_latency(500 if quick else 2000)
     tcp = {str(n): modbus_tcp(n, seconds) for n in sizes}
     isolation = modbus_tcp(1000, seconds, kill_one=True)
     with_scada = modbus_tcp(1000, seconds, sunspec_polls=100 if quick else 500)
     can = canopen_virtual(100, seconds)
-    best = max((int(n) for n, r in tcp.items() if r["cycle_p99_s"] < TARGETS["cycle_p99_s_max"]
-                and r["overruns"] == 0 and r["row_errors"] == 0), default=0)
+    best = max(
+        (
+            int(n)
+            for n, r in tcp.items()
+            if r["cycle_p99_s"] < TARGETS["cycle_p99_s_max"] and r["overruns"] == 0 and r["row_errors"] == 0
+        ),
+        default=0,
+    )
     return {
         "targets": TARGETS,
         "modbus_tcp": tcp,
@@ -191,7 +212,10 @@ def run(quick: bool = False) -> dict:
         "rtu_pty": rtu,
         "canopen_virtual_100": can,
         "sunspec_1000_rows_polled_while_cycling": with_scada,
-        "pass": {"modbus_tcp": best >= TARGETS["tcp_rows_min"],
-                 "canopen_100": can["cycle_p99_s"] < TARGETS["cycle_p99_s_max"]
-                 and can["row_errors"] == 0 and can["overruns"] == 0},
+        "pass": {
+            "modbus_tcp": best >= TARGETS["tcp_rows_min"],
+            "canopen_100": can["cycle_p99_s"] < TARGETS["cycle_p99_s_max"]
+            and can["row_errors"] == 0
+            and can["overruns"] == 0,
+        },
     }

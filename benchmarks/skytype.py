@@ -30,13 +30,33 @@ DESCRIPTION = "sky-type classifier: D accuracy, speed, agreement with sunshine t
 
 #: Datasets of the agreement benchmark: differently generated (site, climate mix, sampling).
 DATASETS: dict[str, dict] = {
-    "arid-1min": dict(lat=35.8, lon=50.95, alt=1293.0, step_s=60, year=2015, days=365,
-                      probs=dict(clear=0.45, broken=0.2, overcast=0.12, cirrus=0.08, mixed=0.15)),
-    "maritime-2s": dict(lat=55.79, lon=12.52, alt=20.0, step_s=2, year=2016, days=120,
-                        probs=dict(clear=0.15, broken=0.3, overcast=0.3, cirrus=0.08, mixed=0.17)),
-    "subtropical-10s": dict(lat=-23.5, lon=-46.6, alt=760.0, step_s=10, year=2017, days=180,
-                            probs=dict(clear=0.25, broken=0.35, overcast=0.15, cirrus=0.1,
-                                       mixed=0.15)),
+    "arid-1min": dict(
+        lat=35.8,
+        lon=50.95,
+        alt=1293.0,
+        step_s=60,
+        year=2015,
+        days=365,
+        probs=dict(clear=0.45, broken=0.2, overcast=0.12, cirrus=0.08, mixed=0.15),
+    ),
+    "maritime-2s": dict(
+        lat=55.79,
+        lon=12.52,
+        alt=20.0,
+        step_s=2,
+        year=2016,
+        days=120,
+        probs=dict(clear=0.15, broken=0.3, overcast=0.3, cirrus=0.08, mixed=0.17),
+    ),
+    "subtropical-10s": dict(
+        lat=-23.5,
+        lon=-46.6,
+        alt=760.0,
+        step_s=10,
+        year=2017,
+        days=180,
+        probs=dict(clear=0.25, broken=0.35, overcast=0.15, cirrus=0.1, mixed=0.15),
+    ),
 }
 
 
@@ -71,8 +91,9 @@ def fbm(n: int, hurst: float, rng: np.random.Generator) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(fgn)])
 
 
-def _telegraph(n: int, step_s: float, p_sun: float, mean_cloud_s: float,
-               rng: np.random.Generator) -> np.ndarray:
+def _telegraph(
+    n: int, step_s: float, p_sun: float, mean_cloud_s: float, rng: np.random.Generator
+) -> np.ndarray:
     """0/1 sun-visible process with exponential dwell times (cloud mean, sun = p/(1-p) cloud)."""
     mean_sun_s = mean_cloud_s * p_sun / max(1e-6, 1.0 - p_sun)
     total = n * step_s
@@ -105,8 +126,9 @@ def _ou(n: int, step_s: float, tau_s: float, sigma: float, rng: np.random.Genera
     return np.interp(np.arange(n) / coarse, np.arange(m), x)
 
 
-def _regime_day(regime: str, n: int, step_s: float, rng: np.random.Generator,
-                ghi_over_dhi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _regime_day(
+    regime: str, n: int, step_s: float, rng: np.random.Generator, ghi_over_dhi: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Beam transmittance b and diffuse multiplier d for one day of n samples.
 
     ``ghi_over_dhi`` is the clear-sky GHI / DHI ratio per sample: an overcast deck is
@@ -124,13 +146,16 @@ def _regime_day(regime: str, n: int, step_s: float, rng: np.random.Generator,
         d = 1.0 + rng.uniform(0.5, 2.5) * (1.0 - p) + 0.3 * (1.0 - sun) * rng.uniform(0, 1)
     elif regime == "overcast":
         level = rng.uniform(0.1, 0.55)  # GHI / GHI_cs under the deck
-        k = np.clip(level * (1.0 + _ou(n, step_s, rng.uniform(600, 3600), 0.25, rng))
-                    + _ou(n, step_s, 120.0, 0.02, rng), 0.03, None)
+        k = np.clip(
+            level * (1.0 + _ou(n, step_s, rng.uniform(600, 3600), 0.25, rng))
+            + _ou(n, step_s, 120.0, 0.02, rng),
+            0.03,
+            None,
+        )
         d = k * ghi_over_dhi
         b = np.clip(_ou(n, step_s, 900.0, 0.04, rng), 0.0, 0.08)  # never reaches 120 W/m2
     elif regime == "cirrus":
-        b = np.clip(rng.uniform(0.15, 0.75) + _ou(n, step_s, rng.uniform(300, 2400), 0.12, rng),
-                    0.0, 1.0)
+        b = np.clip(rng.uniform(0.15, 0.75) + _ou(n, step_s, rng.uniform(300, 2400), 0.12, rng), 0.0, 1.0)
         d = 1.2 + 1.5 * (1.0 - b)
     elif regime == "mixed":
         a_reg, b_reg = rng.choice(["clear", "broken", "overcast", "cirrus"], 2, replace=False)
@@ -144,8 +169,16 @@ def _regime_day(regime: str, n: int, step_s: float, rng: np.random.Generator,
     return b, d
 
 
-def synthetic_dataset(lat: float, lon: float, alt: float, step_s: int, year: int, days: int,
-                      probs: dict[str, float], seed: int = 0) -> dict:
+def synthetic_dataset(
+    lat: float,
+    lon: float,
+    alt: float,
+    step_s: int,
+    year: int,
+    days: int,
+    probs: dict[str, float],
+    seed: int = 0,
+) -> dict:
     """Synthetic GHI and DNI for ``days`` days spread evenly over ``year``.
 
     Returns
@@ -186,9 +219,13 @@ def synthetic_dataset(lat: float, lon: float, alt: float, step_s: int, year: int
         g_all.append(ghi)
         d_all.append(dni + rng.normal(0.0, 0.8, n))
         regimes.append(regime)
-    return {"times": np.concatenate(t_all), "ghi": np.concatenate(g_all),
-            "dni": np.concatenate(d_all), "regime": regimes,
-            "dates": [str(day_starts[i].date()) for i in pick]}
+    return {
+        "times": np.concatenate(t_all),
+        "ghi": np.concatenate(g_all),
+        "dni": np.concatenate(d_all),
+        "regime": regimes,
+        "dates": [str(day_starts[i].date()) for i in pick],
+    }
 
 
 # --------------------------------------------------------------------------- sections
@@ -203,11 +240,17 @@ def bench_dimension(quick: bool) -> dict:
     for label, n, step in (("2s-day-paper-scales", 25200, 2.0), ("1min-paper-scales", 43200, 60.0)):
         for h in (0.2, 0.4, 0.6, 0.8):
             ds = np.array([variation_dimension(fbm(n, h, rng), step) for _ in range(reps)])
-            out["fbm"].append({"series": label, "hurst": h, "expected": 2 - h,
-                               "mean_D": round(float(ds.mean()), 4),
-                               "std_D": round(float(ds.std()), 4),
-                               "max_abs_err": round(float(np.max(np.abs(ds - (2 - h)))), 4),
-                               "mean_err": round(float(ds.mean() - (2 - h)), 4)})
+            out["fbm"].append(
+                {
+                    "series": label,
+                    "hurst": h,
+                    "expected": 2 - h,
+                    "mean_D": round(float(ds.mean()), 4),
+                    "std_D": round(float(ds.std()), 4),
+                    "max_abs_err": round(float(np.max(np.abs(ds - (2 - h)))), 4),
+                    "mean_err": round(float(ds.mean() - (2 - h)), 4),
+                }
+            )
     loc = pvlib.location.Location(35.8, 50.95, altitude=1293)
     t = pd.date_range("2015-06-21 00:00", periods=43200, freq="2s", tz="UTC")
     g = loc.get_clearsky(t)["ghi"].to_numpy()
@@ -277,15 +320,18 @@ def bench_agreement(quick: bool) -> dict:
             spec["days"] = min(spec["days"], 40)
         ds = synthetic_dataset(seed=sum(map(ord, name)), **spec)
         site = Site(spec["lat"], spec["lon"], spec["alt"])
-        r = classify_days(ds["times"], ds["ghi"], site, dni=ds["dni"], config=SkyConfig(),
-                          with_clearsky=True)
+        r = classify_days(ds["times"], ds["ghi"], site, dni=ds["dni"], config=SkyConfig(), with_clearsky=True)
         days = r.days[r.days["truth"] != ""]
-        row = {"days": int(len(days)), "step_s": spec["step_s"],
-               "truth_frequency": {c: int((days["truth"] == c).sum()) for c in ("I", "II", "III")}}
+        row = {
+            "days": int(len(days)),
+            "step_s": spec["step_s"],
+            "truth_frequency": {c: int((days["truth"] == c).sum()) for c in ("I", "II", "III")},
+        }
         for col in ("class_default", "class_seed", "class_kt", "class_csd"):
             row[f"agree_{col.removeprefix('class_')}"] = round(float((days[col] == days["truth"]).mean()), 4)
         # variants of the default measured for the record (docs/skytype.md): + K_T gate, + D gate
         from controller.sky.baselines import classify_by_fraction
+
         f = classify_by_fraction(days["sun_fraction_est"].to_numpy())
         kt_gate = np.where((f == 1) & (days["K_T"].to_numpy() < 0.5), 2, f)
         d_gate = np.where((kt_gate == 1) & (days["D"].to_numpy() > 1.37), 2, kt_gate)

@@ -34,8 +34,7 @@ _THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _worker: dict = {}
 
 
-def _init(site: tuple[float, float, float], profile_name: str, tilt_deg: float,
-          bundle: str) -> None:
+def _init(site: tuple[float, float, float], profile_name: str, tilt_deg: float, bundle: str) -> None:
     import cv2
 
     from controller.calibration.bundle import load_bundle
@@ -45,8 +44,7 @@ def _init(site: tuple[float, float, float], profile_name: str, tilt_deg: float,
 
     cv2.setNumThreads(1)  # one frame per process: threads inside would only contend
 
-    _worker["scn"] = profile(profile_name, noise=True, tilt_deg=tilt_deg).with_(
-        site=CameraSite(*site))
+    _worker["scn"] = profile(profile_name, noise=True, tilt_deg=tilt_deg).with_(site=CameraSite(*site))
     _worker["est"] = HotspotEstimator(load_bundle(bundle), algorithm="default")
 
 
@@ -63,8 +61,13 @@ def _observe(job: tuple[float, float]) -> tuple[float, float, float, str]:
     return o.az_deg, o.el_deg, o.sigma_deg, ""
 
 
-def hotspot_dataset(ds, workers: int | None = None, profile_name: str = PROFILE,
-                    tilt_deg: float = TILT_DEG, bundle: Path = BUNDLE):
+def hotspot_dataset(
+    ds,
+    workers: int | None = None,
+    profile_name: str = PROFILE,
+    tilt_deg: float = TILT_DEG,
+    bundle: Path = BUNDLE,
+):
     """``ds`` re-observed by the hotspot sensor: same times, same cloud gaps.
 
     Returns the new dataset and a count of why frames gave no observation.
@@ -76,9 +79,12 @@ def hotspot_dataset(ds, workers: int | None = None, profile_name: str = PROFILE,
     saved = {k: os.environ.get(k) for k in _THREAD_VARS}
     os.environ.update({k: "1" for k in _THREAD_VARS})
     try:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                 initializer=_init,
-                                 initargs=(site, profile_name, tilt_deg, str(bundle))) as pool:
+        with ProcessPoolExecutor(
+            workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=_init,
+            initargs=(site, profile_name, tilt_deg, str(bundle)),
+        ) as pool:
             out = list(pool.map(_observe, jobs, chunksize=16))
     finally:
         for k, v in saved.items():
@@ -95,8 +101,14 @@ def hotspot_dataset(ds, workers: int | None = None, profile_name: str = PROFILE,
         if why:
             key = f"{'clear' if c else 'cloud'}: {why}"
             reasons[key] = reasons.get(key, 0) + 1
-    hds = replace(ds, az_obs=np.where(found, az % 360.0, 0.0), el_obs=np.where(found, el, 0.0),
-                  clear=found, sigma=np.where(found, sig, 1.0), sensor="hotspot")
+    hds = replace(
+        ds,
+        az_obs=np.where(found, az % 360.0, 0.0),
+        el_obs=np.where(found, el, 0.0),
+        clear=found,
+        sigma=np.where(found, sig, 1.0),
+        sensor="hotspot",
+    )
     return hds, reasons
 
 
@@ -105,12 +117,17 @@ def sensor_errors(hds) -> dict:
     from controller.sun.types import angle_between_deg, azel_to_enu
 
     m = hds.clear
-    err = angle_between_deg(azel_to_enu(hds.az_obs[m], hds.el_obs[m]),
-                            azel_to_enu(hds.az_true[m], hds.el_true[m]))
-    return {"n": int(m.sum()), "rms_deg": float(np.sqrt(np.mean(err ** 2))),
-            "p95_deg": float(np.percentile(err, 95)), "max_deg": float(err.max()),
-            "el_error_mean_deg": float(np.mean(hds.el_obs[m] - hds.el_true[m])),
-            "sigma_reported_median_deg": float(np.median(hds.sigma[m]))}
+    err = angle_between_deg(
+        azel_to_enu(hds.az_obs[m], hds.el_obs[m]), azel_to_enu(hds.az_true[m], hds.el_true[m])
+    )
+    return {
+        "n": int(m.sum()),
+        "rms_deg": float(np.sqrt(np.mean(err**2))),
+        "p95_deg": float(np.percentile(err, 95)),
+        "max_deg": float(err.max()),
+        "el_error_mean_deg": float(np.mean(hds.el_obs[m] - hds.el_true[m])),
+        "sigma_reported_median_deg": float(np.median(hds.sigma[m])),
+    }
 
 
 #: The paper's five consecutive days (Table 3: 8-12 Farvardin 1403), with cloud on two.
@@ -141,11 +158,18 @@ def hil_loop(days: int = len(LOOP_SKIES), interval_s: float = 900.0) -> dict:
     s = run_simulation(cfg, days=days, start=date.fromisoformat(LOOP_START), progress=False)
     return {
         "config": "config/hil-hotspot.toml with [hotspot] interval_s = "
-                  f"{interval_s:g} and [sunpath] site_known = false",
-        "start": LOOP_START, "days": days, "skies": list(LOOP_SKIES[:days]),
-        "control_period_s": s["control_period_s"], "wall_s": s["wall_s"],
-        "pointing_error_deg": s["pointing_error_deg"], "energy_ratio": s["energy_ratio"],
-        "trackers": s["trackers"], "modes_tracker_cycles": s["modes"],
-        "sources_tracker_cycles": s["sources"], "camera_frames": s.get("camera_frames"),
-        "sun_path_learned": s.get("sun_path"), "modbus": s["modbus"],
+        f"{interval_s:g} and [sunpath] site_known = false",
+        "start": LOOP_START,
+        "days": days,
+        "skies": list(LOOP_SKIES[:days]),
+        "control_period_s": s["control_period_s"],
+        "wall_s": s["wall_s"],
+        "pointing_error_deg": s["pointing_error_deg"],
+        "energy_ratio": s["energy_ratio"],
+        "trackers": s["trackers"],
+        "modes_tracker_cycles": s["modes"],
+        "sources_tracker_cycles": s["sources"],
+        "camera_frames": s.get("camera_frames"),
+        "sun_path_learned": s.get("sun_path"),
+        "modbus": s["modbus"],
     }

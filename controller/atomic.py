@@ -53,7 +53,7 @@ def atomic_write(path: str | Path, data: str | bytes, *, encoding: str = "utf-8"
 def _fsync_dir(folder: Path) -> None:
     try:
         fd = os.open(folder, os.O_RDONLY)
-    except OSError:      # some platforms cannot open a folder; the rename is still atomic
+    except OSError:  # some platforms cannot open a folder; the rename is still atomic
         return
     try:
         os.fsync(fd)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from typing import Protocol
 
 
@@ -84,4 +84,4 @@ class SimClock:
 
 def to_datetime(t: float) -> datetime:
     """POSIX seconds -> timezone-aware UTC datetime."""
-    return datetime.fromtimestamp(t, tz=timezone.utc)
+    return datetime.fromtimestamp(t, tz=UTC)

@@ -14,7 +14,7 @@ from typing import Any, ClassVar, Literal, TypeVar
 
 from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
-from .drives.registry import known_kinds, link_config_type
+from .drives.registry import link_config_types
 from .errors import ConfigError
 from .geometry.single_axis import RowGeometry
 from .schema import DERIVED, Where, internal, load, load_file, setting, variants
@@ -30,32 +30,49 @@ C = TypeVar("C", bound="Config")
 class ControlConfig:
     """Control-loop settings."""
 
-    period_s: float = setting(60.0, doc="Time between two control cycles.", unit="s",
-                              ge=0.05, le=3600)
-    min_elevation_deg: float = setting(0.0, doc="Track while the sun is above this "
-                                       "elevation (trackers wake 2 deg earlier).",
-                                       unit="deg", ge=-5, le=45)
-    lead_s: float = setting(doc="Setpoints aim at the sun this far ahead of the cycle, so "
-                            "the panel leads then lags it by the same amount.", unit="s",
-                            ge=0, le=3600, derived="period_s / 2")
-    heartbeat_timeout_s: float = setting(doc="Drive watchdog: a drive that hears nothing "
-                                         "for this long stows itself (must exceed "
-                                         "period_s; the drives refuse to switch it off "
-                                         "outside MAINTENANCE).", unit="s", gt=0, le=6553,
-                                         derived="3 x period_s, at least 5")
-    sun_source: SunSourceKind = setting("ephemeris", doc="Where the sun's direction comes "
-                                        "from: the ephemeris at the configured site, or the "
-                                        "hotspot camera through the sun-path filter.")
+    period_s: float = setting(60.0, doc="Time between two control cycles.", unit="s", ge=0.05, le=3600)
+    min_elevation_deg: float = setting(
+        0.0,
+        doc="Track while the sun is above this elevation (trackers wake 2 deg earlier).",
+        unit="deg",
+        ge=-5,
+        le=45,
+    )
+    lead_s: float = setting(
+        doc="Setpoints aim at the sun this far ahead of the cycle, so "
+        "the panel leads then lags it by the same amount.",
+        unit="s",
+        ge=0,
+        le=3600,
+        derived="period_s / 2",
+    )
+    heartbeat_timeout_s: float = setting(
+        doc="Drive watchdog: a drive that hears nothing "
+        "for this long stows itself (must exceed "
+        "period_s; the drives refuse to switch it off "
+        "outside MAINTENANCE).",
+        unit="s",
+        gt=0,
+        le=6553,
+        derived="3 x period_s, at least 5",
+    )
+    sun_source: SunSourceKind = setting(
+        "ephemeris",
+        doc="Where the sun's direction comes "
+        "from: the ephemeris at the configured site, or the "
+        "hotspot camera through the sun-path filter.",
+    )
 
     def __schema_check__(self, at: Where) -> ControlConfig:
         c = self
-        if c.lead_s != c.lead_s:      # DERIVED (NaN)
+        if c.lead_s != c.lead_s:  # DERIVED (NaN)
             c = replace(c, lead_s=c.period_s / 2)
         if c.heartbeat_timeout_s != c.heartbeat_timeout_s:
             c = replace(c, heartbeat_timeout_s=max(3 * c.period_s, 5.0))
         if c.heartbeat_timeout_s <= c.period_s:
             raise at.child("heartbeat_timeout_s").error(
-                f"more than control.period_s ({c.period_s:g} s)", c.heartbeat_timeout_s)
+                f"more than control.period_s ({c.period_s:g} s)", c.heartbeat_timeout_s
+            )
         return c
 
 
@@ -66,8 +83,14 @@ class TrackerConfig:
     name: str = setting(doc="Unique name (logs, SunSpec, cycles.csv).", nonempty=True)
     type: str = setting(doc="The tracker type.")
     link: str = setting(doc="Name of the `[[links]]` table the drive is on.")
-    device_id: int = setting(doc="Modbus slave id, or CANopen node id of axis 0 (axis k "
-                             "is node id + k).", ge=1, le=247)
+    device_id: int = setting(
+        doc="Modbus slave id, or CANopen node id of axis 0 (axis k is node id + k).", ge=1, le=247
+    )
+    safe_position: Literal["stow", "hold"] = setting(
+        "stow",
+        doc="Where `heliotrack run` leaves the drive when it stops (SIGTERM, "
+        "SIGINT): its stow position, or holding where it is.",
+    )
 
     axes: ClassVar[int] = 0
 
@@ -94,13 +117,15 @@ class DualAxisTracker(TrackerConfig):
     north, within ``azimuth_limits``, which may extend past 0/360), axis 1 its elevation."""
 
     type: Literal["dual-axis"] = setting("dual-axis", doc="Dual-axis tracker.")
-    azimuth_limits: tuple[float, float] = setting((0.0, 360.0), doc="Azimuth travel [min, "
-                                                  "max].", unit="deg", ge=-360, le=720)
-    elevation_limits: tuple[float, float] = setting((0.0, 90.0), doc="Elevation travel "
-                                                    "[min, max].", unit="deg", ge=-10, le=100)
-    stow: tuple[float, float] = setting((180.0, 90.0), doc="Stow position [azimuth, "
-                                        "elevation] (90: facing up).", unit="deg",
-                                        ge=-360, le=720)
+    azimuth_limits: tuple[float, float] = setting(
+        (0.0, 360.0), doc="Azimuth travel [min, max].", unit="deg", ge=-360, le=720
+    )
+    elevation_limits: tuple[float, float] = setting(
+        (0.0, 90.0), doc="Elevation travel [min, max].", unit="deg", ge=-10, le=100
+    )
+    stow: tuple[float, float] = setting(
+        (180.0, 90.0), doc="Stow position [azimuth, elevation] (90: facing up).", unit="deg", ge=-360, le=720
+    )
 
     axes: ClassVar[int] = 2
 
@@ -145,24 +170,36 @@ class SingleAxisTracker(RowGeometry, TrackerConfig):
         return self
 
 
-TRACKER_CLASSES: dict[str, type[TrackerConfig]] = {"dual-axis": DualAxisTracker,
-                                                   "single-axis": SingleAxisTracker}
+TRACKER_CLASSES: dict[str, type[TrackerConfig]] = {
+    "dual-axis": DualAxisTracker,
+    "single-axis": SingleAxisTracker,
+}
 
 
 @dataclass(frozen=True, kw_only=True)
 class HotspotConfig:
     """The convex-surface camera sensor."""
 
-    calibration: Path = setting(doc="Calibration bundle (TOML, see docs/hotspot.md).",
-                                path="file")
-    frames: str = setting("hil", doc='Where frames come from: "hil" (rendered by the '
-                          'simulator), a folder of timestamped images, or "device:N" '
-                          "(OpenCV camera N).", nonempty=True)
-    algorithm: Literal["default", "seed"] = setting("default", doc="Segmentation: the fast "
-                                                    "default or the paper's Algorithm 1.")
-    interval_s: float = setting(0.0, doc="Time between frames the controller measures (0: "
-                                "one every control cycle); the sun-path filter predicts in "
-                                "between.", unit="s", ge=0, le=86400)
+    calibration: Path = setting(doc="Calibration bundle (TOML, see docs/hotspot.md).", path="file")
+    frames: str = setting(
+        "hil",
+        doc='Where frames come from: "hil" (rendered by the '
+        'simulator), a folder of timestamped images, or "device:N" '
+        "(OpenCV camera N).",
+        nonempty=True,
+    )
+    algorithm: Literal["default", "seed"] = setting(
+        "default", doc="Segmentation: the fast default or the paper's Algorithm 1."
+    )
+    interval_s: float = setting(
+        0.0,
+        doc="Time between frames the controller measures (0: "
+        "one every control cycle); the sun-path filter predicts in "
+        "between.",
+        unit="s",
+        ge=0,
+        le=86400,
+    )
 
     def __schema_check__(self, at: Where) -> HotspotConfig:
         if self.frames == "hil" or self.frames.startswith("device:"):
@@ -177,10 +214,14 @@ class HotspotConfig:
 class SunPathSettings:
     """The sun-path filter behind camera sensors."""
 
-    state: Path | None = setting(None, doc="File where the learned state persists (none: "
-                                 "not persisted).", path="new")
-    site_known: bool = setting(True, doc="Give the filter the configured site (and the "
-                               "ephemeris fallback); false: it learns the site from the sky.")
+    state: Path | None = setting(
+        None, doc="File where the learned state persists (none: not persisted).", path="new"
+    )
+    site_known: bool = setting(
+        True,
+        doc="Give the filter the configured site (and the "
+        "ephemeris fallback); false: it learns the site from the sky.",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -191,20 +232,18 @@ class PyranometerConfig:
     device_id: int = setting(doc="Modbus slave id.", ge=1, le=247)
 
 
-def _link_classes() -> dict[str, type]:
-    return {kind: cls for kind in known_kinds() if (cls := link_config_type(kind)) is not None}
-
-
 @dataclass(frozen=True, kw_only=True)
 class Config:
     """A plant: its site, its links and trackers, its sensors and control settings."""
 
     site: Site = setting(doc="Geographic site.")
     control: ControlConfig = setting(default_factory=ControlConfig, doc="Control loop.")
-    links: tuple[LinkConfig, ...] = setting((), doc="Links to the drives and sensors.",
-                                            variants=variants("kind", _link_classes))
-    trackers: tuple[TrackerConfig, ...] = setting(doc="Trackers and rows.",
-                                                  variants=variants("type", TRACKER_CLASSES))
+    links: tuple[LinkConfig, ...] = setting(
+        (), doc="Links to the drives and sensors.", variants=variants("kind", link_config_types)
+    )
+    trackers: tuple[TrackerConfig, ...] = setting(
+        doc="Trackers and rows.", variants=variants("type", TRACKER_CLASSES)
+    )
     pyranometer: PyranometerConfig | None = setting(None, doc="Pyranometer (enables DIFFUSE).")
     diffuse: DiffuseConfig = setting(default_factory=DiffuseConfig, doc="DIFFUSE mode.")
     hotspot: HotspotConfig | None = setting(None, doc="Hotspot camera sensor.")
@@ -235,16 +274,31 @@ class Config:
             names.add(tr.name)
             if tr.link not in links:
                 raise here.child("link").error(
-                    f"the name of a [[links]] table ({', '.join(links) or 'none defined'})", tr.link)
+                    f"the name of a [[links]] table ({', '.join(links) or 'none defined'})", tr.link
+                )
             for address in _addresses(links[tr.link], tr.device_id, tr.axes):
                 if (tr.link, address) in used:
                     raise here.child("device_id").error(
                         f"an id not used on link {tr.link!r} already (by {used[tr.link, address]})",
-                        tr.device_id)
+                        tr.device_id,
+                    )
                 used[tr.link, address] = tr.name
-            if links[tr.link].kind == "canopen" and tr.device_id + tr.axes - 1 > 127:
+            if links[tr.link].kind == "canopen" and tr.device_id + tr.axes - 1 > 126:
                 raise here.child("device_id").error(
-                    f"a CANopen node id with all {tr.axes} axes within 1..127", tr.device_id)
+                    f"a CANopen node id with all {tr.axes} axes within 1..126 (127 is the master's)",
+                    tr.device_id,
+                )
+            if links[tr.link].kind == "canopen" and self.control.heartbeat_timeout_s > 65.535:
+                raise (
+                    at.child("control")
+                    .child("heartbeat_timeout_s")
+                    .error(
+                        f"at most 65.535 s with drives on CANopen link {tr.link!r} (the consumer "
+                        "heartbeat time 0x1016 counts 16-bit milliseconds; the default is 3 x "
+                        "period_s)",
+                        self.control.heartbeat_timeout_s,
+                    )
+                )
         c = self
         pyr = self.pyranometer
         if pyr is not None:
@@ -254,27 +308,33 @@ class Config:
             if not isinstance(links[pyr.link], (ModbusRtuLink, ModbusTcpLink)):
                 raise here.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", pyr.link)
             if (pyr.link, pyr.device_id) in used:
-                raise here.child("device_id").error(f"an id not used by a drive on {pyr.link!r}",
-                                                    pyr.device_id)
+                raise here.child("device_id").error(
+                    f"an id not used by a drive on {pyr.link!r}", pyr.device_id
+                )
         diffuse = self.diffuse
         if diffuse.enabled is None:
             c = replace(c, diffuse=replace(diffuse, enabled=pyr is not None))
         elif diffuse.enabled and pyr is None:
-            raise at.child("diffuse").child("enabled").error(
-                "false unless a [pyranometer] is configured", True)
+            raise (
+                at.child("diffuse").child("enabled").error("false unless a [pyranometer] is configured", True)
+            )
         if c.diffuse.enabled and self.control.period_s > 60:
-            raise at.child("diffuse").child("enabled").error(
-                "false when control.period_s > 60 s (the sky classifier needs a pyranometer "
-                "sample at least every minute)", True)
+            raise (
+                at.child("diffuse")
+                .child("enabled")
+                .error(
+                    "false when control.period_s > 60 s (the sky classifier needs a pyranometer "
+                    "sample at least every minute)",
+                    True,
+                )
+            )
         if self.wind is not None:
             self._check_wind(at.child("wind"), links, used)
         if self.control.sun_source == "hotspot" and self.hotspot is None:
             raise at.child("hotspot").error('a [hotspot] table when control.sun_source = "hotspot"')
         return c
 
-
-    def _check_wind(self, at: Where, links: dict[str, LinkConfig],
-                    used: dict[tuple[str, int], str]) -> None:
+    def _check_wind(self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[str, int], str]) -> None:
         wind = self.wind
         assert wind is not None
         if wind.link not in links:
@@ -283,21 +343,23 @@ class Config:
             raise at.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", wind.link)
         pyr = self.pyranometer
         if (wind.link, wind.device_id) in used or (
-                pyr is not None and (pyr.link, pyr.device_id) == (wind.link, wind.device_id)):
-            raise at.child("device_id").error(f"an id not used on {wind.link!r} already",
-                                              wind.device_id)
+            pyr is not None and (pyr.link, pyr.device_id) == (wind.link, wind.device_id)
+        ):
+            raise at.child("device_id").error(f"an id not used on {wind.link!r} already", wind.device_id)
         # the wind stow angle becomes each drive's STOW_ANGLE: it must be reachable
         for tr in self.trackers:
             if isinstance(tr, SingleAxisTracker) and abs(wind.single_axis_deg) > tr.max_angle:
                 raise at.child("single_axis_deg").error(
                     f"a rotation within every row's max_angle ({tr.name}: {tr.max_angle:g} deg)",
-                    wind.single_axis_deg)
+                    wind.single_axis_deg,
+                )
             if isinstance(tr, DualAxisTracker):
                 lo, hi = tr.elevation_limits
                 if not lo <= wind.dual_axis_elevation_deg <= hi:
                     raise at.child("dual_axis_elevation_deg").error(
                         f"an elevation within every tracker's limits ({tr.name}: [{lo:g}, {hi:g}])",
-                        wind.dual_axis_elevation_deg)
+                        wind.dual_axis_elevation_deg,
+                    )
 
 
 def _addresses(link: LinkConfig, device_id: int, axes: int) -> range:
@@ -310,12 +372,22 @@ def load_config(path: str | Path, schema: type[C] = Config) -> C:  # type: ignor
     return load_file(schema, path)
 
 
-def parse_config(data: dict[str, Any], file: str | Path | None = None,
-                 schema: type[C] = Config) -> C:  # type: ignore[assignment]
+def parse_config(data: dict[str, Any], file: str | Path | None = None, schema: type[C] = Config) -> C:  # type: ignore[assignment]
     """Validate an already parsed document."""
     return load(schema, data, file if file is not None else "<config>")
 
 
-__all__ = ["Config", "ConfigError", "ControlConfig", "DualAxisTracker", "HotspotConfig",
-           "PyranometerConfig", "SingleAxisTracker", "SunPathSettings", "TrackerConfig",
-           "load_config", "parse_config", "DERIVED"]
+__all__ = [
+    "Config",
+    "ConfigError",
+    "ControlConfig",
+    "DualAxisTracker",
+    "HotspotConfig",
+    "PyranometerConfig",
+    "SingleAxisTracker",
+    "SunPathSettings",
+    "TrackerConfig",
+    "load_config",
+    "parse_config",
+    "DERIVED",
+]

@@ -25,18 +25,22 @@ from .sun.source import Site, solar_position
 class DiffuseConfig:
     """The DIFFUSE mode: panels flat under an overcast sky, with hysteresis and dwell."""
 
-    enabled: bool | None = setting(None, doc="Switch DIFFUSE on at all.",
-                                   derived="true when a [pyranometer] is configured")
-    window_h: float = setting(2.0, doc="Overcast over this window (sun above 10 deg) enters "
-                              "DIFFUSE.", unit="h", ge=0.25, le=24)
-    exit_window_h: float = setting(0.25, doc="Anything but overcast over this shorter window "
-                                   "leaves DIFFUSE.", unit="h", ge=0.25, le=24)
-    dwell_s: float = setting(900.0, doc="After leaving, the minimum time before entering "
-                             "again.", unit="s", ge=0, le=86400)
-    method: Literal["default", "seed"] = setting("default", doc="Sky classifier rule (see "
-                                                 "docs/skytype.md).")
-    min_elevation_deg: float = setting(10.0, doc="Only samples with the sun above this count.",
-                                       unit="deg", ge=0, le=45)
+    enabled: bool | None = setting(
+        None, doc="Switch DIFFUSE on at all.", derived="true when a [pyranometer] is configured"
+    )
+    window_h: float = setting(
+        2.0, doc="Overcast over this window (sun above 10 deg) enters DIFFUSE.", unit="h", ge=0.25, le=24
+    )
+    exit_window_h: float = setting(
+        0.25, doc="Anything but overcast over this shorter window leaves DIFFUSE.", unit="h", ge=0.25, le=24
+    )
+    dwell_s: float = setting(
+        900.0, doc="After leaving, the minimum time before entering again.", unit="s", ge=0, le=86400
+    )
+    method: Literal["default", "seed"] = setting("default", doc="Sky classifier rule (see docs/skytype.md).")
+    min_elevation_deg: float = setting(
+        10.0, doc="Only samples with the sun above this count.", unit="deg", ge=0, le=45
+    )
 
 
 class DiffuseSwitch:
@@ -44,15 +48,14 @@ class DiffuseSwitch:
 
     def __init__(self, site: Site, config: DiffuseConfig | None = None):
         config = config if config is not None else DiffuseConfig()
-        if config.enabled is None:     # built on its own (no [pyranometer] to decide): on
+        if config.enabled is None:  # built on its own (no [pyranometer] to decide): on
             config = replace(config, enabled=True)
         self.site = site
         self.config = config
         # Near sunrise and sunset the pyranometer's view of the sunshine is unreliable (and
         # low beam matters little): only the part of the window with the sun above
         # min_elevation_deg is classified, and it must fill most of the window.
-        self.sky_config = SkyConfig(method=config.method,
-                                    min_elevation_deg=config.min_elevation_deg)
+        self.sky_config = SkyConfig(method=config.method, min_elevation_deg=config.min_elevation_deg)
         self.samples: deque[tuple[float, float]] = deque()
         self.active = False
         self.since = -np.inf
@@ -68,9 +71,15 @@ class DiffuseSwitch:
         if len(self.samples) < 10 or not self._sun_high(t - hours * 3600.0, t):
             return 0
         arr = np.asarray(self.samples)
-        return classify_window(arr[:, 0], arr[:, 1], self.site, hours=hours, end=t,
-                               config=self.sky_config, min_daylight_s=hours * 3600 * 0.8
-                               ).sky_class
+        return classify_window(
+            arr[:, 0],
+            arr[:, 1],
+            self.site,
+            hours=hours,
+            end=t,
+            config=self.sky_config,
+            min_daylight_s=hours * 3600 * 0.8,
+        ).sky_class
 
     def _sun_high(self, t_start: float, t_end: float) -> bool:
         """The sun stays above ``min_elevation_deg`` over the whole window.

@@ -67,8 +67,7 @@ class DriveHealth:
             self.state, self.reason = Health.DEGRADED, why
             return False
         self.state, self.reason = Health.LOST, f"{why} ({self.errors_in_row} cycles in a row)"
-        self.backoff_s = min(max(2 * self.backoff_s, self.policy.min_backoff_s),
-                             self.policy.max_backoff_s)
+        self.backoff_s = min(max(2 * self.backoff_s, self.policy.min_backoff_s), self.policy.max_backoff_s)
         self.reconnect_at = now + self.backoff_s
         return True
 
@@ -104,7 +103,7 @@ class DriveHealth:
         if Mode.STOW in modes:
             ours = self.stowed_by_us or self.watchdog_stow or comm_lost
             if ours and not weather_stow:
-                commands.append(Command.RESUME)          # our stow, or the watchdog's
+                commands.append(Command.RESUME)  # our stow, or the watchdog's
                 self.stowed_by_us = self.watchdog_stow = False
             elif not ours:
                 problems.append("stowed by a local switch or another master: left stowed")
@@ -124,6 +123,7 @@ class DriveHealth:
 
 def _fault_text(fault: Fault, status: Status) -> str:
     text = f"fault {fault.name}"
-    limits = [n for n, bit in (("LIMIT_NEG", Status.LIMIT_NEG), ("LIMIT_POS", Status.LIMIT_POS))
-              if status & bit]
+    limits = [
+        n for n, bit in (("LIMIT_NEG", Status.LIMIT_NEG), ("LIMIT_POS", Status.LIMIT_POS)) if status & bit
+    ]
     return text + (f" ({', '.join(limits)})" if limits else "")

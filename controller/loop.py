@@ -15,7 +15,7 @@ import math
 import time
 from collections import deque
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol
+from typing import Any
 
 from firmware_protocol import Command, Mode, Status
 
@@ -30,19 +30,14 @@ from .records import CycleRecord, TrackerRuntime
 from .safety import SafetyState, StowOrder, clamp_targets
 from .sun.source import SunSource
 from .sun.types import SunEstimate
-from .weather import WindSample, WindState
+from .wind_polling import WindPolling, WindSensor
 
 log = logging.getLogger("heliotrack.controller")
 
 __all__ = ["Controller", "CycleRecord", "TrackerRuntime"]
 
 
-class WindSensor(Protocol):
-    async def read(self, t: float) -> WindSample: ...
-    async def close(self) -> None: ...
-
-
-class Controller:
+class Controller(WindPolling):
     """Drives every configured tracker from one sun source.
 
     A failing drive is recorded and skipped for that cycle; it never stops the others.
@@ -62,28 +57,36 @@ class Controller:
     #: configuration of a hundred drives on one CAN bus takes seconds, not a cycle.
     START_TIMEOUT_S = 60.0
 
-    def __init__(self, config: Config, drives: Mapping[str, DriveLink], sun: SunSource,
-                 clock: Clock, realtime: bool = False, pyranometer: Any = None,
-                 sensor: Any = None, anemometer: WindSensor | None = None):
+    def __init__(
+        self,
+        config: Config,
+        drives: Mapping[str, DriveLink],
+        sun: SunSource,
+        clock: Clock,
+        realtime: bool = False,
+        pyranometer: Any = None,
+        sensor: Any = None,
+        anemometer: WindSensor | None = None,
+    ):
         self.config = config
         self.realtime = realtime
         self.pyranometer = pyranometer
         self.anemometer = anemometer
-        self.sensor = sensor          # a camera sun sensor feeding ``sun`` (sun-path filter)
+        self.sensor = sensor  # a camera sun sensor feeding ``sun`` (sun-path filter)
         self._saved_day: int | None = None
         self._last_el_deg = math.inf
         self._last_frame_t = -math.inf
         self._next_wind_poll = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
+        self.sun_alarm = ""
         self.safety = SafetyState(config.wind, config.stow, clock.now(), warn=log.warning)
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
         self.overrides: dict[int, tuple[float, ...]] = {}
         self._home_requested: set[int] = set()
         self.sun = sun
         self.clock = clock
-        self.trackers = [TrackerRuntime(t, drives[t.name], index=i)
-                         for i, t in enumerate(config.trackers)]
+        self.trackers = [TrackerRuntime(t, drives[t.name], index=i) for i, t in enumerate(config.trackers)]
         self.cycles = 0
         #: Machine-readable events (weather stow and resume, health changes), newest last.
         self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
@@ -100,14 +103,13 @@ class Controller:
     async def _start_one(self, tr: TrackerRuntime) -> None:
         try:
             await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
-        except (DriveCommError, asyncio.TimeoutError) as exc:
+        except (TimeoutError, DriveCommError) as exc:
             tr.errors += 1
             self._link_failed(tr, str(exc) or "no answer at start-up")
 
     @staticmethod
     def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState) -> None:
-        if (any(a.mode == Mode.STOW for a in st.axes)
-                and any(a.status & Status.COMM_LOST for a in st.axes)):
+        if any(a.mode == Mode.STOW for a in st.axes) and any(a.status & Status.COMM_LOST for a in st.axes):
             tr.health.watchdog_stow = True
 
     def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:
@@ -120,13 +122,18 @@ class Controller:
     async def _configure(self, tr: TrackerRuntime) -> None:
         await tr.drive.connect()
         if tr.drive.axis_count < tr.cfg.axes:
-            raise DriveCommError(f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
-                                 f"a {tr.cfg.type} tracker needs {tr.cfg.axes}")
+            raise DriveCommError(
+                f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
+                f"a {tr.cfg.type} tracker needs {tr.cfg.axes}"
+            )
         # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
         self._note_watchdog_stow(tr, await tr.drive.read_state())
-        await tr.drive.configure(heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
-                                 soft_limits=tr.cfg.soft_limits,
-                                 stow_angles=self.drive_stow_angles(tr))
+        tr.uptime_s = None
+        await tr.drive.configure(
+            heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
+            soft_limits=tr.cfg.soft_limits,
+            stow_angles=self.drive_stow_angles(tr),
+        )
         await self._heartbeat(tr, force=True)
         # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
         tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
@@ -143,6 +150,29 @@ class Controller:
         if force or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
             await tr.drive.heartbeat()
             tr.last_heartbeat = t
+            await self._check_reboot(tr)
+
+    async def _check_reboot(self, tr: TrackerRuntime) -> None:
+        """A drive whose uptime went back has rebooted: it forgot its configuration (limits,
+        stow angle, watchdog), so it is configured again before the next exchange."""
+        ident = await tr.drive.identify()
+        if ident is None:
+            return
+        now = self.clock.monotonic()
+        # the uptime it should show by now, had it not restarted since the last reading
+        expected = None if tr.uptime_s is None else tr.uptime_s + (now - tr.uptime_at)
+        before = tr.uptime_s
+        tr.uptime_s, tr.uptime_at = ident.uptime_s, now
+        if expected is not None and before is not None and ident.uptime_s + 5.0 < expected:
+            log.warning(
+                "%s: drive rebooted (uptime %.0f s, was %.0f s): configuring it again",
+                tr.cfg.name,
+                ident.uptime_s,
+                before,
+            )
+            self._event("drive_reboot", tracker=tr.cfg.name)
+            tr.uptime_s = None
+            await self._configure(tr)
 
     # -- one cycle ----------------------------------------------------------------
     async def cycle(self) -> list[CycleRecord]:
@@ -158,17 +188,18 @@ class Controller:
         decision = self.decide(est, overcast, order)
         targets = self.targets(est, decision, order)
         t_wall = time.perf_counter()
-        alarms = tuple(self.safety.alarms)
-        records = [self._record(tr, t, est, decision, s, alarms)
-                   for tr, s in zip(self.trackers, targets)]
+        alarms = tuple(self.safety.alarms) + ((self.sun_alarm,) if self.sun_alarm else ())
+        records = [self._record(tr, t, est, decision, s, alarms) for tr, s in zip(self.trackers, targets)]
         if order is None:
             for i, manual in self.overrides.items():
                 # An operator's manual setpoint outranks tracking, DIFFUSE and night stow,
                 # never a weather stow.
                 targets[i] = (list(manual), False)
                 records[i].mode, records[i].reason = ControlMode.MANUAL.value, "operator override"
-        tasks = [asyncio.ensure_future(self._drive_one(tr, rec, s[0], order, t_wall))
-                 for tr, rec, s in zip(self.trackers, records, targets)]
+        tasks = [
+            asyncio.ensure_future(self._drive_one(tr, rec, s[0], order, t_wall))
+            for tr, rec, s in zip(self.trackers, records, targets)
+        ]
         # One deadline for the cycle: a row still waiting then is cancelled and marked;
         # the others have long finished, so a dead drive costs only its own row.
         _, late = await asyncio.wait(tasks, timeout=self._deadline())
@@ -192,8 +223,7 @@ class Controller:
         self.cycles += 1
         return records
 
-    def decide(self, est: SunEstimate | None, overcast: bool,
-               order: StowOrder | None) -> ModeDecision:
+    def decide(self, est: SunEstimate | None, overcast: bool, order: StowOrder | None) -> ModeDecision:
         """The plant's mode this cycle (a weather stow outranks everything)."""
         if order is not None:
             return ModeDecision(ControlMode.STOW, order.reason)
@@ -201,13 +231,15 @@ class Controller:
             return ModeDecision(ControlMode.STOW, "no sun estimate")
         return decide_mode(est.el_deg, self.config.control.min_elevation_deg, overcast=overcast)
 
-    def targets(self, est: SunEstimate | None, decision: ModeDecision,
-                order: StowOrder | None) -> list[sp.Setpoint]:
+    def targets(
+        self, est: SunEstimate | None, decision: ModeDecision, order: StowOrder | None
+    ) -> list[sp.Setpoint]:
         """Axis targets (deg) of every tracker, and whether each row is backtracking."""
         if order is not None:
             return [(list(self.safety.angles(tr.cfg, order.kind)), False) for tr in self.trackers]
-        return sp.for_mode(decision.mode, est, [tr.cfg for tr in self.trackers],
-                           [tr.last_state for tr in self.trackers])
+        return sp.for_mode(
+            decision.mode, est, [tr.cfg for tr in self.trackers], [tr.last_state for tr in self.trackers]
+        )
 
     async def _observe(self, t: float) -> None:
         """Feed the sun-path filter from the camera (in a thread: frames take time).
@@ -223,10 +255,29 @@ class Controller:
             obs = await asyncio.to_thread(self.sensor.observe, t)
             if obs is not None:
                 self.sun.observe(obs)
+                self._check_sun_site()
         day = int(t // 86400)
         if self._saved_day is not None and day != self._saved_day:
-            self.sun.save()   # atomic; once a day and at shutdown
+            self.sun.save()  # atomic; once a day and at shutdown
         self._saved_day = day
+
+    def _check_sun_site(self) -> None:
+        """Alarm once when the sky and the configured site disagree by more than the sun-path
+        filter allows (a wrong site, or a wall clock off by a time step): the filter keeps the
+        configured site and rejects the camera, and only an operator can tell which is wrong."""
+        learned = self.sun.summary()
+        mismatch = bool(learned.get("site_mismatch"))
+        if mismatch and not self.sun_alarm:
+            self.sun_alarm = (
+                f"sky and configured site disagree (latitude "
+                f"{learned.get('site_mismatch_lat_deg', 0.0):+.2f} deg, longitude "
+                f"{learned.get('site_mismatch_lon_deg', 0.0):+.2f} deg): check "
+                f"the site and the clock"
+            )
+            log.warning("SUN ALARM: %s", self.sun_alarm)
+            self._event("sun_alarm", reason=self.sun_alarm)
+        elif not mismatch:
+            self.sun_alarm = ""
 
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
@@ -235,80 +286,44 @@ class Controller:
         try:
             sample = await asyncio.wait_for(self.pyranometer.read(t), self._deadline())
             self.diffuse.add(sample.time, sample.ghi_w_m2)
-        except (DriveCommError, asyncio.TimeoutError) as exc:
+        except (TimeoutError, DriveCommError) as exc:
             self.sensor_errors += 1
             log.warning("pyranometer: %s", exc or "no answer")
         return self.diffuse.update(t)
-
-    # -- weather between cycles ------------------------------------------------------------
-    def weather_due(self) -> bool:
-        """True when the anemometer should be read now (every ``[wind] poll_s``)."""
-        return self.anemometer is not None and self.clock.monotonic() >= self._next_wind_poll
-
-    async def _poll_weather_if_due(self) -> None:
-        if self.weather_due():
-            await self.poll_weather()
-
-    async def poll_weather(self) -> WindState:
-        """Read the anemometer, update the wind stow, and stow (or resume) every drive at
-        once when it changes.  Returns the wind state."""
-        wind = self.config.wind
-        if self.anemometer is None or wind is None:
-            return self.safety.wind
-        self._next_wind_poll = self.clock.monotonic() + wind.poll_s
-        t = self.clock.now()
-        try:
-            sample: WindSample | None = await asyncio.wait_for(self.anemometer.read(t),
-                                                               max(wind.poll_s, 1.0))
-        except (DriveCommError, asyncio.TimeoutError) as exc:
-            self.sensor_errors += 1
-            log.warning("anemometer: %s", exc or "no answer")
-            sample = None
-        before = self.safety.wind
-        state = self.safety.update_wind(t, sample)
-        if state.alarm and not before.alarm:
-            log.warning("WIND ALARM: %s", state.reason)
-            self._event("wind_alarm", reason=state.reason, stow=state.stow)
-        if state.stow and not before.stow:
-            await self._stow_all(state.reason)
-        elif before.stow and not state.stow:
-            log.warning("wind stow over: resuming")
-            self._event("wind_clear")
-        return state
-
-    async def _stow_all(self, reason: str) -> None:
-        """Command STOW to every drive at once and read each back."""
-        self._event("stow_commanded", reason=reason)
-
-        async def one(tr: TrackerRuntime) -> None:
-            try:
-                await tr.drive.command(Command.STOW)
-                tr.health.stowed_by_us = True
-                st = await tr.drive.read_state()
-                if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes):
-                    self._event("stow_confirmed", tracker=tr.cfg.name)
-            except DriveCommError as exc:
-                log.warning("%s: wind stow command failed: %s", tr.cfg.name, exc)
-
-        await asyncio.wait([asyncio.ensure_future(one(tr)) for tr in self.trackers],
-                           timeout=self._deadline())
 
     def _event(self, kind: str, **detail: Any) -> None:
         self.events.append({"time": self.clock.now(), "kind": kind, **detail})
 
     # -- one drive ------------------------------------------------------------------
-    def _record(self, tr: TrackerRuntime, t: float, est: SunEstimate | None,
-                decision: ModeDecision, setpoint: sp.Setpoint,
-                alarms: tuple[str, ...]) -> CycleRecord:
+    def _record(
+        self,
+        tr: TrackerRuntime,
+        t: float,
+        est: SunEstimate | None,
+        decision: ModeDecision,
+        setpoint: sp.Setpoint,
+        alarms: tuple[str, ...],
+    ) -> CycleRecord:
         return CycleRecord(
-            time=t, tracker=tr.cfg.name, mode=decision.mode.value, reason=decision.reason,
+            time=t,
+            tracker=tr.cfg.name,
+            mode=decision.mode.value,
+            reason=decision.reason,
             source=est.source.value if est else "none",
             sun_az_deg=est.az_deg if est else math.nan,
-            sun_el_deg=est.el_deg if est else math.nan, backtracking=setpoint[1],
-            alarms=alarms)
+            sun_el_deg=est.el_deg if est else math.nan,
+            backtracking=setpoint[1],
+            alarms=alarms,
+        )
 
-    async def _drive_one(self, tr: TrackerRuntime, rec: CycleRecord, targets: list[float],
-                         order: StowOrder | None, t_wall: float) -> None:
+    async def _drive_one(
+        self,
+        tr: TrackerRuntime,
+        rec: CycleRecord,
+        targets: list[float],
+        order: StowOrder | None,
+        t_wall: float,
+    ) -> None:
         try:
             targets = clamp_targets(tr.cfg, targets)
             state = await self._exchange(tr, targets, order)
@@ -325,12 +340,11 @@ class Controller:
     def _link_failed(self, tr: TrackerRuntime, why: str) -> None:
         before = tr.health.state
         if tr.health.comm_failed(self.clock.monotonic(), why) and tr.configured:
-            tr.configured = False          # reconnect (and reconfigure) after the backoff
+            tr.configured = False  # reconnect (and reconfigure) after the backoff
             asyncio.ensure_future(self._close_quietly(tr.drive))
         if tr.health.state != before:
             log.warning("%s: %s: %s", tr.cfg.name, tr.health.state.value, tr.health.reason)
-            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value,
-                        reason=tr.health.reason)
+            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value, reason=tr.health.reason)
 
     @staticmethod
     async def _close_quietly(drive: DriveLink) -> None:
@@ -339,16 +353,20 @@ class Controller:
         except Exception:  # noqa: BLE001 - closing a dead link must not hide the real error
             pass
 
-    async def _exchange(self, tr: TrackerRuntime, targets: list[float],
-                        order: StowOrder | None) -> DriveState:
+    async def _exchange(
+        self, tr: TrackerRuntime, targets: list[float], order: StowOrder | None
+    ) -> DriveState:
         if not tr.configured:
             now = self.clock.monotonic()
             if not tr.health.may_reconnect(now):
-                raise DriveCommError(f"{tr.cfg.name}: link down ({tr.health.reason}); next "
-                                     f"attempt in {tr.health.reconnect_at - now:.0f} s")
+                raise DriveCommError(
+                    f"{tr.cfg.name}: link down ({tr.health.reason}); next "
+                    f"attempt in {tr.health.reconnect_at - now:.0f} s"
+                )
             await self._configure(tr)
-        elif tr.health.errors_in_row or (self.clock.monotonic() - tr.last_heartbeat
-                                          >= 0.9 * self.config.control.heartbeat_timeout_s):
+        elif tr.health.errors_in_row or (
+            self.clock.monotonic() - tr.last_heartbeat >= 0.9 * self.config.control.heartbeat_timeout_s
+        ):
             # Back after failures or a stall: the watchdog may have fired; look before the
             # heartbeat clears its COMM_LOST flag.
             self._note_watchdog_stow(tr, await tr.drive.read_state())
@@ -359,7 +377,7 @@ class Controller:
         state = await tr.drive.exchange(targets)
         wind = order is not None and order.kind == "wind"
         if wind and any(a.mode not in (Mode.STOW, Mode.MAINTENANCE) for a in state.axes):
-            await tr.drive.command(Command.STOW)       # a drive the fast path missed
+            await tr.drive.command(Command.STOW)  # a drive the fast path missed
             tr.health.stowed_by_us = True
         before = tr.health.state
         for cmd in tr.health.assess(state, self.clock.monotonic(), weather_stow=wind):
@@ -368,16 +386,19 @@ class Controller:
             await tr.drive.command(cmd)
         if tr.health.state != before:
             level = logging.INFO if tr.health.state == Health.OK else logging.WARNING
-            log.log(level, "%s: %s%s", tr.cfg.name, tr.health.state.value,
-                    f": {tr.health.reason}" if tr.health.reason else "")
-            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value,
-                        reason=tr.health.reason)
+            log.log(
+                level,
+                "%s: %s%s",
+                tr.cfg.name,
+                tr.health.state.value,
+                f": {tr.health.reason}" if tr.health.reason else "",
+            )
+            self._event("health", tracker=tr.cfg.name, state=tr.health.state.value, reason=tr.health.reason)
         tr.last_targets, tr.last_state = tuple(targets), state
         return state
 
     # -- operator -------------------------------------------------------------------
-    def set_override(self, tracker: int | None, ctl: str, el_deg: float | None,
-                     az_deg: float | None) -> None:
+    def set_override(self, tracker: int | None, ctl: str, el_deg: float | None, az_deg: float | None) -> None:
         """Apply an operator command (SunSpec model 601 semantics).
 
         ``ctl``: "Automatic" clears the override, "Manual" holds the given setpoint
@@ -398,69 +419,27 @@ class Controller:
                 raise ValueError(f"unknown control {ctl!r}")
 
     # -- running ----------------------------------------------------------------------
-    async def run(self, duration_s: float, on_cycle: Callable[[list[CycleRecord]], Any] | None = None,
-                  stop: asyncio.Event | None = None) -> dict[str, int]:
-        """Cycle on period boundaries for ``duration_s`` (or until ``stop`` is set).
+    async def run(
+        self,
+        duration_s: float,
+        on_cycle: Callable[[list[CycleRecord]], Any] | None = None,
+        stop: asyncio.Event | None = None,
+    ) -> dict[str, int]:
+        """Cycle on period boundaries for ``duration_s`` (or until ``stop`` is set); see
+        :func:`controller.schedule.run_cycles`."""
+        from .schedule import run_cycles
 
-        On the simulated clock, the clock is advanced.  In real time the schedule runs on
-        the event loop's monotonic clock (a wall-clock step moves neither the next cycle nor
-        the end), the anemometer is polled between cycles, and the call returns at the end
-        of ``duration_s`` whatever the period.  ``on_cycle(records)`` is called after every
-        cycle; a cycle that overruns its period makes the loop skip to the next boundary
-        (counted in ``overruns``) rather than queue late cycles.
-        """
-        if not self.realtime:
-            return await self._run_simulated(duration_s, on_cycle)
-        loop = asyncio.get_running_loop()
-        period = self.config.control.period_s
-        end = loop.time() + duration_s
-        next_cycle = loop.time()
-        stop = stop or asyncio.Event()
-        overruns = 0
-        while not stop.is_set():
-            now = loop.time()
-            if now >= end:
-                break
-            if now >= next_cycle:
-                records = await self.cycle()
-                if on_cycle is not None:
-                    on_cycle(records)
-                next_cycle += period
-                while loop.time() > next_cycle:
-                    next_cycle += period
-                    overruns += 1
-                continue
-            wake = min(next_cycle, end)
-            if self.anemometer is not None:
-                if self.weather_due():
-                    await self.poll_weather()
-                    continue
-                wake = min(wake, loop.time() + max(self._next_wind_poll - self.clock.monotonic(), 0))
-            try:
-                await asyncio.wait_for(stop.wait(), max(wake - loop.time(), 0.0))
-            except asyncio.TimeoutError:
-                pass
-        return {"cycles": self.cycles, "overruns": overruns}
-
-    async def _run_simulated(self, duration_s: float,
-                             on_cycle: Callable[[list[CycleRecord]], Any] | None) -> dict[str, int]:
-        period = self.config.control.period_s
-        t_end = self.clock.now() + duration_s
-        next_t = self.clock.now()
-        while next_t < t_end:
-            self.clock.sleep(max(next_t - self.clock.now(), 0.0))
-            records = await self.cycle()
-            if on_cycle is not None:
-                on_cycle(records)
-            next_t += period
-        return {"cycles": self.cycles, "overruns": 0}
+        return await run_cycles(self, duration_s, on_cycle, stop)
 
     def stats(self) -> dict[str, int]:
         tx = sum(tr.drive.stats.transactions for tr in self.trackers)
         err = sum(tr.drive.stats.errors for tr in self.trackers)
-        return {"transactions": tx, "errors": err,
-                "retries": sum(tr.drive.stats.retries for tr in self.trackers),
-                "sensor_errors": self.sensor_errors}
+        return {
+            "transactions": tx,
+            "errors": err,
+            "retries": sum(tr.drive.stats.retries for tr in self.trackers),
+            "sensor_errors": self.sensor_errors,
+        }
 
     async def close(self) -> None:
         if self.sensor is not None:

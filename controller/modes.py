@@ -15,10 +15,10 @@ from enum import Enum
 
 
 class ControlMode(str, Enum):
-    TRACK = "TRACK"        # follow the sun estimate (observed, predicted or ephemeris)
-    DIFFUSE = "DIFFUSE"    # overcast: the orientation that maximises diffuse light
-    STOW = "STOW"          # safe position (night, wind, fault, lost link)
-    MANUAL = "MANUAL"      # operator setpoints
+    TRACK = "TRACK"  # follow the sun estimate (observed, predicted or ephemeris)
+    DIFFUSE = "DIFFUSE"  # overcast: the orientation that maximises diffuse light
+    STOW = "STOW"  # safe position (night, wind, fault, lost link)
+    MANUAL = "MANUAL"  # operator setpoints
 
 
 @dataclass(frozen=True)
@@ -27,8 +27,9 @@ class ModeDecision:
     reason: str
 
 
-def decide_mode(sun_el_deg: float, min_elevation_deg: float = 0.0,
-                wake_margin_deg: float = 2.0, overcast: bool = False) -> ModeDecision:
+def decide_mode(
+    sun_el_deg: float, min_elevation_deg: float = 0.0, wake_margin_deg: float = 2.0, overcast: bool = False
+) -> ModeDecision:
     """Pick the mode for this cycle.
 
     Parameters

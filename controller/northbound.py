@@ -9,7 +9,7 @@ snapshot after each cycle and applies queued overrides before the next.
 from __future__ import annotations
 
 import queue
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 from .config import DualAxisTracker, SingleAxisTracker
 from .loop import Controller, CycleRecord
@@ -61,23 +61,45 @@ class Northbound:
             alarm = _ALARM_SETPOINT if rec is not None and (rec.error or rec.health != "ok") else 0
             manual = self.controller.overrides.get(tr.index)
             if isinstance(cfg, SingleAxisTracker):
-                trackers.append(TrackerSnapshot.row(
-                    cfg.name, tgt[0] if tgt else None, pos[0] if pos else None, mode, alarm,
-                    manual[0] if manual else None, (-cfg.max_angle, cfg.max_angle)))
+                trackers.append(
+                    TrackerSnapshot.row(
+                        cfg.name,
+                        tgt[0] if tgt else None,
+                        pos[0] if pos else None,
+                        mode,
+                        alarm,
+                        manual[0] if manual else None,
+                        (-cfg.max_angle, cfg.max_angle),
+                    )
+                )
             elif isinstance(cfg, DualAxisTracker):
-                trackers.append(TrackerSnapshot(
-                    cfg.name, tgt[1] if tgt else None, tgt[0] % 360 if tgt else None,
-                    pos[1] if pos else None, pos[0] % 360 if pos else None, mode, alarm,
-                    manual[1] if manual else None, manual[0] % 360 if manual else None,
-                    cfg.elevation_limits, None))
+                trackers.append(
+                    TrackerSnapshot(
+                        cfg.name,
+                        tgt[1] if tgt else None,
+                        tgt[0] % 360 if tgt else None,
+                        pos[1] if pos else None,
+                        pos[0] % 360 if pos else None,
+                        mode,
+                        alarm,
+                        manual[1] if manual else None,
+                        manual[0] % 360 if manual else None,
+                        cfg.elevation_limits,
+                        None,
+                    )
+                )
         kinds = {tr.cfg.type for tr in self.controller.trackers}
         # Model 601 has one Typ per controller; a mixed plant reports dual-axis and its
         # rows carry their rotation in the elevation points (azimuth unimplemented).
         plant_type = "dual-axis" if "dual-axis" in kinds else "single-axis"
         site = self.controller.config.site
         t = records[0].time if records else self.controller.clock.now()
-        local = datetime.fromtimestamp(t, tz=timezone.utc) + timedelta(hours=site.longitude / 15)
-        tilts = [tr.cfg.axis_tilt for tr in self.controller.trackers
-                 if isinstance(tr.cfg, SingleAxisTracker)]
-        return PlantSnapshot(self.name, plant_type, local.replace(tzinfo=None), tuple(trackers),
-                             axis_tilt_deg=max(tilts, default=0.0))
+        local = datetime.fromtimestamp(t, tz=UTC) + timedelta(hours=site.longitude / 15)
+        tilts = [tr.cfg.axis_tilt for tr in self.controller.trackers if isinstance(tr.cfg, SingleAxisTracker)]
+        return PlantSnapshot(
+            self.name,
+            plant_type,
+            local.replace(tzinfo=None),
+            tuple(trackers),
+            axis_tilt_deg=max(tilts, default=0.0),
+        )

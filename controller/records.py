@@ -33,7 +33,7 @@ class CycleRecord:
     axis_modes: tuple[str, ...] = ()
     backtracking: bool = False
     error: str = ""
-    latency_s: float = 0.0   # wall time from the cycle's start until this row was done
+    latency_s: float = 0.0  # wall time from the cycle's start until this row was done
     health: str = "ok"
     health_reason: str = ""
     alarms: tuple[str, ...] = ()
@@ -49,7 +49,8 @@ class TrackerRuntime:
     last_state: DriveState | None = None
     last_heartbeat: float = -math.inf
     configured: bool = False
-    uptime_s: float | None = None
+    uptime_s: float | None = None  # the drive's last reported uptime, s
+    uptime_at: float = 0.0  # when it was read (the clock's monotonic time)
     index: int = 0
     errors: int = 0
     health: DriveHealth = field(default_factory=DriveHealth)

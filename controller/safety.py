@@ -37,13 +37,12 @@ class SafetyState:
     warn : callable taking one line, for a flag file that cannot be read or obeyed
     """
 
-    def __init__(self, wind: WindConfig | None, stow: StowConfig | None, start: float,
-                 warn=None):
+    def __init__(self, wind: WindConfig | None, stow: StowConfig | None, start: float, warn=None):
         self.wind_config = wind
         self.stow_config = stow or StowConfig()
         self.monitor = WindMonitor(wind, start) if wind is not None else None
         self.wind = WindState(False, False)
-        self.requests: dict[str, str] = {}        # source -> "snow" / "hail"
+        self.requests: dict[str, str] = {}  # source -> "snow" / "hail"
         self._warn = warn or (lambda line: None)
         self._last_flag_problem = ""
 
@@ -73,7 +72,7 @@ class SafetyState:
         if got in (None, "snow", "hail"):
             self.request("flag file", got)
             self._last_flag_problem = ""
-        elif got != self._last_flag_problem:       # say it once, not every cycle
+        elif got != self._last_flag_problem:  # say it once, not every cycle
             self._warn(str(got))
             self._last_flag_problem = str(got)
 
@@ -102,12 +101,18 @@ class SafetyState:
         """Stow angles (deg) of ``tracker`` for a weather stow of ``kind``, inside its limits."""
         w, s = self.wind_config, self.stow_config
         if isinstance(tracker, SingleAxisTracker):
-            rot = {"wind": w.single_axis_deg if w else tracker.stow,
-                   "snow": s.snow_single_axis_deg, "hail": s.hail_single_axis_deg}[kind]
+            rot = {
+                "wind": w.single_axis_deg if w else tracker.stow,
+                "snow": s.snow_single_axis_deg,
+                "hail": s.hail_single_axis_deg,
+            }[kind]
             return (min(max(rot, -tracker.max_angle), tracker.max_angle),)
         assert isinstance(tracker, DualAxisTracker)
-        el = {"wind": w.dual_axis_elevation_deg if w else tracker.stow[1],
-              "snow": s.snow_dual_axis_elevation_deg, "hail": s.hail_dual_axis_elevation_deg}[kind]
+        el = {
+            "wind": w.dual_axis_elevation_deg if w else tracker.stow[1],
+            "snow": s.snow_dual_axis_elevation_deg,
+            "hail": s.hail_dual_axis_elevation_deg,
+        }[kind]
         lo, hi = tracker.elevation_limits
         return tracker.stow[0], min(max(el, lo), hi)
 

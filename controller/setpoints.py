@@ -15,11 +15,12 @@ from .geometry import dual_axis_setpoint, single_axis_setpoints, wrap_into_range
 from .modes import ControlMode
 from .sun.types import SunEstimate
 
-Setpoint = tuple[list[float], bool]     # axis targets (deg), backtracking
+Setpoint = tuple[list[float], bool]  # axis targets (deg), backtracking
 
 
-def tracking(est: SunEstimate, trackers: Sequence[TrackerConfig],
-             states: Sequence[DriveState | None]) -> list[Setpoint]:
+def tracking(
+    est: SunEstimate, trackers: Sequence[TrackerConfig], states: Sequence[DriveState | None]
+) -> list[Setpoint]:
     """Follow the sun: dual-axis trackers point at it, rows track with backtracking.
 
     ``states`` (the drives' last states) keep a dual-axis azimuth on the near side of a
@@ -36,8 +37,9 @@ def tracking(est: SunEstimate, trackers: Sequence[TrackerConfig],
         if isinstance(cfg, DualAxisTracker):
             st = states[i]
             current = st.axes[0].actual_deg if st is not None else None
-            az, el = dual_axis_setpoint(est.az_deg, est.el_deg, cfg.azimuth_limits,
-                                        cfg.elevation_limits, current)
+            az, el = dual_axis_setpoint(
+                est.az_deg, est.el_deg, cfg.azimuth_limits, cfg.elevation_limits, current
+            )
             out[i] = ([az, el], False)
     return out
 
@@ -50,8 +52,12 @@ def facing_sky(cfg: TrackerConfig, state: DriveState | None) -> Setpoint:
     return [az, min(90.0, cfg.elevation_limits[1])], False
 
 
-def for_mode(mode: ControlMode, est: SunEstimate | None, trackers: Sequence[TrackerConfig],
-             states: Sequence[DriveState | None]) -> list[Setpoint]:
+def for_mode(
+    mode: ControlMode,
+    est: SunEstimate | None,
+    trackers: Sequence[TrackerConfig],
+    states: Sequence[DriveState | None],
+) -> list[Setpoint]:
     """Targets of every tracker for ``mode`` (STOW: each tracker's configured stow)."""
     if mode == ControlMode.DIFFUSE:
         return [facing_sky(cfg, st) for cfg, st in zip(trackers, states)]
@@ -60,8 +66,9 @@ def for_mode(mode: ControlMode, est: SunEstimate | None, trackers: Sequence[Trac
     return [(list(cfg.stow_angles), False) for cfg in trackers]
 
 
-def manual(cfg: TrackerConfig, state: DriveState | None, el_deg: float | None,
-           az_deg: float | None) -> tuple[float, ...]:
+def manual(
+    cfg: TrackerConfig, state: DriveState | None, el_deg: float | None, az_deg: float | None
+) -> tuple[float, ...]:
     """An operator's setpoint (SunSpec model 601 semantics), inside the tracker's limits.
 
     Dual-axis: elevation and azimuth; single-axis: the rotation in ``el_deg``.  A missing
@@ -78,7 +85,10 @@ def manual(cfg: TrackerConfig, state: DriveState | None, el_deg: float | None,
     assert isinstance(cfg, DualAxisTracker)
     az = az_deg if given(az_deg) else (now[0].actual_deg if now else cfg.stow[0])
     el = el_deg if given(el_deg) else (now[1].actual_deg if now else cfg.stow[1])
-    az = wrap_into_range(float(az), *cfg.azimuth_limits,  # type: ignore[arg-type]
-                         near=now[0].actual_deg if now else None)
+    az = wrap_into_range(
+        float(az),
+        *cfg.azimuth_limits,  # type: ignore[arg-type]
+        near=now[0].actual_deg if now else None,
+    )
     lo, hi = cfg.elevation_limits
     return az, min(max(float(el), lo), hi)  # type: ignore[arg-type]

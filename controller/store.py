@@ -104,10 +104,11 @@ class Store:
                 raise StoreError(f"{self.path}: integrity check failed ({result})")
         version = db.execute("PRAGMA user_version").fetchone()[0]
         if version > SCHEMA_VERSION:
-            raise StoreError(f"{self.path}: store schema {version} is newer than this "
-                             f"heliotrack ({SCHEMA_VERSION}); upgrade heliotrack")
-        if version == 0 and db.execute(
-                "SELECT count(*) FROM sqlite_master WHERE type='table'").fetchone()[0]:
+            raise StoreError(
+                f"{self.path}: store schema {version} is newer than this "
+                f"heliotrack ({SCHEMA_VERSION}); upgrade heliotrack"
+            )
+        if version == 0 and db.execute("SELECT count(*) FROM sqlite_master WHERE type='table'").fetchone()[0]:
             raise StoreError(f"{self.path}: an SQLite file that is not a heliotrack store")
         for v in range(version + 1, SCHEMA_VERSION + 1):
             with self._transaction():
@@ -130,8 +131,10 @@ class Store:
         with self._transaction():
             row = self._db.execute("SELECT version FROM state WHERE name=?", (name,)).fetchone()
             version = (row[0] if row else 0) + 1
-            self._db.execute("INSERT OR REPLACE INTO state(name, version, updated, body) "
-                             "VALUES (?, ?, ?, ?)", (name, version, t, text))
+            self._db.execute(
+                "INSERT OR REPLACE INTO state(name, version, updated, body) VALUES (?, ?, ?, ?)",
+                (name, version, t, text),
+            )
         return version
 
     def get_state(self, name: str) -> StateRecord | None:
@@ -142,8 +145,7 @@ class Store:
         StoreError
             The stored text is not JSON (the row is left as it is).
         """
-        row = self._db.execute("SELECT version, updated, body FROM state WHERE name=?",
-                               (name,)).fetchone()
+        row = self._db.execute("SELECT version, updated, body FROM state WHERE name=?", (name,)).fetchone()
         if row is None:
             return None
         try:
@@ -156,25 +158,28 @@ class Store:
     def add_observations(self, rows: Iterable[tuple[float, str, float, float, float, bool]]) -> None:
         """(time, sensor, az_deg, el_deg, sigma_deg, accepted) rows, in one transaction."""
         with self._transaction():
-            self._db.executemany("INSERT INTO observations VALUES (?, ?, ?, ?, ?, ?)",
-                                 [(t, s, _num(a), _num(e), _num(g), int(ok))
-                                  for t, s, a, e, g, ok in rows])
+            self._db.executemany(
+                "INSERT INTO observations VALUES (?, ?, ?, ?, ?, ?)",
+                [(t, s, _num(a), _num(e), _num(g), int(ok)) for t, s, a, e, g, ok in rows],
+            )
 
-    def add_setpoints(self, rows: Iterable[tuple[float, str, str, str, Sequence[float],
-                                                 Sequence[float], str]]) -> None:
+    def add_setpoints(
+        self, rows: Iterable[tuple[float, str, str, str, Sequence[float], Sequence[float], str]]
+    ) -> None:
         """(time, tracker, mode, source, targets_deg, actual_deg, error) rows."""
         with self._transaction():
             self._db.executemany(
                 "INSERT INTO setpoints VALUES (?, ?, ?, ?, ?, ?, ?)",
-                [(t, tr, m, src, json.dumps([_num(x) for x in tg]),
-                  json.dumps([_num(x) for x in ac]), err)
-                 for t, tr, m, src, tg, ac, err in rows])
+                [
+                    (t, tr, m, src, json.dumps([_num(x) for x in tg]), json.dumps([_num(x) for x in ac]), err)
+                    for t, tr, m, src, tg, ac, err in rows
+                ],
+            )
 
     def history(self, table: str, since: float = -math.inf) -> list[tuple]:
         if table not in ("observations", "setpoints"):
             raise ValueError(table)
-        return self._db.execute(f"SELECT * FROM {table} WHERE time >= ? ORDER BY time",
-                                (since,)).fetchall()
+        return self._db.execute(f"SELECT * FROM {table} WHERE time >= ? ORDER BY time", (since,)).fetchall()
 
     def rotate(self, max_age_s: float, now: float | None = None) -> int:
         """Delete history older than ``max_age_s``; returns the rows removed."""
@@ -225,7 +230,7 @@ def open_store_or_none(path: str | Path, warn: Callable[[str], None]) -> Store |
     except StoreError as exc:
         warn(str(exc))
         if not path.exists() or "newer than this heliotrack" in str(exc):
-            return None     # a newer store is left as it is: the old program must not touch it
+            return None  # a newer store is left as it is: the old program must not touch it
     aside = path.with_name(f"{path.name}.unusable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
     try:
         path.rename(aside)

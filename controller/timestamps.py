@@ -28,12 +28,11 @@ from __future__ import annotations
 
 import math
 import re
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 from .errors import InputError
 
-__all__ = ["CANONICAL_EXAMPLE", "format_name_time", "parse_timestamp", "time_from_name",
-           "to_iso"]
+__all__ = ["CANONICAL_EXAMPLE", "format_name_time", "parse_timestamp", "time_from_name", "to_iso"]
 
 #: An example of the canonical form, for messages and docs.
 CANONICAL_EXAMPLE = "2026-03-20T10-15-00Z"
@@ -43,7 +42,8 @@ _TIMESTAMP = re.compile(
     r"(?P<sep>[Tt _-])"
     r"(?P<h>\d{2})(?P<ts>[:-]?)(?P<mi>\d{2})"
     r"(?:(?P=ts)(?P<s>\d{2})(?:[.,](?P<frac>\d{1,9}))?)?"
-    r"(?P<tz>[Zz]|[+-]\d{2}:?\d{2})?(?!\d)(?![:-]\d)")
+    r"(?P<tz>[Zz]|[+-]\d{2}:?\d{2})?(?!\d)(?![:-]\d)"
+)
 
 
 def _from_match(m: re.Match[str]) -> float | None:
@@ -56,8 +56,15 @@ def _from_match(m: re.Match[str]) -> float | None:
     if g["s"] is None and g["ts"] == "-":
         return None
     try:
-        dt = datetime(int(g["y"]), int(g["mo"]), int(g["d"]), int(g["h"]), int(g["mi"]),
-                      int(g["s"] or 0), tzinfo=timezone.utc)
+        dt = datetime(
+            int(g["y"]),
+            int(g["mo"]),
+            int(g["d"]),
+            int(g["h"]),
+            int(g["mi"]),
+            int(g["s"] or 0),
+            tzinfo=UTC,
+        )
     except ValueError:
         return None
     t = dt.timestamp()
@@ -116,8 +123,9 @@ def parse_timestamp(text: str, where: str = "time", *, require_zone: bool = Fals
     m = _TIMESTAMP.fullmatch(s)
     t = _from_match(m) if m else None
     if t is None:
-        raise InputError(f"{where}: expected a time such as {CANONICAL_EXAMPLE} or "
-                         f"2026-03-20T10:15:00+03:30, got {text!r}")
+        raise InputError(
+            f"{where}: expected a time such as {CANONICAL_EXAMPLE} or 2026-03-20T10:15:00+03:30, got {text!r}"
+        )
     if require_zone and m is not None and not m.group("tz"):
         raise InputError(f"{where}: time {text!r} has no zone; add one (Z or e.g. +03:30)")
     return t
@@ -139,7 +147,7 @@ def format_name_time(t: float, *, millis: bool | None = None) -> str:
     ms = int(round((t - whole) * 1000))
     if ms == 1000:
         whole, ms = whole + 1, 0
-    dt = datetime(1970, 1, 1, tzinfo=timezone.utc) + timedelta(seconds=whole)
+    dt = datetime(1970, 1, 1, tzinfo=UTC) + timedelta(seconds=whole)
     if millis is None:
         millis = ms != 0
     frac = f".{ms:03d}" if millis else ""
@@ -148,4 +156,4 @@ def format_name_time(t: float, *, millis: bool | None = None) -> str:
 
 def to_iso(t: float) -> str:
     """ISO 8601 UTC text of POSIX time ``t`` with a ``Z`` (for JSON and CSV output)."""
-    return datetime.fromtimestamp(t, timezone.utc).isoformat().replace("+00:00", "Z")
+    return datetime.fromtimestamp(t, UTC).isoformat().replace("+00:00", "Z")

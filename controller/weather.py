@@ -28,37 +28,48 @@ class WindConfig:
 
     link: str = setting(doc="Name of the Modbus `[[links]]` table the anemometer is on.")
     device_id: int = setting(doc="Modbus slave id of the anemometer.", ge=1, le=247)
-    gust_stow_m_s: float = setting(20.0, doc="Stow when the 3-s gust reaches this.", unit="m/s",
-                                   ge=5, le=60)
-    mean_stow_m_s: float = setting(14.0, doc="Stow when the 10-min mean reaches this.",
-                                   unit="m/s", ge=3, le=50)
-    gust_resume_m_s: float = setting(15.0, doc="Resume only with the gust below this ...",
-                                     unit="m/s", ge=1, le=60)
-    mean_resume_m_s: float = setting(10.0, doc="... and the 10-min mean below this ...",
-                                     unit="m/s", ge=1, le=50)
+    gust_stow_m_s: float = setting(20.0, doc="Stow when the 3-s gust reaches this.", unit="m/s", ge=5, le=60)
+    mean_stow_m_s: float = setting(
+        14.0, doc="Stow when the 10-min mean reaches this.", unit="m/s", ge=3, le=50
+    )
+    gust_resume_m_s: float = setting(
+        15.0, doc="Resume only with the gust below this ...", unit="m/s", ge=1, le=60
+    )
+    mean_resume_m_s: float = setting(
+        10.0, doc="... and the 10-min mean below this ...", unit="m/s", ge=1, le=50
+    )
     resume_dwell_s: float = setting(600.0, doc="... for this long.", unit="s", ge=0, le=86400)
-    poll_s: float = setting(5.0, doc="Time between two anemometer readings.", unit="s",
-                            ge=0.5, le=60)
-    silent_timeout_s: float = setting(60.0, doc="No valid reading for this long: the "
-                                      "anemometer is lost.", unit="s", ge=1, le=3600)
-    on_silence: Literal["stow", "ignore"] = setting("stow", doc="What a lost anemometer does: "
-                                                    "stow the plant (safe), or only alarm.")
-    dual_axis_elevation_deg: float = setting(90.0, doc="Wind stow of dual-axis trackers: "
-                                             "elevation of the panel normal (90: flat).",
-                                             unit="deg", ge=-10, le=100)
-    single_axis_deg: float = setting(0.0, doc="Wind stow rotation of single-axis rows.",
-                                     unit="deg", ge=-90, le=90)
+    poll_s: float = setting(5.0, doc="Time between two anemometer readings.", unit="s", ge=0.5, le=60)
+    silent_timeout_s: float = setting(
+        60.0, doc="No valid reading for this long: the anemometer is lost.", unit="s", ge=1, le=3600
+    )
+    on_silence: Literal["stow", "ignore"] = setting(
+        "stow", doc="What a lost anemometer does: stow the plant (safe), or only alarm."
+    )
+    dual_axis_elevation_deg: float = setting(
+        90.0,
+        doc="Wind stow of dual-axis trackers: elevation of the panel normal (90: flat).",
+        unit="deg",
+        ge=-10,
+        le=100,
+    )
+    single_axis_deg: float = setting(
+        0.0, doc="Wind stow rotation of single-axis rows.", unit="deg", ge=-90, le=90
+    )
 
     def __schema_check__(self, at: Where) -> WindConfig:
         if self.gust_resume_m_s >= self.gust_stow_m_s:
             raise at.child("gust_resume_m_s").error(
-                f"less than gust_stow_m_s ({self.gust_stow_m_s:g} m/s)", self.gust_resume_m_s)
+                f"less than gust_stow_m_s ({self.gust_stow_m_s:g} m/s)", self.gust_resume_m_s
+            )
         if self.mean_resume_m_s >= self.mean_stow_m_s:
             raise at.child("mean_resume_m_s").error(
-                f"less than mean_stow_m_s ({self.mean_stow_m_s:g} m/s)", self.mean_resume_m_s)
+                f"less than mean_stow_m_s ({self.mean_stow_m_s:g} m/s)", self.mean_resume_m_s
+            )
         if self.silent_timeout_s < self.poll_s:
             raise at.child("silent_timeout_s").error(
-                f"at least poll_s ({self.poll_s:g} s)", self.silent_timeout_s)
+                f"at least poll_s ({self.poll_s:g} s)", self.silent_timeout_s
+            )
         return self
 
 
@@ -66,19 +77,33 @@ class WindConfig:
 class StowConfig:
     """Snow and hail stow: on an operator or SCADA command, or on a scheduled flag."""
 
-    snow_dual_axis_elevation_deg: float = setting(30.0, doc="Snow stow of dual-axis trackers: "
-                                                  "normal elevation (30: a 60-deg tilt sheds "
-                                                  "snow).", unit="deg", ge=-10, le=100)
-    snow_single_axis_deg: float = setting(55.0, doc="Snow stow rotation of rows (clamped to "
-                                          "each row's max_angle).", unit="deg", ge=-90, le=90)
-    hail_dual_axis_elevation_deg: float = setting(10.0, doc="Hail stow of dual-axis trackers "
-                                                  "(near vertical: hail strikes at a glance).",
-                                                  unit="deg", ge=-10, le=100)
-    hail_single_axis_deg: float = setting(60.0, doc="Hail stow rotation of rows (clamped to "
-                                          "each row's max_angle).", unit="deg", ge=-90, le=90)
-    flag_file: Path | None = setting(None, doc='A file whose first word is "snow", "hail" or '
-                                     '"none", written by a scheduler or weather service; '
-                                     "read every cycle.", path="new")
+    snow_dual_axis_elevation_deg: float = setting(
+        30.0,
+        doc="Snow stow of dual-axis trackers: normal elevation (30: a 60-deg tilt sheds snow).",
+        unit="deg",
+        ge=-10,
+        le=100,
+    )
+    snow_single_axis_deg: float = setting(
+        55.0, doc="Snow stow rotation of rows (clamped to each row's max_angle).", unit="deg", ge=-90, le=90
+    )
+    hail_dual_axis_elevation_deg: float = setting(
+        10.0,
+        doc="Hail stow of dual-axis trackers (near vertical: hail strikes at a glance).",
+        unit="deg",
+        ge=-10,
+        le=100,
+    )
+    hail_single_axis_deg: float = setting(
+        60.0, doc="Hail stow rotation of rows (clamped to each row's max_angle).", unit="deg", ge=-90, le=90
+    )
+    flag_file: Path | None = setting(
+        None,
+        doc='A file whose first word is "snow", "hail" or '
+        '"none", written by a scheduler or weather service; '
+        "read every cycle.",
+        path="new",
+    )
 
 
 @dataclass(frozen=True)
@@ -122,11 +147,11 @@ class WindMonitor:
             self.last = sample
             if sample.gust_m_s >= c.gust_stow_m_s or sample.mean_10min_m_s >= c.mean_stow_m_s:
                 self.storm, self.calm_since = True, None
-                self.reason = (f"wind: gust {sample.gust_m_s:.1f} m/s, 10-min mean "
-                               f"{sample.mean_10min_m_s:.1f} m/s")
+                self.reason = (
+                    f"wind: gust {sample.gust_m_s:.1f} m/s, 10-min mean {sample.mean_10min_m_s:.1f} m/s"
+                )
             elif self.storm:
-                calm = (sample.gust_m_s < c.gust_resume_m_s
-                        and sample.mean_10min_m_s < c.mean_resume_m_s)
+                calm = sample.gust_m_s < c.gust_resume_m_s and sample.mean_10min_m_s < c.mean_resume_m_s
                 if not calm:
                     self.calm_since = None
                 elif self.calm_since is None:

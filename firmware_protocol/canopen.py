@@ -24,11 +24,25 @@ Nothing here imports ``canopen``: the EDS is plain INI text (CiA 306).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from enum import IntEnum, IntFlag
 
+from .cia402 import (  # noqa: F401 - part of this module's vocabulary
+    CW_ENABLE_OPERATION,
+    CW_NEW_SET_POINT,
+    STATE_BITS,
+    Controlword,
+    State402,
+    Statusword,
+    state_from_statusword,
+)
 from .registers import (
-    GLOBAL_REGISTERS, AXIS_REGISTERS, MAGIC, MAX_AXES, PROTOCOL_MAJOR, PROTOCOL_MINOR,
-    Fault, Register,
+    AXIS_REGISTERS,
+    GLOBAL_REGISTERS,
+    MAGIC,
+    MAX_AXES,
+    PROTOCOL_MAJOR,
+    PROTOCOL_MINOR,
+    Fault,
+    Register,
 )
 
 EDS_NAME = "heliotrack_drive.eds"
@@ -36,18 +50,24 @@ EDS_NAME = "heliotrack_drive.eds"
 #: CiA 301 data type codes used here.
 BOOLEAN, INTEGER8, INTEGER16, INTEGER32 = 0x1, 0x2, 0x3, 0x4
 UNSIGNED8, UNSIGNED16, UNSIGNED32, VISIBLE_STRING = 0x5, 0x6, 0x7, 0x9
-TYPE_BITS = {INTEGER8: 8, INTEGER16: 16, INTEGER32: 32, UNSIGNED8: 8, UNSIGNED16: 16,
-             UNSIGNED32: 32, BOOLEAN: 1}
-_REG_TYPES = {"uint16": UNSIGNED16, "int16": INTEGER16, "uint32": UNSIGNED32,
-              "int32": INTEGER32}
+TYPE_BITS = {
+    INTEGER8: 8,
+    INTEGER16: 16,
+    INTEGER32: 32,
+    UNSIGNED8: 8,
+    UNSIGNED16: 16,
+    UNSIGNED32: 32,
+    BOOLEAN: 1,
+}
+_REG_TYPES = {"uint16": UNSIGNED16, "int16": INTEGER16, "uint32": UNSIGNED32, "int32": INTEGER32}
 
 VAR, ARRAY, RECORD = 0x7, 0x8, 0x9
 
 GLOBAL_MIRROR_BASE = 0x2000
 AXIS_MIRROR_BASE = 0x2100
-AXIS_INDEX_OBJECT = 0x2020   # CANopen only: which axis of the drive this node is
-DEVICE_TYPE = 0x00020192     # CiA 402 profile (0x192), servo drive (additional info 2)
-VENDOR_ID = 0x00000000       # no CiA vendor id assigned; identify by product code
+AXIS_INDEX_OBJECT = 0x2020  # CANopen only: which axis of the drive this node is
+DEVICE_TYPE = 0x00020192  # CiA 402 profile (0x192), servo drive (additional info 2)
+VENDOR_ID = 0x00000000  # no CiA vendor id assigned; identify by product code
 PRODUCT_CODE = MAGIC
 REVISION = (PROTOCOL_MAJOR << 16) | PROTOCOL_MINOR
 DEFAULT_PRODUCER_HEARTBEAT_MS = 1000
@@ -60,8 +80,8 @@ TPDO_EVENT_TIMER_MS = {1: 100, 2: 100, 3: 1000, 4: 1000}
 MASTER_NODE_ID = 0x7F
 #: Highest node id a drive may use (the master takes 0x7F).
 MAX_NODE_ID = 0x7E
-PROFILE_POSITION = 1          # 0x6060 value: the only mode of operation supported
-SUPPORTED_DRIVE_MODES = 0x1   # 0x6502 bit 0: profile position
+PROFILE_POSITION = 1  # 0x6060 value: the only mode of operation supported
+SUPPORTED_DRIVE_MODES = 0x1  # 0x6502 bit 0: profile position
 
 #: Register name -> (index, subindex) of the standard object that is its write path.
 STANDARD_ALIASES: dict[str, tuple[int, int]] = {
@@ -80,85 +100,12 @@ NOT_MAPPED = ("HEARTBEAT",)
 #: heliotrack fault -> CiA 402 error code (0x603F, also sent as EMCY).
 FAULT_ERROR_CODES: dict[Fault, int] = {
     Fault.NONE: 0x0000,
-    Fault.STALL: 0x8611,            # following error
-    Fault.HARD_LIMIT: 0x8612,       # reference limit
-    Fault.OVERCURRENT: 0x2310,      # continuous over current
-    Fault.ENCODER: 0x7305,          # incremental sensor 1 fault
+    Fault.STALL: 0x8611,  # following error
+    Fault.HARD_LIMIT: 0x8612,  # reference limit
+    Fault.OVERCURRENT: 0x2310,  # continuous over current
+    Fault.ENCODER: 0x7305,  # incremental sensor 1 fault
     Fault.OVERTEMPERATURE: 0x4310,  # excess temperature drive
 }
-
-
-class Controlword(IntFlag):
-    """CiA 402 controlword (0x6040) bits; bits 4-6 are profile-position specific."""
-
-    SWITCH_ON = 1 << 0
-    ENABLE_VOLTAGE = 1 << 1
-    QUICK_STOP = 1 << 2          # active low: 0 requests a quick stop
-    ENABLE_OPERATION = 1 << 3
-    NEW_SET_POINT = 1 << 4       # rising edge latches 0x607A
-    CHANGE_IMMEDIATELY = 1 << 5
-    RELATIVE = 1 << 6
-    FAULT_RESET = 1 << 7         # rising edge
-    HALT = 1 << 8
-
-
-#: Controlword for "enabled, no new set-point" and for "enabled, new set-point now".
-CW_ENABLE_OPERATION = 0x000F
-CW_NEW_SET_POINT = CW_ENABLE_OPERATION | Controlword.NEW_SET_POINT | Controlword.CHANGE_IMMEDIATELY
-
-
-class Statusword(IntFlag):
-    """CiA 402 statusword (0x6041) bits."""
-
-    READY_TO_SWITCH_ON = 1 << 0
-    SWITCHED_ON = 1 << 1
-    OPERATION_ENABLED = 1 << 2
-    FAULT = 1 << 3
-    VOLTAGE_ENABLED = 1 << 4
-    QUICK_STOP = 1 << 5          # active low: 0 while a quick stop is active
-    SWITCH_ON_DISABLED = 1 << 6
-    WARNING = 1 << 7
-    REMOTE = 1 << 9
-    TARGET_REACHED = 1 << 10
-    INTERNAL_LIMIT = 1 << 11
-    SET_POINT_ACK = 1 << 12      # profile position: set-point acknowledge
-    FOLLOWING_ERROR = 1 << 13
-
-
-class State402(IntEnum):
-    """CiA 402 power state machine states."""
-
-    NOT_READY_TO_SWITCH_ON = 0
-    SWITCH_ON_DISABLED = 1
-    READY_TO_SWITCH_ON = 2
-    SWITCHED_ON = 3
-    OPERATION_ENABLED = 4
-    QUICK_STOP_ACTIVE = 5
-    FAULT_REACTION_ACTIVE = 6
-    FAULT = 7
-
-
-#: State -> statusword bits 0-3, 5, 6 (the "state" part; mask 0x6F).
-STATE_BITS: dict[State402, int] = {
-    State402.NOT_READY_TO_SWITCH_ON: 0x00,
-    State402.SWITCH_ON_DISABLED: 0x40,
-    State402.READY_TO_SWITCH_ON: 0x21,
-    State402.SWITCHED_ON: 0x23,
-    State402.OPERATION_ENABLED: 0x27,
-    State402.QUICK_STOP_ACTIVE: 0x07,
-    State402.FAULT_REACTION_ACTIVE: 0x0F,
-    State402.FAULT: 0x08,
-}
-
-
-def state_from_statusword(sw: int) -> State402 | None:
-    """Decode the power state from a statusword (None when no pattern matches)."""
-    for state, bits in STATE_BITS.items():
-        mask = 0x4F if state in (State402.NOT_READY_TO_SWITCH_ON, State402.SWITCH_ON_DISABLED,
-                                 State402.FAULT, State402.FAULT_REACTION_ACTIVE) else 0x6F
-        if sw & mask == bits & mask:
-            return state
-    return None
 
 
 @dataclass(frozen=True)
@@ -212,16 +159,30 @@ class OdObject:
     entries: tuple[OdEntry, ...] = field(default_factory=tuple)
 
 
-def _var(index: int, name: str, dtype: int, access: str, default: int | str = 0,
-         pdo: bool = False, register: str = "", scale: float = 1.0, unit: str = "") -> OdObject:
-    return OdObject(index, name, VAR, (OdEntry(index, 0, name, dtype, access, default, pdo,
-                                                register, scale, unit),))
+def _var(
+    index: int,
+    name: str,
+    dtype: int,
+    access: str,
+    default: int | str = 0,
+    pdo: bool = False,
+    register: str = "",
+    scale: float = 1.0,
+    unit: str = "",
+) -> OdObject:
+    return OdObject(
+        index, name, VAR, (OdEntry(index, 0, name, dtype, access, default, pdo, register, scale, unit),)
+    )
 
 
-def _record(index: int, name: str, subs: list[tuple[str, int, str, int | str]],
-            object_type: int = RECORD, highest_access: str = "ro") -> OdObject:
-    entries = [OdEntry(index, 0, "Highest sub-index supported", UNSIGNED8, highest_access,
-                       len(subs))]
+def _record(
+    index: int,
+    name: str,
+    subs: list[tuple[str, int, str, int | str]],
+    object_type: int = RECORD,
+    highest_access: str = "ro",
+) -> OdObject:
+    entries = [OdEntry(index, 0, "Highest sub-index supported", UNSIGNED8, highest_access, len(subs))]
     entries += [OdEntry(index, i + 1, n, t, a, d) for i, (n, t, a, d) in enumerate(subs)]
     return OdObject(index, name, object_type, tuple(entries))
 
@@ -230,20 +191,20 @@ def _record(index: int, name: str, subs: list[tuple[str, int, str, int | str]],
 class PdoLayout:
     """Default mapping of one PDO: (index, subindex) of each mapped object, in order."""
 
-    number: int              # 1-based
-    cob_base: int            # COB-ID = cob_base + node id
+    number: int  # 1-based
+    cob_base: int  # COB-ID = cob_base + node id
     objects: tuple[tuple[int, int], ...]
 
 
 RPDOS: tuple[PdoLayout, ...] = (
-    PdoLayout(1, 0x200, ((0x6040, 0), (0x607A, 0))),          # controlword + target
-    PdoLayout(2, 0x300, ((0x6060, 0),)),                      # modes of operation
+    PdoLayout(1, 0x200, ((0x6040, 0), (0x607A, 0))),  # controlword + target
+    PdoLayout(2, 0x300, ((0x6060, 0),)),  # modes of operation
 )
 TPDOS: tuple[PdoLayout, ...] = (
-    PdoLayout(1, 0x180, ((0x6041, 0), (0x6064, 0))),          # statusword + actual
+    PdoLayout(1, 0x180, ((0x6041, 0), (0x6064, 0))),  # statusword + actual
     PdoLayout(2, 0x280, ((0x6061, 0), (0x2107, 0), (0x2105, 0), (0x2106, 0))),
-    PdoLayout(3, 0x380, ((0x606C, 0), (0x2100, 0))),          # velocity + effective target
-    PdoLayout(4, 0x480, ((0x603F, 0), (0x1001, 0))),          # error code + error register
+    PdoLayout(3, 0x380, ((0x606C, 0), (0x2100, 0))),  # velocity + effective target
+    PdoLayout(4, 0x480, ((0x603F, 0), (0x1001, 0))),  # error code + error register
 )
 
 
@@ -259,90 +220,180 @@ def register_objects() -> list[OdObject]:
         if reg.name in NOT_MAPPED:
             continue
         access = "rw" if reg.writable and reg.name not in STANDARD_ALIASES else "ro"
-        out.append(_var(mirror_index(reg), f"HT {reg.name}", _REG_TYPES[reg.type], access,
-                        0, pdo=True, register=reg.name, scale=reg.scale, unit=reg.unit))
+        out.append(
+            _var(
+                mirror_index(reg),
+                f"HT {reg.name}",
+                _REG_TYPES[reg.type],
+                access,
+                0,
+                pdo=True,
+                register=reg.name,
+                scale=reg.scale,
+                unit=reg.unit,
+            )
+        )
     out.append(_var(AXIS_INDEX_OBJECT, "HT AXIS_INDEX", UNSIGNED8, "ro", 0))
     return out
 
 
 def _pdo_objects() -> list[OdObject]:
     out = []
-    for kind, layouts, com_base, map_base in (("RPDO", RPDOS, 0x1400, 0x1600),
-                                              ("TPDO", TPDOS, 0x1800, 0x1A00)):
+    for kind, layouts, com_base, map_base in (
+        ("RPDO", RPDOS, 0x1400, 0x1600),
+        ("TPDO", TPDOS, 0x1800, 0x1A00),
+    ):
         for p in layouts:
             subs: list[tuple[str, int, str, int | str]] = [
                 ("COB-ID", UNSIGNED32, "rw", f"$NODEID+0x{p.cob_base:X}"),
-                ("Transmission type", UNSIGNED8, "rw", 255)]
+                ("Transmission type", UNSIGNED8, "rw", 255),
+            ]
             if kind == "TPDO":
-                subs += [("Inhibit time", UNSIGNED16, "rw", 0),
-                         ("Compatibility entry", UNSIGNED8, "rw", 0),
-                         ("Event timer", UNSIGNED16, "rw", TPDO_EVENT_TIMER_MS[p.number])]
-            out.append(_record(com_base + p.number - 1,
-                               f"{kind}{p.number} communication parameter", subs))
+                subs += [
+                    ("Inhibit time", UNSIGNED16, "rw", 0),
+                    ("Compatibility entry", UNSIGNED8, "rw", 0),
+                    ("Event timer", UNSIGNED16, "rw", TPDO_EVENT_TIMER_MS[p.number]),
+                ]
+            out.append(_record(com_base + p.number - 1, f"{kind}{p.number} communication parameter", subs))
             maps = []
             for k, (idx, sub) in enumerate(p.objects):
-                bits = next(e.bits for o in OBJECTS_NO_PDO for e in o.entries
-                            if (e.index, e.subindex) == (idx, sub))
-                maps.append((f"Mapped object {k + 1}", UNSIGNED32, "rw",
-                             (idx << 16) | (sub << 8) | bits))
+                bits = next(
+                    e.bits for o in OBJECTS_NO_PDO for e in o.entries if (e.index, e.subindex) == (idx, sub)
+                )
+                maps.append((f"Mapped object {k + 1}", UNSIGNED32, "rw", (idx << 16) | (sub << 8) | bits))
             for k in range(len(p.objects), 8):
                 maps.append((f"Mapped object {k + 1}", UNSIGNED32, "rw", 0))
-            rec = _record(map_base + p.number - 1, f"{kind}{p.number} mapping parameter",
-                          maps, highest_access="rw")
+            rec = _record(
+                map_base + p.number - 1, f"{kind}{p.number} mapping parameter", maps, highest_access="rw"
+            )
             # Number of mapped objects, not of sub-indices.
-            first = OdEntry(rec.index, 0, "Number of mapped objects", UNSIGNED8, "rw",
-                            len(p.objects))
+            first = OdEntry(rec.index, 0, "Number of mapped objects", UNSIGNED8, "rw", len(p.objects))
             out.append(OdObject(rec.index, rec.name, RECORD, (first,) + rec.entries[1:]))
     return out
 
 
 def _standard_objects() -> list[OdObject]:
-    s = {n: next(r for r in GLOBAL_REGISTERS + AXIS_REGISTERS if r.name == n)
-         for n in STANDARD_ALIASES}
+    s = {n: next(r for r in GLOBAL_REGISTERS + AXIS_REGISTERS if r.name == n) for n in STANDARD_ALIASES}
     return [
         _var(0x1000, "Device type", UNSIGNED32, "ro", DEVICE_TYPE),
         _var(0x1001, "Error register", UNSIGNED8, "ro", 0, pdo=True),
         _var(0x1008, "Manufacturer device name", VISIBLE_STRING, "const", "heliotrack drive"),
-        OdObject(0x1016, "Consumer heartbeat time", ARRAY, (
-            OdEntry(0x1016, 0, "Highest sub-index supported", UNSIGNED8, "ro", 1),
-            OdEntry(0x1016, 1, "Consumer heartbeat time 1", UNSIGNED32, "rw", 0,
-                    register="HEARTBEAT_TIMEOUT", scale=0.001, unit="s"),
-        )),
-        _var(0x1017, "Producer heartbeat time", UNSIGNED16, "rw",
-             DEFAULT_PRODUCER_HEARTBEAT_MS),
-        _record(0x1018, "Identity object", [
-            ("Vendor-ID", UNSIGNED32, "ro", VENDOR_ID),
-            ("Product code", UNSIGNED32, "ro", PRODUCT_CODE),
-            ("Revision number", UNSIGNED32, "ro", REVISION),
-            ("Serial number", UNSIGNED32, "ro", 0)]),
+        OdObject(
+            0x1016,
+            "Consumer heartbeat time",
+            ARRAY,
+            (
+                OdEntry(0x1016, 0, "Highest sub-index supported", UNSIGNED8, "ro", 1),
+                OdEntry(
+                    0x1016,
+                    1,
+                    "Consumer heartbeat time 1",
+                    UNSIGNED32,
+                    "rw",
+                    0,
+                    register="HEARTBEAT_TIMEOUT",
+                    scale=0.001,
+                    unit="s",
+                ),
+            ),
+        ),
+        _var(0x1017, "Producer heartbeat time", UNSIGNED16, "rw", DEFAULT_PRODUCER_HEARTBEAT_MS),
+        _record(
+            0x1018,
+            "Identity object",
+            [
+                ("Vendor-ID", UNSIGNED32, "ro", VENDOR_ID),
+                ("Product code", UNSIGNED32, "ro", PRODUCT_CODE),
+                ("Revision number", UNSIGNED32, "ro", REVISION),
+                ("Serial number", UNSIGNED32, "ro", 0),
+            ],
+        ),
         _var(0x603F, "Error code", UNSIGNED16, "ro", 0, pdo=True, register="FAULT_CODE"),
         _var(0x6040, "Controlword", UNSIGNED16, "rw", 0, pdo=True),
         _var(0x6041, "Statusword", UNSIGNED16, "ro", 0, pdo=True, register="STATUS"),
         _var(0x6060, "Modes of operation", INTEGER8, "rw", PROFILE_POSITION, pdo=True),
         _var(0x6061, "Modes of operation display", INTEGER8, "ro", PROFILE_POSITION, pdo=True),
-        _var(0x6064, "Position actual value", INTEGER32, "ro", 0, pdo=True,
-             register="ACTUAL_ANGLE", scale=s["ACTUAL_ANGLE"].scale, unit="deg"),
-        _var(0x606C, "Velocity actual value", INTEGER32, "ro", 0, pdo=True,
-             register="VELOCITY", scale=s["VELOCITY"].scale, unit="deg/s"),
-        _var(0x607A, "Target position", INTEGER32, "rw", 0, pdo=True,
-             register="TARGET_ANGLE", scale=s["TARGET_ANGLE"].scale, unit="deg"),
-        OdObject(0x607D, "Software position limit", ARRAY, (
-            OdEntry(0x607D, 0, "Highest sub-index supported", UNSIGNED8, "ro", 2),
-            OdEntry(0x607D, 1, "Min position limit", INTEGER32, "rw", 0,
-                    register="SOFT_LIMIT_MIN", scale=s["SOFT_LIMIT_MIN"].scale, unit="deg"),
-            OdEntry(0x607D, 2, "Max position limit", INTEGER32, "rw", 0,
-                    register="SOFT_LIMIT_MAX", scale=s["SOFT_LIMIT_MAX"].scale, unit="deg"),
-        )),
-        _var(0x6081, "Profile velocity", UNSIGNED32, "rw", 0, pdo=True,
-             register="MAX_SPEED", scale=s["MAX_SPEED"].scale, unit="deg/s"),
+        _var(
+            0x6064,
+            "Position actual value",
+            INTEGER32,
+            "ro",
+            0,
+            pdo=True,
+            register="ACTUAL_ANGLE",
+            scale=s["ACTUAL_ANGLE"].scale,
+            unit="deg",
+        ),
+        _var(
+            0x606C,
+            "Velocity actual value",
+            INTEGER32,
+            "ro",
+            0,
+            pdo=True,
+            register="VELOCITY",
+            scale=s["VELOCITY"].scale,
+            unit="deg/s",
+        ),
+        _var(
+            0x607A,
+            "Target position",
+            INTEGER32,
+            "rw",
+            0,
+            pdo=True,
+            register="TARGET_ANGLE",
+            scale=s["TARGET_ANGLE"].scale,
+            unit="deg",
+        ),
+        OdObject(
+            0x607D,
+            "Software position limit",
+            ARRAY,
+            (
+                OdEntry(0x607D, 0, "Highest sub-index supported", UNSIGNED8, "ro", 2),
+                OdEntry(
+                    0x607D,
+                    1,
+                    "Min position limit",
+                    INTEGER32,
+                    "rw",
+                    0,
+                    register="SOFT_LIMIT_MIN",
+                    scale=s["SOFT_LIMIT_MIN"].scale,
+                    unit="deg",
+                ),
+                OdEntry(
+                    0x607D,
+                    2,
+                    "Max position limit",
+                    INTEGER32,
+                    "rw",
+                    0,
+                    register="SOFT_LIMIT_MAX",
+                    scale=s["SOFT_LIMIT_MAX"].scale,
+                    unit="deg",
+                ),
+            ),
+        ),
+        _var(
+            0x6081,
+            "Profile velocity",
+            UNSIGNED32,
+            "rw",
+            0,
+            pdo=True,
+            register="MAX_SPEED",
+            scale=s["MAX_SPEED"].scale,
+            unit="deg/s",
+        ),
         _var(0x6502, "Supported drive modes", UNSIGNED32, "ro", SUPPORTED_DRIVE_MODES),
     ]
 
 
 OBJECTS_NO_PDO: tuple[OdObject, ...] = tuple(_standard_objects() + register_objects())
 #: Every object of the dictionary, sorted by index.
-OBJECTS: tuple[OdObject, ...] = tuple(sorted(OBJECTS_NO_PDO + tuple(_pdo_objects()),
-                                             key=lambda o: o.index))
+OBJECTS: tuple[OdObject, ...] = tuple(sorted(OBJECTS_NO_PDO + tuple(_pdo_objects()), key=lambda o: o.index))
 BY_INDEX: dict[int, OdObject] = {o.index: o for o in OBJECTS}
 
 
@@ -372,68 +423,9 @@ def axis_node_id(drive_node_id: int, axis: int) -> int:
 def check_node_id(node_id: int, axes: int = 1) -> None:
     """Raise ValueError unless nodes ``node_id .. node_id + axes - 1`` are valid drive ids."""
     if not 1 <= node_id or node_id + axes - 1 > MAX_NODE_ID:
-        raise ValueError(f"node id {node_id} with {axes} axis(es) needs ids 1..{MAX_NODE_ID} "
-                         f"(0x7F is the master's)")
+        raise ValueError(
+            f"node id {node_id} with {axes} axis(es) needs ids 1..{MAX_NODE_ID} (0x7F is the master's)"
+        )
 
 
 # -- EDS (CiA 306) --------------------------------------------------------------------------
-def _fmt(e: OdEntry) -> str:
-    if isinstance(e.default, str):
-        return e.default
-    if e.data_type in (INTEGER8, INTEGER16, INTEGER32):
-        return str(e.default)
-    return f"0x{e.default:X}"
-
-
-def _entry_lines(section: str, e: OdEntry) -> list[str]:
-    lines = [f"[{section}]", f"ParameterName={e.name}", "ObjectType=0x7",
-             f"DataType=0x{e.data_type:04X}", f"AccessType={e.access}",
-             f"DefaultValue={_fmt(e)}", f"PDOMapping={int(e.pdo)}"]
-    if e.scale != 1.0:
-        # Not part of CiA 306, but read by the canopen library (Variable.phys) and
-        # ignored by other tools: it records the register's scale next to the object.
-        lines.append(f"Factor={e.scale:g}")
-    if e.unit:
-        lines.append(f"Unit={e.unit}")
-    return lines + [""]
-
-
-def eds() -> str:
-    """The electronic data sheet (CiA 306 INI text) of one drive axis node."""
-    mandatory = [0x1000, 0x1001, 0x1018]
-    manufacturer = [o.index for o in OBJECTS if 0x2000 <= o.index < 0x6000]
-    optional = [o.index for o in OBJECTS if o.index not in mandatory + manufacturer]
-    out = [
-        "; heliotrack drive: CANopen electronic data sheet (CiA 306).",
-        "; Generated by `python -m firmware_protocol.generate`; do not edit.",
-        "",
-        "[FileInfo]", f"FileName={EDS_NAME}", "FileVersion=1", "FileRevision=0",
-        "EDSVersion=4.0", "Description=heliotrack PV tracker slewing drive, one axis (CiA 402 PP)",
-        "CreatedBy=firmware_protocol.generate", "",
-        "[DeviceInfo]", "VendorName=heliotrack", f"VendorNumber=0x{VENDOR_ID:08X}",
-        "ProductName=heliotrack drive axis", f"ProductNumber=0x{PRODUCT_CODE:08X}",
-        f"RevisionNumber=0x{REVISION:08X}", "OrderCode=HT-DRIVE",
-        *[f"BaudRate_{r}={int(r in (125, 250, 500, 1000))}"
-          for r in (10, 20, 50, 125, 250, 500, 800, 1000)],
-        "SimpleBootUpMaster=0", "SimpleBootUpSlave=1", "Granularity=8",
-        "DynamicChannelsSupported=0", "GroupMessaging=0",
-        f"NrOfRXPDO={len(RPDOS)}", f"NrOfTXPDO={len(TPDOS)}", "LSS_Supported=0", "",
-        "[DummyUsage]", *[f"Dummy000{i}=0" for i in range(1, 8)], "",
-        "[Comments]", "Lines=3",
-        "Line1=One node per drive axis: axis k of a drive with node id N is node N+k.",
-        "Line2=Positions in 0.001 deg, velocities in 0.001 deg/s (same scale as Modbus).",
-        "Line3=0x2000+o / 0x2100+o mirror Modbus global / per-axis register offset o.", "",
-    ]
-    for title, idx in (("MandatoryObjects", mandatory), ("OptionalObjects", optional),
-                       ("ManufacturerObjects", manufacturer)):
-        out += [f"[{title}]", f"SupportedObjects={len(idx)}"]
-        out += [f"{i + 1}=0x{x:04X}" for i, x in enumerate(idx)] + [""]
-    for o in OBJECTS:
-        if o.object_type == VAR:
-            out += _entry_lines(f"{o.index:04X}", o.entries[0])
-            continue
-        out += [f"[{o.index:04X}]", f"ParameterName={o.name}", f"ObjectType=0x{o.object_type:X}",
-                f"SubNumber={len(o.entries)}", ""]
-        for e in o.entries:
-            out += _entry_lines(f"{o.index:04X}sub{e.subindex:X}", e)
-    return "\n".join(out)

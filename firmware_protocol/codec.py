@@ -10,7 +10,7 @@ import math
 from collections.abc import Mapping, Sequence
 
 from .errors import ProtocolError
-from .registers import AXIS_BASE, AXIS_STRIDE, MAX_AXES, Register, REGISTER_MAP, register
+from .registers import AXIS_BASE, AXIS_STRIDE, MAX_AXES, REGISTER_MAP, Register, register
 
 _RANGES = {
     "uint16": (0, 0xFFFF),
@@ -29,7 +29,8 @@ def to_raw(reg: Register, value: float) -> int:
     if not lo <= raw <= hi:
         raise ProtocolError(
             f"{reg.name}: {value} {reg.unit} is outside the {reg.type} range "
-            f"[{lo * reg.scale:g}, {hi * reg.scale:g}] {reg.unit}".rstrip())
+            f"[{lo * reg.scale:g}, {hi * reg.scale:g}] {reg.unit}".rstrip()
+        )
     return raw
 
 
@@ -66,8 +67,7 @@ def decode(reg: Register | str, words: Sequence[int]) -> float | int:
     return raw if reg.scale == 1 else raw * reg.scale
 
 
-def decode_block(words: Sequence[int], start: int, axis: int | None = None
-                 ) -> dict[str, float | int]:
+def decode_block(words: Sequence[int], start: int, axis: int | None = None) -> dict[str, float | int]:
     """Decode every register fully contained in ``words`` read from address ``start``.
 
     With ``axis`` given, only that axis's per-axis registers are decoded (keyed by plain
@@ -83,7 +83,7 @@ def decode_block(words: Sequence[int], start: int, axis: int | None = None
             addr = reg.address(k)
             if start <= addr and addr + reg.words <= end:
                 key = reg.name if (k is None or axis is not None) else f"{reg.name}[{k}]"
-                out[key] = decode(reg, words[addr - start: addr - start + reg.words])
+                out[key] = decode(reg, words[addr - start : addr - start + reg.words])
     return out
 
 
@@ -98,7 +98,7 @@ def decode_axis(words: Sequence[int], offset: int = 0) -> dict[str, float | int]
     out: dict[str, float | int] = {}
     for reg, o in _AXIS_LAYOUT:
         i = offset + o
-        out[reg.name] = decode(reg, words[i: i + reg.words])
+        out[reg.name] = decode(reg, words[i : i + reg.words])
     return out
 
 
@@ -107,8 +107,7 @@ def axis_block_address(axis: int) -> int:
     return AXIS_BASE + axis * AXIS_STRIDE
 
 
-def encode_values(values: Mapping[str, float], axis: int | None = None
-                  ) -> dict[int, int]:
+def encode_values(values: Mapping[str, float], axis: int | None = None) -> dict[int, int]:
     """Map of register names -> values to a map of address -> word, for writes."""
     out: dict[int, int] = {}
     for name, value in values.items():

@@ -9,10 +9,20 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from .canopen import EDS_NAME, eds
+from .eds import EDS_NAME, eds
 from .registers import (
-    AXIS_BASE, AXIS_STRIDE, ENUMS, GLOBAL_REGISTERS, AXIS_REGISTERS, MAGIC, MAX_AXES,
-    PROTOCOL_MAJOR, PROTOCOL_MINOR, PROTOCOL_VERSION, REGISTER_SPACE, Register,
+    AXIS_BASE,
+    AXIS_REGISTERS,
+    AXIS_STRIDE,
+    ENUMS,
+    GLOBAL_REGISTERS,
+    MAGIC,
+    MAX_AXES,
+    PROTOCOL_MAJOR,
+    PROTOCOL_MINOR,
+    PROTOCOL_VERSION,
+    REGISTER_SPACE,
+    Register,
 )
 
 GENERATED_DIR = Path(__file__).resolve().parent / "generated"
@@ -72,16 +82,19 @@ def markdown() -> str:
 
 
 def _table(regs: tuple[Register, ...], axis: int | None) -> list[str]:
-    rows = ["| address | name | type | scale | unit | access | description |",
-            "|---:|---|---|---:|---|---|---|"]
+    rows = [
+        "| address | name | type | scale | unit | access | description |",
+        "|---:|---|---|---:|---|---|---|",
+    ]
     for r in regs:
         addr = r.address(axis) if r.per_axis else r.address()
         span = f"{addr}" if r.words == 1 else f"{addr}-{addr + 1}"
         if r.per_axis:
             span = f"+{r.offset}" + ("" if r.words == 1 else f"-{r.offset + 1}") + f" ({span})"
         desc = r.description + (f" See {r.enum}." if r.enum else "")
-        rows.append(f"| {span} | {r.name} | {r.type} | {_fmt_scale(r.scale)} | {r.unit} | "
-                    f"{r.access} | {desc} |")
+        rows.append(
+            f"| {span} | {r.name} | {r.type} | {_fmt_scale(r.scale)} | {r.unit} | {r.access} | {desc} |"
+        )
     return rows
 
 
@@ -106,8 +119,11 @@ def c_header() -> str:
     ]
     for r in GLOBAL_REGISTERS:
         out += _c_reg(r, f"{r.offset}")
-    out += ["", "/* Per-axis registers: offset inside the axis block. */",
-            "#define HT_AXIS_REG(axis, offset) (HT_AXIS_BASE + (axis) * HT_AXIS_STRIDE + (offset))"]
+    out += [
+        "",
+        "/* Per-axis registers: offset inside the axis block. */",
+        "#define HT_AXIS_REG(axis, offset) (HT_AXIS_BASE + (axis) * HT_AXIS_STRIDE + (offset))",
+    ]
     for r in AXIS_REGISTERS:
         out += _c_reg(r, f"{r.offset}", per_axis=True)
     for name, enum in ENUMS.items():

@@ -13,12 +13,18 @@ PYRANOMETER_DEVICE_TYPE = 0x0259  # informative, "601"
 
 PYRANOMETER_REGISTERS: tuple[Register, ...] = (
     Register("PYR_DEVICE_TYPE", 0, "uint16", 1, "", "R", "Instrument type code."),
-    Register("PYR_IRRADIANCE", 5, "int16", 1, "W/m2", "R",
-             "Global irradiance, temperature compensated."),
+    Register("PYR_IRRADIANCE", 5, "int16", 1, "W/m2", "R", "Global irradiance, temperature compensated."),
     Register("PYR_IRRADIANCE_RAW", 6, "int16", 1, "W/m2", "R", "Uncompensated irradiance."),
     Register("PYR_BODY_TEMPERATURE", 8, "int16", 0.1, "degC", "R", "Body temperature."),
-    Register("PYR_STATUS", 27, "uint16", 1, "", "R",
-             "0 = ok; bit 0 sensor fault, bit 1 out of range, bit 2 heater on."),
+    Register(
+        "PYR_STATUS",
+        27,
+        "uint16",
+        1,
+        "",
+        "R",
+        "0 = ok; bit 0 sensor fault, bit 1 out of range, bit 2 heater on.",
+    ),
 )
 
 PYRANOMETER_SPACE = 32

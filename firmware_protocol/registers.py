@@ -96,9 +96,9 @@ class Register:
 class Mode(IntEnum):
     """Operating mode of an axis (register ``MODE``)."""
 
-    AUTO = 0         # follow TARGET_ANGLE
-    STOW = 1         # go to STOW_ANGLE and stay until a RESUME command
-    MANUAL = 2       # follow TARGET_ANGLE, set by an operator; watchdog still armed
+    AUTO = 0  # follow TARGET_ANGLE
+    STOW = 1  # go to STOW_ANGLE and stay until a RESUME command
+    MANUAL = 2  # follow TARGET_ANGLE, set by an operator; watchdog still armed
     MAINTENANCE = 3  # motor disabled, brake on; ignores targets and the watchdog
 
 
@@ -106,10 +106,10 @@ class Command(IntEnum):
     """Values written to ``COMMAND``; the firmware executes them and resets it to NONE."""
 
     NONE = 0
-    STOW = 1         # all axes to STOW mode
-    RESUME = 2       # leave STOW (and COMM_LOST) for AUTO
+    STOW = 1  # all axes to STOW mode
+    RESUME = 2  # leave STOW (and COMM_LOST) for AUTO
     CLEAR_FAULT = 3  # clear latched faults if their cause is gone
-    HOME = 4         # run the homing sequence: re-reference the encoder at the index
+    HOME = 4  # run the homing sequence: re-reference the encoder at the index
 
 
 class Status(IntFlag):
@@ -117,67 +117,113 @@ class Status(IntFlag):
 
     MOVING = 1 << 0
     AT_TARGET = 1 << 1
-    LIMIT_POS = 1 << 2       # at or beyond the positive soft limit
-    LIMIT_NEG = 1 << 3       # at or beyond the negative soft limit
-    STALLED = 1 << 4         # commanded but not moving
-    FAULT = 1 << 5           # a latched fault: see FAULT_CODE
-    STOWED = 1 << 6          # in STOW mode and at the stow angle
-    COMM_LOST = 1 << 7       # the heartbeat watchdog expired
+    LIMIT_POS = 1 << 2  # at or beyond the positive soft limit
+    LIMIT_NEG = 1 << 3  # at or beyond the negative soft limit
+    STALLED = 1 << 4  # commanded but not moving
+    FAULT = 1 << 5  # a latched fault: see FAULT_CODE
+    STOWED = 1 << 6  # in STOW mode and at the stow angle
+    COMM_LOST = 1 << 7  # the heartbeat watchdog expired
     TARGET_CLAMPED = 1 << 8  # last target was outside the soft limits and was clamped
-    HOMED = 1 << 9           # encoder referenced
+    HOMED = 1 << 9  # encoder referenced
 
 
 class Fault(IntEnum):
     """Latched fault codes (register ``FAULT_CODE``)."""
 
     NONE = 0
-    STALL = 1            # motor current but no motion for the stall time
-    HARD_LIMIT = 2       # a hard-limit switch tripped
+    STALL = 1  # motor current but no motion for the stall time
+    HARD_LIMIT = 2  # a hard-limit switch tripped
     OVERCURRENT = 3
-    ENCODER = 4          # encoder reading lost or implausible
+    ENCODER = 4  # encoder reading lost or implausible
     OVERTEMPERATURE = 5
 
 
 GLOBAL_REGISTERS: tuple[Register, ...] = (
     Register("MAGIC", 0, "uint16", 1, "", "R", "Identification: 0x4854 (ASCII 'HT')."),
-    Register("PROTOCOL_VERSION", 1, "uint16", 1, "", "R",
-             "Protocol version, major * 256 + minor."),
+    Register("PROTOCOL_VERSION", 1, "uint16", 1, "", "R", "Protocol version, major * 256 + minor."),
     Register("AXIS_COUNT", 2, "uint16", 1, "", "R", "Number of axes this drive has (1 or 2)."),
-    Register("FIRMWARE_VERSION", 3, "uint16", 1, "", "R",
-             "Firmware build, major * 256 + minor (informative)."),
-    Register("DEVICE_STATUS", 4, "uint16", 1, "", "R",
-             "OR of all axes' STATUS bits.", enum="Status"),
-    Register("COMMAND", 8, "uint16", 1, "", "RW",
-             "Write a command; the firmware executes it and resets the register to 0.",
-             enum="Command"),
-    Register("HEARTBEAT", 9, "uint16", 1, "", "RW",
-             "Master writes a changing counter; if it does not change for "
-             "HEARTBEAT_TIMEOUT the firmware sets COMM_LOST and stows every axis."),
-    Register("HEARTBEAT_TIMEOUT", 10, "uint16", 0.1, "s", "RW",
-             "Watchdog timeout; 0 disables the watchdog (commissioning only)."),
+    Register(
+        "FIRMWARE_VERSION", 3, "uint16", 1, "", "R", "Firmware build, major * 256 + minor (informative)."
+    ),
+    Register("DEVICE_STATUS", 4, "uint16", 1, "", "R", "OR of all axes' STATUS bits.", enum="Status"),
+    Register(
+        "COMMAND",
+        8,
+        "uint16",
+        1,
+        "",
+        "RW",
+        "Write a command; the firmware executes it and resets the register to 0.",
+        enum="Command",
+    ),
+    Register(
+        "HEARTBEAT",
+        9,
+        "uint16",
+        1,
+        "",
+        "RW",
+        "Master writes a changing counter; if it does not change for "
+        "HEARTBEAT_TIMEOUT the firmware sets COMM_LOST and stows every axis.",
+    ),
+    Register(
+        "HEARTBEAT_TIMEOUT",
+        10,
+        "uint16",
+        0.1,
+        "s",
+        "RW",
+        "Watchdog timeout; 0 disables the watchdog (commissioning only).",
+    ),
     Register("UPTIME", 12, "uint32", 1, "s", "R", "Seconds since power-up."),
 )
 
 AXIS_REGISTERS: tuple[Register, ...] = (
-    Register("TARGET_ANGLE", 0, "int32", 0.001, "deg", "RW",
-             "Commanded axis angle; clamped to the soft limits (TARGET_CLAMPED set).",
-             per_axis=True),
-    Register("ACTUAL_ANGLE", 2, "int32", 0.001, "deg", "R",
-             "Measured axis angle (output-side encoder).", per_axis=True),
-    Register("VELOCITY", 4, "int16", 0.001, "deg/s", "R", "Measured axis speed.",
-             per_axis=True),
+    Register(
+        "TARGET_ANGLE",
+        0,
+        "int32",
+        0.001,
+        "deg",
+        "RW",
+        "Commanded axis angle; clamped to the soft limits (TARGET_CLAMPED set).",
+        per_axis=True,
+    ),
+    Register(
+        "ACTUAL_ANGLE",
+        2,
+        "int32",
+        0.001,
+        "deg",
+        "R",
+        "Measured axis angle (output-side encoder).",
+        per_axis=True,
+    ),
+    Register("VELOCITY", 4, "int16", 0.001, "deg/s", "R", "Measured axis speed.", per_axis=True),
     Register("STATUS", 5, "uint16", 1, "", "R", "Status bits.", per_axis=True, enum="Status"),
-    Register("FAULT_CODE", 6, "uint16", 1, "", "R", "Latched fault, 0 when none.",
-             per_axis=True, enum="Fault"),
+    Register(
+        "FAULT_CODE", 6, "uint16", 1, "", "R", "Latched fault, 0 when none.", per_axis=True, enum="Fault"
+    ),
     Register("MODE", 7, "uint16", 1, "", "RW", "Operating mode.", per_axis=True, enum="Mode"),
-    Register("SOFT_LIMIT_MIN", 8, "int32", 0.001, "deg", "RW",
-             "Lowest angle a target may ask for.", per_axis=True),
-    Register("SOFT_LIMIT_MAX", 10, "int32", 0.001, "deg", "RW",
-             "Highest angle a target may ask for.", per_axis=True),
-    Register("MAX_SPEED", 12, "uint16", 0.001, "deg/s", "RW",
-             "Speed limit of the position loop.", per_axis=True),
-    Register("STOW_ANGLE", 13, "int16", 0.01, "deg", "RW",
-             "Angle the axis goes to in STOW mode.", per_axis=True),
+    Register(
+        "SOFT_LIMIT_MIN", 8, "int32", 0.001, "deg", "RW", "Lowest angle a target may ask for.", per_axis=True
+    ),
+    Register(
+        "SOFT_LIMIT_MAX",
+        10,
+        "int32",
+        0.001,
+        "deg",
+        "RW",
+        "Highest angle a target may ask for.",
+        per_axis=True,
+    ),
+    Register(
+        "MAX_SPEED", 12, "uint16", 0.001, "deg/s", "RW", "Speed limit of the position loop.", per_axis=True
+    ),
+    Register(
+        "STOW_ANGLE", 13, "int16", 0.01, "deg", "RW", "Angle the axis goes to in STOW mode.", per_axis=True
+    ),
 )
 
 REGISTER_MAP: tuple[Register, ...] = GLOBAL_REGISTERS + AXIS_REGISTERS

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from controller.calibration.bundle import CalibrationBundle
 from controller.schema import markdown
-from controller.sky.classify import SkySettings
+from controller.sky.settings import SkySettings
 
 from .scenario import ScenarioConfig
 
@@ -18,14 +18,17 @@ DOCUMENTS: dict[str, tuple[type, str]] = {
         "`heliotrack run`, `check` and `simulate` read these (`config/*.toml`).  The `[hil]` "
         "table describes the emulated world and belongs to scenario files only: `simulate` "
         "reads it, a plant file for `run` must not have it.  Link kinds are backends of the "
-        "drive-link registry (`controller/drives/registry.py`); each kind has its own keys."),
+        "drive-link registry (`controller/drives/registry.py`); each kind has its own keys.",
+    ),
     "Hotspot-sensor calibration bundle": (
         CalibrationBundle,
         "`heliotrack estimate --calib`, `[hotspot] calibration`; written by "
-        "`heliotrack calibrate` (see docs/hotspot.md)."),
+        "`heliotrack calibrate` (see docs/hotspot.md).",
+    ),
     "Sky settings": (
         SkySettings,
-        "`heliotrack classify --settings FILE`: the day-type classifier (see docs/skytype.md)."),
+        "`heliotrack classify --settings FILE`: the day-type classifier (see docs/skytype.md).",
+    ),
 }
 
 

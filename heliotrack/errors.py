@@ -8,8 +8,7 @@ from firmware_protocol.errors import ProtocolError
 from hil.errors import HilError
 
 #: Exceptions that mean "the user's input is wrong", not "heliotrack has a bug".
-USER_ERRORS: tuple[type[BaseException], ...] = (
-    ControllerUserError, DriveCommError, ProtocolError, HilError)
+USER_ERRORS: tuple[type[BaseException], ...] = (ControllerUserError, DriveCommError, ProtocolError, HilError)
 
 
 def format_user_error(exc: BaseException) -> str:

@@ -22,13 +22,15 @@ from controller.northbound import Northbound
 from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
+from .devices import open_drives, open_pyranometer
 from .scenario import as_scenario
 from .sun_sources import build_sun_source
-from .simulate import _build_world, _open_drives, _open_pyranometer
+from .world import build_world
 
 
-def run_realtime(config: Config, duration_s: float, sunspec: tuple[str, int] | None = None,
-                 out=sys.stdout) -> dict:
+def run_realtime(
+    config: Config, duration_s: float, sunspec: tuple[str, int] | None = None, out=sys.stdout
+) -> dict:
     """Run for ``duration_s`` seconds of wall time; returns counts of what happened."""
     return asyncio.run(_run(config, duration_s, sunspec, out))
 
@@ -39,19 +41,32 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
     clock = RealClock()
     t0 = clock.now()
     grid = t0 + np.arange(0.0, duration_s + 120.0, 15.0)
-    sky = sky_series(grid, config.site.latitude, config.site.longitude, config.site.altitude,
-                     {0: hil.skies[0]}, hil.linke_turbidity, seed=hil.seed)
+    sky = sky_series(
+        grid,
+        config.site.latitude,
+        config.site.longitude,
+        config.site.altitude,
+        {0: hil.skies[0]},
+        hil.linke_turbidity,
+        seed=hil.seed,
+    )
 
     def ghi_at(t: float) -> float:
         return float(np.interp(t, grid, sky.ghi))
 
     counts = {"cycles": 0, "row_errors": 0, "overrides": 0}
     with ExitStack() as stack:
-        _, endpoints = _build_world(config, hil, clock, stack, ghi_at)
+        world = build_world(config, hil, clock, stack, ghi_at)
         sun, sensor = build_sun_source(config)
-        controller = Controller(config, _open_drives(config, endpoints), sun, clock,
-                                realtime=True, sensor=sensor,
-                                pyranometer=_open_pyranometer(config, endpoints))
+        controller = Controller(
+            config,
+            open_drives(config, world.links),
+            sun,
+            clock,
+            realtime=True,
+            sensor=sensor,
+            pyranometer=open_pyranometer(config, world.links),
+        )
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:
             cfg = replace(config.sunspec, enabled=True, host=sunspec[0], port=sunspec[1])
@@ -65,8 +80,11 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
             bridge.publish(records)
             counts["overrides"] += bridge.apply_pending()
             modes = ",".join(sorted({r.mode for r in records}))
-            print(f"cycle {counts['cycles']} {time.strftime('%H:%M:%S')} {modes} "
-                  f"errors={counts['row_errors']}", file=out, flush=True)
+            print(
+                f"cycle {counts['cycles']} {time.strftime('%H:%M:%S')} {modes} errors={counts['row_errors']}",
+                file=out,
+                flush=True,
+            )
 
         try:
             await controller.start()

@@ -21,8 +21,8 @@ class PollLatency:
     host: str
     port: int
     n_trackers: int
-    registers: int              # model 601 length L + 2
-    scan_s: float               # connect + scan (marker search, models 1 and 601, end)
+    registers: int  # model 601 length L + 2
+    scan_s: float  # connect + scan (marker search, models 1 and 601, end)
     n: int
     read_p50_s: float
     read_p99_s: float
@@ -30,14 +30,17 @@ class PollLatency:
     read_mean_s: float
 
     def summary(self) -> str:
-        return (f"SunSpec poll {self.host}:{self.port}: {self.n_trackers} trackers "
-                f"({self.registers} registers), scan {self.scan_s * 1e3:.1f} ms, "
-                f"model 601 read p50 {self.read_p50_s * 1e3:.2f} ms, "
-                f"p99 {self.read_p99_s * 1e3:.2f} ms, max {self.read_max_s * 1e3:.2f} ms (n={self.n})")
+        return (
+            f"SunSpec poll {self.host}:{self.port}: {self.n_trackers} trackers "
+            f"({self.registers} registers), scan {self.scan_s * 1e3:.1f} ms, "
+            f"model 601 read p50 {self.read_p50_s * 1e3:.2f} ms, "
+            f"p99 {self.read_p99_s * 1e3:.2f} ms, max {self.read_max_s * 1e3:.2f} ms (n={self.n})"
+        )
 
 
-def poll_latency(host: str, port: int, n: int = 100, *, device_address: int = 1,
-                 timeout_s: float = 5.0) -> PollLatency:
+def poll_latency(
+    host: str, port: int, n: int = 100, *, device_address: int = 1, timeout_s: float = 5.0
+) -> PollLatency:
     """Scan a SunSpec server once with pysunspec2, then read model 601 ``n`` times.
 
     Parameters
@@ -58,14 +61,15 @@ def poll_latency(host: str, port: int, n: int = 100, *, device_address: int = 1,
     # imported here so the controller does not pay for the client unless benchmarking
     from sunspec2.modbus.client import SunSpecModbusClientDeviceTCP
 
-    dev = SunSpecModbusClientDeviceTCP(slave_id=device_address, ipaddr=host, ipport=port,
-                                       timeout=timeout_s)
+    dev = SunSpecModbusClientDeviceTCP(slave_id=device_address, ipaddr=host, ipport=port, timeout=timeout_s)
     try:
         t0 = time.perf_counter()
         dev.scan()
         scan_s = time.perf_counter() - t0
         if TRACKER_MODEL_ID not in dev.models:
-            raise RuntimeError(f"{host}:{port} serves no model 601 (found {sorted(k for k in dev.models if isinstance(k, int))})")
+            raise RuntimeError(
+                f"{host}:{port} serves no model 601 (found {sorted(k for k in dev.models if isinstance(k, int))})"
+            )
         model = dev.models[TRACKER_MODEL_ID][0]
         dev.connect()
         times = np.empty(n)
@@ -75,6 +79,15 @@ def poll_latency(host: str, port: int, n: int = 100, *, device_address: int = 1,
             times[k] = time.perf_counter() - t
     finally:
         dev.close()
-    return PollLatency(host, port, int(model.N.value), int(model.len) + 2, scan_s, n,
-                       float(np.percentile(times, 50)), float(np.percentile(times, 99)),
-                       float(times.max()), float(times.mean()))
+    return PollLatency(
+        host,
+        port,
+        int(model.N.value),
+        int(model.len) + 2,
+        scan_s,
+        n,
+        float(np.percentile(times, 50)),
+        float(np.percentile(times, 99)),
+        float(times.max()),
+        float(times.mean()),
+    )

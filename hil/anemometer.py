@@ -5,8 +5,7 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 
 from firmware_protocol import encode
-from firmware_protocol.anemometer import (ANE, ANEMOMETER_DEVICE_TYPE, ANEMOMETER_SPACE, GUST_HOLD_S,
-                                          SAMPLE_HZ)
+from firmware_protocol.anemometer import ANE, ANEMOMETER_DEVICE_TYPE, ANEMOMETER_SPACE, GUST_HOLD_S, SAMPLE_HZ
 
 from .drive.firmware import FirmwareReject
 from .wind import WindScript
@@ -33,11 +32,15 @@ class Anemometer:
         mean = self.wind.mean_10min(t) if self.override is None else self.override
         out_of_range = max(speed, gust, mean) > 75.0
         clip = lambda v: min(max(v, 0.0), 655.0)  # noqa: E731 - the register's range
-        return {"ANE_DEVICE_TYPE": ANEMOMETER_DEVICE_TYPE, "ANE_SPEED": clip(speed),
-                "ANE_GUST": clip(gust), "ANE_MEAN_10MIN": clip(mean),
-                "ANE_DIRECTION": float(self.wind.direction(t)[0]),
-                "ANE_SAMPLE_COUNT": int(t * SAMPLE_HZ) % 65536,
-                "ANE_STATUS": (1 if self.fault else 0) | (2 if out_of_range else 0)}
+        return {
+            "ANE_DEVICE_TYPE": ANEMOMETER_DEVICE_TYPE,
+            "ANE_SPEED": clip(speed),
+            "ANE_GUST": clip(gust),
+            "ANE_MEAN_10MIN": clip(mean),
+            "ANE_DIRECTION": float(self.wind.direction(t)[0]),
+            "ANE_SAMPLE_COUNT": int(t * SAMPLE_HZ) % 65536,
+            "ANE_STATUS": (1 if self.fault else 0) | (2 if out_of_range else 0),
+        }
 
     def read(self, address: int, count: int) -> list[int]:
         if address < 0 or address + count > ANEMOMETER_SPACE:
@@ -45,8 +48,8 @@ class Anemometer:
         words = [0] * ANEMOMETER_SPACE
         for name, value in self.values().items():
             reg = ANE[name]
-            words[reg.offset: reg.offset + reg.words] = encode(reg, value)
-        return words[address: address + count]
+            words[reg.offset : reg.offset + reg.words] = encode(reg, value)
+        return words[address : address + count]
 
     def write(self, address: int, values: Sequence[int]) -> None:
         raise FirmwareReject(2, "the anemometer has no writable registers")

@@ -20,13 +20,19 @@ import time
 from pymodbus.server import ModbusTcpServer
 
 from .drive import AxisParams, DriveFirmware
-from .modbus_server import _MultidropCore, sim_device
+from .modbus_device import MultidropCore, sim_device
 
 
 def row_firmware(now=time.time, max_angle: float = 55.0) -> DriveFirmware:
-    return DriveFirmware([AxisParams(soft_min=-max_angle, soft_max=max_angle,
-                                     hard_min=-max_angle - 5, hard_max=max_angle + 5)],
-                         now, heartbeat_timeout=0)
+    return DriveFirmware(
+        [
+            AxisParams(
+                soft_min=-max_angle, soft_max=max_angle, hard_min=-max_angle - 5, hard_max=max_angle + 5
+            )
+        ],
+        now,
+        heartbeat_timeout=0,
+    )
 
 
 class RowFarm:
@@ -41,7 +47,7 @@ class RowFarm:
         self._ready = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True, name="row-farm")
 
-    def start(self) -> "RowFarm":
+    def start(self) -> RowFarm:
         self._thread.start()
         if not self._ready.wait(60):
             raise RuntimeError("row farm did not start")
@@ -57,10 +63,11 @@ class RowFarm:
         for fw in self.firmwares:
             dev = sim_device(self.device_id, fw)
             srv = ModbusTcpServer([dev], address=("127.0.0.1", 0), ignore_missing_devices=True)
-            srv.context = _MultidropCore([dev])
+            srv.context = MultidropCore([dev])
             await srv.serve_forever(background=True)
             self.servers.append(srv)
-            self.ports.append(srv.transport.sockets[0].getsockname()[1])
+            listener = srv.transport  # a TCP server's transport is the asyncio.Server
+            self.ports.append(listener.sockets[0].getsockname()[1])  # type: ignore[attr-defined]
 
     def kill(self, i: int) -> None:
         """Stop row ``i``'s server and drop its connections: the row goes silent."""
@@ -76,6 +83,7 @@ class RowFarm:
             for t in pending:
                 t.cancel()
             await asyncio.gather(*pending, return_exceptions=True)
+
         if self._loop.is_running():
             asyncio.run_coroutine_threadsafe(all_down(), self._loop).result(30)
             self._loop.call_soon_threadsafe(self._loop.stop)

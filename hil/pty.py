@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import tty
 from dataclasses import dataclass
+from typing import Self
 
 import serial
 
@@ -26,14 +27,22 @@ class PtyLink:
     path: str
 
     @classmethod
-    def open(cls) -> "PtyLink":
+    def open(cls) -> PtyLink:
         master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no CR/LF translation: Modbus RTU is binary
         return cls(master, slave, os.ttyname(slave))
 
     @property
     def url(self) -> str:
+        """pyserial URL of the master end (the emulator's side)."""
         return f"ptyfd://{self.master_fd}"
+
+    @property
+    def slave_url(self) -> str:
+        """pyserial URL of the slave end, for a master whose line settings a pty refuses:
+        Linux rejects a parity bit on a pty (EINVAL), and ``ptyfd://`` applies line
+        settings only as far as the pty allows, so the client opens with any settings."""
+        return f"ptyfd://{self.slave_fd}"
 
     def close(self) -> None:
         for fd in (self.master_fd, self.slave_fd):
@@ -42,7 +51,7 @@ class PtyLink:
             except OSError:
                 pass
 
-    def __enter__(self) -> "PtyLink":
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -26,8 +26,13 @@ class Pyranometer:
     seed : int
     """
 
-    def __init__(self, ghi_at: Callable[[float], float], now: Callable[[], float],
-                 noise_w_m2: float = 2.0, seed: int = 0):
+    def __init__(
+        self,
+        ghi_at: Callable[[float], float],
+        now: Callable[[], float],
+        noise_w_m2: float = 2.0,
+        seed: int = 0,
+    ):
         self.ghi_at = ghi_at
         self.now = now
         self.noise = noise_w_m2
@@ -37,9 +42,13 @@ class Pyranometer:
     def values(self) -> dict[str, float]:
         g = float(self.ghi_at(self.now()))
         g = max(g + self.rng.normal(0, self.noise), 0.0) if g > 0 else 0.0
-        return {"PYR_DEVICE_TYPE": PYRANOMETER_DEVICE_TYPE, "PYR_IRRADIANCE": round(g),
-                "PYR_IRRADIANCE_RAW": round(g * 1.01), "PYR_BODY_TEMPERATURE": 25.0,
-                "PYR_STATUS": 1 if self.fault else 0}
+        return {
+            "PYR_DEVICE_TYPE": PYRANOMETER_DEVICE_TYPE,
+            "PYR_IRRADIANCE": round(g),
+            "PYR_IRRADIANCE_RAW": round(g * 1.01),
+            "PYR_BODY_TEMPERATURE": 25.0,
+            "PYR_STATUS": 1 if self.fault else 0,
+        }
 
     def read(self, address: int, count: int) -> list[int]:
         if address < 0 or address + count > PYRANOMETER_SPACE:
@@ -47,8 +56,8 @@ class Pyranometer:
         words = [0] * PYRANOMETER_SPACE
         for name, value in self.values().items():
             reg = PYR[name]
-            words[reg.offset: reg.offset + reg.words] = encode(reg, value)
-        return words[address: address + count]
+            words[reg.offset : reg.offset + reg.words] = encode(reg, value)
+        return words[address : address + count]
 
     def write(self, address: int, values: Sequence[int]) -> None:
         raise FirmwareReject(2, "the pyranometer has no writable registers")

@@ -32,7 +32,7 @@ class SkySeries:
     dni: np.ndarray
     dhi: np.ndarray
     beam_transmittance: np.ndarray  # 1 = sun free, 0 = sun hidden
-    kinds: np.ndarray               # the regime of each sample's day
+    kinds: np.ndarray  # the regime of each sample's day
 
 
 def _ar1(n: int, dt: float, tau: float, rng: np.random.Generator) -> np.ndarray:
@@ -46,8 +46,9 @@ def _ar1(n: int, dt: float, tau: float, rng: np.random.Generator) -> np.ndarray:
     return x
 
 
-def _broken_cumulus(times: np.ndarray, rng: np.random.Generator, sun_s: float = 600.0,
-                    shade_s: float = 420.0) -> np.ndarray:
+def _broken_cumulus(
+    times: np.ndarray, rng: np.random.Generator, sun_s: float = 600.0, shade_s: float = 420.0
+) -> np.ndarray:
     """0/1 sun visibility with exponential sun and shade spells (means in seconds)."""
     out = np.ones(times.size)
     t, state = times[0], bool(rng.random() < sun_s / (sun_s + shade_s))
@@ -62,9 +63,15 @@ def _broken_cumulus(times: np.ndarray, rng: np.random.Generator, sun_s: float = 
     return out
 
 
-def sky_series(times_s: np.ndarray, latitude: float, longitude: float, altitude: float,
-               day_kinds: dict[int, str], linke_turbidity: float = 3.0, seed: int = 0
-               ) -> SkySeries:
+def sky_series(
+    times_s: np.ndarray,
+    latitude: float,
+    longitude: float,
+    altitude: float,
+    day_kinds: dict[int, str],
+    linke_turbidity: float = 3.0,
+    seed: int = 0,
+) -> SkySeries:
     """Irradiance for ``times_s`` (POSIX s, sorted); ``day_kinds`` maps day index -> regime.
 
     The day index counts from the first sample's day (``(t - t0) // 86400``); days not in
@@ -74,8 +81,7 @@ def sky_series(times_s: np.ndarray, latitude: float, longitude: float, altitude:
     idx = pd.DatetimeIndex(pd.to_datetime(times_s, unit="s", utc=True))
     loc = pvlib.location.Location(latitude, longitude, altitude=altitude)
     sp = loc.get_solarposition(idx)
-    cs = loc.get_clearsky(idx, model="ineichen", linke_turbidity=linke_turbidity,
-                          solar_position=sp)
+    cs = loc.get_clearsky(idx, model="ineichen", linke_turbidity=linke_turbidity, solar_position=sp)
     ghi_c, dni_c, dhi_c = (np.nan_to_num(cs[k].to_numpy()) for k in ("ghi", "dni", "dhi"))
     cosz = np.clip(np.cos(np.radians(sp["apparent_zenith"].to_numpy())), 0, None)
     rng = np.random.default_rng(seed)

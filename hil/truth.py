@@ -28,9 +28,9 @@ def angle_deg(a, b) -> np.ndarray:
 class SunTruth:
     """Sun positions and clear-sky DNI at given times (arrays, degrees and W/m2)."""
 
-    times: np.ndarray        # POSIX seconds
+    times: np.ndarray  # POSIX seconds
     azimuth: np.ndarray
-    elevation: np.ndarray    # apparent (refracted)
+    elevation: np.ndarray  # apparent (refracted)
     dni: np.ndarray
 
     @property
@@ -38,25 +38,41 @@ class SunTruth:
         return unit_from_azel(self.azimuth, self.elevation)
 
 
-def sun_truth(times_s: np.ndarray, latitude: float, longitude: float, altitude: float = 0.0,
-              temperature_c: float = 12.0, linke_turbidity: float = 3.0) -> SunTruth:
+def sun_truth(
+    times_s: np.ndarray,
+    latitude: float,
+    longitude: float,
+    altitude: float = 0.0,
+    temperature_c: float = 12.0,
+    linke_turbidity: float = 3.0,
+) -> SunTruth:
     """pvlib SPA positions and Ineichen clear-sky DNI, vectorised over ``times_s``."""
     idx = pd.DatetimeIndex(pd.to_datetime(np.asarray(times_s, float), unit="s", utc=True))
     pressure = pvlib.atmosphere.alt2pres(altitude)
-    sp = pvlib.solarposition.get_solarposition(idx, latitude, longitude, altitude=altitude,
-                                               pressure=pressure, temperature=temperature_c,
-                                               method="nrel_numpy")
+    sp = pvlib.solarposition.get_solarposition(
+        idx,
+        latitude,
+        longitude,
+        altitude=altitude,
+        pressure=pressure,
+        temperature=temperature_c,
+        method="nrel_numpy",
+    )
     am = pvlib.atmosphere.get_absolute_airmass(
-        pvlib.atmosphere.get_relative_airmass(sp["apparent_zenith"]), pressure)
+        pvlib.atmosphere.get_relative_airmass(sp["apparent_zenith"]), pressure
+    )
     dni_extra = pvlib.irradiance.get_extra_radiation(idx)
-    cs = pvlib.clearsky.ineichen(sp["apparent_zenith"], am, linke_turbidity,
-                                 altitude=altitude, dni_extra=dni_extra)
+    cs = pvlib.clearsky.ineichen(
+        sp["apparent_zenith"], am, linke_turbidity, altitude=altitude, dni_extra=dni_extra
+    )
     dni = np.nan_to_num(cs["dni"].to_numpy(), nan=0.0)
-    return SunTruth(np.asarray(times_s, float), sp["azimuth"].to_numpy(),
-                    sp["apparent_elevation"].to_numpy(), dni)
+    return SunTruth(
+        np.asarray(times_s, float), sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy(), dni
+    )
 
 
 # -- panel orientation ---------------------------------------------------------------
+
 
 def dual_axis_normal(az_axis_deg, el_axis_deg) -> np.ndarray:
     """Panel normal of an azimuth/elevation tracker whose axes read these angles."""
@@ -86,9 +102,15 @@ def row_normal(rotation_deg, axis_azimuth: float, axis_tilt: float) -> np.ndarra
     return n0 * np.cos(th) + np.cross(a, n0) * np.sin(th) + a * np.dot(a, n0) * (1 - np.cos(th))
 
 
-def row_ideal_rotation(sun_vec: np.ndarray, axis_azimuth: float, axis_tilt: float,
-                       max_angle: float, gcr: float, cross_axis_tilt: float = 0.0,
-                       backtrack: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def row_ideal_rotation(
+    sun_vec: np.ndarray,
+    axis_azimuth: float,
+    axis_tilt: float,
+    max_angle: float,
+    gcr: float,
+    cross_axis_tilt: float = 0.0,
+    backtrack: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The ideal row rotation for sun vectors: (rotation, true-tracking angle, backtracking?).
 
     True tracking puts the normal in the plane of the axis and the sun; backtracking
@@ -104,7 +126,9 @@ def row_ideal_rotation(sun_vec: np.ndarray, axis_azimuth: float, axis_tilt: floa
     rot = true.copy()
     bt = np.zeros(true.shape, bool)
     if backtrack:
-        temp = np.abs(np.cos(np.radians(true - cross_axis_tilt))) / (gcr * np.cos(np.radians(cross_axis_tilt)))
+        temp = np.abs(np.cos(np.radians(true - cross_axis_tilt))) / (
+            gcr * np.cos(np.radians(cross_axis_tilt))
+        )
         bt = temp < 1
         corr = np.degrees(-np.sign(true) * np.arccos(np.minimum(temp, 1.0)))
         rot = np.where(bt, true + corr, true)
@@ -112,24 +136,41 @@ def row_ideal_rotation(sun_vec: np.ndarray, axis_azimuth: float, axis_tilt: floa
     return rot, true, bt
 
 
-def row_pointing_error(rotation_deg, sun_vec: np.ndarray, axis_azimuth: float,
-                       axis_tilt: float) -> np.ndarray:
+def row_pointing_error(
+    rotation_deg, sun_vec: np.ndarray, axis_azimuth: float, axis_tilt: float
+) -> np.ndarray:
     """Angle (deg) between the row's normal and the sun projected onto its rotation plane."""
     a = row_axis(axis_azimuth, axis_tilt)
     proj = sun_vec - (sun_vec @ a)[..., None] * a
     return angle_deg(row_normal(rotation_deg, axis_azimuth, axis_tilt), proj)
 
 
-def poa_global_perez(normals: np.ndarray, times_s: np.ndarray, sun_azimuth: np.ndarray,
-                     sun_elevation: np.ndarray, ghi: np.ndarray, dni: np.ndarray,
-                     dhi: np.ndarray, albedo: float = 0.2) -> np.ndarray:
+def poa_global_perez(
+    normals: np.ndarray,
+    times_s: np.ndarray,
+    sun_azimuth: np.ndarray,
+    sun_elevation: np.ndarray,
+    ghi: np.ndarray,
+    dni: np.ndarray,
+    dhi: np.ndarray,
+    albedo: float = 0.2,
+) -> np.ndarray:
     """Global plane-of-array irradiance (W/m2) on panels with these normals, pvlib Perez."""
     tilt = np.degrees(np.arccos(np.clip(normals[:, 2], -1, 1)))
     azimuth = np.degrees(np.arctan2(normals[:, 0], normals[:, 1])) % 360.0
     idx = pd.DatetimeIndex(pd.to_datetime(np.asarray(times_s, float), unit="s", utc=True))
     zenith = 90.0 - np.asarray(sun_elevation, float)
     poa = pvlib.irradiance.get_total_irradiance(
-        tilt, azimuth, zenith, sun_azimuth, dni, ghi, dhi,
+        tilt,
+        azimuth,
+        zenith,
+        sun_azimuth,
+        dni,
+        ghi,
+        dhi,
         dni_extra=pvlib.irradiance.get_extra_radiation(idx).to_numpy(),
-        airmass=pvlib.atmosphere.get_relative_airmass(zenith), albedo=albedo, model="perez")
+        airmass=pvlib.atmosphere.get_relative_airmass(zenith),
+        albedo=albedo,
+        model="perez",
+    )
     return np.nan_to_num(np.asarray(poa["poa_global"], float))

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 WIND_KINDS = ("calm", "gusty", "storm")
-_MEAN = {"calm": 2.5, "gusty": 7.0, "storm": 7.0}      # m/s outside the storm peak
-_TI = {"calm": 0.15, "gusty": 0.25, "storm": 0.22}     # turbulence intensity
+_MEAN = {"calm": 2.5, "gusty": 7.0, "storm": 7.0}  # m/s outside the storm peak
+_TI = {"calm": 0.15, "gusty": 0.25, "storm": 0.22}  # turbulence intensity
 
 
 @dataclass(frozen=True)
@@ -23,7 +23,7 @@ class Storm:
     """A storm: the mean wind ramps up over ``ramp_s``, holds ``peak_m_s`` for ``hold_s``,
     then falls back over ``ramp_s``."""
 
-    start: float            # POSIX s
+    start: float  # POSIX s
     peak_m_s: float = 19.0
     ramp_s: float = 1800.0
     hold_s: float = 3600.0
@@ -44,8 +44,9 @@ class WindScript:
     seed : random seed of the turbulence phases
     """
 
-    def __init__(self, t0: float, day_kinds: tuple[str, ...] = ("calm",),
-                 storms: tuple[Storm, ...] = (), seed: int = 0):
+    def __init__(
+        self, t0: float, day_kinds: tuple[str, ...] = ("calm",), storms: tuple[Storm, ...] = (), seed: int = 0
+    ):
         for k in day_kinds:
             if k not in WIND_KINDS:
                 raise ValueError(f"unknown wind kind {k!r}; known: {', '.join(WIND_KINDS)}")
@@ -56,9 +57,9 @@ class WindScript:
         # frequencies 1/600 .. 2 Hz, log-spaced; amplitudes from a Kaimal-like spectrum
         self.freq = np.geomspace(1 / 600.0, 2.0, 48)
         f_ref = 0.02
-        psd = 1.0 / (1.0 + f_ref ** -1 * self.freq) ** (5 / 3)
+        psd = 1.0 / (1.0 + f_ref**-1 * self.freq) ** (5 / 3)
         amp = np.sqrt(psd * np.gradient(self.freq))
-        self.amp = amp / np.sqrt(np.sum(amp ** 2) / 2)        # unit standard deviation
+        self.amp = amp / np.sqrt(np.sum(amp**2) / 2)  # unit standard deviation
         self.phase = rng.uniform(0, 2 * np.pi, self.freq.size)
         self.dir_phase = rng.uniform(0, 2 * np.pi)
 
@@ -74,8 +75,9 @@ class WindScript:
         base = np.vectorize(_MEAN.__getitem__, otypes=[float])(kinds)
         diurnal = 1.0 + 0.3 * np.sin(2 * np.pi * ((t - self.t0) % 86400.0 / 86400.0 - 0.3))
         m = base * diurnal
-        storm_days = [Storm(self.t0 + d * 86400.0 + STORM_DAY_START_S)
-                      for d in np.unique(day[kinds == "storm"])]
+        storm_days = [
+            Storm(self.t0 + d * 86400.0 + STORM_DAY_START_S) for d in np.unique(day[kinds == "storm"])
+        ]
         for s in (*self.storms, *storm_days):
             up = np.clip((t - s.start) / s.ramp_s, 0.0, 1.0)
             down = np.clip((s.start + s.ramp_s + s.hold_s + s.ramp_s - t) / s.ramp_s, 0.0, 1.0)

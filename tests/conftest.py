@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
@@ -27,8 +27,10 @@ def two_axes(**kw) -> list[AxisParams]:
     base = dict(soft_min=0.0, soft_max=360.0, hard_min=-5.0, hard_max=365.0)
     base.update(kw)
     el = dict(base, soft_min=0.0, soft_max=90.0, hard_min=-5.0, hard_max=95.0)
-    return [AxisParams(**base, stow_angle=180.0, initial_angle=180.0),
-            AxisParams(**el, stow_angle=90.0, initial_angle=90.0)]
+    return [
+        AxisParams(**base, stow_angle=180.0, initial_angle=180.0),
+        AxisParams(**el, stow_angle=90.0, initial_angle=90.0),
+    ]
 
 
 @pytest.fixture
@@ -63,14 +65,26 @@ def default_plant():
     from heliotrack.scenario import load_scenario
 
     cfg = load_scenario(DEFAULT_CONFIG)
-    clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=timezone.utc))  # ~11:15 solar time
-    fws = {tr.name: DriveFirmware(
-        [AxisParams(soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5, stow_angle=s,
-                    initial_angle=s) for (lo, hi), s in zip(tr.soft_limits, tr.stow_angles)],
-        clock.now, cfg.control.heartbeat_timeout_s) for tr in cfg.trackers}
+    clock = SimClock(datetime(2024, 6, 1, 8, 0, tzinfo=UTC))  # ~11:15 solar time
+    fws = {
+        tr.name: DriveFirmware(
+            [
+                AxisParams(
+                    soft_min=lo, soft_max=hi, hard_min=lo - 5, hard_max=hi + 5, stow_angle=s, initial_angle=s
+                )
+                for (lo, hi), s in zip(tr.soft_limits, tr.stow_angles)
+            ],
+            clock.now,
+            cfg.control.heartbeat_timeout_s,
+        )
+        for tr in cfg.trackers
+    }
     loop = asyncio.new_event_loop()
-    with PtyLink.open() as link, ModbusServerThread(
-            {tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url):
+    with (
+        PtyLink.open() as link,
+        ModbusServerThread({tr.device_id: fws[tr.name] for tr in cfg.trackers}, serial_url=link.url),
+    ):
+
         async def make():
             rtu = replace(cfg.links[0], port=link.path, timeout_s=0.3, retries=0)
             drives = {tr.name: open_drive(rtu, tr.device_id) for tr in cfg.trackers}

@@ -19,8 +19,13 @@ def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
     el = np.asarray(el_levelled, float)
     if az.size < 3:
         raise InputError(f"the noon method needs >= 3 observations over a day, got {az.size}")
-    ref = float(np.degrees(np.arctan2(np.mean(np.sin(np.radians(az[el.argmax()]))),
-                                      np.mean(np.cos(np.radians(az[el.argmax()]))))))
+    ref = float(
+        np.degrees(
+            np.arctan2(
+                np.mean(np.sin(np.radians(az[el.argmax()]))), np.mean(np.cos(np.radians(az[el.argmax()])))
+            )
+        )
+    )
     a = _unwrap_around(az, ref)
     c2, c1, _ = np.polyfit(a, el, 2)
     if c2 >= 0:

@@ -57,19 +57,25 @@ class SurfaceCal:
     """The convex surface in the model frame (metres): an analytic sphere or a point cloud."""
 
     kind: Literal["sphere", "cloud"] | None = setting(
-        None, doc='"sphere" (center, radius) or "cloud" (cloud = path).',
-        derived='"cloud" when cloud is given')
+        None,
+        doc='"sphere" (center, radius) or "cloud" (cloud = path).',
+        derived='"cloud" when cloud is given',
+    )
     center: Vec3 = setting((0.0, 0.0, 0.0), doc="Sphere centre.", unit="m")
     radius: float = setting(0.0, doc="Sphere radius.", unit="m", ge=0)
-    min_z: float | None = setting(None, doc="The hemisphere is z >= min_z (default: the "
-                                  "centre's z).", unit="m")
-    cloud: Path | None = setting(None, doc="Point cloud of the surface (PLY, XYZ or NPZ; "
-                                 "normals by local plane fit when absent).", path="file")
+    min_z: float | None = setting(
+        None, doc="The hemisphere is z >= min_z (default: the centre's z).", unit="m"
+    )
+    cloud: Path | None = setting(
+        None,
+        doc="Point cloud of the surface (PLY, XYZ or NPZ; normals by local plane fit when absent).",
+        path="file",
+    )
     rmse_m: float | None = setting(None, doc="RMS residual of the sphere fit.", unit="m", ge=0)
-    radial_poly_degree: int | None = setting(None, doc="Degree of the sphere's radial shape "
-                                             "correction.", ge=0, le=12)
-    radial_poly: tuple[float, ...] | None = setting(None, doc="Coefficients of the radial "
-                                                    "shape correction.")
+    radial_poly_degree: int | None = setting(
+        None, doc="Degree of the sphere's radial shape correction.", ge=0, le=12
+    )
+    radial_poly: tuple[float, ...] | None = setting(None, doc="Coefficients of the radial shape correction.")
 
     def __schema_check__(self, at: Where) -> SurfaceCal:
         if self.kind is None:
@@ -81,13 +87,13 @@ class SurfaceCal:
         if self.kind == "cloud" and self.cloud is None:
             raise at.child("cloud").error("a path to a PLY, XYZ or NPZ point cloud")
         if (self.radial_poly is None) != (self.radial_poly_degree is None):
-            raise at.child("radial_poly").error("both radial_poly_degree and radial_poly, or "
-                                                "neither")
+            raise at.child("radial_poly").error("both radial_poly_degree and radial_poly, or neither")
         if self.radial_poly_degree is not None and self.radial_poly is not None:
             n = sum((d + 1) * (d + 2) // 2 for d in range(self.radial_poly_degree + 1))
             if len(self.radial_poly) != n:
-                raise at.child("radial_poly").error(f"{n} coefficients for degree "
-                                                    f"{self.radial_poly_degree}", len(self.radial_poly))
+                raise at.child("radial_poly").error(
+                    f"{n} coefficients for degree {self.radial_poly_degree}", len(self.radial_poly)
+                )
         return self
 
 
@@ -95,13 +101,14 @@ class SurfaceCal:
 class PoseCal:
     """Model -> camera (``X_cam = R X_model + t``): rvec/tvec, or markers to solve by PnP."""
 
-    rvec: Vec3 | None = setting(None, doc="Rotation vector (OpenCV, model to camera).",
-                                unit="rad")
+    rvec: Vec3 | None = setting(None, doc="Rotation vector (OpenCV, model to camera).", unit="rad")
     tvec: Vec3 | None = setting(None, doc="Translation (model to camera).", unit="m")
-    markers_model: tuple[Vec3, ...] | None = setting(None, doc="Surveyed marker points in "
-                                                     "the model frame (at least 4).", unit="m")
+    markers_model: tuple[Vec3, ...] | None = setting(
+        None, doc="Surveyed marker points in the model frame (at least 4).", unit="m"
+    )
     markers_image: tuple[tuple[float, float], ...] | None = setting(
-        None, doc="The markers' image points, in the same order.", unit="px")
+        None, doc="The markers' image points, in the same order.", unit="px"
+    )
     rms_px: float | None = setting(None, doc="Reprojection RMS of the pose.", unit="px", ge=0)
 
     def __schema_check__(self, at: Where) -> PoseCal:
@@ -116,7 +123,8 @@ class PoseCal:
             raise at.child("markers_model").error("at least 4 points", len(mm))
         if len(mm) != len(mi):
             raise at.child("markers_image").error(
-                f"as many points as pose.markers_model ({len(mm)})", len(mi))
+                f"as many points as pose.markers_model ({len(mm)})", len(mi)
+            )
         return self
 
 
@@ -126,8 +134,8 @@ class LevelCal:
 
     zenith_model: Vec3 | None = setting(None, doc="Zenith direction in the model frame.")
     plumb_lines_image: tuple[tuple[tuple[float, float], ...], ...] | None = setting(
-        None, doc="Plumb lines in the plumb view: at least 2 lines of >= 2 image points.",
-        unit="px")
+        None, doc="Plumb lines in the plumb view: at least 2 lines of >= 2 image points.", unit="px"
+    )
 
     def __schema_check__(self, at: Where) -> LevelCal:
         if self.zenith_model is not None:
@@ -139,7 +147,8 @@ class LevelCal:
             raise at.error("zenith_model or plumb_lines_image")
         if len(lines) < 2:
             raise at.child("plumb_lines_image").error(
-                "at least 2 lines, each [[u1, v1], [u2, v2], ...]", len(lines))
+                "at least 2 lines, each [[u1, v1], [u2, v2], ...]", len(lines)
+            )
         for i, line in enumerate(lines):
             if len(line) < 2:
                 raise at.child("plumb_lines_image").item(i).error("at least 2 points", len(line))
@@ -172,8 +181,9 @@ class CalibrationBundle:
     azimuth: AzimuthCal | None = setting(None, doc="Azimuth alignment.")
     lobe: LobeCal | None = setting(None, doc="Glint lobe offset.")
     mask: Path | None = setting(None, doc="Mask image (white = use).", path="file")
-    notes: dict[str, Any] = setting(default_factory=dict, doc="Free-form notes of the "
-                                    "calibration run (ignored).")
+    notes: dict[str, Any] = setting(
+        default_factory=dict, doc="Free-form notes of the calibration run (ignored)."
+    )
     path: Path | None = internal(None)
 
     @property
@@ -200,8 +210,7 @@ class CalibrationBundle:
             return np.asarray(p.rvec, float), np.asarray(p.tvec, float)
         from .pose import solve_pose
 
-        res = solve_pose(np.asarray(p.markers_model, float), np.asarray(p.markers_image, float),
-                         self.camera)
+        res = solve_pose(np.asarray(p.markers_model, float), np.asarray(p.markers_image, float), self.camera)
         return res.rvec, res.tvec
 
     def zenith(self) -> np.ndarray | None:
@@ -214,8 +223,9 @@ class CalibrationBundle:
         from .level import zenith_from_lines
 
         rvec, _ = self.solved_pose()
-        return zenith_from_lines(np.asarray(self.level.plumb_lines_image, float), self.camera,
-                                 rvec).zenith_model
+        return zenith_from_lines(
+            np.asarray(self.level.plumb_lines_image, float), self.camera, rvec
+        ).zenith_model
 
 
 def load_bundle(path: str | Path) -> CalibrationBundle:
@@ -261,10 +271,19 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
     if b.mask is not None:
         out.append(f"mask = {_fmt(rel(b.mask))}")
     c = b.camera
-    out += ["", "[camera]"] + ([f"model = {_fmt(c.model)}"] if c.model != "pinhole" else []) + [
-            f"width = {c.width}", f"height = {c.height}",
-            f"fx = {_fmt(c.fx)}", f"fy = {_fmt(c.fy)}", f"cx = {_fmt(c.cx)}", f"cy = {_fmt(c.cy)}",
-            f"dist = {_fmt(list(c.dist))}"]
+    out += (
+        ["", "[camera]"]
+        + ([f"model = {_fmt(c.model)}"] if c.model != "pinhole" else [])
+        + [
+            f"width = {c.width}",
+            f"height = {c.height}",
+            f"fx = {_fmt(c.fx)}",
+            f"fy = {_fmt(c.fy)}",
+            f"cx = {_fmt(c.cx)}",
+            f"cy = {_fmt(c.cy)}",
+            f"dist = {_fmt(list(c.dist))}",
+        ]
+    )
     if c.rms_px is not None:
         out.append(f"rms_px = {_fmt(c.rms_px)}")
     if b.surface is not None:
@@ -275,8 +294,10 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
             if s.rmse_m is not None:
                 out.append(f"rmse_m = {_fmt(s.rmse_m)}")
             if s.radial_poly is not None:
-                out += [f"radial_poly_degree = {s.radial_poly_degree}",
-                        f"radial_poly = {_fmt(list(s.radial_poly))}"]
+                out += [
+                    f"radial_poly_degree = {s.radial_poly_degree}",
+                    f"radial_poly = {_fmt(list(s.radial_poly))}",
+                ]
         else:
             out.append(f"cloud = {_fmt(rel(s.cloud))}")
         if s.min_z is not None:
@@ -289,15 +310,18 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
             if p.rms_px is not None:
                 out.append(f"rms_px = {_fmt(p.rms_px)}")
         else:
-            out += [f"markers_model = {_fmt([list(x) for x in p.markers_model])}",
-                    f"markers_image = {_fmt([list(x) for x in p.markers_image])}"]
+            out += [
+                f"markers_model = {_fmt([list(x) for x in p.markers_model])}",
+                f"markers_image = {_fmt([list(x) for x in p.markers_image])}",
+            ]
     if b.level is not None:
         out += ["", "[level]"]
         if b.level.zenith_model is not None:
             out.append(f"zenith_model = {_fmt(list(b.level.zenith_model))}")
         else:
-            out.append("plumb_lines_image = "
-                       + _fmt([[list(p) for p in line] for line in b.level.plumb_lines_image]))
+            out.append(
+                "plumb_lines_image = " + _fmt([[list(p) for p in line] for line in b.level.plumb_lines_image])
+            )
     if b.azimuth_offset_deg is not None:
         out += ["", "[azimuth]", f"offset_deg = {_fmt(b.azimuth_offset_deg)}"]
     if b.lobe_coeff_deg is not None:

@@ -28,14 +28,18 @@ class CameraCal:
     fy: float = setting(doc="Focal length along y.", unit="px", gt=0)
     cx: float = setting(doc="Principal point x.", unit="px")
     cy: float = setting(doc="Principal point y.", unit="px")
-    dist: tuple[float, ...] = setting((0.0, 0.0, 0.0, 0.0, 0.0), doc="Distortion "
-                                      "coefficients in OpenCV's order: [k1, k2, p1, p2, k3] "
-                                      "(pinhole), [k1, k2, k3, k4] (fisheye).")
-    rms_px: float | None = setting(None, doc="Reprojection RMS of the intrinsic calibration.",
-                                   unit="px", ge=0)
-    model: Literal["pinhole", "fisheye"] = setting("pinhole", doc="Lens model: pinhole + "
-                                                   "Brown-Conrady, or cv2.fisheye "
-                                                   "(Kannala-Brandt).")
+    dist: tuple[float, ...] = setting(
+        (0.0, 0.0, 0.0, 0.0, 0.0),
+        doc="Distortion "
+        "coefficients in OpenCV's order: [k1, k2, p1, p2, k3] "
+        "(pinhole), [k1, k2, k3, k4] (fisheye).",
+    )
+    rms_px: float | None = setting(
+        None, doc="Reprojection RMS of the intrinsic calibration.", unit="px", ge=0
+    )
+    model: Literal["pinhole", "fisheye"] = setting(
+        "pinhole", doc="Lens model: pinhole + Brown-Conrady, or cv2.fisheye (Kannala-Brandt)."
+    )
 
     @property
     def K(self) -> np.ndarray:
@@ -48,6 +52,5 @@ class CameraCal:
     def __schema_check__(self, at: Where) -> CameraCal:
         if len(self.dist) not in DIST_LENGTHS[self.model]:
             order = "[k1, k2, k3, k4]" if self.model == "fisheye" else "[k1, k2, p1, p2, k3]"
-            raise at.child("dist").error(f"{order} (OpenCV order, {self.model} model)",
-                                         list(self.dist))
+            raise at.child("dist").error(f"{order} (OpenCV order, {self.model} model)", list(self.dist))
         return self

@@ -1,11 +1,11 @@
 """The whole calibration chain from an installer's folder of images (no truth):
 
-    checkerboards/*.png      -> intrinsics (cv2.calibrateCamera)
-    globe_scan.ply|xyz|npz   -> analytic sphere fit (or the cloud itself)
-    markers_survey.csv + marker_view.png -> exterior orientation (ArUco + PnP)
-    plumb_view.png           -> zenith (automatic plumb-line detection)
-    day/*.png (ISO times in names) -> azimuth offset (ephemeris fit when the site is known,
-                                      else the paper's noon culmination)
+checkerboards/*.png      -> intrinsics (cv2.calibrateCamera)
+globe_scan.ply|xyz|npz   -> analytic sphere fit (or the cloud itself)
+markers_survey.csv + marker_view.png -> exterior orientation (ArUco + PnP)
+plumb_view.png           -> zenith (automatic plumb-line detection)
+day/*.png (ISO times in names) -> azimuth offset (ephemeris fit when the site is known,
+                                  else the paper's noon culmination)
 """
 
 from __future__ import annotations
@@ -20,9 +20,18 @@ from ..timestamps import time_from_name
 from .bundle import AzimuthCal, CalibrationBundle, LevelCal, LobeCal, PoseCal, SurfaceCal, save_bundle
 
 
-def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: float | None = 0.0,
-                     method: str = "ephemeris", out: Path | None = None, log=print,
-                     shape_degree: int = 6) -> CalibrationBundle:
+def calibrate_folder(
+    folder,
+    *,
+    pattern=(9, 6),
+    square=0.04,
+    site=None,
+    min_z: float | None = 0.0,
+    method: str = "ephemeris",
+    out: Path | None = None,
+    log=print,
+    shape_degree: int = 6,
+) -> CalibrationBundle:
     from ..vision.estimator import HotspotEstimator
     from ..vision.imageio import load_grey
     from .azimuth import ephemeris_offset, noon_offset
@@ -48,17 +57,21 @@ def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: f
         coef, rmse = fit_radial_poly(pts, sf.center, sf.radius, shape_degree)
         extra = {"radial_poly_degree": shape_degree, "radial_poly": tuple(map(float, coef))}
         log({"step": "shape", "degree": shape_degree, "rmse_mm": round(rmse * 1000, 4)})
-    b = CalibrationBundle(camera=intr.camera,
-                          surface=SurfaceCal("sphere", tuple(map(float, sf.center)), sf.radius,
-                                             min_z=min_z, rmse_m=sf.rmse_m, **extra))
+    b = CalibrationBundle(
+        camera=intr.camera,
+        surface=SurfaceCal(
+            "sphere", tuple(map(float, sf.center)), sf.radius, min_z=min_z, rmse_m=sf.rmse_m, **extra
+        ),
+    )
     img, why = load_grey(folder / "marker_view.png")
     if img is None:
         raise InputError(f"{folder / 'marker_view.png'}: {why}")
     mp, ip = detect_markers(img, read_marker_survey(folder / "markers_survey.csv"))
     pr = solve_pose(mp, ip, b.camera)
     log({"step": "pose", "points": pr.n_points, "rms_px": round(pr.rms_px, 4)})
-    b = replace(b, pose=PoseCal(rvec=tuple(map(float, pr.rvec)), tvec=tuple(map(float, pr.tvec)),
-                                rms_px=pr.rms_px))
+    b = replace(
+        b, pose=PoseCal(rvec=tuple(map(float, pr.rvec)), tvec=tuple(map(float, pr.tvec)), rms_px=pr.rms_px)
+    )
     img, why = load_grey(folder / "plumb_view.png")
     if img is None:
         raise InputError(f"{folder / 'plumb_view.png'}: {why}")
@@ -91,10 +104,12 @@ def calibrate_folder(folder, *, pattern=(9, 6), square=0.04, site=None, min_z: f
         zen, off, kappa = fit_rotation_and_lobe(np.array(sm), np.array(vb), s_enu)
         b = replace(b, lobe=LobeCal(kappa))
         log({"step": "lobe", "coeff_deg": round(kappa, 4)})
-        b = replace(b, level=LevelCal(zenith_model=tuple(map(float, zen))),
-                    notes={**b.notes, "plumb_zenith_model": [float(x) for x in zr.zenith_model]})
-        log({"step": "azimuth+level", "method": method, "observations": len(sm),
-             "offset_deg": round(off, 4)})
+        b = replace(
+            b,
+            level=LevelCal(zenith_model=tuple(map(float, zen))),
+            notes={**b.notes, "plumb_zenith_model": [float(x) for x in zr.zenith_model]},
+        )
+        log({"step": "azimuth+level", "method": method, "observations": len(sm), "offset_deg": round(off, 4)})
         b = replace(b, azimuth=AzimuthCal(off))
         if out is not None:
             save_bundle(b, out)

@@ -29,12 +29,13 @@ def find_corners(img: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | None
     return cv2.cornerSubPix(img, corners, (5, 5), (-1, -1), crit)
 
 
-def calibrate_intrinsics(images: list, pattern: tuple[int, int], square: float,
-                         names: list[str] | None = None) -> IntrinsicsResult:
+def calibrate_intrinsics(
+    images: list, pattern: tuple[int, int], square: float, names: list[str] | None = None
+) -> IntrinsicsResult:
     """``images``: grey arrays or paths.  Needs >= 3 views with the whole board found."""
     names = names or [str(i) for i in range(len(images))]
     obj = np.zeros((pattern[0] * pattern[1], 3), np.float32)
-    obj[:, :2] = np.mgrid[0:pattern[0], 0:pattern[1]].T.reshape(-1, 2) * square
+    obj[:, :2] = np.mgrid[0 : pattern[0], 0 : pattern[1]].T.reshape(-1, 2) * square
     obj[:, :2] += square  # inner corner (0,0) sits one square in from the board's corner
     objp, imgp, used, rejected = [], [], [], []
     size = None
@@ -56,11 +57,20 @@ def calibrate_intrinsics(images: list, pattern: tuple[int, int], square: float,
         imgp.append(c)
         used.append(nm)
     if len(objp) < 3:
-        raise InputError(f"intrinsics need >= 3 checkerboard views with all {pattern[0]}x{pattern[1]} "
-                         f"inner corners found; found {len(objp)} (rejected: {', '.join(rejected) or '-'})")
+        raise InputError(
+            f"intrinsics need >= 3 checkerboard views with all {pattern[0]}x{pattern[1]} "
+            f"inner corners found; found {len(objp)} (rejected: {', '.join(rejected) or '-'})"
+        )
     rms, K, dist, _, _ = cv2.calibrateCamera(objp, imgp, size, None, None)
     d = dist.ravel()[:5]
-    cam = CameraCal(width=size[0], height=size[1], fx=float(K[0, 0]), fy=float(K[1, 1]),
-                    cx=float(K[0, 2]), cy=float(K[1, 2]), dist=tuple(float(x) for x in d),
-                    rms_px=float(rms))
+    cam = CameraCal(
+        width=size[0],
+        height=size[1],
+        fx=float(K[0, 0]),
+        fy=float(K[1, 1]),
+        cx=float(K[0, 2]),
+        cy=float(K[1, 2]),
+        dist=tuple(float(x) for x in d),
+        rms_px=float(rms),
+    )
     return IntrinsicsResult(cam, float(rms), used, rejected)

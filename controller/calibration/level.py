@@ -25,13 +25,21 @@ def _normalise(pts_px: np.ndarray, cam: CameraCal, undistorted: bool) -> np.ndar
     if undistorted:
         xy = (pts.reshape(-1, 2) - [cam.cx, cam.cy]) / [cam.fx, cam.fy]
     else:
-        xy = cv2.undistortPoints(pts, cam.K, cam.dist_array, None, None, None,
-                                 (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)).reshape(-1, 2)
+        xy = cv2.undistortPoints(
+            pts,
+            cam.K,
+            cam.dist_array,
+            None,
+            None,
+            None,
+            (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12),
+        ).reshape(-1, 2)
     return xy
 
 
-def zenith_from_lines(lines, cam: CameraCal, rvec, *, undistorted: bool = False,
-                      robust: bool = True) -> ZenithResult:
+def zenith_from_lines(
+    lines, cam: CameraCal, rvec, *, undistorted: bool = False, robust: bool = True
+) -> ZenithResult:
     """``lines``: sequence of (>= 2, 2) pixel point arrays, one per plumb line."""
     planes, weights = [], []
     for line in lines:
@@ -65,11 +73,12 @@ def zenith_from_lines(lines, cam: CameraCal, rvec, *, undistorted: bool = False,
     z = R.T @ vp
     if z[2] < 0:
         z = -z  # plumb direction -> zenith (the model's z is roughly up)
-    return ZenithResult(z / np.linalg.norm(z), vp, int(keep.sum()), float(np.sqrt(np.mean(resid ** 2))))
+    return ZenithResult(z / np.linalg.norm(z), vp, int(keep.sum()), float(np.sqrt(np.mean(resid**2))))
 
 
-def detect_plumb_lines(img: np.ndarray, cam: CameraCal, *, min_length_frac: float = 0.15,
-                       max_width_px: int = 12) -> list[np.ndarray]:
+def detect_plumb_lines(
+    img: np.ndarray, cam: CameraCal, *, min_length_frac: float = 0.15, max_width_px: int = 12
+) -> list[np.ndarray]:
     """Automatic detection of thin dark straight strings (plumb lines) in the undistorted image.
 
     Hough transform on a black-hat image finds candidates; each candidate is then refined
@@ -87,8 +96,14 @@ def detect_plumb_lines(img: np.ndarray, cam: CameraCal, *, min_length_frac: floa
     closed = bh + und  # local background brightness
     bw = ((bh > 6.0) & (bh > 0.35 * closed)).astype(np.uint8) * 255
     H, W = img.shape
-    segs = cv2.HoughLinesP(bw, 1, np.pi / 720, threshold=int(min_length_frac * H * 0.5),
-                           minLineLength=int(min_length_frac * H), maxLineGap=20)
+    segs = cv2.HoughLinesP(
+        bw,
+        1,
+        np.pi / 720,
+        threshold=int(min_length_frac * H * 0.5),
+        minLineLength=int(min_length_frac * H),
+        maxLineGap=20,
+    )
     if segs is None:
         return []
     segs = segs.reshape(-1, 4).astype(float)
@@ -130,16 +145,23 @@ def detect_plumb_lines(img: np.ndarray, cam: CameraCal, *, min_length_frac: floa
         for step in np.arange(t.min(), t.max(), 2.0):
             p = c + step * d
             q = p + offs[:, None] * nrm
-            if (q[:, 0].min() < 1 or q[:, 1].min() < 1 or q[:, 0].max() > W - 2
-                    or q[:, 1].max() > H - 2):
+            if q[:, 0].min() < 1 or q[:, 1].min() < 1 or q[:, 0].max() > W - 2 or q[:, 1].max() > H - 2:
                 continue
             qi = np.rint(q).astype(int)
             if not valid[qi[:, 1], qi[:, 0]].all():
                 continue
-            prof = cv2.remap(und, q[:, 0].astype(np.float32).reshape(1, -1),
-                             q[:, 1].astype(np.float32).reshape(1, -1), cv2.INTER_LINEAR).ravel()
+            prof = cv2.remap(
+                und,
+                q[:, 0].astype(np.float32).reshape(1, -1),
+                q[:, 1].astype(np.float32).reshape(1, -1),
+                cv2.INTER_LINEAR,
+            ).ravel()
             bl, br = np.median(prof[outer_l]), np.median(prof[outer_r])
-            if abs(bl - br) > 0.15 * max(bl, br) + 4 or np.ptp(prof[outer_l]) > 12 or np.ptp(prof[outer_r]) > 12:
+            if (
+                abs(bl - br) > 0.15 * max(bl, br) + 4
+                or np.ptp(prof[outer_l]) > 12
+                or np.ptp(prof[outer_r]) > 12
+            ):
                 continue  # background not uniform around the string here
             dip = np.clip(0.5 * (bl + br) - prof[inner], 0, None)
             if dip.max() < 6:
@@ -168,7 +190,7 @@ def _dedupe(lines: list[np.ndarray], tol_px: float = 4.0) -> list[np.ndarray]:
     out: list[np.ndarray] = []
     for ln in lines:
         dup = False
-        for i, o in enumerate(out):
+        for o in out:
             c = o.mean(0)
             _, _, vt = np.linalg.svd(o - c)
             d = np.abs((ln - c) @ np.array([-vt[0][1], vt[0][0]]))

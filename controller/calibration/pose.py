@@ -51,8 +51,9 @@ def solve_pose(model_pts: np.ndarray, image_pts: np.ndarray, cam: CameraCal) -> 
     if best is None:
         raise InputError("PnP failed on the marker points")
     rms, rvec, tvec = best
-    return PoseResult(rvec.ravel(), tvec.ravel(), rms, len(model_pts), model_pts.reshape(-1, 3),
-                      image_pts.reshape(-1, 2))
+    return PoseResult(
+        rvec.ravel(), tvec.ravel(), rms, len(model_pts), model_pts.reshape(-1, 3), image_pts.reshape(-1, 2)
+    )
 
 
 def read_marker_survey(path) -> dict[tuple[int, int], np.ndarray]:
@@ -62,7 +63,8 @@ def read_marker_survey(path) -> dict[tuple[int, int], np.ndarray]:
         with open(path, newline="") as f:
             for row in csv.DictReader(f):
                 out[(int(row["id"]), int(row["corner"]))] = np.array(
-                    [float(row["x"]), float(row["y"]), float(row["z"])])
+                    [float(row["x"]), float(row["y"]), float(row["z"])]
+                )
     except (OSError, KeyError, ValueError) as exc:
         raise InputError(f"{path}: expected CSV columns id,corner,x,y,z ({exc})") from None
     return out
@@ -80,8 +82,9 @@ def read_picked(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def detect_markers(img: np.ndarray, survey: dict, dictionary=cv2.aruco.DICT_4X4_50):
-    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(dictionary),
-                                  cv2.aruco.DetectorParameters())
+    det = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(dictionary), cv2.aruco.DetectorParameters()
+    )
     params = det.getDetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
     det.setDetectorParameters(params)

@@ -112,14 +112,13 @@ def fit_sphere_points(pts: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Least-squares sphere: algebraic start, geometric (radial residual) refinement.
     Returns (centre, radius, residual RMSE in metres)."""
     A = np.hstack([2 * pts, np.ones((len(pts), 1))])
-    b = np.sum(pts ** 2, 1)
+    b = np.sum(pts**2, 1)
     sol, *_ = np.linalg.lstsq(A, b, rcond=None)
     c0 = sol[:3]
     r0 = float(np.sqrt(sol[3] + c0 @ c0))
-    res = least_squares(lambda p: np.linalg.norm(pts - p[:3], axis=1) - p[3],
-                        np.r_[c0, r0], method="lm")
+    res = least_squares(lambda p: np.linalg.norm(pts - p[:3], axis=1) - p[3], np.r_[c0, r0], method="lm")
     c, r = res.x[:3], float(res.x[3])
-    rmse = float(np.sqrt(np.mean(res.fun ** 2)))
+    rmse = float(np.sqrt(np.mean(res.fun**2)))
     return c, r, rmse
 
 
@@ -152,7 +151,7 @@ def radial_poly_eval(u: np.ndarray, coeffs, degree: int):
 
     def p(v, k, key):
         if (key, k) not in pw:
-            pw[(key, k)] = v ** k if k > 0 else np.ones_like(v)
+            pw[(key, k)] = v**k if k > 0 else np.ones_like(v)
         return pw[(key, k)]
 
     for c, (a, b, d) in zip(coeffs, _monomials(degree)):
@@ -179,4 +178,4 @@ def fit_radial_poly(pts: np.ndarray, center, radius: float, degree: int = 6):
     A = np.stack([u[:, 0] ** a * u[:, 1] ** b * u[:, 2] ** c for a, b, c in mons], axis=1)
     coef, *_ = np.linalg.lstsq(A, r - radius, rcond=1e-10)
     res = A @ coef - (r - radius)
-    return coef, float(np.sqrt(np.mean(res ** 2)))
+    return coef, float(np.sqrt(np.mean(res**2)))

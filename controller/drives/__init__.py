@@ -1,14 +1,21 @@
-"""Drive links: how the controller talks to drive firmware (Modbus RTU/TCP; CANopen later).
+"""Drive links: how the controller talks to drive firmware (Modbus RTU/TCP, CANopen, plug-ins).
 
-A transport is a :class:`~controller.drives.base.DriveLink` backend registered by name, in
-the spirit of python-can's interface registry; :func:`open_drive` picks one from config.
+A transport is a :class:`~controller.drives.base.DriveLink` backend named by its link kind
+in :mod:`controller.drives.registry`, in the spirit of python-can's interface registry:
+``open_drive(link, device_id)`` imports the backend of ``link.kind`` on first use and
+builds the drive with ``Backend.from_config``.  Importing this package imports no backend
+(neither pymodbus nor canopen).
 """
 
-from .base import AxisState, DriveCommError, DriveLink, DriveState, open_drive, register_backend
+from .base import AxisState, DriveCommError, DriveLink, DriveState, LinkSettingsError, LinkStats
+from .registry import open_drive
 
-# Importing the backends registers them.
-from . import canopen as _canopen  # noqa: F401,E402
-from . import modbus as _modbus  # noqa: F401,E402
-
-__all__ = ["AxisState", "DriveCommError", "DriveLink", "DriveState", "open_drive",
-           "register_backend"]
+__all__ = [
+    "AxisState",
+    "DriveCommError",
+    "DriveLink",
+    "DriveState",
+    "LinkSettingsError",
+    "LinkStats",
+    "open_drive",
+]

@@ -1,13 +1,19 @@
-"""The abstract drive link and the registry of its backends."""
+"""The abstract drive link: what every backend (Modbus RTU/TCP, CANopen, plug-ins) offers.
+
+Backends are found through :mod:`controller.drives.registry`; nothing registers by being
+imported.
+"""
 
 from __future__ import annotations
 
 import abc
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar
 
 from firmware_protocol import Command, Fault, Mode, Status
+
+from ..errors import UserError
 
 if TYPE_CHECKING:
     from .links import LinkConfig
@@ -15,6 +21,10 @@ if TYPE_CHECKING:
 
 class DriveCommError(Exception):
     """The drive did not answer, or answered with an error, after the configured retries."""
+
+
+class LinkSettingsError(UserError):
+    """Two links disagree about one physical port (or a link cannot be used as given)."""
 
 
 @dataclass(frozen=True)
@@ -31,17 +41,36 @@ class AxisState:
 
 @dataclass(frozen=True)
 class DriveState:
+    """The state of every axis of one drive, and the union of their status bits."""
+
     axis_count: int
     axes: tuple[AxisState, ...]
-    device_status: Status = Status(0)
+    device_status: Status = Status(0)  # noqa: RUF009 - an immutable flag value
 
     @property
     def faulted(self) -> bool:
         return any(a.status & Status.FAULT for a in self.axes)
 
 
+@dataclass(frozen=True)
+class DriveIdentity:
+    """What a drive says of itself (global registers / their CANopen mirrors)."""
+
+    axis_count: int
+    protocol_version: int  # major * 256 + minor
+    firmware_version: int  # major * 256 + minor
+    uptime_s: float
+
+    @staticmethod
+    def version_text(v: int) -> str:
+        return f"{v >> 8}.{v & 0xFF}"
+
+
 @dataclass
 class LinkStats:
+    """Counts of one drive link: attempts made, attempts failed, retries, and the latency
+    of every successful attempt (s)."""
+
     transactions: int = 0
     errors: int = 0
     retries: int = 0
@@ -94,10 +123,19 @@ class DriveLink(abc.ABC):
     @abc.abstractmethod
     async def command(self, cmd: Command) -> None: ...
 
+    async def identify(self) -> DriveIdentity | None:
+        """Who the drive is and how long it has been up (a reboot resets ``uptime_s``);
+        None from a backend that cannot tell (no reboot detection, ``check`` says so)."""
+        return None
+
     @abc.abstractmethod
-    async def configure(self, *, heartbeat_timeout_s: float | None = None,
-                        soft_limits: Sequence[tuple[float, float]] | None = None,
-                        stow_angles: Sequence[float] | None = None) -> None:
+    async def configure(
+        self,
+        *,
+        heartbeat_timeout_s: float | None = None,
+        soft_limits: Sequence[tuple[float, float]] | None = None,
+        stow_angles: Sequence[float] | None = None,
+    ) -> None:
         """Write configuration (only what is given)."""
 
     async def __aenter__(self):
@@ -108,22 +146,34 @@ class DriveLink(abc.ABC):
         await self.close()
 
 
-_BACKENDS: dict[str, Callable[..., DriveLink]] = {}
+def soft_limit_steps(
+    current: tuple[float, float], limits: tuple[float, float] | None, stow: float | None
+) -> list[tuple[float, float] | float]:
+    """The writes that take one axis to new soft limits and stow angle (degrees) through
+    states a firmware accepts: limits in order, the stow angle within them.
 
+    A step is a ``(min, max)`` pair (written min first where a backend needs two writes)
+    or a stow angle.  With both given, the limits first widen to the union of the current
+    and the new ones, then the stow angle moves, then the limits narrow, so every state
+    on the way holds the stow angle of its moment whatever the order of old and new.
 
-def register_backend(name: str, factory: Callable[..., DriveLink]) -> None:
-    """Make a transport available to :func:`open_drive` under ``name``."""
-    _BACKENDS[name] = factory
-
-
-def backends() -> tuple[str, ...]:
-    return tuple(sorted(_BACKENDS))
-
-
-def open_drive(kind: str, **kwargs) -> DriveLink:
-    """Create (not yet connect) a drive link of the registered ``kind``."""
-    try:
-        factory = _BACKENDS[kind]
-    except KeyError:
-        raise ValueError(f"unknown drive link {kind!r}; known: {', '.join(backends())}") from None
-    return factory(**kwargs)
+    Parameters
+    ----------
+    current : (float, float)
+        The axis's soft limits now (read from the drive; ignored unless both of the
+        others are given).
+    limits : (float, float), optional
+        New soft limits.
+    stow : float, optional
+        New stow angle, within ``limits``.
+    """
+    if limits is None:
+        return [] if stow is None else [stow]
+    if stow is None:
+        return [limits]
+    union = (min(limits[0], current[0]), max(limits[1], current[1]))
+    steps: list[tuple[float, float] | float] = [] if union == tuple(current) else [union]
+    steps.append(stow)
+    if limits != union:
+        steps.append(limits)
+    return steps

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from ..schema import setting
+from ..schema import Where, setting
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -19,8 +19,7 @@ class LinkConfig:
 
     name: str = setting(doc="Name that trackers and sensors refer to.", nonempty=True)
     kind: str = setting(doc="The backend: a registered link kind.")
-    timeout_s: float = setting(0.5, doc="Answer timeout of one transaction.", unit="s",
-                               ge=0.001, le=60)
+    timeout_s: float = setting(0.5, doc="Answer timeout of one transaction.", unit="s", ge=0.001, le=60)
     retries: int = setting(2, doc="Extra attempts after a failed transaction.", ge=0, le=10)
 
     @property
@@ -34,9 +33,12 @@ class ModbusRtuLink(LinkConfig):
     """Modbus RTU on a serial line (RS-485), many slaves on one port."""
 
     kind: Literal["modbus-rtu"] = setting("modbus-rtu", doc="Modbus RTU.")
-    port: str = setting("hil", doc='Serial device or pyserial URL (`/dev/ttyUSB0`, '
-                        '`rfc2217://host:port`); "hil": a pseudo-terminal the simulator makes.',
-                        nonempty=True)
+    port: str = setting(
+        "hil",
+        doc="Serial device or pyserial URL (`/dev/ttyUSB0`, "
+        '`rfc2217://host:port`); "hil": a pseudo-terminal the simulator makes.',
+        nonempty=True,
+    )
     baudrate: int = setting(115200, doc="Line speed.", unit="bit/s", ge=1200, le=4_000_000)
     parity: Literal["N", "E", "O"] = setting("N", doc="Parity: none, even or odd.")
     stopbits: Literal[1, 2] = setting(1, doc="Stop bits.")
@@ -51,10 +53,12 @@ class ModbusTcpLink(LinkConfig):
     """Modbus TCP: each device its own endpoint (or a gateway with unit ids)."""
 
     kind: Literal["modbus-tcp"] = setting("modbus-tcp", doc="Modbus TCP.")
-    host: str = setting("hil", doc='Address of the device or gateway; "hil": an endpoint the '
-                        'simulator serves on 127.0.0.1.', nonempty=True)
-    tcp_port: int = setting(502, doc="TCP port (0: the simulator picks a free one).",
-                            ge=0, le=65535)
+    host: str = setting(
+        "hil",
+        doc='Address of the device or gateway; "hil": an endpoint the simulator serves on 127.0.0.1.',
+        nonempty=True,
+    )
+    tcp_port: int = setting(502, doc="TCP port (0: the simulator picks a free one).", ge=0, le=65535)
 
     @property
     def is_hil(self) -> bool:
@@ -66,13 +70,36 @@ class CanopenLink(LinkConfig):
     """CANopen (CiA 402) through any python-can interface; a drive is one node per axis."""
 
     kind: Literal["canopen"] = setting("canopen", doc="CANopen CiA 402.")
-    interface: str = setting("virtual", doc="python-can interface: `socketcan`, `slcan`, "
-                             "`pcan`, `kvaser`, `virtual`, ...", nonempty=True)
-    channel: str = setting("hil", doc='python-can channel (`can0`, `/dev/ttyACM0`, '
-                           '`PCAN_USBBUS1`); "hil": a bus the simulator provides.', nonempty=True)
-    bitrate: int = setting(250_000, doc="CAN bit rate (ignored by `virtual`).", unit="bit/s",
-                           ge=10_000, le=1_000_000)
+    interface: str = setting(
+        "virtual",
+        doc="python-can interface: `socketcan`, `slcan`, `pcan`, `kvaser`, `virtual`, ...",
+        nonempty=True,
+    )
+    channel: str = setting(
+        "hil",
+        doc="python-can channel (`can0`, `/dev/ttyACM0`, "
+        '`PCAN_USBBUS1`); "hil": a bus the simulator provides.',
+        nonempty=True,
+    )
+    bitrate: int = setting(
+        250_000, doc="CAN bit rate (ignored by `virtual`).", unit="bit/s", ge=10_000, le=1_000_000
+    )
+    pdo_mapping: Literal["read", "eds"] = setting(
+        "read",
+        doc="Where the master learns each drive's PDO mapping: read by SDO at connect, "
+        'or "eds": taken from the EDS (faster start-up of many drives that keep the default '
+        "mapping).",
+    )
 
     @property
     def is_hil(self) -> bool:
         return self.channel == "hil"
+
+    def __schema_check__(self, at: Where) -> CanopenLink:
+        from can.interfaces import VALID_INTERFACES  # python-can's own list, plug-ins too
+
+        if self.interface not in VALID_INTERFACES:
+            raise at.child("interface").error(
+                f"a python-can interface ({', '.join(sorted(VALID_INTERFACES))})", self.interface
+            )
+        return self

@@ -3,5 +3,11 @@
 from .dual_axis import dual_axis_setpoint, wrap_into_range
 from .single_axis import RowGeometry, SingleAxisSetpoint, single_axis_setpoint, single_axis_setpoints
 
-__all__ = ["RowGeometry", "SingleAxisSetpoint", "dual_axis_setpoint", "single_axis_setpoint",
-           "single_axis_setpoints", "wrap_into_range"]
+__all__ = [
+    "RowGeometry",
+    "SingleAxisSetpoint",
+    "dual_axis_setpoint",
+    "single_axis_setpoint",
+    "single_axis_setpoints",
+    "wrap_into_range",
+]

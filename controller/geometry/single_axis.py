@@ -22,14 +22,19 @@ from ..schema import setting
 class RowGeometry:
     """Geometry of one row (degrees; ``gcr`` dimensionless), pvlib's conventions."""
 
-    axis_azimuth: float = setting(180.0, doc="Compass direction of the rotation axis "
-                                  "(180: a north-south row).", unit="deg", ge=0, le=360)
+    axis_azimuth: float = setting(
+        180.0,
+        doc="Compass direction of the rotation axis (180: a north-south row).",
+        unit="deg",
+        ge=0,
+        le=360,
+    )
     axis_tilt: float = setting(0.0, doc="Slope along the row.", unit="deg", ge=0, le=45)
     max_angle: float = setting(55.0, doc="Rotation limit, symmetric.", unit="deg", ge=1, le=90)
-    gcr: float = setting(0.4, doc="Ground coverage ratio (collector width / row pitch).",
-                         ge=0.01, le=1.0)
-    cross_axis_tilt: float = setting(0.0, doc="Slope across the rows (pvlib's sign "
-                                     "convention).", unit="deg", ge=-30, le=30)
+    gcr: float = setting(0.4, doc="Ground coverage ratio (collector width / row pitch).", ge=0.01, le=1.0)
+    cross_axis_tilt: float = setting(
+        0.0, doc="Slope across the rows (pvlib's sign convention).", unit="deg", ge=-30, le=30
+    )
     backtrack: bool = setting(True, doc="Avoid row-to-row shading when the sun is low.")
 
 
@@ -48,8 +53,9 @@ class SingleAxisSetpoint:
     aoi_deg: float
 
 
-def single_axis_setpoints(sun_az_deg: float, sun_el_deg: float,
-                          rows: Sequence[RowGeometry]) -> list[SingleAxisSetpoint]:
+def single_axis_setpoints(
+    sun_az_deg: float, sun_el_deg: float, rows: Sequence[RowGeometry]
+) -> list[SingleAxisSetpoint]:
     """Rotation setpoints of many rows for one sun direction (degrees).
 
     Parameters
@@ -70,7 +76,8 @@ def single_axis_setpoints(sun_az_deg: float, sun_el_deg: float,
             axis_azimuth=np.array([rows[i].axis_azimuth for i in idx]),
             max_angle=max_angle,
             gcr=np.array([rows[i].gcr for i in idx]),
-            cross_axis_tilt=np.array([rows[i].cross_axis_tilt for i in idx]))
+            cross_axis_tilt=np.array([rows[i].cross_axis_tilt for i in idx]),
+        )
         bt = pvlib.tracking.singleaxis(backtrack=True, **kw)
         tt = pvlib.tracking.singleaxis(backtrack=False, **kw)
         rot_bt = np.asarray(bt["tracker_theta"], float)
@@ -81,8 +88,9 @@ def single_axis_setpoints(sun_az_deg: float, sun_el_deg: float,
             use_bt = rows[i].backtrack
             rot = rot_bt[j] if use_bt else rot_tt[j]
             backtracking = bool(use_bt and np.isfinite(rot) and abs(rot_bt[j] - rot_tt[j]) > 1e-9)
-            out[i] = SingleAxisSetpoint(float(rot), float(rot_tt[j]), backtracking,
-                                        float(aoi_bt[j] if use_bt else aoi_tt[j]))
+            out[i] = SingleAxisSetpoint(
+                float(rot), float(rot_tt[j]), backtracking, float(aoi_bt[j] if use_bt else aoi_tt[j])
+            )
     return out  # type: ignore[return-value]
 
 

@@ -26,5 +26,20 @@ from .reference import Row, markdown, rows
 from .validate import load, load_file, read_toml
 from .words import type_name
 
-__all__ = ["DERIVED", "Row", "Spec", "Where", "internal", "keys_of", "load", "load_file",
-           "markdown", "read_toml", "rows", "setting", "spec_of", "type_name", "variants"]
+__all__ = [
+    "DERIVED",
+    "Row",
+    "Spec",
+    "Where",
+    "internal",
+    "keys_of",
+    "load",
+    "load_file",
+    "markdown",
+    "read_toml",
+    "rows",
+    "setting",
+    "spec_of",
+    "type_name",
+    "variants",
+]

@@ -39,19 +39,30 @@ class Spec:
     #: For a union of dataclasses: the key that tells them apart, and a function mapping its
     #: value to the class (None for an unknown value), plus the known values for the docs.
     variants: Variants | None = None
-    derived: str = ""          # how a DERIVED default is computed (docs)
-    expected: str = ""         # override of the "expected ..." text
+    derived: str = ""  # how a DERIVED default is computed (docs)
+    expected: str = ""  # override of the "expected ..." text
     example: str = ""
-    internal: bool = False     # not a key: set by the program, never read from a file
-    nonempty: bool = False     # strings and arrays
+    internal: bool = False  # not a key: set by the program, never read from a file
+    nonempty: bool = False  # strings and arrays
 
 
-def setting(default: Any = MISSING, *, doc: str, unit: str = "", ge: float | None = None,
-            le: float | None = None, gt: float | None = None, lt: float | None = None,
-            default_factory: Any = MISSING, path: str = "",
-            variants: Variants | None = None,
-            derived: str = "", expected: str = "", example: str = "",
-            nonempty: bool = False) -> Any:
+def setting(
+    default: Any = MISSING,
+    *,
+    doc: str,
+    unit: str = "",
+    ge: float | None = None,
+    le: float | None = None,
+    gt: float | None = None,
+    lt: float | None = None,
+    default_factory: Any = MISSING,
+    path: str = "",
+    variants: Variants | None = None,
+    derived: str = "",
+    expected: str = "",
+    example: str = "",
+    nonempty: bool = False,
+) -> Any:
     """A dataclass field that is a configuration key.
 
     Parameters
@@ -75,8 +86,20 @@ def setting(default: Any = MISSING, *, doc: str, unit: str = "", ge: float | Non
     """
     if derived and default is MISSING:
         default = DERIVED
-    spec = Spec(doc=doc, unit=unit, ge=ge, le=le, gt=gt, lt=lt, path=path, variants=variants,
-                derived=derived, expected=expected, example=example, nonempty=nonempty)
+    spec = Spec(
+        doc=doc,
+        unit=unit,
+        ge=ge,
+        le=le,
+        gt=gt,
+        lt=lt,
+        path=path,
+        variants=variants,
+        derived=derived,
+        expected=expected,
+        example=example,
+        nonempty=nonempty,
+    )
     kw: dict[str, Any] = {"metadata": {"schema": spec}}
     if default_factory is not MISSING:
         kw["default_factory"] = default_factory
@@ -85,8 +108,7 @@ def setting(default: Any = MISSING, *, doc: str, unit: str = "", ge: float | Non
     return dataclasses.field(**kw)
 
 
-def variants(key: str, table: Mapping[str, type] | Callable[[], Mapping[str, type]]
-             ) -> Variants:
+def variants(key: str, table: Mapping[str, type] | Callable[[], Mapping[str, type]]) -> Variants:
     """The ``variants`` of :func:`setting`: ``key``'s value picks the class from ``table``
     (a mapping, or a function returning one, for registries that grow at run time)."""
     known = table if callable(table) else (lambda: table)
@@ -95,8 +117,7 @@ def variants(key: str, table: Mapping[str, type] | Callable[[], Mapping[str, typ
 
 def internal(default: Any = MISSING, *, default_factory: Any = MISSING) -> Any:
     """A dataclass field that is not a configuration key (set by the program)."""
-    kw: dict[str, Any] = {"metadata": {"schema": Spec(internal=True)}, "repr": False,
-                          "compare": False}
+    kw: dict[str, Any] = {"metadata": {"schema": Spec(internal=True)}, "repr": False, "compare": False}
     if default_factory is not MISSING:
         kw["default_factory"] = default_factory
     else:
@@ -112,10 +133,10 @@ class Where:
     file: str | None
     key: str = ""
 
-    def child(self, name: str) -> "Where":
+    def child(self, name: str) -> Where:
         return Where(self.file, f"{self.key}.{name}" if self.key else name)
 
-    def item(self, i: int) -> "Where":
+    def item(self, i: int) -> Where:
         return Where(self.file, f"{self.key}[{i}]")
 
     def error(self, expected: str, got: Any = None) -> ConfigError:

@@ -80,9 +80,12 @@ def rows(cls: type) -> list[Row]:
         inner = rest[0] if len(rest) == 1 else tp
         origin = get_origin(inner)
         item = get_args(inner)[0] if origin in (tuple, list) and get_args(inner) else inner
-        if is_dataclass_type(inner) or spec.variants is not None or (
-                origin in (tuple, list) and (is_dataclass_type(item) or union_args(item))):
-            continue   # a table of its own
+        if (
+            is_dataclass_type(inner)
+            or spec.variants is not None
+            or (origin in (tuple, list) and (is_dataclass_type(item) or union_args(item)))
+        ):
+            continue  # a table of its own
         rng = range_text(spec)
         if get_origin(inner) is Literal:
             rng = ", ".join(toml_text(a) for a in get_args(inner))
@@ -96,12 +99,15 @@ def rows(cls: type) -> list[Row]:
 def markdown(documents: Mapping[str, tuple[type, str]]) -> str:
     """The configuration reference: for each document (title -> (root class, intro)), one
     table per TOML table with every key, type, unit, default, range and meaning."""
-    out = ["# Configuration reference", "",
-           "Generated from the schema (`controller/schema.py` and the dataclasses it reads) by",
-           "`heliotrack config docs`; a test fails when this file is stale.  Every file is TOML;",
-           "unknown keys and tables are errors, and every error names the file, the key, what",
-           "was expected and what was found.  Relative paths resolve against the file's folder.",
-           ""]
+    out = [
+        "# Configuration reference",
+        "",
+        "Generated from the schema (`controller/schema.py` and the dataclasses it reads) by",
+        "`heliotrack config docs`; a test fails when this file is stale.  Every file is TOML;",
+        "unknown keys and tables are errors, and every error names the file, the key, what",
+        "was expected and what was found.  Relative paths resolve against the file's folder.",
+        "",
+    ]
     for title, (root, intro) in documents.items():
         out += [f"## {title}", "", intro, ""]
         for heading, cls, _ in _sections(root, ""):
@@ -112,11 +118,16 @@ def markdown(documents: Mapping[str, tuple[type, str]]) -> str:
             out += [f"### `{heading}`" if heading else "### top level", ""]
             if doc and not doc.startswith(cls.__name__ + "("):
                 out += [doc, ""]
-            out += ["| key | type | unit | default | range | meaning |",
-                    "|---|---|---|---|---|---|"]
+            out += ["| key | type | unit | default | range | meaning |", "|---|---|---|---|---|---|"]
             for r in table_rows:
-                cells = [f"`{r.key}`", r.type, r.unit, f"`{r.default}`" if r.default != "required"
-                         else "required", r.range, r.doc]
+                cells = [
+                    f"`{r.key}`",
+                    r.type,
+                    r.unit,
+                    f"`{r.default}`" if r.default != "required" else "required",
+                    r.range,
+                    r.doc,
+                ]
                 out.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
             out.append("")
     return "\n".join(out).rstrip() + "\n"

@@ -17,6 +17,7 @@ from .words import expected_text
 
 T = TypeVar("T")
 
+
 def read_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML file; a missing, unreadable, non-UTF-8 or invalid file is a ConfigError."""
     path = Path(path)
@@ -83,7 +84,7 @@ def _value(tp: Any, v: Any, at: Where, spec: Spec) -> Any:
             return _value(rest[0], v, at, spec)
         if spec.variants is not None:
             return _variant(v, at, spec)
-        for a in rest:       # simple unions (str | date): the first that fits
+        for a in rest:  # simple unions (str | date): the first that fits
             try:
                 return _value(a, v, at, spec)
             except ConfigError:
@@ -143,8 +144,12 @@ def _value(tp: Any, v: Any, at: Where, spec: Spec) -> Any:
 
 
 def _bounds(v: float, at: Where, spec: Spec, tp: Any) -> None:
-    if ((spec.ge is not None and v < spec.ge) or (spec.le is not None and v > spec.le)
-            or (spec.gt is not None and v <= spec.gt) or (spec.lt is not None and v >= spec.lt)):
+    if (
+        (spec.ge is not None and v < spec.ge)
+        or (spec.le is not None and v > spec.le)
+        or (spec.gt is not None and v <= spec.gt)
+        or (spec.lt is not None and v >= spec.lt)
+    ):
         raise at.error(expected_text(tp, spec), v)
 
 

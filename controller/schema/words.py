@@ -15,10 +15,20 @@ def num_text(v: float) -> str:
 
 
 def range_text(spec: Spec) -> str:
-    lo = (f"[{num_text(spec.ge)}" if spec.ge is not None
-          else f"({num_text(spec.gt)}" if spec.gt is not None else "")
-    hi = (f"{num_text(spec.le)}]" if spec.le is not None
-          else f"{num_text(spec.lt)})" if spec.lt is not None else "")
+    lo = (
+        f"[{num_text(spec.ge)}"
+        if spec.ge is not None
+        else f"({num_text(spec.gt)}"
+        if spec.gt is not None
+        else ""
+    )
+    hi = (
+        f"{num_text(spec.le)}]"
+        if spec.le is not None
+        else f"{num_text(spec.lt)})"
+        if spec.lt is not None
+        else ""
+    )
     if lo and hi:
         return f"{lo}, {hi}"
     if spec.ge is not None:
@@ -39,16 +49,18 @@ def expected_text(tp: Any, spec: Spec) -> str:
     rng = range_text(spec)
     if tp is float or tp is int:
         what = "a number" if tp is float else "an integer"
-        return f"{what} in {rng}{unit}" if rng.startswith(("[", "(")) else \
-            f"{what}{' ' + rng if rng else ''}{unit}"
+        return (
+            f"{what} in {rng}{unit}"
+            if rng.startswith(("[", "("))
+            else f"{what}{' ' + rng if rng else ''}{unit}"
+        )
     if get_origin(tp) is Literal:
         return "one of " + ", ".join(toml_text(a) for a in get_args(tp))
     if get_origin(tp) in (tuple, list):
         each = f" each in {rng}" if rng else ""
         nonempty = "a non-empty " if spec.nonempty else "an "
         name = type_name(tp)
-        return (f"{nonempty}array {name}" if name.startswith("[") else f"{nonempty}{name}") \
-            + each + unit
+        return (f"{nonempty}array {name}" if name.startswith("[") else f"{nonempty}{name}") + each + unit
     article = {"string": "a ", "path": "a ", "boolean": "", "table": "a "}
     name = type_name(tp)
     if tp is str and spec.nonempty:
@@ -73,8 +85,15 @@ def type_name(tp: Any) -> str:
         if is_dataclass_type(item) or union_args(item):
             return "array of tables"
         return f"array of {type_name(item)}"
-    names = {bool: "boolean", int: "integer", float: "number", str: "string", Path: "path",
-             _dt.date: "date (YYYY-MM-DD)", dict: "table"}
+    names = {
+        bool: "boolean",
+        int: "integer",
+        float: "number",
+        str: "string",
+        Path: "path",
+        _dt.date: "date (YYYY-MM-DD)",
+        dict: "table",
+    }
     if tp in names:
         return names[tp]
     if origin in (dict, Mapping):

@@ -24,37 +24,55 @@ def classify_by_kt(k_t: np.ndarray, clear: float = 0.65, overcast: float = 0.35)
     return np.where(np.isfinite(k), out, 0)
 
 
-def classify_by_fraction(fraction: np.ndarray, clear: float = 0.8,
-                         overcast: float = 0.2) -> np.ndarray:
+def classify_by_fraction(fraction: np.ndarray, clear: float = 0.8, overcast: float = 0.2) -> np.ndarray:
     """Day class from a fraction of daylight (sunshine or clear minutes): I >= clear, III <= overcast."""
     f = np.asarray(fraction, float)
     out = np.where(f >= clear, 1, np.where(f <= overcast, 3, 2))
     return np.where(np.isfinite(f), out, 0)
 
 
-def ineichen_rows(cos_zenith: np.ndarray, e0: np.ndarray, month: np.ndarray, latitude: float,
-                  longitude: float, altitude: float = 0.0) -> np.ndarray:
+def ineichen_rows(
+    cos_zenith: np.ndarray,
+    e0: np.ndarray,
+    month: np.ndarray,
+    latitude: float,
+    longitude: float,
+    altitude: float = 0.0,
+) -> np.ndarray:
     """Ineichen clear-sky GHI (W/m2) on a grid of rows, with the monthly Linke turbidity."""
     zen = np.degrees(np.arccos(np.clip(cos_zenith, -1.0, 1.0)))
     # one lookup per row: the climatology is monthly, interpolated to mid-month by pvlib
-    idx = pd.DatetimeIndex(pd.to_datetime({"year": 2001, "month": np.asarray(month, int),
-                                           "day": 15}), tz="UTC")
-    tl = np.asarray(pvlib.clearsky.lookup_linke_turbidity(idx, latitude, longitude,
-                                                          interp_turbidity=False), float)
+    idx = pd.DatetimeIndex(
+        pd.to_datetime({"year": 2001, "month": np.asarray(month, int), "day": 15}), tz="UTC"
+    )
+    tl = np.asarray(
+        pvlib.clearsky.lookup_linke_turbidity(idx, latitude, longitude, interp_turbidity=False), float
+    )
     am_rel = pvlib.atmosphere.get_relative_airmass(zen)
     am_abs = pvlib.atmosphere.get_absolute_airmass(am_rel, pvlib.atmosphere.alt2pres(altitude))
     with np.errstate(divide="ignore", invalid="ignore"):  # night: airmass is NaN
-        cs = pvlib.clearsky.ineichen(zen, am_abs, np.broadcast_to(tl[:, None], zen.shape),
-                                     altitude=altitude,
-                                     dni_extra=np.broadcast_to(np.asarray(e0, float)[:, None],
-                                                               zen.shape))
+        cs = pvlib.clearsky.ineichen(
+            zen,
+            am_abs,
+            np.broadcast_to(tl[:, None], zen.shape),
+            altitude=altitude,
+            dni_extra=np.broadcast_to(np.asarray(e0, float)[:, None], zen.shape),
+        )
     return np.nan_to_num(np.asarray(cs["ghi"], float))
 
 
-def detect_clearsky_fraction(ghi: np.ndarray, valid: np.ndarray, cos_zenith: np.ndarray,
-                             step_s: float, e0: np.ndarray, month: np.ndarray, latitude: float,
-                             longitude: float, altitude: float = 0.0,
-                             min_elevation_deg: float = 5.0) -> np.ndarray:
+def detect_clearsky_fraction(
+    ghi: np.ndarray,
+    valid: np.ndarray,
+    cos_zenith: np.ndarray,
+    step_s: float,
+    e0: np.ndarray,
+    month: np.ndarray,
+    latitude: float,
+    longitude: float,
+    altitude: float = 0.0,
+    min_elevation_deg: float = 5.0,
+) -> np.ndarray:
     """Fraction of daylit minutes that pvlib ``detect_clearsky`` flags as clear, per row.
 
     GHI is averaged to one minute, the sampling ``detect_clearsky`` was designed for (its
@@ -73,8 +91,9 @@ def detect_clearsky_fraction(ghi: np.ndarray, valid: np.ndarray, cos_zenith: np.
     with warnings.catch_warnings():  # pvlib 0.16 uses a pandas API that pandas deprecates
         warnings.simplefilter("ignore", DeprecationWarning)
         warnings.simplefilter("ignore", FutureWarning)
-        clear = pvlib.clearsky.detect_clearsky(pd.Series(np.nan_to_num(g1.ravel()), index=times),
-                                               pd.Series(cs.ravel(), index=times))
+        clear = pvlib.clearsky.detect_clearsky(
+            pd.Series(np.nan_to_num(g1.ravel()), index=times), pd.Series(cs.ravel(), index=times)
+        )
     clear = np.asarray(clear, bool).reshape(rows, n)
     day = v1 & (cz1 > np.sin(np.radians(min_elevation_deg)))
     cnt = np.count_nonzero(day, axis=1)

@@ -14,86 +14,29 @@ Classes (paper 002): I clear, II partly cloudy, III overcast; stored as 1, 2, 3 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 import pandas as pd
 
-from controller.schema import Where, load, setting
 from controller.sun.source import Site
 
 from .baselines import classify_by_fraction, classify_by_kt, detect_clearsky_fraction
 from .clearness import clearness_index_rows
-from .fractal import PAPER_SCALES_S, Criterion, Increments, variation_dimension_rows
+from .fractal import variation_dimension_rows
 from .grid import DayGrid, build_day_grid, to_posix_seconds
+from .settings import Method, SkyConfig, ThresholdRule
 from .solar import cos_zenith_rows, daily_extraterrestrial_irradiation, row_geometry
 from .sunshine import pyranometric_sunshine_fraction, sunshine_fraction
 
-Method = Literal["default", "seed"]
-ThresholdRule = Literal["range", "tertiles", "fixed"]
 CLASS_NAMES = {0: "", 1: "I", 2: "II", 3: "III"}
-
-
-@dataclass(frozen=True, kw_only=True)
-class SkyConfig:
-    """Settings of the day-type classifier (all have the paper's or a documented default)."""
-
-    method: Method = setting("default", doc="Which rule fills the class column: the paper's "
-                             "(fractal D + K_T) or the default (pyranometric sunshine).")
-    scales_s: tuple[float, ...] = setting(PAPER_SCALES_S, doc="Fractal scales (paper: 1, 2, 5, "
-                                          "7, 10, 14, 35 min); at least three.", unit="s", gt=0)
-    criterion: Criterion = setting("slope-se", doc="Fit-range rule of the fractal dimension "
-                                   "(see controller.sky.fractal).")
-    increments: Increments = setting("all-offsets", doc="Pair set of the variation S(dt).")
-    min_elevation_deg: float = setting(0.0, doc="The fractal window is the part of the day "
-                                       "with the sun above this elevation.", unit="deg",
-                                       ge=-5, le=60)
-    max_missing_s: float = setting(3600.0, doc="Days with more daylight than this missing are "
-                                   "excluded (paper: one hour).", unit="s", ge=0)
-    kt_threshold: float = setting(0.5, doc="K_T,I of the paper's rule.", ge=0, le=1.5)
-    threshold_rule: ThresholdRule = setting("range", doc="How D_I, D_II are set per year for "
-                                            "the paper's rule.")
-    d_thresholds: tuple[float, float] = setting((1.19, 1.37), doc="(D_I, D_II) when fixed, "
-                                                "and for years with too few days (paper's "
-                                                "Table 1 means).", ge=1, le=2)
-    sunshine_bands: tuple[float, float] = setting((0.8, 0.2), doc="(clear, overcast) fractions "
-                                                  "of daylight for the sunshine rules and "
-                                                  "truth.", ge=0, le=1)
-    kt_bands: tuple[float, float] = setting((0.65, 0.35), doc="(clear, overcast) K_T bands of "
-                                            "the K_T-only baseline.", ge=0, le=1.5)
-
-    @classmethod
-    def from_mapping(cls, data: dict, file=None, prefix: str = "sky") -> "SkyConfig":
-        """Build from a TOML table (e.g. ``[sky]``), naming the file and key on any error.
-
-        Raises
-        ------
-        controller.errors.ConfigError
-        """
-        return load(cls, data, file if file is not None else "<sky settings>", prefix)
-
-    def __schema_check__(self, at: Where) -> "SkyConfig":
-        if not self.d_thresholds[0] <= self.d_thresholds[1]:
-            raise at.child("d_thresholds").error("(D_I, D_II) with D_I <= D_II",
-                                                 list(self.d_thresholds))
-        if len(self.scales_s) < 3:
-            raise at.child("scales_s").error("at least three positive scales (s)",
-                                             list(self.scales_s))
-        return self
-
-
-@dataclass(frozen=True, kw_only=True)
-class SkySettings:
-    """A sky-settings file (``heliotrack classify --settings FILE``): one ``[sky]`` table."""
-
-    sky: SkyConfig = setting(default_factory=SkyConfig, doc="Day-type classifier settings.")
 
 
 # --------------------------------------------------------------------------- rules
 
 
-def seed_thresholds(d_values: np.ndarray, rule: ThresholdRule = "range",
-                    fixed: tuple[float, float] = (1.19, 1.37)) -> tuple[float, float]:
+def seed_thresholds(
+    d_values: np.ndarray, rule: ThresholdRule = "range", fixed: tuple[float, float] = (1.19, 1.37)
+) -> tuple[float, float]:
     """(D_I, D_II) from a year's D values.
 
     ``range``: D_min + (D_max - D_min) / 3 and D_min + 2 (D_max - D_min) / 3 (the paper's
@@ -113,8 +56,7 @@ def seed_thresholds(d_values: np.ndarray, rule: ThresholdRule = "range",
     raise ValueError(f"unknown threshold rule {rule!r}")
 
 
-def classify_seed(d: np.ndarray, k_t: np.ndarray, d_i: float, d_ii: float,
-                  kt_i: float = 0.5) -> np.ndarray:
+def classify_seed(d: np.ndarray, k_t: np.ndarray, d_i: float, d_ii: float, kt_i: float = 0.5) -> np.ndarray:
     """The paper's rule; 1/2/3 for I/II/III, 0 where D or K_T is NaN."""
     d, k = np.asarray(d, float), np.asarray(k_t, float)
     bright = k >= kt_i
@@ -130,9 +72,16 @@ def classify_default(sun_fraction: np.ndarray, config: SkyConfig = SkyConfig()) 
 # --------------------------------------------------------------------------- features
 
 
-def _row_features(ghi: np.ndarray, dni: np.ndarray | None, t0: np.ndarray, step_s: int,
-                  site: Site, config: SkyConfig, h0_analytic: bool,
-                  with_clearsky: bool) -> dict[str, np.ndarray]:
+def _row_features(
+    ghi: np.ndarray,
+    dni: np.ndarray | None,
+    t0: np.ndarray,
+    step_s: int,
+    site: Site,
+    config: SkyConfig,
+    h0_analytic: bool,
+    with_clearsky: bool,
+) -> dict[str, np.ndarray]:
     """All per-row features of a block of grid rows."""
     rows, n = ghi.shape
     geo = row_geometry(np.asarray(t0, float) + 0.5 * n * step_s)
@@ -141,25 +90,46 @@ def _row_features(ghi: np.ndarray, dni: np.ndarray | None, t0: np.ndarray, step_
     up = cz > 0
     missing_s = step_s * np.count_nonzero(up & ~has, axis=1)
     window = has & (cz > np.sin(np.radians(config.min_elevation_deg)))
-    frac = variation_dimension_rows(np.where(has, ghi, 0.0).astype(np.float32), window, step_s,
-                                    scales_s=config.scales_s, criterion=config.criterion,
-                                    increments=config.increments)
-    h0 = (daily_extraterrestrial_irradiation(site.latitude, geo["declination"], geo["e0"])
-          if h0_analytic else None)
+    frac = variation_dimension_rows(
+        np.where(has, ghi, 0.0).astype(np.float32),
+        window,
+        step_s,
+        scales_s=config.scales_s,
+        criterion=config.criterion,
+        increments=config.increments,
+    )
+    h0 = (
+        daily_extraterrestrial_irradiation(site.latitude, geo["declination"], geo["e0"])
+        if h0_analytic
+        else None
+    )
     kt = clearness_index_rows(np.where(has, ghi, 0.0), has, cz, step_s, geo["e0"], h0)
     out = {
         "daylight_s": step_s * np.count_nonzero(up, axis=1).astype(float),
         "missing_daylight_s": missing_s.astype(float),
-        "D": frac.D, "n_scales": frac.n_scales, "dt_max_s": frac.dt_max_s,
-        "K_T": kt["K_T"], "H_MJ": kt["H"] / 1e6, "H0_MJ": kt["H0"] / 1e6,
-        "sun_fraction_est": pyranometric_sunshine_fraction(np.where(has, ghi, 0.0), has, cz,
-                                                           step_s, geo["doy"]),
+        "D": frac.D,
+        "n_scales": frac.n_scales,
+        "dt_max_s": frac.dt_max_s,
+        "K_T": kt["K_T"],
+        "H_MJ": kt["H"] / 1e6,
+        "H0_MJ": kt["H0"] / 1e6,
+        "sun_fraction_est": pyranometric_sunshine_fraction(
+            np.where(has, ghi, 0.0), has, cz, step_s, geo["doy"]
+        ),
     }
     if with_clearsky:
         month = pd.to_datetime(np.asarray(t0, float) + 43200, unit="s").month
         out["clear_fraction"] = detect_clearsky_fraction(
-            np.where(has, ghi, 0.0), has, cz, step_s, geo["e0"], np.asarray(month), site.latitude,
-            site.longitude, site.altitude)
+            np.where(has, ghi, 0.0),
+            has,
+            cz,
+            step_s,
+            geo["e0"],
+            np.asarray(month),
+            site.latitude,
+            site.longitude,
+            site.altitude,
+        )
     if dni is not None:
         dv = np.isfinite(dni)
         out["sunshine"] = sunshine_fraction(np.where(dv, dni, 0.0), dv, cz)
@@ -195,9 +165,15 @@ class DayResults:
     config: SkyConfig = field(default_factory=SkyConfig)
 
 
-def analyse_grid(grid: DayGrid, site: Site, config: SkyConfig = SkyConfig(), *,
-                 with_clearsky: bool = False, progress: bool = False,
-                 chunk_days: int = 16) -> DayResults:
+def analyse_grid(
+    grid: DayGrid,
+    site: Site,
+    config: SkyConfig = SkyConfig(),
+    *,
+    with_clearsky: bool = False,
+    progress: bool = False,
+    chunk_days: int = 16,
+) -> DayResults:
     """Features, thresholds and classes of every day of a :class:`DayGrid`.
 
     Parameters
@@ -222,64 +198,95 @@ def analyse_grid(grid: DayGrid, site: Site, config: SkyConfig = SkyConfig(), *,
         starts = tqdm(starts, total=len(starts), unit="block", desc=f"classify ({rows} days)")
     for s in starts:
         e = min(rows, s + chunk_days)
-        parts.append(_row_features(grid.ghi[s:e], None if grid.dni is None else grid.dni[s:e],
-                                   grid.t0_posix[s:e], grid.step_s, site, config, True,
-                                   with_clearsky))
-    feats = {k: np.concatenate([p[k] for p in parts]) if parts else np.array([])
-             for k in (parts[0] if parts else {"D": 0})}
+        parts.append(
+            _row_features(
+                grid.ghi[s:e],
+                None if grid.dni is None else grid.dni[s:e],
+                grid.t0_posix[s:e],
+                grid.step_s,
+                site,
+                config,
+                True,
+                with_clearsky,
+            )
+        )
+    feats = {
+        k: np.concatenate([p[k] for p in parts]) if parts else np.array([])
+        for k in (parts[0] if parts else {"D": 0})
+    }
     dates = pd.to_datetime(grid.dates)
-    table = pd.DataFrame({"date": dates.strftime("%Y-%m-%d"), "year": dates.year,
-                          "month": dates.month, "n_samples": grid.n_samples, **feats})
+    table = pd.DataFrame(
+        {
+            "date": dates.strftime("%Y-%m-%d"),
+            "year": dates.year,
+            "month": dates.month,
+            "n_samples": grid.n_samples,
+            **feats,
+        }
+    )
     reason = np.full(rows, "", dtype=object)
     if rows:
-        reason[np.isfinite(table["D"].to_numpy()) == False] = "no fractal dimension (too little daylight data)"  # noqa: E712
+        reason[~np.isfinite(table["D"].to_numpy(dtype=float))] = (
+            "no fractal dimension (too little daylight data)"
+        )
         reason[table["daylight_s"].to_numpy() <= 0] = "no daylight (polar night)"
         reason[table["missing_daylight_s"].to_numpy() > config.max_missing_s] = (
-            f"more than {config.max_missing_s:g} s of daylight missing")
+            f"more than {config.max_missing_s:g} s of daylight missing"
+        )
     keep = reason == ""
-    excluded = pd.DataFrame({"date": table["date"][~keep], "n_samples": table["n_samples"][~keep],
-                             "missing_daylight_s": table["missing_daylight_s"][~keep],
-                             "reason": reason[~keep]}).reset_index(drop=True)
+    excluded = pd.DataFrame(
+        {
+            "date": table["date"][~keep],
+            "n_samples": table["n_samples"][~keep],
+            "missing_daylight_s": table["missing_daylight_s"][~keep],
+            "reason": reason[~keep],
+        }
+    ).reset_index(drop=True)
     days = table[keep].reset_index(drop=True)
     return _classify_table(days, excluded, grid.step_s, config)
 
 
-def _classify_table(days: pd.DataFrame, excluded: pd.DataFrame, step_s: int,
-                    config: SkyConfig) -> DayResults:
+def _classify_table(days: pd.DataFrame, excluded: pd.DataFrame, step_s: int, config: SkyConfig) -> DayResults:
     thr_rows = []
     seed = np.zeros(len(days), dtype=int)
     for year, idx in days.groupby("year").groups.items():
-        d_i, d_ii = seed_thresholds(days.loc[idx, "D"].to_numpy(), config.threshold_rule,
-                                    config.d_thresholds)
+        d_i, d_ii = seed_thresholds(days.loc[idx, "D"].to_numpy(), config.threshold_rule, config.d_thresholds)
         rule = config.threshold_rule if len(idx) >= 3 else "fixed"
-        thr_rows.append({"year": int(year), "rule": rule, "D_I": d_i, "D_II": d_ii,
-                         "n_days": len(idx)})
+        thr_rows.append({"year": int(year), "rule": rule, "D_I": d_i, "D_II": d_ii, "n_days": len(idx)})
         pos = days.index.get_indexer(idx)
-        seed[pos] = classify_seed(days.loc[idx, "D"].to_numpy(), days.loc[idx, "K_T"].to_numpy(),
-                                  d_i, d_ii, config.kt_threshold)
-    default = (classify_default(days["sun_fraction_est"].to_numpy(), config) if len(days)
-               else np.zeros(0, int))
+        seed[pos] = classify_seed(
+            days.loc[idx, "D"].to_numpy(), days.loc[idx, "K_T"].to_numpy(), d_i, d_ii, config.kt_threshold
+        )
+    default = classify_default(days["sun_fraction_est"].to_numpy(), config) if len(days) else np.zeros(0, int)
     names = np.vectorize(CLASS_NAMES.get, otypes=[object])
     days = days.copy()
     days["class_seed"] = names(seed) if len(days) else []
     days["class_default"] = names(default) if len(days) else []
     days["class_kt"] = names(classify_by_kt(days["K_T"].to_numpy(), *config.kt_bands)) if len(days) else []
     if "clear_fraction" in days:
-        days["class_csd"] = names(classify_by_fraction(days["clear_fraction"].to_numpy(),
-                                                       *config.sunshine_bands))
+        days["class_csd"] = names(
+            classify_by_fraction(days["clear_fraction"].to_numpy(), *config.sunshine_bands)
+        )
     days["class"] = days["class_default"] if config.method == "default" else days["class_seed"]
     if "sunshine" in days:
         truth = names(classify_by_fraction(days["sunshine"].to_numpy(), *config.sunshine_bands))
         truth[days["missing_dni_s"].to_numpy() > config.max_missing_s] = ""
         days["truth"] = truth
     thresholds = pd.DataFrame(thr_rows, columns=["year", "rule", "D_I", "D_II", "n_days"])
-    return DayResults(days=days, excluded=excluded, thresholds=thresholds, step_s=step_s,
-                      config=config)
+    return DayResults(days=days, excluded=excluded, thresholds=thresholds, step_s=step_s, config=config)
 
 
-def classify_days(times, ghi, site: Site, *, dni=None, config: SkyConfig = SkyConfig(),
-                  step_s: int | None = None, with_clearsky: bool = False,
-                  progress: bool = False) -> DayResults:
+def classify_days(
+    times,
+    ghi,
+    site: Site,
+    *,
+    dni=None,
+    config: SkyConfig = SkyConfig(),
+    step_s: int | None = None,
+    with_clearsky: bool = False,
+    progress: bool = False,
+) -> DayResults:
     """Classify every day of a GHI record (the paper's use: a station's year).
 
     Parameters
@@ -348,9 +355,18 @@ class WindowClass:
         return CLASS_NAMES[self.sky_class]
 
 
-def classify_window(times, ghi, site: Site, *, hours: float | None = None, end=None,
-                    method: Method | None = None, config: SkyConfig = SkyConfig(),
-                    step_s: int | None = None, min_daylight_s: float = 1800.0) -> WindowClass:
+def classify_window(
+    times,
+    ghi,
+    site: Site,
+    *,
+    hours: float | None = None,
+    end=None,
+    method: Method | None = None,
+    config: SkyConfig = SkyConfig(),
+    step_s: int | None = None,
+    min_daylight_s: float = 1800.0,
+) -> WindowClass:
     """Classify the last ``hours`` of (time, GHI) samples at a site.
 
     Parameters
@@ -413,5 +429,15 @@ def _window_step(t: np.ndarray) -> int:
     return infer_step(t)
 
 
-__all__ = ["SkyConfig", "DayResults", "WindowClass", "classify_days", "classify_window",
-           "analyse_grid", "seed_thresholds", "classify_seed", "classify_default", "CLASS_NAMES"]
+__all__ = [
+    "SkyConfig",
+    "DayResults",
+    "WindowClass",
+    "classify_days",
+    "classify_window",
+    "analyse_grid",
+    "seed_thresholds",
+    "classify_seed",
+    "classify_default",
+    "CLASS_NAMES",
+]

@@ -5,9 +5,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def clearness_index_rows(ghi: np.ndarray, valid: np.ndarray, cos_zenith: np.ndarray,
-                         step_s: float, e0: np.ndarray,
-                         h0: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def clearness_index_rows(
+    ghi: np.ndarray,
+    valid: np.ndarray,
+    cos_zenith: np.ndarray,
+    step_s: float,
+    e0: np.ndarray,
+    h0: np.ndarray | None = None,
+) -> dict[str, np.ndarray]:
     """Clearness index per row, with gaps filled at the row's own clearness.
 
     Parameters

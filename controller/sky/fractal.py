@@ -72,8 +72,9 @@ def scale_lags(step_s: float, scales_s: tuple[float, ...] = PAPER_SCALES_S) -> n
     return lags
 
 
-def mean_abs_increments(y: np.ndarray, valid: np.ndarray, lags: np.ndarray,
-                        increments: Increments = "all-offsets") -> np.ndarray:
+def mean_abs_increments(
+    y: np.ndarray, valid: np.ndarray, lags: np.ndarray, increments: Increments = "all-offsets"
+) -> np.ndarray:
     """Mean absolute increment of each row at each lag, over pairs whose ends are both valid.
 
     Parameters
@@ -122,9 +123,14 @@ def mean_abs_increments(y: np.ndarray, valid: np.ndarray, lags: np.ndarray,
     return out
 
 
-def fit_dimension(mean_incr: np.ndarray, lags: np.ndarray, span: np.ndarray,
-                  step_s: float, criterion: Criterion = "slope-se",
-                  min_points: int = 3) -> FractalResult:
+def fit_dimension(
+    mean_incr: np.ndarray,
+    lags: np.ndarray,
+    span: np.ndarray,
+    step_s: float,
+    criterion: Criterion = "slope-se",
+    min_points: int = 3,
+) -> FractalResult:
     """Fit D = slope of ln(S / dt^2) against ln(1 / dt), choosing the scale range per row.
 
     Parameters
@@ -188,10 +194,15 @@ def fit_dimension(mean_incr: np.ndarray, lags: np.ndarray, span: np.ndarray,
     return FractalResult(D=D, n_scales=n_used, dt_max_s=dt_max, slope_se=se_best)
 
 
-def variation_dimension_rows(y: np.ndarray, valid: np.ndarray, step_s: float, *,
-                             scales_s: tuple[float, ...] = PAPER_SCALES_S,
-                             criterion: Criterion = "slope-se",
-                             increments: Increments = "all-offsets") -> FractalResult:
+def variation_dimension_rows(
+    y: np.ndarray,
+    valid: np.ndarray,
+    step_s: float,
+    *,
+    scales_s: tuple[float, ...] = PAPER_SCALES_S,
+    criterion: Criterion = "slope-se",
+    increments: Increments = "all-offsets",
+) -> FractalResult:
     """Fractal dimension of each row of a regular grid, over the row's valid slots.
 
     Parameters
@@ -229,10 +240,14 @@ def variation_dimension_rows(y: np.ndarray, valid: np.ndarray, step_s: float, *,
     return fit_dimension(incr, lags, span, step_s, criterion)
 
 
-def variation_dimension(y: np.ndarray, step_s: float, *,
-                        scales_s: tuple[float, ...] = PAPER_SCALES_S,
-                        criterion: Criterion = "slope-se",
-                        increments: Increments = "all-offsets") -> float:
+def variation_dimension(
+    y: np.ndarray,
+    step_s: float,
+    *,
+    scales_s: tuple[float, ...] = PAPER_SCALES_S,
+    criterion: Criterion = "slope-se",
+    increments: Increments = "all-offsets",
+) -> float:
     """Fractal dimension of one regularly sampled signal (NaN samples are treated as gaps).
 
     Parameters
@@ -249,6 +264,12 @@ def variation_dimension(y: np.ndarray, step_s: float, *,
     """
     arr = np.asarray(y, dtype=np.float64)[None, :]
     valid = np.isfinite(arr)
-    res = variation_dimension_rows(np.where(valid, arr, 0.0), valid, step_s, scales_s=scales_s,
-                                   criterion=criterion, increments=increments)
+    res = variation_dimension_rows(
+        np.where(valid, arr, 0.0),
+        valid,
+        step_s,
+        scales_s=scales_s,
+        criterion=criterion,
+        increments=increments,
+    )
     return float(res.D[0])

@@ -147,12 +147,10 @@ def build_day_grid(times, ghi, longitude: float, *, dni=None, step_s: int | None
         day_index = day[new_day]
         row = np.cumsum(new_day) - 1
     else:
-        # unordered input: number the days present through a dense table over the span
-        # (no sort; bincount below averages whatever lands in a slot, in any order)
-        d0 = int(day.min())
-        present = np.bincount(day - d0) > 0
-        day_index = np.flatnonzero(present) + d0
-        row = (np.cumsum(present) - 1)[day - d0]
+        # unordered input: number the days present (bincount below averages whatever
+        # lands in a slot, in any order); np.unique, not a dense table over the span, so a
+        # stray far-off time costs one day, not memory for every day in between
+        day_index, row = np.unique(day, return_inverse=True)
     flat = row * n_slots + slot
     size = day_index.size * n_slots
 
@@ -173,5 +171,6 @@ def build_day_grid(times, ghi, longitude: float, *, dni=None, step_s: int | None
     ghi_grid, n_samples = binned(g)
     dni_grid = None if dn is None else binned(dn)[0]
     t0 = day_index * SECONDS_PER_DAY - longitude * 240.0
-    return DayGrid(step_s=step, day_index=day_index, t0_posix=t0, ghi=ghi_grid, dni=dni_grid,
-                   n_samples=n_samples)
+    return DayGrid(
+        step_s=step, day_index=day_index, t0_posix=t0, ghi=ghi_grid, dni=dni_grid, n_samples=n_samples
+    )

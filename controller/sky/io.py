@@ -30,14 +30,15 @@ from controller.errors import InputError
 
 Format = Literal["csv", "bsrn", "midc", "surfrad"]
 
-TIME_NAMES = ("time", "timestamp", "datetime", "date_time", "time_utc", "timestamp_utc", "utc",
-              "date")
+TIME_NAMES = ("time", "timestamp", "datetime", "date_time", "time_utc", "timestamp_utc", "utc", "date")
 GHI_NAMES = ("ghi", "ghi_wm2", "global", "global_horizontal", "glob", "dw_solar", "swdown")
 DNI_NAMES = ("dni", "dni_wm2", "direct", "direct_normal", "beam")
 #: Most negative plausible irradiance (thermopile night offset), W/m2.
 MIN_IRRADIANCE = -20.0
 #: Largest plausible irradiance (above any cloud enhancement at the ground), W/m2.
 MAX_IRRADIANCE = 2000.0
+#: Plausible sample times, POSIX s (1900-01-01 .. 2200-01-01).
+TIME_RANGE = (-2208988800.0, 7258118400.0)
 
 
 @dataclass(frozen=True)
@@ -67,8 +68,15 @@ class Record:
     sources: tuple[str, ...] = ()
 
 
-def _pick(columns: list[str], given: str | None, exact: tuple[str, ...], contains: tuple[str, ...],
-          what: str, path: Path, required: bool = True) -> str | None:
+def _pick(
+    columns: list[str],
+    given: str | None,
+    exact: tuple[str, ...],
+    contains: tuple[str, ...],
+    what: str,
+    path: Path,
+    required: bool = True,
+) -> str | None:
     if given is not None:
         if given in columns:
             return given
@@ -86,26 +94,35 @@ def _pick(columns: list[str], given: str | None, exact: tuple[str, ...], contain
     if not required:
         return None
     why = f"several candidates {hits}" if hits else "no column looks like it"
-    raise InputError(f"{path}: cannot tell which column is {what} ({why}); columns are "
-                     f"{columns}; name it with --{what.split()[0].lower()}-col")
+    raise InputError(
+        f"{path}: cannot tell which column is {what} ({why}); columns are "
+        f"{columns}; name it with --{what.split()[0].lower()}-col"
+    )
 
 
 def _irradiance(values: pd.Series, path: Path, column: str, row_offset: int) -> np.ndarray:
     num = pd.to_numeric(values, errors="coerce")
     text = values.astype(str).str.strip()
-    bad = num.isna().to_numpy() & values.notna().to_numpy() & ~text.str.lower().isin(
-        ["", "nan", "na", "n/a", "null"]).to_numpy()
+    bad = (
+        num.isna().to_numpy()
+        & values.notna().to_numpy()
+        & ~text.str.lower().isin(["", "nan", "na", "n/a", "null"]).to_numpy()
+    )
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{path}: row {i + row_offset}, column {column!r}: expected an "
-                         f"irradiance in W/m2, got {values.iloc[i]!r}")
+        raise InputError(
+            f"{path}: row {i + row_offset}, column {column!r}: expected an "
+            f"irradiance in W/m2, got {values.iloc[i]!r}"
+        )
     arr = num.to_numpy(dtype=float)
     out_of_range = (arr < MIN_IRRADIANCE) | (arr > MAX_IRRADIANCE)
     if out_of_range.any():
         i = int(np.flatnonzero(out_of_range)[0])
-        raise InputError(f"{path}: row {i + row_offset}, column {column!r}: expected an "
-                         f"irradiance between {MIN_IRRADIANCE:g} and {MAX_IRRADIANCE:g} W/m2, "
-                         f"got {arr[i]:g} ({int(out_of_range.sum())} such rows)")
+        raise InputError(
+            f"{path}: row {i + row_offset}, column {column!r}: expected an "
+            f"irradiance between {MIN_IRRADIANCE:g} and {MAX_IRRADIANCE:g} W/m2, "
+            f"got {arr[i]:g} ({int(out_of_range.sum())} such rows)"
+        )
     return arr
 
 
@@ -122,13 +139,25 @@ def _times(values: pd.Series, path: Path, column: str, row_offset: int) -> np.nd
         t = np.where(bad, np.nan, parsed.to_numpy(dtype="datetime64[ns]").astype(np.int64) / 1e9)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
-        raise InputError(f"{path}: row {i + row_offset}, column {column!r}: expected a UTC time "
-                         f"(e.g. 2016-06-01T12:00:00Z), got {values.iloc[i]!r}")
+        raise InputError(
+            f"{path}: row {i + row_offset}, column {column!r}: expected a UTC time "
+            f"(e.g. 2016-06-01T12:00:00Z), got {values.iloc[i]!r}"
+        )
+    far = (t < TIME_RANGE[0]) | (t > TIME_RANGE[1])
+    if far.any():
+        i = int(np.flatnonzero(far)[0])
+        v = values.iloc[i]
+        got = repr(v) if isinstance(v, str) else f"{float(v):g}"
+        raise InputError(
+            f"{path}: row {i + row_offset}, column {column!r}: expected a time "
+            f"between the years 1900 and 2200 (POSIX seconds or ISO 8601), got {got}"
+        )
     return t
 
 
-def read_csv_record(path: str | Path, time_col: str | None = None, ghi_col: str | None = None,
-                    dni_col: str | None = None) -> Record:
+def read_csv_record(
+    path: str | Path, time_col: str | None = None, ghi_col: str | None = None, dni_col: str | None = None
+) -> Record:
     """Read a CSV file with a UTC time column, a GHI column and optionally DNI (see module doc)."""
     path = Path(path)
     try:
@@ -162,8 +191,9 @@ def _merged_midc_map() -> dict[str, str]:
     return merged
 
 
-def read_station_record(path: str | Path, fmt: Format, ghi_col: str | None = None,
-                        dni_col: str | None = None) -> Record:
+def read_station_record(
+    path: str | Path, fmt: Format, ghi_col: str | None = None, dni_col: str | None = None
+) -> Record:
     """Read a BSRN, MIDC or SURFRAD file with pvlib.iotools; columns mapped to ghi / dni."""
     import pvlib
 
@@ -208,14 +238,25 @@ def read_station_record(path: str | Path, fmt: Format, ghi_col: str | None = Non
                     pass
         return None
 
-    return Record(times=t, ghi=ghi, dni=dni, latitude=meta_float("latitude"),
-                  longitude=meta_float("longitude"),
-                  altitude=meta_float("altitude", "elevation"), sources=(str(path),))
+    return Record(
+        times=t,
+        ghi=ghi,
+        dni=dni,
+        latitude=meta_float("latitude"),
+        longitude=meta_float("longitude"),
+        altitude=meta_float("altitude", "elevation"),
+        sources=(str(path),),
+    )
 
 
-def read_records(paths: list[str | Path], fmt: Format = "csv", time_col: str | None = None,
-                 ghi_col: str | None = None, dni_col: str | None = None,
-                 progress: bool = False) -> Record:
+def read_records(
+    paths: list[str | Path],
+    fmt: Format = "csv",
+    time_col: str | None = None,
+    ghi_col: str | None = None,
+    dni_col: str | None = None,
+    progress: bool = False,
+) -> Record:
     """Read and concatenate several files of one station (e.g. monthly BSRN files).
 
     DNI is kept only when every file has it.
@@ -227,14 +268,22 @@ def read_records(paths: list[str | Path], fmt: Format = "csv", time_col: str | N
         from tqdm import tqdm
 
         it = tqdm(paths, unit="file", desc="read")
-    recs = [read_csv_record(p, time_col, ghi_col, dni_col) if fmt == "csv"
-            else read_station_record(p, fmt, ghi_col, dni_col) for p in it]
+    recs = [
+        read_csv_record(p, time_col, ghi_col, dni_col)
+        if fmt == "csv"
+        else read_station_record(p, fmt, ghi_col, dni_col)
+        for p in it
+    ]
     if np.all(np.isnan(np.concatenate([r.ghi for r in recs]))):
         raise InputError(f"{', '.join(r.sources[0] for r in recs)}: every GHI value is missing")
     with_dni = all(r.dni is not None for r in recs)
     first = recs[0]
-    return Record(times=np.concatenate([r.times for r in recs]),
-                  ghi=np.concatenate([r.ghi for r in recs]),
-                  dni=np.concatenate([r.dni for r in recs]) if with_dni else None,
-                  latitude=first.latitude, longitude=first.longitude, altitude=first.altitude,
-                  sources=tuple(s for r in recs for s in r.sources))
+    return Record(
+        times=np.concatenate([r.times for r in recs]),
+        ghi=np.concatenate([r.ghi for r in recs]),
+        dni=np.concatenate([r.dni for r in recs]) if with_dni else None,
+        latitude=first.latitude,
+        longitude=first.longitude,
+        altitude=first.altitude,
+        sources=tuple(s for r in recs for s in r.sources),
+    )

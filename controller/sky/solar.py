@@ -19,8 +19,7 @@ SECONDS_PER_DAY = 86400.0
 def day_of_year(posix_s: np.ndarray) -> np.ndarray:
     """Fractional day of year (1 on 1 January 00:00 UTC) for POSIX seconds."""
     t = np.asarray(posix_s, dtype=float)
-    year_start = (t.astype("datetime64[s]").astype("datetime64[Y]")
-                  .astype("datetime64[s]").astype(float))
+    year_start = t.astype("datetime64[s]").astype("datetime64[Y]").astype("datetime64[s]").astype(float)
     return 1.0 + (t - year_start) / SECONDS_PER_DAY
 
 
@@ -47,8 +46,14 @@ def row_geometry(t_mid_posix: np.ndarray) -> dict[str, np.ndarray]:
     }
 
 
-def cos_zenith_rows(t0_posix: np.ndarray, step_s: float, n_slots: int, latitude: float,
-                    longitude: float, geometry: dict[str, np.ndarray]) -> np.ndarray:
+def cos_zenith_rows(
+    t0_posix: np.ndarray,
+    step_s: float,
+    n_slots: int,
+    latitude: float,
+    longitude: float,
+    geometry: dict[str, np.ndarray],
+) -> np.ndarray:
     """Cosine of the solar zenith on a regular grid, one row per day or window.
 
     Parameters
@@ -81,8 +86,7 @@ def cos_zenith_rows(t0_posix: np.ndarray, step_s: float, n_slots: int, latitude:
     return a + b * np.cos(hour_angle.astype(np.float32))
 
 
-def sunset_hour_angle(latitude: float, declination: np.ndarray,
-                      elevation_deg: float = 0.0) -> np.ndarray:
+def sunset_hour_angle(latitude: float, declination: np.ndarray, elevation_deg: float = 0.0) -> np.ndarray:
     """Hour angle (rad) at which the sun crosses ``elevation_deg``; 0 in polar night, pi in polar day."""
     phi = np.radians(latitude)
     num = np.sin(np.radians(elevation_deg)) - np.sin(phi) * np.sin(declination)
@@ -90,8 +94,9 @@ def sunset_hour_angle(latitude: float, declination: np.ndarray,
     return np.arccos(np.clip(num / den, -1.0, 1.0))
 
 
-def daily_extraterrestrial_irradiation(latitude: float, declination: np.ndarray,
-                                       e0: np.ndarray) -> np.ndarray:
+def daily_extraterrestrial_irradiation(
+    latitude: float, declination: np.ndarray, e0: np.ndarray
+) -> np.ndarray:
     """Extraterrestrial irradiation on a horizontal surface over a whole day, J/m2.
 
     H0 = (86400 / pi) * E0 * (cos(phi) cos(delta) sin(ws) + ws sin(phi) sin(delta)),
@@ -99,5 +104,8 @@ def daily_extraterrestrial_irradiation(latitude: float, declination: np.ndarray,
     """
     phi = np.radians(latitude)
     ws = sunset_hour_angle(latitude, declination)
-    return (SECONDS_PER_DAY / np.pi) * e0 * (
-        np.cos(phi) * np.cos(declination) * np.sin(ws) + ws * np.sin(phi) * np.sin(declination))
+    return (
+        (SECONDS_PER_DAY / np.pi)
+        * e0
+        * (np.cos(phi) * np.cos(declination) * np.sin(ws) + ws * np.sin(phi) * np.sin(declination))
+    )

@@ -20,8 +20,13 @@ WMO_SUNSHINE_DNI = 120.0
 ERBS_MIN_COS_ZENITH = 0.065
 
 
-def sunshine_fraction(dni: np.ndarray, valid: np.ndarray, cos_zenith: np.ndarray,
-                      threshold: float = WMO_SUNSHINE_DNI, min_cos_zenith: float = 0.0) -> np.ndarray:
+def sunshine_fraction(
+    dni: np.ndarray,
+    valid: np.ndarray,
+    cos_zenith: np.ndarray,
+    threshold: float = WMO_SUNSHINE_DNI,
+    min_cos_zenith: float = 0.0,
+) -> np.ndarray:
     """Relative sunshine per row: daylit slots with DNI >= threshold over daylit slots with data.
 
     Parameters
@@ -76,14 +81,18 @@ def pyranometric_dni(ghi_1min: np.ndarray, cos_zenith: np.ndarray, doy: np.ndarr
     """
     zen = np.degrees(np.arccos(np.clip(cos_zenith, -1.0, 1.0)))
     doy2 = np.broadcast_to(np.asarray(doy, float)[:, None], ghi_1min.shape)
-    out = pvlib.irradiance.erbs(np.maximum(np.nan_to_num(ghi_1min), 0.0).ravel(), zen.ravel(),
-                                doy2.ravel())
+    out = pvlib.irradiance.erbs(np.maximum(np.nan_to_num(ghi_1min), 0.0).ravel(), zen.ravel(), doy2.ravel())
     return np.asarray(out["dni"], float).reshape(ghi_1min.shape)
 
 
-def pyranometric_sunshine_fraction(ghi: np.ndarray, valid: np.ndarray, cos_zenith: np.ndarray,
-                                   step_s: float, doy: np.ndarray,
-                                   threshold: float = WMO_SUNSHINE_DNI) -> np.ndarray:
+def pyranometric_sunshine_fraction(
+    ghi: np.ndarray,
+    valid: np.ndarray,
+    cos_zenith: np.ndarray,
+    step_s: float,
+    doy: np.ndarray,
+    threshold: float = WMO_SUNSHINE_DNI,
+) -> np.ndarray:
     """Relative sunshine per row estimated from GHI alone (Erbs DNI >= threshold).
 
     GHI is first averaged to one minute (the time base of the WMO definition and of the

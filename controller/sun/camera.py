@@ -28,7 +28,7 @@ IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm"}
 @dataclass(frozen=True)
 class CameraFrame:
     image: np.ndarray
-    time: float          # POSIX s when it was exposed
+    time: float  # POSIX s when it was exposed
     name: str = ""
 
 
@@ -63,9 +63,12 @@ class FolderFrameSource(FrameSource):
         stamped = [(time_from_name(p.name), p) for p in files]
         bad = [p.name for ts, p in stamped if ts is None]
         if bad:
-            raise ConfigError(None, "hotspot.frames",
-                              f"image names with a timestamp (e.g. {CANONICAL_EXAMPLE}.png)",
-                              ", ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""))
+            raise ConfigError(
+                None,
+                "hotspot.frames",
+                f"image names with a timestamp (e.g. {CANONICAL_EXAMPLE}.png)",
+                ", ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""),
+            )
         self.frames = sorted((ts, p) for ts, p in stamped)
         self.times = np.array([ts for ts, _ in self.frames])
         self.max_age_s = max_age_s

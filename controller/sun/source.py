@@ -27,11 +27,16 @@ class Site:
     latitude: float = setting(doc="Latitude, north positive.", unit="deg", ge=-90, le=90)
     longitude: float = setting(doc="Longitude, east positive.", unit="deg", ge=-180, le=180)
     altitude: float = setting(0.0, doc="Height above sea level.", unit="m", ge=-500, le=9000)
-    pressure_pa: float | None = setting(None, doc="Mean air pressure (none: from the "
-                                        "altitude) for refraction.", unit="Pa",
-                                        ge=30000, le=110000)
-    temperature_c: float = setting(12.0, doc="Mean air temperature, for refraction.",
-                                   unit="degC", ge=-60, le=60)
+    pressure_pa: float | None = setting(
+        None,
+        doc="Mean air pressure (none: from the altitude) for refraction.",
+        unit="Pa",
+        ge=30000,
+        le=110000,
+    )
+    temperature_c: float = setting(
+        12.0, doc="Mean air temperature, for refraction.", unit="degC", ge=-60, le=60
+    )
     name: str = setting("", doc="Name (reports, SunSpec).")
 
     @property
@@ -49,8 +54,13 @@ def solar_position(site: Site, times) -> pd.DataFrame:
     """
     idx = _to_index(times)
     return pvlib.solarposition.get_solarposition(
-        idx, site.latitude, site.longitude, altitude=site.altitude,
-        pressure=site.pressure, temperature=site.temperature_c, method="nrel_numpy",
+        idx,
+        site.latitude,
+        site.longitude,
+        altitude=site.altitude,
+        pressure=site.pressure,
+        temperature=site.temperature_c,
+        method="nrel_numpy",
     )
 
 
@@ -78,7 +88,7 @@ class SunSource(abc.ABC):
         from observations (the ephemeris) ignore it."""
         return False
 
-    def save(self) -> None:
+    def save(self) -> None:  # noqa: B027 - a no-op by design for stateless sources
         """Persist what the source has learned (atomically); a no-op for stateless sources."""
 
     def summary(self) -> dict[str, Any]:
@@ -105,7 +115,7 @@ class EphemerisSource(SunSource):
 
     def estimate(self, t: float, now: float | None = None) -> SunEstimate:
         sp = solar_position(self.site, [t]).iloc[0]
-        s2 = self.sigma_deg ** 2
+        s2 = self.sigma_deg**2
         return SunEstimate(
             time=float(t),
             az_deg=float(sp["azimuth"]),

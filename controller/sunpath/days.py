@@ -108,8 +108,11 @@ class DayResult:
     def as_row(self) -> dict:
         """Plain dict with ``noon_utc`` as ISO 8601 and floats rounded for output."""
         row = asdict(self)
-        row["noon_utc"] = datetime.fromtimestamp(self.noon_utc, tz=UTC).isoformat(
-            timespec="seconds") if np.isfinite(self.noon_utc) else ""
+        row["noon_utc"] = (
+            datetime.fromtimestamp(self.noon_utc, tz=UTC).isoformat(timespec="seconds")
+            if np.isfinite(self.noon_utc)
+            else ""
+        )
         for k, v in row.items():
             if isinstance(v, float):
                 row[k] = None if not np.isfinite(v) else round(v, 6)

@@ -55,8 +55,8 @@ def geocentric_sun(t) -> GeocentricSun:
     dt = _utc(t)
     delta_t = pvlib.spa.calculate_deltat(dt.year.to_numpy(), dt.month.to_numpy())
     v, alpha, delta = pvlib.spa.solar_position_numpy(
-        t, 0.0, 0.0, 0.0, 1013.25, 12.0, np.asarray(delta_t, dtype=float), _ATMOS_REFRACT, 1,
-        sst=True)
+        t, 0.0, 0.0, 0.0, 1013.25, 12.0, np.asarray(delta_t, dtype=float), _ATMOS_REFRACT, 1, sst=True
+    )
     return GeocentricSun(np.asarray(v, float), np.asarray(alpha, float), np.asarray(delta, float))
 
 
@@ -96,8 +96,14 @@ def refraction_deg(el0_deg, pressure_hpa: float = 1013.25, temp_c: float = 12.0)
     return pvlib.spa.atmospheric_refraction_correction(pressure_hpa, temp_c, el0, _ATMOS_REFRACT)
 
 
-def azel_from_hour_angle(hour_angle_deg, dec_deg, lat_deg, refraction_scale=1.0,
-                         pressure_hpa: float = 1013.25, temp_c: float = 12.0):
+def azel_from_hour_angle(
+    hour_angle_deg,
+    dec_deg,
+    lat_deg,
+    refraction_scale=1.0,
+    pressure_hpa: float = 1013.25,
+    temp_c: float = 12.0,
+):
     """Apparent azimuth and elevation (deg) of the sun from hour angle and declination.
 
     ``el0 = asin(sin(lat) sin(dec) + cos(lat) cos(dec) cos(H))``;
@@ -113,7 +119,6 @@ def azel_from_hour_angle(hour_angle_deg, dec_deg, lat_deg, refraction_scale=1.0,
     p = np.radians(lat_deg)
     s = np.sin(p) * np.sin(d) + np.cos(p) * np.cos(d) * np.cos(h)
     el0 = np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
-    az = (np.degrees(np.arctan2(np.sin(h), np.cos(h) * np.sin(p) - np.tan(d) * np.cos(p)))
-          + 180.0) % 360.0
+    az = (np.degrees(np.arctan2(np.sin(h), np.cos(h) * np.sin(p) - np.tan(d) * np.cos(p))) + 180.0) % 360.0
     el = el0 + refraction_scale * refraction_deg(el0, pressure_hpa, temp_c)
     return az, el

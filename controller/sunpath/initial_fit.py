@@ -39,17 +39,20 @@ class InitialFit:
         POSIX seconds the state refers to: the last observation without a site, the first
         one with a site (the others are then assimilated one by one).
     n_used : int
-        Observations the fit accepted (residual under 5 deg).
+        Observations the fit accepted (residual under 5 sigma).
+    rms_sigma : float
+        RMS residual per axis over every observation, in units of their sigma (about 1
+        for a self-consistent sky; much more for garbage).
     """
 
     x: np.ndarray
     P: np.ndarray
     t: float
     n_used: int
+    rms_sigma: float = float("nan")
 
 
-def prior_mean_sigma(config: KalmanConfig, mode: str, site: Site | None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+def prior_mean_sigma(config: KalmanConfig, mode: str, site: Site | None) -> tuple[np.ndarray, np.ndarray]:
     """Prior mean and one-sigma of the state (for the batch fit) given what is known.
 
     ``ephemeris`` mode: the declination correction is 0 +- 0.05 deg and its drift
@@ -57,8 +60,7 @@ def prior_mean_sigma(config: KalmanConfig, mode: str, site: Site | None
     """
     c = config
     x0 = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
-    s0 = np.array([c.sigma_lat, c.sigma_lon, c.sigma_dec, c.sigma_rate, c.sigma_az_off,
-                   c.sigma_refr])
+    s0 = np.array([c.sigma_lat, c.sigma_lon, c.sigma_dec, c.sigma_rate, c.sigma_az_off, c.sigma_refr])
     if site is not None:
         x0[LAT], x0[LON] = site.latitude, site.longitude
         s0[LAT] = s0[LON] = c.site_sigma_deg
@@ -67,8 +69,9 @@ def prior_mean_sigma(config: KalmanConfig, mode: str, site: Site | None
     return x0, s0
 
 
-def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: str,
-                site: Site | None) -> InitialFit | None:
+def initial_fit(
+    observations: list[SunObservation], config: KalmanConfig, mode: str, site: Site | None
+) -> InitialFit | None:
     """Batch fit of the buffered observations, or None while they cannot start the filter.
 
     Parameters
@@ -111,8 +114,7 @@ def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: 
 
     def resid(p, fixed):
         m_az, m_el = model(p, fixed)
-        r = np.concatenate([wrap180(az - m_az) * np.cos(np.radians(el)) / sig,
-                            (el - m_el) / sig])
+        r = np.concatenate([wrap180(az - m_az) * np.cos(np.radians(el)) / sig, (el - m_el) / sig])
         x = fixed.copy()
         x[free] = p
         pri = [(x[k] - x0[k]) / s0[k] for k in free if s0[k] < 1.0]
@@ -129,7 +131,7 @@ def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: 
     J = best.jac
     n = len(obs)
     # Drop gross outliers before judging the fit.
-    r = best.fun[:2 * n].reshape(2, n)
+    r = best.fun[: 2 * n].reshape(2, n)
     ok = np.hypot(r[0], r[1]) < 5.0
     try:
         cov = np.linalg.inv(J.T @ J)
@@ -139,10 +141,9 @@ def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: 
     x[free] = best.x
     sd = np.sqrt(np.clip(np.diag(cov), 0, None))
     fi = {k: i for i, k in enumerate(free)}
-    if not known and (max(sd[fi[LAT]], sd[fi[LON]]) > c.init_max_sigma_deg
-                      or ok.mean() < 0.7):
+    if not known and (max(sd[fi[LAT]], sd[fi[LON]]) > c.init_max_sigma_deg or ok.mean() < 0.7):
         return None
-    P = np.diag(s0 ** 2)
+    P = np.diag(s0**2)
     idx = np.array(free)
     P[np.ix_(idx, idx)] = cov * 4.0  # inflate: the batch fit ignored the rate and refr
     if mode == "free":
@@ -158,13 +159,21 @@ def initial_fit(observations: list[SunObservation], config: KalmanConfig, mode: 
         P[RATE, RATE] = np.sin(np.radians(c.obliquity_deg)) ** 2
     x[LON] = float(wrap180(x[LON]))
     x[AZOFF] = float(x[AZOFF] % 360.0)
-    return InitialFit(x, 0.5 * (P + P.T), t_ref if not known else float(t[0]),
-                      int(ok.sum()))
+    return InitialFit(
+        x, 0.5 * (P + P.T), t_ref if not known else float(t[0]), int(ok.sum()), float(np.sqrt(np.mean(r**2)))
+    )
 
 
-def grid_starts(geo: GeocentricSun, az: np.ndarray, el: np.ndarray, fixed: np.ndarray,
-                free: list[int], known: bool, config: KalmanConfig, mode: str
-                ) -> list[np.ndarray]:
+def grid_starts(
+    geo: GeocentricSun,
+    az: np.ndarray,
+    el: np.ndarray,
+    fixed: np.ndarray,
+    free: list[int],
+    known: bool,
+    config: KalmanConfig,
+    mode: str,
+) -> list[np.ndarray]:
     """Starting points: a coarse grid scored with the best constant azimuth offset.
 
     The grid is latitude -75..75 deg by 7.5, longitude -180..170 by 10 and (``free``
@@ -185,7 +194,7 @@ def grid_starts(geo: GeocentricSun, az: np.ndarray, el: np.ndarray, fixed: np.nd
     daz = np.radians(az[None, :] - m_az)
     off = np.degrees(np.arctan2(np.sin(daz).mean(1), np.cos(daz).mean(1)))
     raz = wrap180(az[None, :] - m_az - off[:, None]) * np.cos(np.radians(el))[None, :]
-    cost = np.sum(np.minimum(raz ** 2 + (el[None, :] - m_el) ** 2, 25.0), axis=1)
+    cost = np.sum(np.minimum(raz**2 + (el[None, :] - m_el) ** 2, 25.0), axis=1)
     order = np.argsort(cost)[:4]
     starts = []
     for j in order:

@@ -1,13 +1,21 @@
-"""Reading sun observations and request times from CSV, with errors that say what to fix.
+"""Reading sun observations and request times, with errors that say what to fix.
 
-Observation CSV: a header with ``time`` (ISO 8601 with a UTC offset, e.g.
-``2024-03-01T08:15:00+03:30`` or ``...Z``), ``az_deg`` (clockwise from north),
-``el_deg`` (above the horizon) and optionally ``sigma_deg`` (one-sigma, > 0; default 0.3).
+Two forms, told apart by the first character:
+
+* CSV: a header with ``time`` (a time with a zone, any form of
+  :mod:`controller.timestamps`, e.g. ``2024-03-01T08:15:00+03:30`` or ``...Z``), ``az_deg``
+  (clockwise from north), ``el_deg`` (above the horizon) and optionally ``sigma_deg``
+  (one-sigma, > 0; default 0.3);
+* JSON lines, as ``heliotrack estimate`` prints them: one object per line with ``found``,
+  ``time``, ``az_deg``, ``el_deg``, ``sigma_deg`` and ``frame``; lines with ``found``
+  false are skipped, so ``estimate ... > obs.jsonl`` feeds ``sunpath obs.jsonl`` directly.
 """
 
 from __future__ import annotations
 
 import csv
+import io
+import json
 import math
 from pathlib import Path
 
@@ -17,6 +25,63 @@ from ..timestamps import parse_timestamp
 
 REQUIRED = ("time", "az_deg", "el_deg")
 DEFAULT_SIGMA_DEG = 0.3
+
+
+def read_text_strict(path: Path, what: str) -> str:
+    """A file's text (UTF-8, with or without a BOM); an unreadable or non-UTF-8 file is an
+    InputError naming the file and the line of the first bad byte."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read {what} ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise InputError(
+            f"{path}: row {line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); save the file as UTF-8"
+        ) from None
+
+
+def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]:
+    out = []
+    skipped = 0
+    for line_no, line in enumerate(text.splitlines(), start=1):
+        if not line.strip():
+            continue
+        w = f"{path}: line {line_no}"
+        try:
+            d = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"{w}: not JSON ({exc.msg}, column {exc.colno})") from None
+        if not isinstance(d, dict):
+            raise InputError(f"{w}: expected a JSON object per line")
+        if not d.get("found"):
+            skipped += 1
+            continue
+        if d.get("time") is None:
+            raise InputError(
+                f"{w}: found but without a time (give estimate --time, or name frames by their time)"
+            )
+        t = parse_time(str(d["time"]), f"{w}, key 'time'")
+        az = _number(d.get("az_deg"), f"{w}, key 'az_deg'", -360.0, 720.0, "an azimuth in degrees")
+        el = _number(
+            d.get("el_deg"), f"{w}, key 'el_deg'", -90.0, 90.0, "an elevation in degrees between -90 and 90"
+        )
+        sig = d.get("sigma_deg")
+        sig = (
+            DEFAULT_SIGMA_DEG
+            if sig is None
+            else _number(sig, f"{w}, key 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
+        )
+        frame = d.get("frame", "enu")
+        if frame not in ("enu", "model"):
+            raise InputError(f"{w}, key 'frame': expected enu or model, got {frame!r}")
+        out.append(SunObservation(t, az % 360.0, el, sig, frame=frame, sensor=sensor))
+    if not out:
+        raise InputError(f"{path}: no observations with found = true ({skipped} without)")
+    out.sort(key=lambda o: o.time)
+    return out
 
 
 def parse_time(text: str, where: str) -> float:
@@ -43,32 +108,40 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
         Missing file or column, bad value (names file, row and column), or no rows.
     """
     path = Path(path)
-    try:
-        fh = path.open(newline="", encoding="utf-8-sig")
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read observations ({exc.strerror})") from None
+    text = read_text_strict(path, "observations")
+    if text.lstrip().startswith("{"):
+        return _read_json_lines(path, text, sensor)
     out = []
-    with fh:
+    with io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
         reader.fieldnames = header
         missing = [c for c in REQUIRED if c not in header]
         if missing:
-            raise InputError(f"{path}: row 1 (header): missing column(s) {', '.join(missing)};"
-                             f" expected time, az_deg, el_deg[, sigma_deg], got "
-                             f"{', '.join(header) or 'nothing'}")
+            raise InputError(
+                f"{path}: row 1 (header): missing column(s) {', '.join(missing)};"
+                f" expected time, az_deg, el_deg[, sigma_deg], got "
+                f"{', '.join(header) or 'nothing'}"
+            )
         for row_no, row in enumerate(reader, start=2):
             if not any((v or "").strip() for v in row.values() if isinstance(v, str)):
                 continue  # blank line
             w = f"{path}: row {row_no}"
             t = parse_time(row.get("time") or "", f"{w}, column 'time'")
-            az = _number(row.get("az_deg"), f"{w}, column 'az_deg'", -360.0, 720.0,
-                         "an azimuth in degrees")
-            el = _number(row.get("el_deg"), f"{w}, column 'el_deg'", -90.0, 90.0,
-                         "an elevation in degrees between -90 and 90")
+            az = _number(row.get("az_deg"), f"{w}, column 'az_deg'", -360.0, 720.0, "an azimuth in degrees")
+            el = _number(
+                row.get("el_deg"),
+                f"{w}, column 'el_deg'",
+                -90.0,
+                90.0,
+                "an elevation in degrees between -90 and 90",
+            )
             sig_text = (row.get("sigma_deg") or "").strip() if "sigma_deg" in header else ""
-            sig = (_number(sig_text, f"{w}, column 'sigma_deg'", 1e-6, 90.0,
-                           "a positive one-sigma in degrees") if sig_text else DEFAULT_SIGMA_DEG)
+            sig = (
+                _number(sig_text, f"{w}, column 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
+                if sig_text
+                else DEFAULT_SIGMA_DEG
+            )
             out.append(SunObservation(t, az % 360.0, el, sig, sensor=sensor))
     if not out:
         raise InputError(f"{path}: no observations (expected rows of time, az_deg, el_deg)")

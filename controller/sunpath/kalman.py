@@ -44,7 +44,8 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from ..sun.source import Site
 from ..sun.types import SunObservation
-from .days import DayResult, split_days
+from .bounds import bound_covariance, max_sigma, observation_problem, state_problem
+from .days import DayResult
 from .ephemeris import GeocentricSun, azel_from_hour_angle, geocentric_sun, transit_time, wrap180
 from .initial_fit import initial_fit
 from .kalman_config import (
@@ -71,12 +72,28 @@ from .orbit import (
     orbit_rotation,
 )
 from .persistence import kalman_from_dict, kalman_to_dict
+from .recovery import SiteMismatch, add_older, add_to_run, assess_run, inflate, inflation_caps
 
 # Callers import the filter's records and the orbit law from here too.
-__all__ = ["AZOFF", "DEC", "FREE_MODEL", "LAT", "LON", "MEAN_MOTION_DEG_PER_DAY",
-           "OBLIQUITY_DEG", "OMEGA_YEAR", "RATE", "REFR", "STATE_NAMES", "STATE_NAMES_FREE",
-           "KalmanConfig", "Prediction", "SunPathKalman", "UpdateResult", "orbit_advance_deg",
-           "run_kalman"]
+__all__ = [
+    "AZOFF",
+    "DEC",
+    "FREE_MODEL",
+    "LAT",
+    "LON",
+    "MEAN_MOTION_DEG_PER_DAY",
+    "OBLIQUITY_DEG",
+    "OMEGA_YEAR",
+    "RATE",
+    "REFR",
+    "STATE_NAMES",
+    "STATE_NAMES_FREE",
+    "KalmanConfig",
+    "Prediction",
+    "SunPathKalman",
+    "UpdateResult",
+    "orbit_advance_deg",
+]
 
 
 class SunPathKalman:
@@ -102,8 +119,18 @@ class SunPathKalman:
         self.buffer: list[SunObservation] = []
         self.consecutive_rejects = 0
         self.n_accepted = 0
-        self.n_rejected = 0
+        self.n_rejected = 0  # every observation not used, whatever the reason
+        self.n_older = 0  # of which: older than the state
+        self.n_invalid = 0  # of which: not an observation of the sun (NaN, el > 90, ...)
+        self.n_reinit = 0  # restarts from a self-consistent run of rejections
+        self.n_rebase = 0  # states carried back to a clock that stepped back
         self.obliquity_applied = False
+        # Transient (not saved): the runs :mod:`.recovery` judges, and what it found.
+        self.rejected_run: list[SunObservation] = []
+        self.older_run: list[SunObservation] = []
+        self.site_mismatch: SiteMismatch | None = None
+        self._run_judged_at = float("nan")  # last run member judged (judge once per member)
+        self._consecutive_accepts = 0
 
     # ------------------------------------------------------------------ state access
     @property
@@ -126,8 +153,9 @@ class SunPathKalman:
     def _azel(self, x, geo: GeocentricSun, i=0):
         """Model (sensor azimuth, elevation) for state ``x`` at the time of ``geo[i]``."""
         h = wrap180(geo.sidereal_deg[i] + x[LON] - geo.ra_deg[i])
-        az, el = azel_from_hour_angle(h, self._dec(x, geo, i), x[LAT], x[REFR],
-                                      self.config.pressure_hpa, self.config.temp_c)
+        az, el = azel_from_hour_angle(
+            h, self._dec(x, geo, i), x[LAT], x[REFR], self.config.pressure_hpa, self.config.temp_c
+        )
         return float(az) + x[AZOFF], float(el)
 
     def _jacobian(self, x, geo, i=0, scaled=True):
@@ -148,8 +176,7 @@ class SunPathKalman:
     @staticmethod
     def _residual(z, hx):
         """Tangent-plane residual ``(d_az cos(el), d_el)`` in deg."""
-        return np.array([float(wrap180(z[0] - hx[0])) * np.cos(np.radians(hx[1])),
-                         z[1] - hx[1]])
+        return np.array([float(wrap180(z[0] - hx[0])) * np.cos(np.radians(hx[1])), z[1] - hx[1]])
 
     # ------------------------------------------------------------------ time update
     def _transition(self, t0: float, t1: float):
@@ -168,8 +195,8 @@ class SunPathKalman:
         else:  # correction to SPA: constant plus slow drift
             F[DEC, RATE] = d
             qr = c.q_rate_ephemeris
-            Q[DEC, DEC] = c.q_dec * ad + qr * ad ** 3 / 3
-            Q[DEC, RATE] = Q[RATE, DEC] = qr * d * d / 2
+            Q[DEC, DEC] = c.q_dec * ad + qr * ad**3 / 3
+            Q[DEC, RATE] = Q[RATE, DEC] = qr * d * ad / 2  # sign of d: also backwards
             Q[RATE, RATE] = qr * ad
         Q[LAT, LAT] = Q[LON, LON] = c.q_site * ad
         Q[AZOFF, AZOFF] = c.q_az_off * ad
@@ -186,6 +213,8 @@ class SunPathKalman:
         F, Q = self._transition(self._state_time(), float(t))
         self.ekf.F, self.ekf.Q = F, Q
         self.ekf.predict()
+        # years without an observation must not leave a variance that means nothing
+        self.ekf.P = bound_covariance(self.ekf.P, max_sigma(self.mode))
         self.t = float(t)
 
     def _propagated(self, t: float) -> tuple[np.ndarray, np.ndarray]:
@@ -200,7 +229,7 @@ class SunPathKalman:
         is kept afterwards (apart from the small process noise).
         """
         c = self.config
-        if (self.mode != "free" or self.obliquity_applied or c.obliquity_sigma_deg <= 0):
+        if self.mode != "free" or self.obliquity_applied or c.obliquity_sigma_deg <= 0:
             return
         x, P = self.ekf.x, self.ekf.P
         if abs(x[RATE]) < 3.0 * np.sqrt(max(P[RATE, RATE], 0.0)):
@@ -223,41 +252,109 @@ class SunPathKalman:
 
     # ------------------------------------------------------------------ updates
     def update(self, obs: SunObservation) -> UpdateResult:
-        """Assimilate one observation (sensor-frame azimuth, elevation, sigma)."""
+        """Assimilate one observation (sensor-frame azimuth, elevation, sigma).
+
+        An observation that is not one of the sun, one older than the state and one the
+        innovation gate refuses are rejected and counted; an update that would leave the
+        state unphysical (:func:`.bounds.state_problem`) is refused likewise.  Runs of
+        them are handled by :mod:`.recovery`.
+        """
+        bad = observation_problem(obs)
+        if bad is not None:
+            self.n_invalid += 1
+            self.n_rejected += 1
+            return UpdateResult(False, float("nan"), self.initialised, f"invalid observation: {bad}")
         if not self.initialised:
             self.buffer.append(obs)
             if self._try_initialise():
                 return UpdateResult(True, 0.0, True, "initialised")
             return UpdateResult(False, float("nan"), False, "waiting to initialise")
         if obs.time < self._state_time() - 1e-6:
-            return UpdateResult(False, float("nan"), True, "older than the state")
+            return self._older(obs)
+        self.older_run = []
         self._propagate(obs.time)
         geo = geocentric_sun(obs.time)
         z = np.array([obs.az_deg, obs.el_deg])
-        R = np.eye(2) * obs.sigma_deg ** 2
+        R = np.eye(2) * obs.sigma_deg**2
         H = self._jacobian(self.ekf.x, geo)
         y = self._residual(z, self._azel(self.ekf.x, geo))
         S = H @ self.ekf.P @ H.T + R
         d2 = float(y @ np.linalg.solve(S, y))
-        if d2 > self.config.gate_chi2:
-            self.consecutive_rejects += 1
-            self.n_rejected += 1
-            if self.consecutive_rejects >= self.config.max_consecutive_rejects:
-                # A run of rejections means the filter, not the sky, is wrong.
-                self.ekf.P = self.ekf.P * 25.0
-                self.consecutive_rejects = 0
-            return UpdateResult(False, d2, True, "gated")
-        self.consecutive_rejects = 0
+        if not d2 <= self.config.gate_chi2:  # also NaN
+            return self._rejected(obs, d2, "gated")
+        x0, P0, obliquity0 = self.ekf.x.copy(), self.ekf.P.copy(), self.obliquity_applied
         if self.config.iterations <= 1:
-            self.ekf.update(z, lambda x: self._jacobian(x, geo),
-                            lambda x: np.array(self._azel(x, geo)), R=R,
-                            residual=self._residual)
+            self.ekf.update(
+                z,
+                lambda x: self._jacobian(x, geo),
+                lambda x: np.array(self._azel(x, geo)),
+                R=R,
+                residual=self._residual,
+            )
         else:
             self._iterated_update(z, R, geo, H, y)
         self._normalise()
         self._apply_obliquity()
+        bad_state = state_problem(self.ekf.x, self.ekf.P, self.mode)
+        if bad_state is not None:  # keep the prior: the linearisation failed, not the sky
+            self.ekf.x, self.ekf.P, self.obliquity_applied = x0, P0, obliquity0
+            return self._rejected(obs, d2, "non-physical update ({}: {})".format(*bad_state))
+        self.consecutive_rejects = 0
+        self.rejected_run = []
+        self._consecutive_accepts += 1
+        if self._consecutive_accepts >= self.config.max_consecutive_rejects:
+            self.site_mismatch = None  # the sky agrees with the state again
         self.n_accepted += 1
         return UpdateResult(True, d2, True)
+
+    def _rejected(self, obs: SunObservation, d2: float, reason: str) -> UpdateResult:
+        """Count a rejection and, every ``max_consecutive_rejects`` in a row, recover."""
+        c = self.config
+        self.consecutive_rejects += 1
+        self.n_rejected += 1
+        self._consecutive_accepts = 0
+        add_to_run(self.rejected_run, obs, c)
+        if self.consecutive_rejects % c.max_consecutive_rejects:
+            return UpdateResult(False, d2, True, reason)
+        run = self.rejected_run
+        verdict = None
+        if run and run[-1].time != self._run_judged_at:
+            self._run_judged_at = run[-1].time
+            verdict = assess_run(run, c, self.mode, self.site)
+        if verdict is not None and verdict.action == "restart" and verdict.fit is not None:
+            self._restart(verdict.fit, run if verdict.site_fixed else [])
+            return UpdateResult(True, d2, True, "re-initialised from the rejected run")
+        if verdict is not None and verdict.mismatch is not None:
+            self.site_mismatch = verdict.mismatch
+        if self.consecutive_rejects == c.max_consecutive_rejects:
+            # The filter may have drifted just past the gate: widen once per run, boundedly.
+            # A run that goes on is judged as a whole instead (above): widening again would
+            # only let garbage in.
+            self.ekf.P = inflate(self.ekf.P, inflation_caps(c, self.mode, self.site))
+        return UpdateResult(False, d2, True, reason)
+
+    def _restart(self, fit, run: list[SunObservation]) -> None:
+        """Start again from ``fit``; with a site fixed, assimilate the rest of ``run``."""
+        self.ekf.x, self.ekf.P, self.t = fit.x.copy(), fit.P.copy(), fit.t
+        self.obliquity_applied = False
+        self.consecutive_rejects = 0
+        self.rejected_run = []
+        self.n_reinit += 1
+        for o in sorted(run, key=lambda o: o.time)[1:]:
+            self.update(o)
+
+    def _older(self, obs: SunObservation) -> UpdateResult:
+        """Reject (and count) an observation older than the state; re-base on a clock step."""
+        self.n_older += 1
+        self.n_rejected += 1
+        if not add_older(self.older_run, obs, self.config):
+            return UpdateResult(False, float("nan"), True, "older than the state")
+        run, self.older_run = self.older_run, []
+        self.n_rebase += 1
+        self._propagate(run[0].time)  # carried back: process noise of the whole step
+        for o in run:
+            res = self.update(o)
+        return UpdateResult(res.accepted, res.mahalanobis2, True, f"re-based; {res.reason}")
 
     def _iterated_update(self, z, R, geo, H, y):
         """Iterated EKF measurement update (Gauss-Newton on the MAP cost).
@@ -294,7 +391,7 @@ class SunPathKalman:
         """Start from the batch fit of the buffer (:mod:`.initial_fit`) once it can."""
         obs = sorted(self.buffer, key=lambda o: o.time)
         fit = initial_fit(obs, self.config, self.mode, self.site)
-        if fit is None:
+        if fit is None or state_problem(fit.x, fit.P, self.mode) is not None:
             return False
         self.ekf.x = fit.x
         self.ekf.P = fit.P
@@ -354,11 +451,21 @@ class SunPathKalman:
         x, P = self._propagated(tn)
         dec, sdec = self.declination(tn)
         return DayResult(
-            date=date, noon_utc=tn, noon_el_deg=self.predict(tn).el_deg, declination_deg=dec,
-            lat_deg=float(x[LAT]), lon_deg=float(wrap180(x[LON])), n_obs=n_obs,
-            method="kalman", az_offset_deg=float(x[AZOFF] % 360.0), n_rejected=n_rejected,
-            noon_sigma_s=sn, lat_sigma_deg=float(np.sqrt(P[LAT, LAT])),
-            lon_sigma_deg=float(np.sqrt(P[LON, LON])), dec_sigma_deg=sdec)
+            date=date,
+            noon_utc=tn,
+            noon_el_deg=self.predict(tn).el_deg,
+            declination_deg=dec,
+            lat_deg=float(x[LAT]),
+            lon_deg=float(wrap180(x[LON])),
+            n_obs=n_obs,
+            method="kalman",
+            az_offset_deg=float(x[AZOFF] % 360.0),
+            n_rejected=n_rejected,
+            noon_sigma_s=sn,
+            lat_sigma_deg=float(np.sqrt(P[LAT, LAT])),
+            lon_sigma_deg=float(np.sqrt(P[LON, LON])),
+            dec_sigma_deg=sdec,
+        )
 
     def copy(self) -> SunPathKalman:
         """Independent deep copy (e.g. to predict from a checkpoint)."""
@@ -370,29 +477,10 @@ class SunPathKalman:
         return kalman_to_dict(self)
 
     @classmethod
-    def from_dict(cls, d: dict) -> SunPathKalman:
-        """Inverse of :meth:`to_dict`; raises ValueError/KeyError/TypeError when malformed."""
-        return kalman_from_dict(d, cls)
+    def from_dict(cls, d: dict, now: float | None = None) -> SunPathKalman:
+        """Inverse of :meth:`to_dict`, validated (:func:`.persistence.kalman_from_dict`).
 
-
-
-def run_kalman(observations: list[SunObservation], config: KalmanConfig | None = None,
-               site: Site | None = None, utc_offset_h: float | None = None,
-               kf: SunPathKalman | None = None) -> tuple[list[DayResult], SunPathKalman]:
-    """Run the filter over observations (any order) and summarise each local day.
-
-    Each day's row is the filter's state after that day's last observation (a filtered,
-    not smoothed, estimate); days before the filter could start give no row.
-    """
-    kf = kf or SunPathKalman(config, site)
-    obs = sorted(observations, key=lambda o: o.time)
-    times = np.array([o.time for o in obs])
-    results = []
-    for day in split_days(times, utc_offset_h):
-        rej0 = kf.n_rejected
-        for i in day.index:
-            kf.update(obs[i])
-        if kf.initialised:
-            results.append(kf.day_result(float(np.median(times[day.index])), day.date,
-                                         int(day.index.size), kf.n_rejected - rej0))
-    return results, kf
+        Raises :class:`~controller.sunpath.persistence.SnapshotError` (a ValueError) naming
+        the field when the snapshot is malformed, not physical or not plausible.
+        """
+        return kalman_from_dict(d, cls, now=now)

@@ -21,10 +21,8 @@ import numpy as np
 from .orbit import OBLIQUITY_DEG
 
 LAT, LON, DEC, RATE, AZOFF, REFR = range(6)
-STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg",
-               "refraction_scale")
-STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg",
-                    "refraction_scale")
+STATE_NAMES = ("lat_deg", "lon_deg", "dec_deg", "dec_rate_deg_per_day", "az_offset_deg", "refraction_scale")
+STATE_NAMES_FREE = ("lat_deg", "lon_deg", "orbit_u_sin_dec", "orbit_v", "az_offset_deg", "refraction_scale")
 #: Version tag of the ``free`` mode's declination states (u, v); older state files held
 #: (declination deg, rate deg/day) and are converted on load.
 FREE_MODEL = "orbit-uv-1"
@@ -56,8 +54,27 @@ class KalmanConfig:
     gate_chi2 : float
         Innovation gate on the squared Mahalanobis distance (2 dof; 13.8 = 99.9 %).
     max_consecutive_rejects : int
-        After this many gated observations in a row the covariance is inflated, so a
-        filter that has drifted cannot lock itself out.
+        After this many gated observations in a row (and every as many more), the run of
+        rejected observations is tried as a new start (see ``reinit_max_rms``); failing
+        that, the covariance is inflated (one-sigma x5 at most, never past
+        ``max_inflation_sigma_deg``), so a filter that has drifted cannot lock itself out
+        and garbage cannot blow it up.
+    max_inflation_sigma_deg : float
+        Inflation never widens an angle's one-sigma past this, deg (latitude and longitude
+        without a site; with one, they stay at ``site_sigma_deg``).
+    reinit_max_rms : float
+        A run of rejected observations restarts the filter only when the batch fit on it
+        alone has an RMS residual (per axis, in units of the observations' sigma) at most
+        this: a self-consistent sky, not garbage.
+    max_consecutive_older : int
+        Observations older than the state are rejected and counted; this many in a row,
+        in time order among themselves and spanning ``rebase_min_span_s``, mean the clock
+        stepped back: the state is carried back to them (re-based) and they are used.
+    rebase_min_span_s : float
+        The least time such a run must span, s.
+    site_mismatch_deg : float
+        With a site given, a self-consistent sky that puts the site further than this from
+        it is reported (``site_mismatch``), not followed.
     q_site, q_dec, q_rate, q_az_off, q_refr : float
         Process noise densities: random walks on site (deg^2/day), declination
         (deg^2/day), declination rate (deg^2/day^3, integrated random walk), azimuth
@@ -81,6 +98,11 @@ class KalmanConfig:
     iterations: int = 1
     gate_chi2: float = 13.8
     max_consecutive_rejects: int = 6
+    max_inflation_sigma_deg: float = 2.0
+    reinit_max_rms: float = 2.0
+    max_consecutive_older: int = 6
+    rebase_min_span_s: float = 1800.0
+    site_mismatch_deg: float = 1.0
     q_site: float = 1e-8
     q_dec: float = 1e-6
     q_rate: float = 2e-5  # unused since the orbit model; kept so old state files load
@@ -148,4 +170,3 @@ class Prediction:
         """Total one-sigma angle on the sky, deg (azimuth scaled by cos(el))."""
         c = np.cos(np.radians(self.el_deg))
         return float(np.sqrt(max(self.covariance[0, 0] * c * c + self.covariance[1, 1], 0.0)))
-

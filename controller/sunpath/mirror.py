@@ -52,8 +52,9 @@ def nearest_centre(T, t: float) -> float:
     return float(c[int(np.argmin(np.abs(c - t)))])
 
 
-def mirrored_mask(T, centre: float, tolerance: float | None = None,
-                  half_width: float | None = None) -> np.ndarray:
+def mirrored_mask(
+    T, centre: float, tolerance: float | None = None, half_width: float | None = None
+) -> np.ndarray:
     """Samples whose mirror image about ``centre`` is also a sample, paired one to one.
 
     Parameters

@@ -22,7 +22,7 @@ from .localisation import culmination_side, declination_from_noon, latitude_from
 from .mirror import default_tolerance, mirrored_mask, nearest_centre
 
 #: Variance (deg^2) of one elevation observation assumed when no fit can tell it.
-DEFAULT_VARIANCE = 0.3 ** 2
+DEFAULT_VARIANCE = 0.3**2
 #: Fit windows of the daily parabola: balanced about noon (default) or every sample.
 FITS = ("mirrored", "whole-day")
 #: What ``Elv_n`` (the noon elevation of the declination and latitude formulas) is.
@@ -87,9 +87,13 @@ class ParabolaFit:
         return self.coef[0] + self.coef[1] * T + self.coef[2] * T * T
 
 
-def fit_parabola(T_h, el_deg, prior: ParabolaFit | None = None,
-                 default_variance: float = DEFAULT_VARIANCE, midnight: float = 0.0
-                 ) -> ParabolaFit:
+def fit_parabola(
+    T_h,
+    el_deg,
+    prior: ParabolaFit | None = None,
+    default_variance: float = DEFAULT_VARIANCE,
+    midnight: float = 0.0,
+) -> ParabolaFit:
     """Weighted least-squares parabola of elevation over local hours, with optional prior.
 
     Parameters
@@ -181,9 +185,15 @@ class MirroredFit:
     converged: bool
 
 
-def fit_mirrored(T_h, el_deg, prior: ParabolaFit | None = None, midnight: float = 0.0,
-                 tolerance_h: float | None = None, half_width_h: float | None = None,
-                 max_iter: int = 10) -> MirroredFit | None:
+def fit_mirrored(
+    T_h,
+    el_deg,
+    prior: ParabolaFit | None = None,
+    midnight: float = 0.0,
+    tolerance_h: float | None = None,
+    half_width_h: float | None = None,
+    max_iter: int = 10,
+) -> MirroredFit | None:
     """Parabola fitted on the samples mirrored about the fitted noon, iterated.
 
     Starts from the fit of every sample, then repeats: centre = the grid point or
@@ -240,11 +250,18 @@ def fit_mirrored(T_h, el_deg, prior: ParabolaFit | None = None, midnight: float 
     return None if not fit.coef[2] < 0 else MirroredFit(fit, keep, centre, max_iter, False)
 
 
-def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
-             lat_deg: float | None = None, use_prior: bool = False,
-             window_h: float | None = None, noon_elevation: str = "measured",
-             transit_tolerance_s: float | None = None, fit: str = "mirrored"
-             ) -> tuple[list[DayResult], list[ParabolaFit]]:
+def run_seed(
+    times,
+    az_deg,
+    el_deg,
+    utc_offset_h: float | None = None,
+    lat_deg: float | None = None,
+    use_prior: bool = False,
+    window_h: float | None = None,
+    noon_elevation: str = "measured",
+    transit_tolerance_s: float | None = None,
+    fit: str = "mirrored",
+) -> tuple[list[DayResult], list[ParabolaFit]]:
     """The paper's method over a series of observations, one result per local day.
 
     Each day's noon is the extremum of that day's own parabola (the paper's Table 3).
@@ -294,8 +311,7 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
     fits : list of ParabolaFit (same order)
     """
     if noon_elevation not in NOON_ELEVATIONS:
-        raise ValueError(f"noon_elevation must be 'measured' or 'vertex', got "
-                         f"{noon_elevation!r}")
+        raise ValueError(f"noon_elevation must be 'measured' or 'vertex', got {noon_elevation!r}")
     if fit not in FITS:
         raise ValueError(f"fit must be 'mirrored' or 'whole-day', got {fit!r}")
     t = np.asarray(times, dtype=float)
@@ -306,8 +322,9 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
     prev_num: int | None = None
     for day in split_days(t, utc_offset_h):
         prior = prev_fit if (use_prior and prev_num == day.day_number - 1) else None
-        day_fit = _day_fit((t[day.index] - day.midnight) / 3600.0, el[day.index], prior,
-                           day.midnight, fit, window_h)
+        day_fit = _day_fit(
+            (t[day.index] - day.midnight) / 3600.0, el[day.index], prior, day.midnight, fit, window_h
+        )
         if day_fit is None or not (day_fit.coef[2] < 0 and 0 <= day_fit.noon_hours <= 24):
             continue  # no maximum inside the day: nothing to learn
         fitted.append((day, day_fit))
@@ -328,23 +345,32 @@ def run_seed(times, az_deg, el_deg, utc_offset_h: float | None = None,
         else:
             el_n = _measured_at_transit(t[idx], el[idx], noon, transit_tolerance_s)
         lat = float(latitude_from_noon(el_n, float(dec_eph[k]), side))
-        dec = (float(declination_from_noon(el_n, lat_deg, side))
-               if lat_deg is not None else float("nan"))
+        dec = float(declination_from_noon(el_n, lat_deg, side)) if lat_deg is not None else float("nan")
         try:
-            off = azimuth_offset_at_culmination(az[idx], el[idx], side) if idx.size >= 3 \
-                else float("nan")
+            off = azimuth_offset_at_culmination(az[idx], el[idx], side) if idx.size >= 3 else float("nan")
         except np.linalg.LinAlgError:
             off = float("nan")
-        results.append(DayResult(
-            date=day.date, noon_utc=noon, noon_el_deg=el_n, declination_deg=dec,
-            lat_deg=lat, lon_deg=float(lon[k]), n_obs=int(idx.size),
-            method="seed", az_offset_deg=off, noon_sigma_s=day_fit.noon_sigma_s))
+        results.append(
+            DayResult(
+                date=day.date,
+                noon_utc=noon,
+                noon_el_deg=el_n,
+                declination_deg=dec,
+                lat_deg=lat,
+                lon_deg=float(lon[k]),
+                n_obs=int(idx.size),
+                method="seed",
+                az_offset_deg=off,
+                noon_sigma_s=day_fit.noon_sigma_s,
+            )
+        )
     fits = [f for _, f in fitted]
     return results, fits
 
 
-def _day_fit(T, el, prior: ParabolaFit | None, midnight: float, fit: str,
-             window_h: float | None) -> ParabolaFit | None:
+def _day_fit(
+    T, el, prior: ParabolaFit | None, midnight: float, fit: str, window_h: float | None
+) -> ParabolaFit | None:
     """One day's parabola over local hours ``T``; None when the day cannot give one."""
     if T.size < 3 and prior is None:
         return None

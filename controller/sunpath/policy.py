@@ -19,6 +19,8 @@ noisy measurement.
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +31,8 @@ from ..sun.types import EstimateSource, SunEstimate, SunObservation, azel_to_enu
 from .ephemeris import wrap180
 from .kalman import SunPathKalman
 from .kalman_config import AZOFF, LAT, LON, KalmanConfig
+
+log = logging.getLogger("heliotrack.sunpath")
 
 
 @dataclass(frozen=True)
@@ -72,10 +76,14 @@ def fuse(estimates: list[SunEstimate], source: EstimateSource, t: float) -> SunE
     return SunEstimate(float(t), float(az), float(el), cov, source)
 
 
-def select_estimate(t: float, fresh_observation: SunObservation | None,
-                    prediction: SunEstimate | None, ephemeris: SunEstimate | None,
-                    config: PolicyConfig = PolicyConfig(), now: float | None = None
-                    ) -> SunEstimate | None:
+def select_estimate(
+    t: float,
+    fresh_observation: SunObservation | None,
+    prediction: SunEstimate | None,
+    ephemeris: SunEstimate | None,
+    config: PolicyConfig = PolicyConfig(),
+    now: float | None = None,
+) -> SunEstimate | None:
     """The policy as a pure function (see module docstring).
 
     ``prediction`` is the filter's estimate at ``t`` (already including any accepted
@@ -85,25 +93,30 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
     """
     if prediction is not None and prediction.sigma_deg > config.max_predicted_sigma_deg:
         prediction = None
-    fresh = (fresh_observation is not None
-             and 0.0 <= (t if now is None else now) - fresh_observation.time
-             <= config.max_obs_age_s)
+    fresh = (
+        fresh_observation is not None
+        and 0.0 <= (t if now is None else now) - fresh_observation.time <= config.max_obs_age_s
+    )
     if prediction is not None:
         if fresh:
-            return SunEstimate(t, prediction.az_deg, prediction.el_deg, prediction.covariance,
-                               EstimateSource.OBSERVED)
+            return SunEstimate(
+                t, prediction.az_deg, prediction.el_deg, prediction.covariance, EstimateSource.OBSERVED
+            )
         if ephemeris is None:
-            return SunEstimate(t, prediction.az_deg, prediction.el_deg, prediction.covariance,
-                               EstimateSource.PREDICTED)
-        dominant = (EstimateSource.EPHEMERIS if ephemeris.sigma_deg < prediction.sigma_deg
-                    else EstimateSource.PREDICTED)
+            return SunEstimate(
+                t, prediction.az_deg, prediction.el_deg, prediction.covariance, EstimateSource.PREDICTED
+            )
+        dominant = (
+            EstimateSource.EPHEMERIS
+            if ephemeris.sigma_deg < prediction.sigma_deg
+            else EstimateSource.PREDICTED
+        )
         return fuse([prediction, ephemeris], dominant, t)
     if fresh and fresh_observation is not None:
         o = fresh_observation
-        s2 = o.sigma_deg ** 2
+        s2 = o.sigma_deg**2
         c = max(np.cos(np.radians(o.el_deg)), 1e-6)
-        return SunEstimate(t, o.az_deg, o.el_deg, np.diag([s2 / (c * c), s2]),
-                           EstimateSource.OBSERVED)
+        return SunEstimate(t, o.az_deg, o.el_deg, np.diag([s2 / (c * c), s2]), EstimateSource.OBSERVED)
     return ephemeris
 
 
@@ -111,8 +124,7 @@ def select_estimate(t: float, fresh_observation: SunObservation | None,
 EXTRAPOLATE_MAX_S = 3600.0
 #: ``tan(obliquity) (15 deg/h in rad)^2 / 2`` in deg/h^2: the largest departure rate of the
 #: sun's small circle from a great circle (at the solstices).
-CURVATURE_DEG_PER_H2 = float(np.tan(np.radians(23.44)) * np.radians(15.0) ** 2 / 2.0
-                             * 180.0 / np.pi)
+CURVATURE_DEG_PER_H2 = float(np.tan(np.radians(23.44)) * np.radians(15.0) ** 2 / 2.0 * 180.0 / np.pi)
 
 
 def extrapolate_two(o1: SunObservation, o2: SunObservation, t: float) -> SunEstimate | None:
@@ -137,17 +149,24 @@ def extrapolate_two(o1: SunObservation, o2: SunObservation, t: float) -> SunEsti
     if sin_a < 1e-9:
         return None
     axis /= sin_a
-    rate = float(np.arctan2(sin_a, float(v1 @ v2))) / dt       # rad/s
+    rate = float(np.arctan2(sin_a, float(v1 @ v2))) / dt  # rad/s
     ang = rate * tau
-    v = (v2 * np.cos(ang) + np.cross(axis, v2) * np.sin(ang)
-         + axis * float(axis @ v2) * (1.0 - np.cos(ang)))        # Rodrigues
+    v = (
+        v2 * np.cos(ang) + np.cross(axis, v2) * np.sin(ang) + axis * float(axis @ v2) * (1.0 - np.cos(ang))
+    )  # Rodrigues
     az, el = enu_to_azel(v)
     tau_h, dt_h = abs(tau) / 3600.0, dt / 3600.0
-    sig = max(o1.sigma_deg, o2.sigma_deg) * np.sqrt(1.0 + 2.0 * (tau / dt) ** 2) \
-        + CURVATURE_DEG_PER_H2 * tau_h * (tau_h + dt_h)
+    sig = max(o1.sigma_deg, o2.sigma_deg) * np.sqrt(
+        1.0 + 2.0 * (tau / dt) ** 2
+    ) + CURVATURE_DEG_PER_H2 * tau_h * (tau_h + dt_h)
     c = max(np.cos(np.radians(float(el))), 1e-6)
-    return SunEstimate(float(t), float(az) % 360.0, float(el),
-                       np.diag([sig * sig / (c * c), sig * sig]), EstimateSource.PREDICTED)
+    return SunEstimate(
+        float(t),
+        float(az) % 360.0,
+        float(el),
+        np.diag([sig * sig / (c * c), sig * sig]),
+        EstimateSource.PREDICTED,
+    )
 
 
 class SunPathSource(SunSource):
@@ -156,34 +175,112 @@ class SunPathSource(SunSource):
     Parameters
     ----------
     site : Site, optional
-        Known site: seeds the filter and enables the ephemeris fallback.
+        Known site: seeds the filter, enables the ephemeris fallback, and stays the prior
+        of every restart (a sky that puts the site more than ``site_mismatch_deg`` away is
+        reported in :meth:`summary`, not followed).
     state_path : path, optional
         Learned state is loaded from here at start (if the file exists) and written by
-        :meth:`save`.  A corrupt file raises :class:`~controller.sunpath.state.StateError`.
+        :meth:`save`.  A file that cannot be used (corrupt, or a state that is not physical
+        or not plausible, :func:`~controller.sunpath.state.load_state`) never stops the
+        start: one warning line is logged, the file is renamed aside as
+        ``<name>.invalid-<UTC time>`` (never deleted) and the filter starts afresh (from
+        the ephemeris at ``site`` when given; otherwise with no estimate until it has
+        learned).  A file that cannot be read, or of another version, is left where it is
+        and the learned state is not persisted this run.
     kalman_config, policy_config : optional tuning.
+    now : float, optional
+        The present, POSIX s, to judge the state file's time by (a state saved more than a
+        day in the future is refused); default: the wall clock.  A caller on a simulated
+        clock passes its own.
     """
 
     name = "sunpath"
 
-    def __init__(self, site: Site | None = None, state_path: str | Path | None = None,
-                 kalman_config: KalmanConfig | None = None,
-                 policy_config: PolicyConfig | None = None):
-        from .state import load_state
-
+    def __init__(
+        self,
+        site: Site | None = None,
+        state_path: str | Path | None = None,
+        kalman_config: KalmanConfig | None = None,
+        policy_config: PolicyConfig | None = None,
+        now: float | None = None,
+    ):
         self.site = site
         self.state_path = Path(state_path) if state_path is not None else None
         self.policy = policy_config or PolicyConfig()
-        loaded = load_state(self.state_path) if self.state_path is not None else None
-        self.kf: SunPathKalman = (loaded if loaded is not None
-                                  else SunPathKalman(kalman_config, site))
+        self.persist = self.state_path is not None
+        self.state_note: str | None = None  # why the state file was not used, if it was not
+        loaded = self._load(time.time() if now is None else float(now))
+        self.kf: SunPathKalman = loaded if loaded is not None else SunPathKalman(kalman_config, site)
         self.ephemeris = EphemerisSource(site) if site is not None else None
         self.last_accepted: SunObservation | None = None
+
+    def _load(self, now: float) -> SunPathKalman | None:
+        """The learned state, or None after one warning line (see the class docstring)."""
+        from .state import StateError, load_state
+
+        if self.state_path is None:
+            return None
+        path = self.state_path
+        try:
+            kf = load_state(path, now=now)
+            if kf is None:
+                log.info(
+                    f"{path}: no learned sun-path state yet; starting "
+                    + ("from the ephemeris at the configured site" if self.site else "without one")
+                )
+            elif self.site is not None:
+                self._check_site(path, kf)
+                kf.site = kf.site or self.site  # the configured site is the prior from now on
+            return kf
+        except StateError as exc:
+            start = (
+                "starting from the ephemeris at the configured site"
+                if self.site
+                else "starting without a learned state"
+            )
+            if exc.reason in ("unreadable", "version"):
+                self.persist = False  # not ours to move: another version, or permissions
+                self.state_note = f"{exc}; {start}; the learned state will not be saved"
+            else:
+                stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+                aside = path.with_name(f"{path.name}.invalid-{stamp}")
+                try:
+                    path.rename(aside)
+                    self.state_note = f"{exc}; kept it as {aside.name}; {start}"
+                except OSError as err:
+                    self.persist = False
+                    self.state_note = (
+                        f"{exc}; could not move it aside ({err.strerror}); "
+                        f"{start}; the learned state will not be saved"
+                    )
+            log.warning(self.state_note)
+            return None
+
+    def _check_site(self, path: Path, kf: SunPathKalman) -> None:
+        """Refuse a state learned at a site far from the configured one (StateError)."""
+        from .state import StateError
+
+        assert self.site is not None
+        if kf.initialised:
+            lat, lon = float(kf.x[LAT]), float(kf.x[LON])
+        elif kf.site is not None:
+            lat, lon = kf.site.latitude, kf.site.longitude
+        else:
+            return
+        dlat, dlon = lat - self.site.latitude, float(wrap180(lon - self.site.longitude))
+        if max(abs(dlat), abs(dlon)) > kf.config.site_mismatch_deg:
+            raise StateError(
+                f"{path}: invalid sun-path state: field 'filter.x[lat_deg, "
+                f"lon_deg]': learned {dlat:+.3f}, {dlon:+.3f} deg from the "
+                "configured site",
+                "invalid",
+            )
 
     def observe(self, obs: SunObservation) -> bool:
         """Give the filter one observation (ENU or sensor frame); True when accepted."""
         res = self.kf.update(obs)
-        if res.accepted or not self.kf.initialised:  # buffered for the filter's start
-            self.last_accepted = obs
+        if res.accepted or res.reason == "waiting to initialise":  # buffered for the start
+            self.last_accepted = obs  # never one the filter refused (NaN, past the zenith)
         return res.accepted
 
     def prediction(self, t: float) -> SunEstimate | None:
@@ -198,8 +295,7 @@ class SunPathSource(SunSource):
             enu = [o for o in self.kf.buffer if o.frame == "enu"]
             return extrapolate_two(enu[-2], enu[-1], t) if len(enu) >= 2 else None
         p = self.kf.predict(t)
-        return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance,
-                           EstimateSource.PREDICTED)
+        return SunEstimate(float(t), p.az_deg, p.el_deg, p.covariance, EstimateSource.PREDICTED)
 
     def estimate(self, t: float, now: float | None = None) -> SunEstimate | None:
         eph = self.ephemeris.estimate(t) if self.ephemeris is not None else None
@@ -210,23 +306,70 @@ class SunPathSource(SunSource):
         return select_estimate(float(t), obs, self.prediction(t), eph, self.policy, now=now)
 
     def summary(self) -> dict:
-        """What the filter has learned so far: site (deg, north/east-positive) with one-sigma,
-        sensor azimuth offset, and counts of accepted and rejected observations."""
+        """What the filter has learned so far, and how it got there.
+
+        Site (deg, north/east-positive) with one-sigma, sensor azimuth offset, counts of
+        accepted and rejected observations (of the rejected: ``older`` than the state,
+        ``invalid``), restarts from a self-consistent run (``reinitialised``) and re-bases
+        after a clock step back (``rebased``).  With a site given: the learned site's
+        offset from it and ``site_mismatch``, true when the learned site or a
+        self-consistent sky lies more than ``site_mismatch_deg`` from it (then
+        ``site_mismatch_lat_deg`` / ``site_mismatch_lon_deg`` give the sky's offset): the
+        loop should raise an alarm, as the site or the clock is wrong.  ``state_note``: why
+        the state file was not used, when it was not.
+        """
         kf = self.kf
-        out = {"mode": kf.mode, "site_given": self.site is not None,
-               "initialised": kf.initialised, "accepted": kf.n_accepted,
-               "rejected": kf.n_rejected}
+        out: dict = {
+            "mode": kf.mode,
+            "site_given": self.site is not None,
+            "initialised": kf.initialised,
+            "accepted": kf.n_accepted,
+            "rejected": kf.n_rejected,
+            "older": kf.n_older,
+            "invalid": kf.n_invalid,
+            "reinitialised": kf.n_reinit,
+            "rebased": kf.n_rebase,
+        }
+        if self.state_note is not None:
+            out["state_note"] = self.state_note
         if kf.initialised:
             x = kf.x
-            out.update({"lat_deg": float(x[LAT]), "lon_deg": float(wrap180(x[LON])),
-                        "lat_sigma_deg": kf.sigma(LAT), "lon_sigma_deg": kf.sigma(LON),
-                        "az_offset_deg": float(wrap180(x[AZOFF]))})
+            out.update(
+                {
+                    "lat_deg": float(x[LAT]),
+                    "lon_deg": float(wrap180(x[LON])),
+                    "lat_sigma_deg": kf.sigma(LAT),
+                    "lon_sigma_deg": kf.sigma(LON),
+                    "az_offset_deg": float(wrap180(x[AZOFF])),
+                }
+            )
+        if self.site is not None:
+            limit = kf.config.site_mismatch_deg
+            far = False
+            if kf.initialised:
+                dlat = float(kf.x[LAT] - self.site.latitude)
+                dlon = float(wrap180(kf.x[LON] - self.site.longitude))
+                out.update({"site_offset_lat_deg": dlat, "site_offset_lon_deg": dlon})
+                far = max(abs(dlat), abs(dlon)) > limit
+            m = kf.site_mismatch
+            out["site_mismatch"] = far or m is not None
+            if m is not None:
+                out.update(
+                    {"site_mismatch_lat_deg": m.lat_offset_deg, "site_mismatch_lon_deg": m.lon_offset_deg}
+                )
         return out
 
     def save(self) -> None:
-        """Persist the learned state atomically (no-op without ``state_path``)."""
-        from .state import save_state
+        """Persist the learned state atomically (no-op without ``state_path``).
 
-        if self.state_path is not None:
+        Never raises: a failure (disk full, a file put in the way) is one warning line, and
+        the file on disk is left as it was.
+        """
+        from .state import StateError, save_state
+
+        if self.state_path is None or not self.persist:
+            return
+        try:
             save_state(self.state_path, self.kf)
-
+        except (StateError, OSError) as exc:
+            log.warning(f"{self.state_path}: sun-path state not saved: {exc}")

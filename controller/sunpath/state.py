@@ -1,84 +1,128 @@
 """Atomic persistence of the sun-path filter's learned state (JSON).
 
-Saving writes a temporary file in the same folder, flushes it to disk and renames it over
-the old one (``os.replace``), so a crash leaves either the old or the new state.  A state
-file that cannot be read is reported with its path and is never overwritten silently:
-:func:`save_state` refuses to replace it unless told to.
+Saving goes through :func:`controller.atomic.atomic_write` (temporary file, fsync, rename,
+fsync of the folder), so a crash leaves either the old or the new state.  Loading checks
+the content (:func:`.persistence.kalman_from_dict`): a state that is not physical or not
+plausible is refused like a corrupt one, with one line naming the file and the field.  A
+state file that cannot be used is never overwritten silently: :func:`save_state` refuses
+to replace it unless told to.
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
+from ..atomic import atomic_write
 from ..errors import InputError
 from .kalman import SunPathKalman
+from .persistence import SnapshotError, kalman_from_dict
 
 FORMAT = "heliotrack.sunpath.state"
 VERSION = 1
 
 
 class StateError(InputError):
-    """A state file exists but is corrupt, of another format or of another version."""
+    """A state file exists but cannot be used; the message says which file and why.
+
+    Attributes
+    ----------
+    reason : str
+        ``"unreadable"`` (the file system refused), ``"corrupt"`` (not JSON, or not a
+        sun-path state), ``"version"`` (another version of the format) or ``"invalid"``
+        (a state that reads but is not physical or not plausible).
+    """
+
+    def __init__(self, message: str, reason: str = "corrupt"):
+        super().__init__(message)
+        self.reason = reason
 
 
 def _read(path: Path) -> dict:
     try:
         text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise StateError(f"{path}: cannot read sun-path state ({exc.strerror})") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        why = getattr(exc, "strerror", None) or str(exc)
+        raise StateError(
+            f"{path}: cannot read sun-path state ({why})",
+            "unreadable" if isinstance(exc, OSError) else "corrupt",
+        ) from None
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise StateError(f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
-                         f"column {exc.colno}: {exc.msg}); fix or remove the file") from None
+        raise StateError(
+            f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
+            f"column {exc.colno}: {exc.msg}); fix or remove the file"
+        ) from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT:
         raise StateError(f"{path}: not a sun-path state file (expected format {FORMAT!r})")
     if doc.get("version") != VERSION:
-        raise StateError(f"{path}: sun-path state version {doc.get('version')!r}, "
-                         f"expected {VERSION}")
+        raise StateError(
+            f"{path}: sun-path state version {doc.get('version')!r}, expected {VERSION}", "version"
+        )
     return doc
 
 
-def load_state(path: str | Path) -> SunPathKalman | None:
+def load_state(path: str | Path, now: float | None = None) -> SunPathKalman | None:
     """Load a filter from ``path``; None when the file does not exist.
+
+    Parameters
+    ----------
+    path : str or Path
+    now : float, optional
+        The present (POSIX s, the caller's clock): a state saved more than a day after it
+        is refused.  None: the time is only checked against 2000-01-01.
 
     Raises
     ------
     StateError
-        The file exists but cannot be used; the message says why.
+        The file exists but cannot be used; the one-line message names the file, and for
+        a state that reads but is refused, the field (``filter.x[lat_deg]``) and why.
     """
     path = Path(path)
     if not path.exists():
         return None
     doc = _read(path)
+    if not isinstance(doc.get("filter"), dict):
+        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is missing; fix or remove the file")
     try:
-        return SunPathKalman.from_dict(doc["filter"])
+        return kalman_from_dict(doc["filter"], SunPathKalman, now=now)
+    except SnapshotError as exc:
+        raise StateError(
+            f"{path}: invalid sun-path state: field 'filter.{exc.field}': {exc.why}; fix or remove the file",
+            "invalid",
+        ) from None
     except (KeyError, TypeError, ValueError) as exc:
-        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is invalid "
-                         f"({exc}); fix or remove the file") from None
+        raise StateError(
+            f"{path}: corrupt sun-path state: field 'filter' is invalid ({exc}); fix or remove the file",
+            "invalid",
+        ) from None
 
 
 def save_state(path: str | Path, kf: SunPathKalman, overwrite_corrupt: bool = False) -> None:
     """Atomically write ``kf`` to ``path``.
 
-    An existing file that is not a readable state is kept (StateError) unless
+    An existing file that is not a usable state (unreadable, corrupt, another version, or
+    refused by the checks of :func:`load_state`) is kept (StateError) unless
     ``overwrite_corrupt``: it may hold something the user wants.
+
+    Raises
+    ------
+    StateError
+        The existing file cannot be used and ``overwrite_corrupt`` is false, or ``kf``
+        itself would not load again (the file is then left as it was).
+    OSError
+        The file cannot be written; the old one is untouched.
     """
     path = Path(path)
     if path.exists() and not overwrite_corrupt:
-        load_state(path)  # raises StateError on a corrupt file
-    doc = {"format": FORMAT, "version": VERSION, "filter": kf.to_dict()}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with tmp.open("w", encoding="utf-8") as fh:
-            json.dump(doc, fh, indent=1)
-            fh.write("\n")
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        load_state(path)  # raises StateError on a file that is not a usable state
+    snapshot = kf.to_dict()
+    try:  # what is written must load again: never replace a state with a broken one
+        kalman_from_dict(snapshot, SunPathKalman)
+    except SnapshotError as exc:
+        raise StateError(
+            f"{path}: not saving an invalid sun-path state (field 'filter.{exc.field}': {exc.why})", "invalid"
+        ) from None
+    doc = {"format": FORMAT, "version": VERSION, "filter": snapshot}
+    atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")

@@ -11,6 +11,15 @@ from .models import SUNSPEC_BASE_ADDRESS, SunSpecMap
 from .server import SunSpecServer, SunSpecServerError
 from .snapshot import OverrideCommand, PlantSnapshot, TrackerSnapshot
 
-__all__ = ["DGR_SF", "Identity", "OverrideCommand", "PlantSnapshot",
-           "SUNSPEC_BASE_ADDRESS", "SunSpecConfig", "SunSpecMap", "SunSpecServer",
-           "SunSpecServerError", "TrackerSnapshot"]
+__all__ = [
+    "DGR_SF",
+    "Identity",
+    "OverrideCommand",
+    "PlantSnapshot",
+    "SUNSPEC_BASE_ADDRESS",
+    "SunSpecConfig",
+    "SunSpecMap",
+    "SunSpecServer",
+    "SunSpecServerError",
+    "TrackerSnapshot",
+]

@@ -17,14 +17,13 @@ from __future__ import annotations
 
 from pymodbus.constants import ExcCodes
 
-from .encode import (INT32_UNIMPLEMENTED, ControlState, ctl_name_for_mode, decode_point,
-                     raw_to_deg)
+from .encode import INT32_UNIMPLEMENTED, ControlState, ctl_name_for_mode, decode_point, raw_to_deg
 from .models import TRACKER_MODEL_ID, PointSlot, SunSpecMap
 from .snapshot import OverrideCommand, PlantSnapshot, TrackerSnapshot
 
 # protocol-level ranges, degrees; tighter per-tracker limits come from the snapshot
-EL_RANGE_DEG = (-90.0, 90.0)          # elevation, or single-axis rotation
-AZ_RANGE_DEG = (0.0, 360.0)           # [0, 360)
+EL_RANGE_DEG = (-90.0, 90.0)  # elevation, or single-axis rotation
+AZ_RANGE_DEG = (0.0, 360.0)  # [0, 360)
 
 _ANGLE_FIELD = {"ElCtl": "el_deg", "GlblElCtl": "el_deg", "AzCtl": "az_deg", "GlblAzCtl": "az_deg"}
 _CTL_POINTS = ("Ctl", "GlblCtl")
@@ -53,10 +52,10 @@ class ControlTable:
 
     def __init__(self, smap: SunSpecMap):
         self.map = smap
-        self.writable = frozenset(
-            p.name for p in smap.fixed.points + smap.block.points if p.writable)
+        self.writable = frozenset(p.name for p in smap.fixed.points + smap.block.points if p.writable)
         self.staged: dict[int | None, ControlState] = {
-            k: ControlState() for k in [None, *range(smap.n_trackers)]}
+            k: ControlState() for k in [None, *range(smap.n_trackers)]
+        }
         self._seen: dict[int | None, tuple] = {}
         self._last_plant: PlantSnapshot | None = None
 
@@ -88,8 +87,9 @@ class ControlTable:
         self._seen[scope] = derived
 
     # -- operator writes ---------------------------------------------------------------
-    def apply_write(self, plant: PlantSnapshot, address: int, words: list[int],
-                    peer: str = "") -> list[OverrideCommand]:
+    def apply_write(
+        self, plant: PlantSnapshot, address: int, words: list[int], peer: str = ""
+    ) -> list[OverrideCommand]:
         """Check a write of ``words`` at ``address``; stage it and return the commands.
 
         Raises
@@ -103,11 +103,12 @@ class ControlTable:
         count = len(words)
         slots = list(self.map.slots_in(address, count))
         if not slots or slots[0].address != address or slots[-1].end != address + count:
-            raise WriteRefused(ExcCodes.ILLEGAL_ADDRESS,
-                               f"write {address}+{count} does not cover whole points")
+            raise WriteRefused(
+                ExcCodes.ILLEGAL_ADDRESS, f"write {address}+{count} does not cover whole points"
+            )
         updates: dict[int | None, dict[str, object]] = {}
         for slot in slots:
-            attr, value = self._check(slot, plant, words[slot.address - address:slot.end - address])
+            attr, value = self._check(slot, plant, words[slot.address - address : slot.end - address])
             updates.setdefault(slot.tracker, {})[attr] = value
         commands = []
         for scope, fields in updates.items():
@@ -131,8 +132,10 @@ class ControlTable:
             return "ctl", name
         attr = _ANGLE_FIELD[p.name]
         if attr == "az_deg" and plant.type == "single-axis":
-            raise WriteRefused(ExcCodes.ILLEGAL_ADDRESS,
-                               f"{p.name} is unimplemented for a single-axis plant (rotation is in the El points)")
+            raise WriteRefused(
+                ExcCodes.ILLEGAL_ADDRESS,
+                f"{p.name} is unimplemented for a single-axis plant (rotation is in the El points)",
+            )
         if raw == INT32_UNIMPLEMENTED:
             raise WriteRefused(ExcCodes.ILLEGAL_VALUE, f"{p.name}: the unimplemented value is not a setpoint")
         deg = raw_to_deg(raw)
@@ -140,10 +143,12 @@ class ControlTable:
         if attr == "el_deg":
             ok = EL_RANGE_DEG[0] <= deg <= EL_RANGE_DEG[1] and all(
                 tr.el_limits_deg is None or tr.el_limits_deg[0] <= deg <= tr.el_limits_deg[1]
-                for tr in trackers)
+                for tr in trackers
+            )
         else:
             ok = AZ_RANGE_DEG[0] <= deg < AZ_RANGE_DEG[1] and all(
-                tr.az_limits_deg is None or _within_az(deg, tr.az_limits_deg) for tr in trackers)
+                tr.az_limits_deg is None or _within_az(deg, tr.az_limits_deg) for tr in trackers
+            )
         if not ok:
             raise WriteRefused(ExcCodes.ILLEGAL_VALUE, f"{p.name}={deg:g} deg is out of range")
         return attr, deg

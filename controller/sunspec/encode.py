@@ -15,16 +15,21 @@ from importlib import metadata
 
 from sunspec2 import mb
 
-from .models import (COMMON_MODEL_ID, END_MODEL_ID, SUNS_MARKER, TRACKER_MODEL_ID, PointDef,
-                     PointSlot, SunSpecMap)
-from .snapshot import (CTL_AUTOMATIC, CTL_CALIBRATE, CTL_MANUAL, PlantSnapshot,
-                       TrackerSnapshot)
+from .models import (
+    COMMON_MODEL_ID,
+    END_MODEL_ID,
+    SUNS_MARKER,
+    TRACKER_MODEL_ID,
+    PointDef,
+    PointSlot,
+    SunSpecMap,
+)
+from .snapshot import CTL_AUTOMATIC, CTL_CALIBRATE, CTL_MANUAL, PlantSnapshot, TrackerSnapshot
 
-DGR_SF = -3                     # angles in milli-degrees
+DGR_SF = -3  # angles in milli-degrees
 INT32_UNIMPLEMENTED = mb.SUNS_UNIMPL_INT32
 
-_TYP_BY_KIND = {"dual-axis": "Dual", "single-axis-horizontal": "Horizontal",
-                "single-axis-tilted": "Tilted"}
+_TYP_BY_KIND = {"dual-axis": "Dual", "single-axis-horizontal": "Horizontal", "single-axis-tilted": "Tilted"}
 
 
 def package_version() -> str:
@@ -39,12 +44,12 @@ def package_version() -> str:
 class Identity:
     """Model 1 (common) contents.  Strings are truncated to the point size (UTF-8 safe)."""
 
-    manufacturer: str = "heliotrack"         # Mn
-    model: str = "tracker controller"        # Md
-    options: str = ""                        # Opt
-    version: str = ""                        # Vr; "" = the installed package version
-    serial_number: str = ""                  # SN
-    device_address: int = 1                  # DA (the Modbus unit id we answer)
+    manufacturer: str = "heliotrack"  # Mn
+    model: str = "tracker controller"  # Md
+    options: str = ""  # Opt
+    version: str = ""  # Vr; "" = the installed package version
+    serial_number: str = ""  # SN
+    device_address: int = 1  # DA (the Modbus unit id we answer)
 
 
 def deg_to_raw(deg: float | None, sf: int = DGR_SF) -> int:
@@ -52,7 +57,7 @@ def deg_to_raw(deg: float | None, sf: int = DGR_SF) -> int:
     if deg is None or not math.isfinite(deg):
         return INT32_UNIMPLEMENTED
     raw = round(deg * 10.0 ** (-sf))
-    if not -2**31 < raw < 2**31:
+    if not -(2**31) < raw < 2**31:
         return INT32_UNIMPLEMENTED
     return raw
 
@@ -62,7 +67,7 @@ def raw_to_deg(raw: int, sf: int = DGR_SF) -> float | None:
     if raw == INT32_UNIMPLEMENTED:
         return None
     # divide by a power of ten for negative sf: 33300 / 1000 is 33.3, 33300 * 0.001 is not
-    return raw / 10.0 ** (-sf) if sf < 0 else raw * 10.0 ** sf
+    return raw / 10.0 ** (-sf) if sf < 0 else raw * 10.0**sf
 
 
 def _truncate_utf8(text: str, nbytes: int) -> str:
@@ -136,8 +141,9 @@ class Encoder:
     def alarm_word(self, bits: int) -> int:
         return int(bits) & self._alarm_mask
 
-    def registers(self, plant: PlantSnapshot, controls: dict[int | None, ControlState],
-                  address: int, count: int) -> list[int]:
+    def registers(
+        self, plant: PlantSnapshot, controls: dict[int | None, ControlState], address: int, count: int
+    ) -> list[int]:
         """Registers ``[address, address + count)``.
 
         Parameters
@@ -149,8 +155,10 @@ class Encoder:
         """
         m = self.map
         if len(plant.trackers) != m.n_trackers:
-            raise ValueError(f"snapshot has {len(plant.trackers)} trackers, the served map "
-                             f"{m.n_trackers}; restart the server to change the count")
+            raise ValueError(
+                f"snapshot has {len(plant.trackers)} trackers, the served map "
+                f"{m.n_trackers}; restart the server to change the count"
+            )
         out = [0] * count
         end = address + count
 
@@ -167,21 +175,27 @@ class Encoder:
         return out
 
     # -- point values ----------------------------------------------------------------
-    def _value(self, slot: PointSlot, plant: PlantSnapshot,
-               controls: dict[int | None, ControlState]):
+    def _value(self, slot: PointSlot, plant: PlantSnapshot, controls: dict[int | None, ControlState]):
         name = slot.point.name
         if slot.model == COMMON_MODEL_ID:
             return self._common_value(name)
         if slot.tracker is None:
             return self._fixed_value(slot.point, plant, controls[None])
-        return self._tracker_value(slot.point, plant, plant.trackers[slot.tracker],
-                                   controls[slot.tracker])
+        return self._tracker_value(slot.point, plant, plant.trackers[slot.tracker], controls[slot.tracker])
 
     def _common_value(self, name: str):
         ident = self.identity
-        return {"ID": COMMON_MODEL_ID, "L": self.map.common_length, "Mn": ident.manufacturer,
-                "Md": ident.model, "Opt": ident.options, "Vr": self.version,
-                "SN": ident.serial_number, "DA": ident.device_address, "Pad": None}[name]
+        return {
+            "ID": COMMON_MODEL_ID,
+            "L": self.map.common_length,
+            "Mn": ident.manufacturer,
+            "Md": ident.model,
+            "Opt": ident.options,
+            "Vr": self.version,
+            "SN": ident.serial_number,
+            "DA": ident.device_address,
+            "Pad": None,
+        }[name]
 
     def _angle(self, plant: PlantSnapshot, axis: str, deg: float | None) -> int:
         # single-axis: the azimuth points are unimplemented (model 601 descriptions)
@@ -221,10 +235,9 @@ class Encoder:
             return DGR_SF
         if name == "N":
             return self.map.n_trackers
-        return None   # a point added to the JSON later: served as unimplemented
+        return None  # a point added to the JSON later: served as unimplemented
 
-    def _tracker_value(self, point: PointDef, plant: PlantSnapshot, tr: TrackerSnapshot,
-                       ctl: ControlState):
+    def _tracker_value(self, point: PointDef, plant: PlantSnapshot, tr: TrackerSnapshot, ctl: ControlState):
         name = point.name
         if name == "Id":
             return tr.name

@@ -19,21 +19,21 @@ from __future__ import annotations
 
 import bisect
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 from importlib import resources
-from typing import Iterator
 
 SUNSPEC_BASE_ADDRESS = 40000
-SUNS_MARKER = (0x5375, 0x6E53)        # "SunS", big-endian ASCII in two registers
+SUNS_MARKER = (0x5375, 0x6E53)  # "SunS", big-endian ASCII in two registers
 END_MODEL_ID = 0xFFFF
 COMMON_MODEL_ID = 1
 TRACKER_MODEL_ID = 601
-TRACKER_GROUP = "tracker"              # name of model 601's repeating group in the JSON
-MAX_ADDRESS = 0xFFFF                   # a Modbus address is 16 bits
+TRACKER_GROUP = "tracker"  # name of model 601's repeating group in the JSON
+MAX_ADDRESS = 0xFFFF  # a Modbus address is 16 bits
 
 
-@lru_cache(maxsize=None)
+@cache
 def model_definition(model_id: int) -> dict:
     """The pysunspec2 JSON definition of a SunSpec model, as a dict.
 
@@ -55,13 +55,13 @@ class PointDef:
 
     name: str
     type: str
-    size: int                    # registers
-    offset: int                  # registers from the start of the group
-    sf: str | None = None        # name of the scale-factor point, if scaled
-    access: str = "R"            # "R" or "RW"
+    size: int  # registers
+    offset: int  # registers from the start of the group
+    sf: str | None = None  # name of the scale-factor point, if scaled
+    access: str = "R"  # "R" or "RW"
     units: str | None = None
     symbols: tuple[tuple[str, int], ...] = ()
-    value: int | None = None     # fixed value (model ID)
+    value: int | None = None  # fixed value (model ID)
 
     @property
     def writable(self) -> bool:
@@ -84,11 +84,19 @@ class PointDef:
 def _points(group: dict) -> tuple[PointDef, ...]:
     out, offset = [], 0
     for p in group.get("points", ()):
-        out.append(PointDef(
-            name=p["name"], type=p["type"], size=int(p["size"]), offset=offset,
-            sf=p.get("sf"), access=p.get("access", "R"), units=p.get("units"),
-            symbols=tuple((s["name"], int(s["value"])) for s in p.get("symbols", ())),
-            value=p.get("value")))
+        out.append(
+            PointDef(
+                name=p["name"],
+                type=p["type"],
+                size=int(p["size"]),
+                offset=offset,
+                sf=p.get("sf"),
+                access=p.get("access", "R"),
+                units=p.get("units"),
+                symbols=tuple((s["name"], int(s["value"])) for s in p.get("symbols", ())),
+                value=p.get("value"),
+            )
+        )
         offset += int(p["size"])
     return tuple(out)
 
@@ -109,14 +117,14 @@ class GroupDef:
         raise KeyError(f"group {self.name} has no point {name!r}")
 
 
-@lru_cache(maxsize=None)
+@cache
 def common_group() -> GroupDef:
     """Model 1 (common) top-level group, ID and L included."""
     d = model_definition(COMMON_MODEL_ID)["group"]
     return GroupDef(d["name"], _points(d))
 
 
-@lru_cache(maxsize=None)
+@cache
 def tracker_controller_groups() -> tuple[GroupDef, GroupDef]:
     """Model 601: (fixed top-level group incl. ID and L, repeating tracker block)."""
     d = model_definition(TRACKER_MODEL_ID)["group"]
@@ -168,9 +176,13 @@ class SunSpecMap:
         self.end_address = self.tracker_model_address + 2 + self.tracker_model_length
         self.size = self.end_address + 2 - self.base_address
         if self.n_trackers < 0 or self.end_address + 2 > MAX_ADDRESS + 1:
-            n_max = (MAX_ADDRESS + 1 - 2 - (self.tracker_model_address + self.fixed.length)) // self.block.length
-            raise ValueError(f"model 601 with {n_trackers} trackers does not fit below address "
-                             f"65536 at base {base_address}: at most {n_max}")
+            n_max = (
+                MAX_ADDRESS + 1 - 2 - (self.tracker_model_address + self.fixed.length)
+            ) // self.block.length
+            raise ValueError(
+                f"model 601 with {n_trackers} trackers does not fit below address "
+                f"65536 at base {base_address}: at most {n_max}"
+            )
         slots: list[PointSlot] = []
         for p in self.common.points:
             slots.append(PointSlot(self.common_address + p.offset, p, COMMON_MODEL_ID))

@@ -1,7 +1,8 @@
 """The northbound SunSpec Modbus TCP server (pymodbus), for plant SCADA.
 
-Runs its own asyncio loop in a daemon thread (the controller's code stays synchronous),
-serves one pymodbus ``SimDevice`` whose registers are re-rendered from the controller's
+Runs its own asyncio loop in a daemon thread (the controller's code stays synchronous;
+the thread is :class:`firmware_protocol.server_thread.ServerThread`, shared with the
+emulator's Modbus servers), serves one pymodbus ``SimDevice`` whose registers are re-rendered from the controller's
 snapshot on every read, and turns accepted writes into :class:`OverrideCommand`.
 
 Write policy, in the order it is checked:
@@ -24,13 +25,12 @@ A handler subclass puts the peer in a :class:`contextvars.ContextVar` for the du
 
 from __future__ import annotations
 
-import asyncio
 import contextvars
 import copy
 import ipaddress
 import logging
-import threading
-from typing import Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Self
 
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import NoSuchIdException
@@ -38,6 +38,8 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 from pymodbus.simulator.simcore import SimCore
+
+from firmware_protocol.server_thread import ServerThread, ServerThreadError
 
 from .config import SunSpecConfig
 from .control import ControlTable, WriteRefused
@@ -104,7 +106,7 @@ def peer_allowed(peer: str | None, networks: tuple) -> bool:
     except ValueError:
         return False
     if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped:
-        ip = ip.ipv4_mapped          # a dual-stack socket reports ::ffff:a.b.c.d
+        ip = ip.ipv4_mapped  # a dual-stack socket reports ::ffff:a.b.c.d
     return any(ip in net for net in networks if net.version == ip.version)
 
 
@@ -136,10 +138,19 @@ class SunSpecServer:
         Address of the ``SunS`` marker.
     """
 
-    def __init__(self, snapshot: SnapshotFn, on_override: OverrideFn | None = None, *,
-                 host: str = "127.0.0.1", port: int = 1502, device_address: int = 1,
-                 writes_enabled: bool = False, allow: Iterable[str] = ("127.0.0.1",),
-                 identity: Identity | None = None, base_address: int = SUNSPEC_BASE_ADDRESS):
+    def __init__(
+        self,
+        snapshot: SnapshotFn,
+        on_override: OverrideFn | None = None,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 1502,
+        device_address: int = 1,
+        writes_enabled: bool = False,
+        allow: Iterable[str] = ("127.0.0.1",),
+        identity: Identity | None = None,
+        base_address: int = SUNSPEC_BASE_ADDRESS,
+    ):
         self.snapshot = snapshot
         self.on_override = on_override
         self.host = host
@@ -155,23 +166,28 @@ class SunSpecServer:
         self.stats = {"reads": 0, "writes_accepted": 0, "writes_refused": 0, "errors": 0}
         self._encoder: Encoder | None = None
         self._controls: ControlTable | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._server: ModbusTcpServer | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, name="sunspec-server", daemon=True)
+        self._thread = ServerThread(self._make_server, name="sunspec-server")
 
     @classmethod
-    def from_config(cls, cfg: SunSpecConfig, snapshot: SnapshotFn,
-                    on_override: OverrideFn | None = None, **kw) -> "SunSpecServer":
+    def from_config(
+        cls, cfg: SunSpecConfig, snapshot: SnapshotFn, on_override: OverrideFn | None = None, **kw
+    ) -> SunSpecServer:
         """Build from a parsed ``[sunspec]`` table (see :func:`parse_sunspec`)."""
         ident = Identity(serial_number=cfg.serial_number, device_address=cfg.device_address)
-        return cls(snapshot, on_override, host=cfg.host, port=cfg.port,
-                   device_address=cfg.device_address, writes_enabled=cfg.writes_enabled,
-                   allow=cfg.allow, identity=ident, **kw)
+        return cls(
+            snapshot,
+            on_override,
+            host=cfg.host,
+            port=cfg.port,
+            device_address=cfg.device_address,
+            writes_enabled=cfg.writes_enabled,
+            allow=cfg.allow,
+            identity=ident,
+            **kw,
+        )
 
     # -- lifecycle -------------------------------------------------------------------
-    def start(self) -> "SunSpecServer":
+    def start(self) -> Self:
         """Build the map from a first snapshot, bind, and serve; returns self."""
         plant = self.snapshot()
         self.map = SunSpecMap(len(plant.trackers), self.base_address)
@@ -179,71 +195,55 @@ class SunSpecServer:
         self._controls = ControlTable(self.map)
         self._controls.refresh(plant)
         self._encoder.registers(plant, self._controls.staged, self.base_address, self.map.size)
-        self._thread.start()
-        self._ready.wait(10)
-        if self._error:
-            raise SunSpecServerError(f"SunSpec server failed to start on {self.host}:"
-                                     f"{self.requested_port}: {self._error}") from self._error
-        if not self._ready.is_set():
-            raise SunSpecServerError("SunSpec server did not start within 10 s")
-        log.info("SunSpec server on %s:%d, unit %d, %d trackers, writes %s",
-                 self.host, self.port, self.device_address, self.map.n_trackers,
-                 f"enabled for {', '.join(self.allow)}" if self.writes_enabled else "disabled")
+        try:
+            self._thread.start()
+        except ServerThreadError as exc:
+            raise SunSpecServerError(
+                f"SunSpec server failed to start on {self.host}:{self.requested_port}: {exc}"
+            ) from exc
+        self.port = self._thread.port
+        log.info(
+            "SunSpec server on %s:%d, unit %d, %d trackers, writes %s",
+            self.host,
+            self.port,
+            self.device_address,
+            self.map.n_trackers,
+            f"enabled for {', '.join(self.allow)}" if self.writes_enabled else "disabled",
+        )
         return self
 
     def stop(self) -> None:
-        if self._loop and self._server and self._loop.is_running():
-            fut = asyncio.run_coroutine_threadsafe(self._server.shutdown(), self._loop)
-            try:
-                fut.result(5)
-            except Exception:  # already closing; nothing left to release
-                pass
-        if self._thread.is_alive():
-            self._thread.join(5)
+        self._thread.stop()
 
-    def __enter__(self) -> "SunSpecServer":
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:
         self.stop()
 
-    def _run(self) -> None:
-        self._loop = asyncio.new_event_loop()
-        asyncio.set_event_loop(self._loop)
-        try:
-            self._loop.run_until_complete(self._serve())
-        except BaseException as exc:  # reported to start()
-            self._error = exc
-            self._ready.set()
-        finally:
-            self._loop.close()
-
-    async def _serve(self) -> None:
+    def _make_server(self) -> ModbusTcpServer:
+        """The pymodbus server (called in the server thread, on its event loop)."""
+        assert self.map is not None
         device = SimDevice(
             id=self.device_address,
-            simdata=[SimData(self.base_address, count=self.map.size, values=0,
-                             datatype=DataType.REGISTERS)],
-            action=self._action)
-        self._server = _PeerAwareTcpServer(device, address=(self.host, self.requested_port))
-        self._server.context = _SingleUnitCore(device)
-        await self._server.serve_forever(background=True)
-        transport = self._server.transport
-        sock = transport.sockets[0] if hasattr(transport, "sockets") else transport.get_extra_info("socket")
-        self.port = sock.getsockname()[1]
-        self._ready.set()
-        await self._server.serving
+            simdata=[SimData(self.base_address, count=self.map.size, values=0, datatype=DataType.REGISTERS)],
+            action=self._action,
+        )
+        server = _PeerAwareTcpServer(device, address=(self.host, self.requested_port))
+        server.context = _SingleUnitCore(device)
+        return server
 
     # -- requests --------------------------------------------------------------------
     async def _action(self, fc, start, address, count, registers, set_values):
         """pymodbus SimDevice action: render before reads, police writes."""
         try:
             if set_values is None:
-                if fc not in _READ_FCS | _WRITE_FCS:   # reads back after FC 6 are fc 6
+                if fc not in _READ_FCS | _WRITE_FCS:  # reads back after FC 6 are fc 6
                     return ExcCodes.ILLEGAL_FUNCTION
                 plant = self.snapshot()
                 self._controls.refresh(plant)
                 words = self._encoder.registers(plant, self._controls.staged, address, count)
-                registers[address - start:address - start + count] = words
+                registers[address - start : address - start + count] = words
                 self.stats["reads"] += 1
                 return None
             if fc not in _WRITE_FCS:
@@ -260,11 +260,13 @@ class SunSpecServer:
             return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "writes are disabled")
         if not peer_allowed(peer, self._networks):
             return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "client not in the allowlist")
+        controls = self._controls
+        assert controls is not None  # built by start()
         plant = self.snapshot()
-        self._controls.refresh(plant)
-        backup = copy.deepcopy(self._controls.staged)
+        controls.refresh(plant)
+        backup = copy.deepcopy(controls.staged)
         try:
-            commands = self._controls.apply_write(plant, address, words, peer or "")
+            commands = controls.apply_write(plant, address, words, peer or "")
         except WriteRefused as exc:
             return self._refuse(exc.code, peer, address, exc.reason)
         try:
@@ -272,7 +274,7 @@ class SunSpecServer:
                 if self.on_override is not None:
                     self.on_override(cmd)
         except Exception:
-            self._controls.staged = backup
+            controls.staged = backup
             self.stats["errors"] += 1
             log.exception("on_override refused a SunSpec write from %s", peer)
             return ExcCodes.DEVICE_FAILURE
@@ -283,6 +285,7 @@ class SunSpecServer:
 
     def _refuse(self, code: ExcCodes, peer, address: int, reason: str) -> ExcCodes:
         self.stats["writes_refused"] += 1
-        log.warning("SunSpec write at %d from %s refused (exception %d): %s",
-                    address, peer, int(code), reason)
+        log.warning(
+            "SunSpec write at %d from %s refused (exception %d): %s", address, peer, int(code), reason
+        )
         return code

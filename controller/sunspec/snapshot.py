@@ -74,13 +74,31 @@ class TrackerSnapshot:
             raise ValueError(f"tracker {self.name!r}: mode {self.mode!r} not in {TRACKER_MODES}")
 
     @classmethod
-    def row(cls, name: str, rotation_target_deg: float | None, rotation_deg: float | None,
-            mode: str = "TRACK", alarm_bits: int = 0, manual_rotation_deg: float | None = None,
-            rotation_limits_deg: tuple[float, float] | None = None) -> "TrackerSnapshot":
+    def row(
+        cls,
+        name: str,
+        rotation_target_deg: float | None,
+        rotation_deg: float | None,
+        mode: str = "TRACK",
+        alarm_bits: int = 0,
+        manual_rotation_deg: float | None = None,
+        rotation_limits_deg: tuple[float, float] | None = None,
+    ) -> TrackerSnapshot:
         """A single-axis row: the rotation (pvlib ``tracker_theta``, degrees) goes in the
         elevation fields, see the module docstring."""
-        return cls(name, rotation_target_deg, None, rotation_deg, None, mode, alarm_bits,
-                   manual_rotation_deg, None, rotation_limits_deg, None)
+        return cls(
+            name,
+            rotation_target_deg,
+            None,
+            rotation_deg,
+            None,
+            mode,
+            alarm_bits,
+            manual_rotation_deg,
+            None,
+            rotation_limits_deg,
+            None,
+        )
 
 
 @dataclass(frozen=True)

@@ -17,5 +17,11 @@ from .hotspot import segment_fast, segment_seed
 from .mirror import level_rotation, mirror_sun_direction
 from .result import HotspotResult
 
-__all__ = ["HotspotEstimator", "HotspotResult", "mirror_sun_direction", "level_rotation",
-           "segment_fast", "segment_seed"]
+__all__ = [
+    "HotspotEstimator",
+    "HotspotResult",
+    "mirror_sun_direction",
+    "level_rotation",
+    "segment_fast",
+    "segment_seed",
+]

@@ -46,10 +46,17 @@ class HotspotEstimator:
     edge_px : mask erosion at the silhouette (pixels mixing globe and background)
     """
 
-    def __init__(self, bundle: CalibrationBundle, *, algorithm: str = "default",
-                 method: str = "subpixel", max_blob_fraction: float = 0.02,
-                 edge_px: int = 2, sigma_calibration_deg: float = 0.03,
-                 end_rule: str = "pseudocode"):
+    def __init__(
+        self,
+        bundle: CalibrationBundle,
+        *,
+        algorithm: str = "default",
+        method: str = "subpixel",
+        max_blob_fraction: float = 0.02,
+        edge_px: int = 2,
+        sigma_calibration_deg: float = 0.03,
+        end_rule: str = "pseudocode",
+    ):
         if algorithm not in ALGORITHMS:
             raise ConfigError(None, "algorithm", f"one of {ALGORITHMS}", algorithm)
         if method not in METHODS:
@@ -81,15 +88,20 @@ class HotspotEstimator:
     def estimate_file(self, path: str | Path, t: float | None = None) -> HotspotResult:
         img, reason = load_grey(path)
         if img is None:
-            return HotspotResult(image=str(path), found=False, reason=reason, time=t,
-                                 frame="enu" if self._has_enu else "model", quality=(reason,))
+            return HotspotResult(
+                image=str(path),
+                found=False,
+                reason=reason,
+                time=t,
+                frame="enu" if self._has_enu else "model",
+                quality=(reason,),
+            )
         res = self.estimate_image(img, t)
         res.image = str(path)
         return res
 
     def estimate_image(self, image: np.ndarray, t: float | None = None) -> HotspotResult:
-        out = HotspotResult(image=None, found=False, time=t,
-                            frame="enu" if self._has_enu else "model")
+        out = HotspotResult(image=None, found=False, time=t, frame="enu" if self._has_enu else "model")
         if image is None or image.ndim != 2 or image.shape != self.shape:
             got = None if image is None else tuple(image.shape)
             out.reason = "size_mismatch"
@@ -117,6 +129,11 @@ class HotspotEstimator:
         if seg.area > self.max_blob_fraction * self.mask_area:
             out.reason = "saturated_blob_too_large"
             out.quality = tuple(flags + ["saturated_blob_too_large"])
+            return out
+        distinct = self._distinct(image, seg)
+        if distinct:
+            out.reason = distinct
+            out.quality = tuple(flags + [distinct])
             return out
         r0, r1, c0, c1 = seg.roi
         hm = seg.roi_mask
@@ -153,18 +170,53 @@ class HotspotEstimator:
             if self.offset is not None:
                 az = (float(az_l) - self.offset) % 360.0
                 el = float(el_l)
-                out.s_enu = np.array([math.cos(math.radians(el)) * math.sin(math.radians(az)),
-                                      math.cos(math.radians(el)) * math.cos(math.radians(az)),
-                                      math.sin(math.radians(el))])
+                out.s_enu = np.array(
+                    [
+                        math.cos(math.radians(el)) * math.sin(math.radians(az)),
+                        math.cos(math.radians(el)) * math.cos(math.radians(az)),
+                        math.sin(math.radians(el)),
+                    ]
+                )
         out.az_deg, out.el_deg = az, el
         sig_centroid = 0.15 * self.deg_per_px  # ~0.15 px centring error
-        out.sigma_deg = float(math.sqrt(sig_centroid ** 2 + (spread / math.sqrt(max(neff, 1))) ** 2
-                                        + self.sigma_cal ** 2))
+        out.sigma_deg = float(
+            math.sqrt(sig_centroid**2 + (spread / math.sqrt(max(neff, 1))) ** 2 + self.sigma_cal**2)
+        )
         out.found = True
         out.quality = tuple(flags)
         out.centre_uv = centre
         out.extra["i_opt"] = seg.i_opt
         return out
+
+    #: A glint must stand out of the painted surface around it by this many robust sigmas
+    #: of that surface, and by ``MIN_CONTRAST_DN`` at least: a specular image of the sun is
+    #: orders of magnitude brighter than the diffuse black paint, noise is not.
+    MIN_CONTRAST_SIGMAS = 6.0
+    MIN_CONTRAST_DN = 20.0
+    #: More separate bright components than this is not one glint (noise, a lit surface).
+    MAX_CANDIDATES = 8
+
+    def _distinct(self, image: np.ndarray, seg) -> str | None:
+        """Reason to refuse a segmentation that is not a glint on a dark surface, or None."""
+        if seg.n_candidates > self.MAX_CANDIDATES:
+            return "ambiguous_bright_spots"
+        r0, r1, c0, c1 = seg.roi
+        H, W = self.shape
+        pad = 24
+        R0, R1, C0, C1 = max(r0 - pad, 0), min(r1 + pad, H), max(c0 - pad, 0), min(c1 + pad, W)
+        blob = np.zeros((R1 - R0, C1 - C0), np.uint8)
+        blob[r0 - R0 : r1 - R0, c0 - C0 : c1 - C0] = seg.roi_mask
+        near = cv2.dilate(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (11, 11)))
+        far = cv2.dilate(blob, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (41, 41)))
+        ring = (far > 0) & (near == 0) & (self.mask[R0:R1, C0:C1] > 0)
+        if ring.sum() < 20:
+            return None  # no surface around to compare with
+        around = image[R0:R1, C0:C1][ring].astype(np.float64)
+        med = float(np.median(around))
+        sigma = max(1.4826 * float(np.median(np.abs(around - med))), 1.0)
+        if seg.i_max - med < max(self.MIN_CONTRAST_SIGMAS * sigma, self.MIN_CONTRAST_DN):
+            return "no_distinct_glint"
+        return None
 
     @staticmethod
     def _halfvector_centre(n, v, w, s, iters: int = 8):
@@ -234,8 +286,8 @@ class HotspotEstimator:
             s = self._halfvector_centre(n[ok], v[ok], w, s)
         centre = (float((w * cc[ok]).sum() / w.sum()), float((w * rr[ok]).sum() / w.sum()))
         ang = angle_between_deg(si, s)
-        spread = float(np.sqrt((w * ang ** 2).sum() / w.sum()))
-        neff = float(w.sum() ** 2 / (w ** 2).sum())
+        spread = float(np.sqrt((w * ang**2).sum() / w.sum()))
+        neff = float(w.sum() ** 2 / (w**2).sum())
         vbar = (w[:, None] * v[ok]).sum(0)
         vbar /= np.linalg.norm(vbar)
         return s, centre, spread, neff, vbar

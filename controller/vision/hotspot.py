@@ -54,8 +54,9 @@ def _end_threshold(imax: int, imin: int, end_rule: str) -> int:
     return int(math.ceil(end))
 
 
-def _candidate(labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray,
-               offset: tuple[int, int], full_width: int) -> int:
+def _candidate(
+    labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray, offset: tuple[int, int], full_width: int
+) -> int:
     """Label of the component with the largest mean brightness (ties: area, raster order)."""
     if n <= 1:
         return 0
@@ -67,11 +68,14 @@ def _candidate(labels: np.ndarray, n: int, stats: np.ndarray, img: np.ndarray,
         a = areas[best]
         best = best[a == a.max()]
     if best.size > 1:
-        firsts = []
-        for k in best:
-            r, c = np.argwhere(labels == k + 1)[0]
-            firsts.append((r + offset[0]) * full_width + (c + offset[1]))
-        best = best[[int(np.argmin(firsts))]]
+        # the tied component whose first pixel comes first in raster order (one pass)
+        flat = labels.ravel()
+        first = np.full(n, flat.size, np.int64)
+        np.minimum.at(first, flat, np.arange(flat.size))
+        h, w = labels.shape
+        rows, cols = np.divmod(first[best + 1], w)
+        raster = (rows + offset[0]) * full_width + (cols + offset[1])
+        best = best[[int(np.argmin(raster))]]
     return int(best[0]) + 1
 
 
@@ -114,12 +118,13 @@ def _minmax(image, mask):
     return int(imin), int(imax)
 
 
-def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode",
-                 glint_level: int = 230) -> Segmentation:
+def segment_seed(
+    image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode", glint_level: int = 230
+) -> Segmentation:
     """The paper's Algorithm 1, literally, on the whole frame (slow: one labelling of the full
     frame per threshold)."""
     img = np.ascontiguousarray(image)
-    m = (mask > 0)
+    m = mask > 0
     if not m.any():
         return Segmentation(False, "empty_mask")
     imin, imax = _minmax(img, m.astype(np.uint8))
@@ -130,14 +135,40 @@ def segment_seed(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
     curve = _sweep(img, m, imax, i_end, (0, 0), W)
     i_opt = _knee(curve)
     h, ncand = _final(img, m, i_opt, (0, 0), W)
-    return Segmentation(True, None, mask=h, roi=(0, img.shape[0], 0, img.shape[1]), i_opt=i_opt,
-                        i_max=imax, i_min=imin, n_candidates=ncand, area=int(h.sum()), curve=curve,
-                        roi_mask=h)
+    return Segmentation(
+        True,
+        None,
+        mask=h,
+        roi=(0, img.shape[0], 0, img.shape[1]),
+        i_opt=i_opt,
+        i_max=imax,
+        i_min=imin,
+        n_candidates=ncand,
+        area=int(h.sum()),
+        curve=curve,
+        roi_mask=h,
+    )
 
 
-def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudocode",
-                 glint_level: int = 230, full_mask: bool = True) -> Segmentation:
-    """Same H as :func:`segment_seed`, computed on the window that can hold it."""
+#: More separate saturated spots than this is not one glint (hot pixels, noise, a lit
+#: surface): :func:`segment_fast` gives up before the threshold sweep.
+MAX_SATURATED_SPOTS = 8
+
+
+def segment_fast(
+    image: np.ndarray,
+    mask: np.ndarray,
+    *,
+    end_rule: str = "pseudocode",
+    glint_level: int = 230,
+    full_mask: bool = True,
+) -> Segmentation:
+    """Same H as :func:`segment_seed`, computed on the window that can hold it.
+
+    A frame with more than :data:`MAX_SATURATED_SPOTS` separate spots above
+    ``glint_level`` is refused at once (``ambiguous_bright_spots``): the sweep would have to
+    label the whole frame at every threshold to find no glint in it.
+    """
     img = np.ascontiguousarray(image)
     m8 = mask if mask.dtype == np.uint8 else (mask > 0).astype(np.uint8)
     imin, imax = _minmax(img, m8)
@@ -145,6 +176,10 @@ def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
         return Segmentation(False, "empty_mask")
     if imax < glint_level:
         return Segmentation(False, "no_glint", i_max=imax, i_min=imin)
+    _, hi = cv2.threshold(img, glint_level - 1, 1, cv2.THRESH_BINARY)
+    spots = cv2.connectedComponents(cv2.bitwise_and(hi, m8), connectivity=8)[0] - 1
+    if spots > MAX_SATURATED_SPOTS:
+        return Segmentation(False, "ambiguous_bright_spots", i_max=imax, i_min=imin, n_candidates=spots)
     i_end = _end_threshold(imax, imin, end_rule)
     _, b = cv2.threshold(img, i_end, 1, cv2.THRESH_BINARY)
     b = cv2.bitwise_and(b, m8)
@@ -162,7 +197,17 @@ def segment_fast(image: np.ndarray, mask: np.ndarray, *, end_rule: str = "pseudo
     if full_mask:
         full = np.zeros((H, W), np.uint8)
         full[r0:r1, c0:c1] = hsub
-    seg = Segmentation(True, None, mask=full, roi=(r0, r1, c0, c1), i_opt=i_opt, i_max=imax,
-                       i_min=imin, n_candidates=ncand, area=int(hsub.sum()), curve=curve,
-                       roi_mask=hsub)
+    seg = Segmentation(
+        True,
+        None,
+        mask=full,
+        roi=(r0, r1, c0, c1),
+        i_opt=i_opt,
+        i_max=imax,
+        i_min=imin,
+        n_candidates=ncand,
+        area=int(hsub.sum()),
+        curve=curve,
+        roi_mask=hsub,
+    )
     return seg

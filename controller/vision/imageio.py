@@ -33,16 +33,15 @@ def header_size(data: bytes) -> tuple[int, int] | None:
             if marker in (0xD8, 0x01) or 0xD0 <= marker <= 0xD7:
                 i += 2
                 continue
-            length = struct.unpack(">H", data[i + 2:i + 4])[0]
+            length = struct.unpack(">H", data[i + 2 : i + 4])[0]
             if marker in _SOF:
-                h, w = struct.unpack(">HH", data[i + 5:i + 9])
+                h, w = struct.unpack(">HH", data[i + 5 : i + 9])
                 return int(w), int(h)
             i += 2 + length
     return None
 
 
-def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS
-               ) -> tuple[np.ndarray | None, str | None]:
+def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.ndarray | None, str | None]:
     """The image as OpenCV decodes it (8 or 16 bit, grey or BGR/BGRA), or (None, reason).
 
     JPEG must end with its EOI marker and PNG with its IEND chunk: OpenCV otherwise decodes
@@ -80,8 +79,7 @@ def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS
     return img, None
 
 
-def load_grey(path: str | Path, *, max_pixels: int = MAX_PIXELS
-              ) -> tuple[np.ndarray | None, str | None]:
+def load_grey(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.ndarray | None, str | None]:
     """8-bit grey image, or (None, reason) (see :func:`read_image`; also
     ``unsupported_image_format``)."""
     img, reason = read_image(path, max_pixels=max_pixels)

@@ -32,9 +32,15 @@ class HotspotResult:
     def observation(self) -> SunObservation | None:
         if not self.found or self.time is None:
             return None
-        return SunObservation(time=float(self.time), az_deg=float(self.az_deg),
-                              el_deg=float(self.el_deg), sigma_deg=float(self.sigma_deg),
-                              frame=self.frame, quality=tuple(self.quality), sensor="hotspot")
+        return SunObservation(
+            time=float(self.time),
+            az_deg=float(self.az_deg),
+            el_deg=float(self.el_deg),
+            sigma_deg=float(self.sigma_deg),
+            frame=self.frame,
+            quality=tuple(self.quality),
+            sensor="hotspot",
+        )
 
     def to_json(self) -> dict[str, Any]:
         d: dict[str, Any] = {"image": self.image, "found": self.found}
@@ -42,10 +48,16 @@ class HotspotResult:
             d["reason"] = self.reason
         if self.time is not None:
             d["time"] = self.time
-        d.update({"frame": self.frame,
-                  "az_deg": rounded(self.az_deg), "el_deg": rounded(self.el_deg),
-                  "sigma_deg": rounded(self.sigma_deg), "quality": list(self.quality),
-                  "area_px": self.area_px})
+        d.update(
+            {
+                "frame": self.frame,
+                "az_deg": rounded(self.az_deg),
+                "el_deg": rounded(self.el_deg),
+                "sigma_deg": rounded(self.sigma_deg),
+                "quality": list(self.quality),
+                "area_px": self.area_px,
+            }
+        )
         if self.centre_uv is not None:
             d["centre_uv"] = [rounded(self.centre_uv[0], 3), rounded(self.centre_uv[1], 3)]
         if self.s_model is not None:

@@ -29,8 +29,7 @@ class SurfaceMap:
     edge_px : mask erosion at the silhouette (pixels mixing surface and background)
     """
 
-    def __init__(self, bundle: CalibrationBundle, R: np.ndarray, tvec: np.ndarray,
-                 edge_px: int = 2):
+    def __init__(self, bundle: CalibrationBundle, R: np.ndarray, tvec: np.ndarray, edge_px: int = 2):
         self.bundle = bundle
         cam = bundle.camera
         self.shape = (cam.height, cam.width)
@@ -99,8 +98,9 @@ class SurfaceMap:
             toward = self.C - pts
             front = np.sum(nrm * toward, 1) > 0
             pts, nrm = pts[front], nrm[front]
-            uv, _ = cv2.projectPoints(pts.reshape(-1, 1, 3), cv2.Rodrigues(self.R)[0], self.tvec,
-                                      cam.K, cam.dist_array)
+            uv, _ = cv2.projectPoints(
+                pts.reshape(-1, 1, 3), cv2.Rodrigues(self.R)[0], self.tvec, cam.K, cam.dist_array
+            )
             uv = uv.reshape(-1, 2)
             iu = np.rint(uv[:, 0]).astype(int)
             iv = np.rint(uv[:, 1]).astype(int)
@@ -177,8 +177,9 @@ class SurfaceMap:
         cc = self.C + a * (D - r * r / D)
         rr = r * math.sqrt(1 - (r / D) ** 2)
         pts = cc + rr * (np.cos(ang)[:, None] * e1 + np.sin(ang)[:, None] * e2)
-        uv, _ = cv2.projectPoints(pts.reshape(-1, 1, 3), cv2.Rodrigues(self.R)[0], self.tvec,
-                                  cam.K, cam.dist_array)
+        uv, _ = cv2.projectPoints(
+            pts.reshape(-1, 1, 3), cv2.Rodrigues(self.R)[0], self.tvec, cam.K, cam.dist_array
+        )
         uv = uv.reshape(-1, 2)
         H, W = self.shape
         c0 = max(int(np.floor(uv[:, 0].min())) - 3, 0)

@@ -1,33 +1,78 @@
-"""``heliotrack bench NAME|all``: run benchmarks and write JSON under benchmarks/results/."""
+"""``heliotrack bench [NAME ...]``: run benchmarks, write JSON under benchmarks/results/,
+print the headline figures beside their targets, and exit 1 when one misses."""
 
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     from benchmarks import BENCHMARKS
 
-    p = sub.add_parser("bench", help="run a benchmark and write its JSON result")
-    p.add_argument("name", choices=(*BENCHMARKS, "all"), help="benchmark to run")
+    p = sub.add_parser(
+        "bench",
+        help="run benchmarks (all when no name is given)",
+        description="Run benchmarks and write benchmarks/results/<name>.json; "
+        "with no name, run every one and write summary.md.  Exit "
+        "status 1 when a figure misses its target.",
+    )
+    p.add_argument(
+        "names",
+        nargs="*",
+        metavar="NAME",
+        choices=(*BENCHMARKS, "all", []),
+        help=f"benchmarks to run ({', '.join(BENCHMARKS)}); default: all",
+    )
     p.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
-    p.add_argument("--kills", type=int, default=None,
-                   help="persistence: how many times to kill the writer (default 1000)")
+    p.add_argument(
+        "--summary-only", action="store_true", help="run nothing: rebuild summary.md from the results on disk"
+    )
+    p.add_argument(
+        "--kills",
+        type=int,
+        default=None,
+        help="persistence: how many times to kill the writer (default 1000)",
+    )
     p.add_argument("--days", type=int, default=None, help="soak: simulated days (default 30)")
-    p.add_argument("--results-dir", type=Path, default=None,
-                   help="where to write JSON (default benchmarks/results/)")
+    p.add_argument(
+        "--results-dir", type=Path, default=None, help="where to write JSON (default benchmarks/results/)"
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from benchmarks import BENCHMARKS, run_benchmark
+    import sys
 
-    names = BENCHMARKS if args.name == "all" else (args.name,)
-    for name in names:
-        record = run_benchmark(name, quick=args.quick, results_dir=args.results_dir,
-                               kills=args.kills, days=args.days)
-        print(f"== {name} ({record['wall_s']} s) -> {record['path']}")
-        print(json.dumps(record["result"], indent=2, default=str))
+    from benchmarks import BENCHMARKS, RESULTS_DIR, run_benchmark
+    from benchmarks.summary import headlines, load_results, markdown, table
+    from controller.atomic import atomic_write
+
+    names = [n for n in args.names if n != "all"] or list(BENCHMARKS)
+    results_dir = args.results_dir or RESULTS_DIR
+    rows = []
+    if not args.summary_only:
+        progress = sys.stderr.isatty()
+        for i, name in enumerate(names):
+            if progress:
+                print(f"[{i + 1}/{len(names)}] {name} ...", file=sys.stderr, flush=True)
+            record = run_benchmark(
+                name, quick=args.quick, results_dir=args.results_dir, kills=args.kills, days=args.days
+            )
+            print(f"== {name} ({record['wall_s']} s) -> {record['path']}")
+            found = headlines(name, record["result"])
+            print(table(found))
+            rows += found
+    else:
+        for name, rec in load_results(names, results_dir).items():
+            rows += headlines(name, rec["result"]) if rec else []
+    if not args.names or "all" in args.names or args.summary_only:
+        path = atomic_write(results_dir / "summary.md", markdown(load_results(list(BENCHMARKS), results_dir)))
+        print(f"wrote {path}")
+    misses = [r for r in rows if r.ok is False]
+    if misses:
+        print(f"{len(misses)} figure(s) missed their target:", file=sys.stderr)
+        for r in misses:
+            print(f"  {r.benchmark}: {r.figure} = {r.value} (target {r.target})", file=sys.stderr)
+        return 1
     return 0

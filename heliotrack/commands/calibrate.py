@@ -45,8 +45,9 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     lv.add_argument("--bundle", type=Path, required=True)
     lv.set_defaults(func=_level)
     az = sp.add_parser("azimuth", help="azimuth offset from a day of levelled observations")
-    az.add_argument("--observations", type=Path, required=True,
-                    help="JSON lines from `heliotrack estimate` (with times)")
+    az.add_argument(
+        "--observations", type=Path, required=True, help="JSON lines from `heliotrack estimate` (with times)"
+    )
     az.add_argument("--method", choices=("noon", "ephemeris"), default="noon")
     az.add_argument("--culminates", choices=("south", "north"), default="south")
     az.add_argument("--lat", type=float)
@@ -54,18 +55,29 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     az.add_argument("--bundle", type=Path, required=True)
     az.set_defaults(func=_azimuth)
     al = sp.add_parser("all", help="the whole chain from an installer's folder (see docs/hotspot.md)")
-    al.add_argument("folder", type=Path, help="checkerboards/, globe_scan.ply, markers_survey.csv, "
-                    "marker_view.png, plumb_view.png, day/")
+    al.add_argument(
+        "folder",
+        type=Path,
+        help="checkerboards/, globe_scan.ply, markers_survey.csv, marker_view.png, plumb_view.png, day/",
+    )
     al.add_argument("--pattern", default="9x6")
     al.add_argument("--square", type=float, default=0.04)
     al.add_argument("--lat", type=float, help="site latitude (enables the ephemeris azimuth fit)")
     al.add_argument("--lon", type=float)
     al.add_argument("--min-z", type=float, default=0.0, help="hemisphere cut in the model frame")
-    al.add_argument("--method", choices=("noon", "ephemeris", "ephemeris-full"), default="ephemeris",
-                    help="azimuth alignment: paper's noon culmination; ephemeris azimuth fit; or "
-                         "full rotation fit against the ephemeris (replaces the plumb-line zenith)")
-    al.add_argument("--shape-degree", type=int, default=6,
-                    help="degree of the radial shape polynomial fitted to the scan (0: sphere only)")
+    al.add_argument(
+        "--method",
+        choices=("noon", "ephemeris", "ephemeris-full"),
+        default="ephemeris",
+        help="azimuth alignment: paper's noon culmination; ephemeris azimuth fit; or "
+        "full rotation fit against the ephemeris (replaces the plumb-line zenith)",
+    )
+    al.add_argument(
+        "--shape-degree",
+        type=int,
+        default=6,
+        help="degree of the radial shape polynomial fitted to the scan (0: sphere only)",
+    )
     al.add_argument("--bundle", type=Path, required=True)
     al.set_defaults(func=_all)
     from . import calibrate_fisheye
@@ -89,11 +101,21 @@ def _intrinsics(args) -> int:
         nx, ny = (int(x) for x in args.pattern.lower().split("x"))
     except ValueError:
         raise InputError(f"--pattern: expected like 9x6, got {args.pattern!r}") from None
-    res = calibrate_intrinsics([str(p) for p in args.images], (nx, ny), args.square,
-                               [str(p) for p in args.images])
+    res = calibrate_intrinsics(
+        [str(p) for p in args.images], (nx, ny), args.square, [str(p) for p in args.images]
+    )
     update_bundle(args.bundle, camera=res.camera)
-    print(json.dumps({"step": "intrinsics", "rms_px": round(res.rms_px, 4), "views": len(res.used),
-                      "rejected": res.rejected, "bundle": str(args.bundle)}))
+    print(
+        json.dumps(
+            {
+                "step": "intrinsics",
+                "rms_px": round(res.rms_px, 4),
+                "views": len(res.used),
+                "rejected": res.rejected,
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0
 
 
@@ -103,10 +125,19 @@ def _surface(args) -> int:
 
     if args.fit_sphere:
         f = fit_sphere(args.cloud)
-        srf = SurfaceCal(kind="sphere", center=tuple(map(float, f.center)), radius=f.radius,
-                         min_z=args.min_z, rmse_m=f.rmse_m)
-        info = {"radius_m": round(f.radius, 6), "center": [round(float(x), 6) for x in f.center],
-                "rmse_mm": round(1000 * f.rmse_m, 4), "points": f.n_points}
+        srf = SurfaceCal(
+            kind="sphere",
+            center=tuple(map(float, f.center)),
+            radius=f.radius,
+            min_z=args.min_z,
+            rmse_m=f.rmse_m,
+        )
+        info = {
+            "radius_m": round(f.radius, 6),
+            "center": [round(float(x), 6) for x in f.center],
+            "rmse_mm": round(1000 * f.rmse_m, 4),
+            "points": f.n_points,
+        }
     else:
         from controller.calibration.surface import load_cloud
 
@@ -130,10 +161,20 @@ def _pose(args) -> int:
     else:
         raise InputError("pose: give --image with --survey, or --picked")
     res = solve_pose(mp, ip, b.camera)
-    update_bundle(args.bundle, pose=PoseCal(rvec=tuple(map(float, res.rvec)),
-                                            tvec=tuple(map(float, res.tvec)), rms_px=res.rms_px))
-    print(json.dumps({"step": "pose", "points": res.n_points, "rms_px": round(res.rms_px, 4),
-                      "bundle": str(args.bundle)}))
+    update_bundle(
+        args.bundle,
+        pose=PoseCal(rvec=tuple(map(float, res.rvec)), tvec=tuple(map(float, res.tvec)), rms_px=res.rms_px),
+    )
+    print(
+        json.dumps(
+            {
+                "step": "pose",
+                "points": res.n_points,
+                "rms_px": round(res.rms_px, 4),
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0
 
 
@@ -153,15 +194,24 @@ def _level(args) -> int:
     elif args.image:
         lines = detect_plumb_lines(_grey(args.image), b.camera)
         if len(lines) < 2:
-            raise InputError(f"{args.image}: found {len(lines)} plumb lines, need >= 2 "
-                             "(pick points by hand: --lines)")
+            raise InputError(
+                f"{args.image}: found {len(lines)} plumb lines, need >= 2 (pick points by hand: --lines)"
+            )
         res = zenith_from_lines(lines, b.camera, rvec, undistorted=True)
     else:
         raise InputError("level: give --image or --lines")
     update_bundle(args.bundle, level=LevelCal(zenith_model=tuple(map(float, res.zenith_model))))
-    print(json.dumps({"step": "level", "lines": res.n_lines, "rms_line_deg": round(res.rms_line_deg, 4),
-                      "zenith_model": [round(float(x), 8) for x in res.zenith_model],
-                      "bundle": str(args.bundle)}))
+    print(
+        json.dumps(
+            {
+                "step": "level",
+                "lines": res.n_lines,
+                "rms_line_deg": round(res.rms_line_deg, 4),
+                "zenith_model": [round(float(x), 8) for x in res.zenith_model],
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0
 
 
@@ -195,8 +245,17 @@ def _azimuth(args) -> int:
         sp = solar_position(Site(args.lat, args.lon), tt)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
     update_bundle(args.bundle, azimuth=AzimuthCal(off))
-    print(json.dumps({"step": "azimuth", "method": args.method, "observations": len(az),
-                      "offset_deg": round(off, 4), "bundle": str(args.bundle)}))
+    print(
+        json.dumps(
+            {
+                "step": "azimuth",
+                "method": args.method,
+                "observations": len(az),
+                "offset_deg": round(off, 4),
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0
 
 
@@ -209,9 +268,16 @@ def _all(args) -> int:
     except ValueError:
         raise InputError(f"--pattern: expected like 9x6, got {args.pattern!r}") from None
     site = Site(args.lat, args.lon) if args.lat is not None and args.lon is not None else None
-    calibrate_folder(args.folder, pattern=(nx, ny), square=args.square, site=site,
-                     min_z=args.min_z, method=args.method, out=args.bundle,
-                     shape_degree=args.shape_degree,
-                     log=lambda d: print(json.dumps(d)))
+    calibrate_folder(
+        args.folder,
+        pattern=(nx, ny),
+        square=args.square,
+        site=site,
+        min_z=args.min_z,
+        method=args.method,
+        out=args.bundle,
+        shape_degree=args.shape_degree,
+        log=lambda d: print(json.dumps(d)),
+    )
     print(json.dumps({"bundle": str(args.bundle)}))
     return 0

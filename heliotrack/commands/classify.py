@@ -8,9 +8,11 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "classify", help="classify days as clear / partly cloudy / overcast from GHI",
+        "classify",
+        help="classify days as clear / partly cloudy / overcast from GHI",
         description="Classify each day of a GHI record (I clear, II partly cloudy, III "
-                    "overcast) and write days.csv, the paper's tables and figures.")
+        "overcast) and write days.csv, the paper's tables and figures.",
+    )
     p.add_argument("files", nargs="+", type=Path, metavar="FILE", help="input files, one station")
     p.add_argument("--lat", type=float, help="latitude, deg north (required unless the file says)")
     p.add_argument("--lon", type=float, help="longitude, deg east (required unless the file says)")
@@ -19,36 +21,58 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--time-col", help="CSV time column (UTC); guessed if omitted")
     p.add_argument("--ghi-col", help="GHI column; guessed if omitted")
     p.add_argument("--dni-col", help="DNI column (adds the sunshine-duration truth)")
-    p.add_argument("--settings", type=Path, default=None,
-                   help="TOML file with a [sky] table (docs/config.md); options below override it")
-    p.add_argument("--method", choices=("default", "seed"), default=None,
-                   help="rule for the class column (seed: the paper's D and K_T rule; default: default)")
-    p.add_argument("--threshold-rule", choices=("range", "tertiles", "fixed"), default=None,
-                   help="how the seed rule sets D_I, D_II per year (default: range)")
-    p.add_argument("--d-thresholds", type=float, nargs=2, metavar=("D_I", "D_II"),
-                   help="fixed D_I D_II (implies --threshold-rule fixed)")
-    p.add_argument("--max-missing-min", type=float, default=None,
-                   help="exclude days with more daylight than this missing, min (default 60)")
+    p.add_argument(
+        "--settings",
+        type=Path,
+        default=None,
+        help="TOML file with a [sky] table (docs/config.md); options below override it",
+    )
+    p.add_argument(
+        "--method",
+        choices=("default", "seed"),
+        default=None,
+        help="rule for the class column (seed: the paper's D and K_T rule; default: default)",
+    )
+    p.add_argument(
+        "--threshold-rule",
+        choices=("range", "tertiles", "fixed"),
+        default=None,
+        help="how the seed rule sets D_I, D_II per year (default: range)",
+    )
+    p.add_argument(
+        "--d-thresholds",
+        type=float,
+        nargs=2,
+        metavar=("D_I", "D_II"),
+        help="fixed D_I D_II (implies --threshold-rule fixed)",
+    )
+    p.add_argument(
+        "--max-missing-min",
+        type=float,
+        default=None,
+        help="exclude days with more daylight than this missing, min (default 60)",
+    )
     p.add_argument("--out", type=Path, default=Path("skytype-out"), help="output directory")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import sys
-
-    from controller.errors import InputError
     from dataclasses import replace
 
+    from controller.errors import InputError
     from controller.schema import load_file
-    from controller.sky.classify import SkyConfig, SkySettings, analyse_grid
+    from controller.sky.classify import analyse_grid
     from controller.sky.grid import build_day_grid
     from controller.sky.io import read_records
-    from heliotrack.reports.skytype import write_figures, write_tables
+    from controller.sky.settings import SkyConfig, SkySettings
     from controller.sun.source import Site
+    from heliotrack.reports.skytype import write_figures, write_tables
 
     progress = sys.stderr.isatty()
-    rec = read_records(list(args.files), args.format, args.time_col, args.ghi_col, args.dni_col,
-                       progress=progress)
+    rec = read_records(
+        list(args.files), args.format, args.time_col, args.ghi_col, args.dni_col, progress=progress
+    )
     lat = args.lat if args.lat is not None else rec.latitude
     lon = args.lon if args.lon is not None else rec.longitude
     if lat is None or lon is None:
@@ -76,18 +100,24 @@ def run(args: argparse.Namespace) -> int:
     site = Site(lat, lon, alt)
     res = analyse_grid(grid, site, config, with_clearsky=rec.dni is not None, progress=progress)
     if len(res.days) == 0:
-        raise InputError(f"{', '.join(rec.sources)}: no day could be classified "
-                         f"({len(res.excluded)} excluded, e.g. {res.excluded['reason'].iloc[0] if len(res.excluded) else 'no data'})")
+        raise InputError(
+            f"{', '.join(rec.sources)}: no day could be classified "
+            f"({len(res.excluded)} excluded, e.g. {res.excluded['reason'].iloc[0] if len(res.excluded) else 'no data'})"
+        )
     written = write_tables(res, args.out) + write_figures(res, grid, args.out)
     counts = res.days["class"].value_counts()
-    print(f"{len(res.days)} days classified ({config.method} rule, grid {res.step_s} s), "
-          f"{len(res.excluded)} excluded: "
-          + ", ".join(f"{c} {int(counts.get(c, 0))}" for c in ("I", "II", "III")))
+    print(
+        f"{len(res.days)} days classified ({config.method} rule, grid {res.step_s} s), "
+        f"{len(res.excluded)} excluded: "
+        + ", ".join(f"{c} {int(counts.get(c, 0))}" for c in ("I", "II", "III"))
+    )
     if "truth" in res.days:
         agr = res.days[res.days["truth"] != ""]
         for col in ("class_default", "class_seed", "class_kt", "class_csd"):
             if col in agr and len(agr):
-                print(f"  agreement with sunshine truth, {col[6:]}: "
-                      f"{100 * (agr[col] == agr['truth']).mean():.1f} % of {len(agr)} days")
+                print(
+                    f"  agreement with sunshine truth, {col[6:]}: "
+                    f"{100 * (agr[col] == agr['truth']).mean():.1f} % of {len(agr)} days"
+                )
     print(f"wrote {len(written)} files to {args.out}")
     return 0

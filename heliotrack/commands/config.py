@@ -11,7 +11,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
     s = p.add_subparsers(dest="config_command", metavar="ACTION")
     d = s.add_parser("docs", help="write the configuration reference (docs/config.md)")
-    d.add_argument("--out", type=Path, default=None, help="file to write (default docs/config.md; - for stdout)")
+    d.add_argument(
+        "--out", type=Path, default=None, help="file to write (default docs/config.md; - for stdout)"
+    )
     d.set_defaults(func=_docs)
     v = s.add_parser("validate", help="validate a plant or scenario file (exit 2 on an error)")
     v.add_argument("file", type=Path)

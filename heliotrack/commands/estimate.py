@@ -15,15 +15,27 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("estimate", help="estimate the sun's direction from sensor images (JSON lines)")
-    p.add_argument("--sensor", choices=("hotspot", "fisheye"), default="hotspot",
-                   help="sensor type: the convex-surface hotspot sensor, or the fisheye sky camera")
+    p.add_argument(
+        "--sensor",
+        choices=("hotspot", "fisheye"),
+        default="hotspot",
+        help="sensor type: the convex-surface hotspot sensor, or the fisheye sky camera",
+    )
     p.add_argument("--calib", required=True, type=Path, help="calibration bundle (TOML)")
     p.add_argument("--time", default=None, help="ISO time of the image(s), UTC unless an offset is given")
-    p.add_argument("--algorithm", choices=("default", "seed"), default="default",
-                   help="default pipeline, or the paper's (hotspot: Algorithm 1 literally; "
-                        "fisheye: HSI weights, longitude correction and three rules)")
-    p.add_argument("--method", choices=("subpixel", "paper"), default="subpixel",
-                   help="direction from the hotspot: sub-pixel (default) or the paper's weights")
+    p.add_argument(
+        "--algorithm",
+        choices=("default", "seed"),
+        default="default",
+        help="default pipeline, or the paper's (hotspot: Algorithm 1 literally; "
+        "fisheye: HSI weights, longitude correction and three rules)",
+    )
+    p.add_argument(
+        "--method",
+        choices=("subpixel", "paper"),
+        default="subpixel",
+        help="direction from the hotspot: sub-pixel (default) or the paper's weights",
+    )
     p.add_argument("images", nargs="+", type=Path, metavar="IMAGE")
     p.set_defaults(func=run)
 

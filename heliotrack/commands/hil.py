@@ -13,25 +13,38 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hil", help="run a piece of the emulated world on its own")
     hs = p.add_subparsers(dest="hil_command", metavar="WHAT")
     hs.required = True
-    d = hs.add_parser("drive", help="serve an emulated drive firmware in real time",
-                      description="Serve an emulated slewing drive on a pty (Modbus RTU) or "
-                                  "on 127.0.0.1 (Modbus TCP), or as CANopen CiA 402 nodes (one "
-                                  "per axis: --id, --id + 1) behind an emulated slcan USB-CAN "
-                                  "adapter on a pty (--protocol canopen; open it with python-can "
-                                  "interface 'slcan'). With --link pty the first stdout "
-                                  "line is 'PTY <path>'; with --link tcp it is 'TCP <host>:<port>'. "
-                                  "Runs until SIGINT or SIGTERM.")
+    d = hs.add_parser(
+        "drive",
+        help="serve an emulated drive firmware in real time",
+        description="Serve an emulated slewing drive on a pty (Modbus RTU) or "
+        "on 127.0.0.1 (Modbus TCP), or as CANopen CiA 402 nodes (one "
+        "per axis: --id, --id + 1) behind an emulated slcan USB-CAN "
+        "adapter on a pty (--protocol canopen; open it with python-can "
+        "interface 'slcan'). With --link pty the first stdout "
+        "line is 'PTY <path>'; with --link tcp it is 'TCP <host>:<port>'. "
+        "Runs until SIGINT or SIGTERM.",
+    )
     d.add_argument("--link", choices=("pty", "tcp"), default="pty")
     d.add_argument("--protocol", choices=("modbus", "canopen"), default="modbus")
     d.add_argument("--axes", type=int, choices=(1, 2), default=2)
-    d.add_argument("--id", type=int, default=1,
-                   help="Modbus slave id (1-247), or CANopen node id of axis 0 (1-126)")
+    d.add_argument(
+        "--id", type=int, default=1, help="Modbus slave id (1-247), or CANopen node id of axis 0 (1-126)"
+    )
     d.add_argument("--port", type=int, default=0, help="TCP port (0: any free port)")
-    d.add_argument("--heartbeat-timeout", type=float, default=10.0,
-                   help="watchdog timeout in s (0 disables); masters may rewrite it")
+    d.add_argument(
+        "--heartbeat-timeout",
+        type=float,
+        default=10.0,
+        help="watchdog timeout in s (0 disables); masters may rewrite it",
+    )
     d.add_argument("--max-speed", type=float, default=1.0, help="deg/s")
-    d.add_argument("--stow", type=float, nargs="*", default=None,
-                   help="stow angle per axis, deg (default 180 90 for two axes, 0 for one)")
+    d.add_argument(
+        "--stow",
+        type=float,
+        nargs="*",
+        default=None,
+        help="stow angle per axis, deg (default 180 90 for two axes, 0 for one)",
+    )
     d.set_defaults(func=run_drive)
 
 
@@ -43,8 +56,9 @@ def run_drive(args: argparse.Namespace) -> int:
 
     if args.protocol == "canopen":
         if args.link != "pty":
-            raise HilError("--protocol canopen serves an slcan adapter on a pty: use --link pty "
-                           "(CAN has no TCP link)")
+            raise HilError(
+                "--protocol canopen serves an slcan adapter on a pty: use --link pty (CAN has no TCP link)"
+            )
     elif not 1 <= args.id <= 247:
         raise HilError(f"--id must be 1..247, got {args.id}")
     stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
@@ -54,9 +68,18 @@ def run_drive(args: argparse.Namespace) -> int:
         limits = [(0.0, 360.0), (0.0, 90.0)]
     else:
         limits = [(-60.0, 60.0)]
-    axes = [AxisParams(max_speed=args.max_speed, soft_min=lo, soft_max=hi, hard_min=lo - 5,
-                       hard_max=hi + 5, stow_angle=s, initial_angle=s)
-            for (lo, hi), s in zip(limits, stow)]
+    axes = [
+        AxisParams(
+            max_speed=args.max_speed,
+            soft_min=lo,
+            soft_max=hi,
+            hard_min=lo - 5,
+            hard_max=hi + 5,
+            stow_angle=s,
+            initial_angle=s,
+        )
+        for (lo, hi), s in zip(limits, stow)
+    ]
     fw = DriveFirmware(axes, time.time, heartbeat_timeout=args.heartbeat_timeout)
 
     stop = threading.Event()
@@ -74,8 +97,11 @@ def run_drive(args: argparse.Namespace) -> int:
         else:
             server = ModbusServerThread({args.id: fw}, tcp=("127.0.0.1", args.port)).start()
             print(f"TCP 127.0.0.1:{server.tcp_port}", flush=True)
-        print(f"drive id {args.id}, {args.axes} axis(es), heartbeat timeout "
-              f"{args.heartbeat_timeout:g} s", file=sys.stderr, flush=True)
+        print(
+            f"drive id {args.id}, {args.axes} axis(es), heartbeat timeout {args.heartbeat_timeout:g} s",
+            file=sys.stderr,
+            flush=True,
+        )
         while not stop.wait(0.1):
             fw.update()  # the watchdog runs even when nobody polls
         server.stop()
@@ -97,7 +123,7 @@ def _serve_canopen(args: argparse.Namespace, fw, stop: threading.Event) -> int:
         check_node_id(args.id, args.axes)
     except ValueError as exc:
         raise HilError(f"--id: {exc}") from None
-    channel = f"heliotrack-hil-{os.getpid()}"   # private to this process
+    channel = f"heliotrack-hil-{os.getpid()}"  # private to this process
     emulator = CanopenNetworkEmulator(channel).start()
     link, adapter = None, None
     try:
@@ -105,8 +131,12 @@ def _serve_canopen(args: argparse.Namespace, fw, stop: threading.Event) -> int:
         link, adapter = open_slcan_pty(channel)
         print(f"PTY {link.path}", flush=True)
         nodes = ", ".join(str(args.id + k) for k in range(args.axes))
-        print(f"CANopen node(s) {nodes} (CiA 402 profile position), slcan adapter; "
-              f"heartbeat timeout {args.heartbeat_timeout:g} s", file=sys.stderr, flush=True)
+        print(
+            f"CANopen node(s) {nodes} (CiA 402 profile position), slcan adapter; "
+            f"heartbeat timeout {args.heartbeat_timeout:g} s",
+            file=sys.stderr,
+            flush=True,
+        )
         while not stop.wait(0.1):
             fw.update()  # the watchdog runs even when nobody talks
     finally:

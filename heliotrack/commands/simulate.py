@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import date, datetime, timezone
+from datetime import UTC, date, datetime
 from pathlib import Path
 
 from controller.errors import ConfigError
@@ -13,47 +13,74 @@ DEFAULT_CONFIG = Path(__file__).resolve().parents[2] / "config" / "hil-default.t
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("simulate", help="run the hardware-in-the-loop scenario",
-                       description="Run the controller against emulated drives on a "
-                                   "simulated clock; write OUT/summary.json and OUT/cycles.csv.")
-    p.add_argument("--config", type=Path, default=DEFAULT_CONFIG,
-                   help="scenario TOML (default: the embedded config/hil-default.toml)")
+    p = sub.add_parser(
+        "simulate",
+        help="run the hardware-in-the-loop scenario",
+        description="Run the controller against emulated drives on a "
+        "simulated clock; write OUT/summary.json and OUT/cycles.csv.",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=DEFAULT_CONFIG,
+        help="scenario TOML (default: the embedded config/hil-default.toml)",
+    )
     p.add_argument("--days", type=int, default=1, help="days to simulate (default 1)")
-    p.add_argument("--start", type=str, default=None,
-                   help="first day, YYYY-MM-DD (from local mean midnight), or an ISO time "
-                        "with offset, e.g. 2024-03-20T06:00+00:00")
-    p.add_argument("--hours", type=float, default=None,
-                   help="run this many hours instead of --days whole days")
+    p.add_argument(
+        "--start",
+        type=str,
+        default=None,
+        help="first day, YYYY-MM-DD (from local mean midnight), or an ISO time "
+        "with offset, e.g. 2024-03-20T06:00+00:00",
+    )
+    p.add_argument(
+        "--hours", type=float, default=None, help="run this many hours instead of --days whole days"
+    )
     p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output folder")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    p.add_argument("--realtime", action="store_true",
-                   help="run on the wall clock (for SCADA clients) instead of simulated days")
-    p.add_argument("--duration", type=float, default=60.0,
-                   help="with --realtime: seconds to run (default 60)")
-    p.add_argument("--sunspec", type=str, default=None, metavar="HOST:PORT",
-                   help="with --realtime: serve SunSpec (models 1 and 601) on this address; "
-                        "port 0 picks a free one (printed as 'SUNSPEC host:port')")
+    p.add_argument(
+        "--realtime",
+        action="store_true",
+        help="run on the wall clock (for SCADA clients) instead of simulated days",
+    )
+    p.add_argument(
+        "--duration", type=float, default=60.0, help="with --realtime: seconds to run (default 60)"
+    )
+    p.add_argument(
+        "--sunspec",
+        type=str,
+        default=None,
+        metavar="HOST:PORT",
+        help="with --realtime: serve SunSpec (models 1 and 601) on this address; "
+        "port 0 picks a free one (printed as 'SUNSPEC host:port')",
+    )
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    from heliotrack.simulate import run_simulation, summary_table
-
     from heliotrack.scenario import load_scenario
+    from heliotrack.simulate import run_simulation, summary_table
 
     config = load_scenario(args.config)
     if args.realtime:
         return _realtime(args, config)
     if args.sunspec:
-        raise ConfigError(None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec)
+        raise ConfigError(
+            None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec
+        )
     if args.days < 1:
         raise ConfigError(None, "--days", "a whole number >= 1", args.days)
     start = _parse_start(args.start) if args.start else None
     if args.hours is not None and not 0 < args.hours <= 24 * 366:
         raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
-    summary = run_simulation(config, days=args.days, start=start, out_dir=args.out,
-                             progress=not args.no_progress and sys.stderr.isatty(),
-                             hours=args.hours)
+    summary = run_simulation(
+        config,
+        days=args.days,
+        start=start,
+        out_dir=args.out,
+        progress=not args.no_progress and sys.stderr.isatty(),
+        hours=args.hours,
+    )
     print(summary_table(summary))
     print(f"wrote {args.out / 'summary.json'} and {args.out / 'cycles.csv'}")
     return 0
@@ -72,7 +99,7 @@ def _parse_start(text: str):
         t = parse_timestamp(text, "--start", require_zone=True)
     except InputError:
         raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text) from None
-    return datetime.fromtimestamp(t, timezone.utc)
+    return datetime.fromtimestamp(t, UTC)
 
 
 def _realtime(args: argparse.Namespace, config) -> int:
@@ -87,6 +114,8 @@ def _realtime(args: argparse.Namespace, config) -> int:
             raise ConfigError(None, "--sunspec", "HOST:PORT, e.g. 127.0.0.1:1502", args.sunspec)
         address = (host, int(port))
     counts = run_realtime(config, args.duration, address)
-    print(f"realtime: {counts['cycles']} cycles, {counts['row_errors']} row errors, "
-          f"{counts['overrides']} operator overrides")
+    print(
+        f"realtime: {counts['cycles']} cycles, {counts['row_errors']} row errors, "
+        f"{counts['overrides']} operator overrides"
+    )
     return 0

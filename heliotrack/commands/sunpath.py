@@ -28,46 +28,91 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "sunpath", help="learn the sun's path from observations (seed or Kalman), or predict",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("inputs", nargs="+", metavar="[predict] OBS.csv",
-                   help="observation CSV (time, az_deg, el_deg[, sigma_deg]); "
-                        "'predict' first for prediction mode")
-    p.add_argument("--method", choices=("seed", "kalman"), default="kalman",
-                   help="seed: the paper's daily parabola; kalman: the sun-path EKF "
-                        "(default)")
+        "sunpath",
+        help="learn the sun's path from observations (seed or Kalman), or predict",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="[predict] OBS.csv",
+        help="observation CSV (time, az_deg, el_deg[, sigma_deg]); 'predict' first for prediction mode",
+    )
+    p.add_argument(
+        "--method",
+        choices=("seed", "kalman"),
+        default="kalman",
+        help="seed: the paper's daily parabola; kalman: the sun-path EKF (default)",
+    )
     p.add_argument("--lat", type=float, default=None, help="site latitude, deg north")
     p.add_argument("--lon", type=float, default=None, help="site longitude, deg east")
-    p.add_argument("--utc-offset", type=float, default=None, metavar="HOURS",
-                   help="local civil offset used to group days (default: from the data)")
-    p.add_argument("--declination", choices=("ephemeris", "free"),
-                   default="ephemeris",  # = KalmanConfig().declination (tested)
-                   help="kalman: SPA's declination plus a learnt correction (ephemeris, "
-                        "default; needs only UTC) or declination learnt from the sky alone "
-                        "through the orbit law (free; the mode that measures declination)")
-    p.add_argument("--noon-elevation", choices=("measured", "vertex"), default="measured",
-                   help="seed: Elv_n is the elevation measured at the transit (the paper, "
-                        "default: the observation within half a sampling interval of the "
-                        "fitted noon, else none that day) or the parabola's vertex value "
-                        "(a labelled variant, biased by degrees over a whole day)")
-    p.add_argument("--fit", choices=("mirrored", "whole-day"), default="mirrored",
-                   help="seed: each day's parabola on the samples mirrored about the fitted "
-                        "noon, iterated (default; the paper's 'before to after solar noon') "
-                        "or on every sample of the day (a labelled variant, biased by the "
-                        "window's position about noon)")
-    p.add_argument("--chain-prior", action="store_true",
-                   help="seed: fit each day with yesterday's parabola as prior (a labelled "
-                        "variant; the paper uses the prior only to predict, and each day's "
-                        "noon is that day's own fit)")
-    p.add_argument("--window-h", type=float, default=None,
-                   help="seed: fit only observations within this many hours of noon")
-    p.add_argument("--state", type=Path, default=None,
-                   help="kalman: learned state file, loaded if present and saved after")
+    p.add_argument(
+        "--utc-offset",
+        type=float,
+        default=None,
+        metavar="HOURS",
+        help="local civil offset used to group days (default: from the data)",
+    )
+    p.add_argument(
+        "--declination",
+        choices=("ephemeris", "free"),
+        default="ephemeris",  # = KalmanConfig().declination (tested)
+        help="kalman: SPA's declination plus a learnt correction (ephemeris, "
+        "default; needs only UTC) or declination learnt from the sky alone "
+        "through the orbit law (free; the mode that measures declination)",
+    )
+    p.add_argument(
+        "--noon-elevation",
+        choices=("measured", "vertex"),
+        default="measured",
+        help="seed: Elv_n is the elevation measured at the transit (the paper, "
+        "default: the observation within half a sampling interval of the "
+        "fitted noon, else none that day) or the parabola's vertex value "
+        "(a labelled variant, biased by degrees over a whole day)",
+    )
+    p.add_argument(
+        "--fit",
+        choices=("mirrored", "whole-day"),
+        default="mirrored",
+        help="seed: each day's parabola on the samples mirrored about the fitted "
+        "noon, iterated (default; the paper's 'before to after solar noon') "
+        "or on every sample of the day (a labelled variant, biased by the "
+        "window's position about noon)",
+    )
+    p.add_argument(
+        "--chain-prior",
+        action="store_true",
+        help="seed: fit each day with yesterday's parabola as prior (a labelled "
+        "variant; the paper uses the prior only to predict, and each day's "
+        "noon is that day's own fit)",
+    )
+    p.add_argument(
+        "--window-h",
+        type=float,
+        default=None,
+        help="seed: fit only observations within this many hours of noon",
+    )
+    p.add_argument(
+        "--state",
+        type=Path,
+        default=None,
+        help="kalman: learned state file, loaded if present and saved after",
+    )
     p.add_argument("--out", type=Path, default=None, help="output file (default stdout)")
-    p.add_argument("--format", choices=("csv", "jsonl"), default=None,
-                   help="output format (default from --out suffix, else csv)")
-    p.add_argument("--at", action="append", default=[], metavar="TIME",
-                   help="predict: ISO 8601 time with offset (repeatable)")
+    p.add_argument(
+        "--format",
+        choices=("csv", "jsonl"),
+        default=None,
+        help="output format (default from --out suffix, else csv)",
+    )
+    p.add_argument(
+        "--at",
+        action="append",
+        default=[],
+        metavar="TIME",
+        help="predict: ISO 8601 time with offset (repeatable)",
+    )
     p.add_argument("--start", default=None, help="predict: first time (ISO 8601)")
     p.add_argument("--end", default=None, help="predict: last time (ISO 8601)")
     p.add_argument("--step-min", type=float, default=15.0, help="predict: step, minutes")
@@ -97,7 +142,8 @@ def _site(args):
 
 
 def _kalman(args, obs):
-    from controller.sunpath.kalman import KalmanConfig, SunPathKalman, run_kalman
+    from controller.sunpath.batch import run_kalman
+    from controller.sunpath.kalman import KalmanConfig, SunPathKalman
     from controller.sunpath.state import load_state, save_state
 
     kf = load_state(args.state) if args.state is not None else None
@@ -115,16 +161,26 @@ def _fit(args, path: Path) -> int:
 
     obs = read_observations(path)
     if args.method == "seed":
-        rows, _ = run_seed([o.time for o in obs], [o.az_deg for o in obs],
-                           [o.el_deg for o in obs], args.utc_offset, lat_deg=args.lat,
-                           window_h=args.window_h, noon_elevation=args.noon_elevation,
-                           fit=args.fit, use_prior=args.chain_prior)
+        rows, _ = run_seed(
+            [o.time for o in obs],
+            [o.az_deg for o in obs],
+            [o.el_deg for o in obs],
+            args.utc_offset,
+            lat_deg=args.lat,
+            window_h=args.window_h,
+            noon_elevation=args.noon_elevation,
+            fit=args.fit,
+            use_prior=args.chain_prior,
+        )
     else:
         rows, kf = _kalman(args, obs)
         if not kf.initialised:
-            print("heliotrack: warning: the Kalman filter could not start from these "
-                  f"observations (need {kf.config.init_min_obs} spanning "
-                  f"{kf.config.init_min_span_h} h, or --lat/--lon)", file=sys.stderr)
+            print(
+                "heliotrack: warning: the Kalman filter could not start from these "
+                f"observations (need {kf.config.init_min_obs} spanning "
+                f"{kf.config.init_min_span_h} h, or --lat/--lon)",
+                file=sys.stderr,
+            )
     _write([r.as_row() for r in rows], args)
     return 0
 
@@ -139,8 +195,7 @@ def _predict(args, path: Path | None) -> int:
     times = [parse_time(s, f"--at {s!r}") for s in args.at]
     if args.start is not None or args.end is not None:
         if args.start is None or args.end is None or args.step_min <= 0:
-            raise InputError("sunpath predict: --start and --end go together, with "
-                             "--step-min > 0")
+            raise InputError("sunpath predict: --start and --end go together, with --step-min > 0")
         t0, t1 = parse_time(args.start, "--start"), parse_time(args.end, "--end")
         if t1 < t0:
             raise InputError("sunpath predict: --end is before --start")
@@ -154,8 +209,10 @@ def _predict(args, path: Path | None) -> int:
     rows = []
     eph = EphemerisSource(_site(args)) if args.lat is not None else None
     if (kf is None or not kf.initialised) and eph is None:
-        raise InputError("sunpath predict: nothing to predict from: the filter has not "
-                         "started (give more observations, --state, or --lat/--lon)")
+        raise InputError(
+            "sunpath predict: nothing to predict from: the filter has not "
+            "started (give more observations, --state, or --lat/--lon)"
+        )
     for t in times:
         if kf is not None and kf.initialised:
             p = kf.predict(t)
@@ -164,18 +221,24 @@ def _predict(args, path: Path | None) -> int:
             assert eph is not None  # checked above: no filter means a site was given
             e = eph.estimate(t)
             az, el, cov, src = e.az_deg, e.el_deg, e.covariance, "ephemeris"
-        rows.append({"time": datetime.fromtimestamp(t, tz=UTC).isoformat(
-                         timespec="seconds"),
-                     "az_deg": round(float(az), 6), "el_deg": round(float(el), 6),
-                     "sigma_az_deg": round(float(np.sqrt(cov[0, 0])), 6),
-                     "sigma_el_deg": round(float(np.sqrt(cov[1, 1])), 6), "source": src})
+        rows.append(
+            {
+                "time": datetime.fromtimestamp(t, tz=UTC).isoformat(timespec="seconds"),
+                "az_deg": round(float(az), 6),
+                "el_deg": round(float(el), 6),
+                "sigma_az_deg": round(float(np.sqrt(cov[0, 0])), 6),
+                "sigma_el_deg": round(float(np.sqrt(cov[1, 1])), 6),
+                "source": src,
+            }
+        )
     _write(rows, args)
     return 0
 
 
 def _write(rows: list[dict], args) -> None:
-    fmt = args.format or ("jsonl" if args.out is not None
-                          and args.out.suffix.lower() in (".jsonl", ".json") else "csv")
+    fmt = args.format or (
+        "jsonl" if args.out is not None and args.out.suffix.lower() in (".jsonl", ".json") else "csv"
+    )
     buf = io.StringIO()
     if fmt == "jsonl":
         for r in rows:

@@ -26,8 +26,9 @@ def frequency_table(res: DayResults, column: str = "class") -> pd.DataFrame:
     for year, g in res.days.groupby("year"):
         for c in CLASSES:
             n = int((g[column] == c).sum())
-            rows.append({"year": int(year), "class": c, "days": n,
-                         "percent": round(100.0 * n / max(len(g), 1), 2)})
+            rows.append(
+                {"year": int(year), "class": c, "days": n, "percent": round(100.0 * n / max(len(g), 1), 2)}
+            )
     return pd.DataFrame(rows, columns=["year", "class", "days", "percent"])
 
 
@@ -40,8 +41,13 @@ def class_stats_table(res: DayResults, column: str = "class") -> pd.DataFrame:
             row = {"year": int(year), "class": c, "days": len(s)}
             for v in ("D", "K_T"):
                 m, sd = (float(s[v].mean()), float(s[v].std(ddof=0))) if len(s) else (np.nan, np.nan)
-                row.update({f"mean_{v}": round(m, 4), f"std_{v}": round(sd, 4),
-                            f"std_{v}_pct": round(100 * sd / m, 2) if m else np.nan})
+                row.update(
+                    {
+                        f"mean_{v}": round(m, 4),
+                        f"std_{v}": round(sd, 4),
+                        f"std_{v}_pct": round(100 * sd / m, 2) if m else np.nan,
+                    }
+                )
             rows.append(row)
     return pd.DataFrame(rows)
 
@@ -49,16 +55,22 @@ def class_stats_table(res: DayResults, column: str = "class") -> pd.DataFrame:
 def yearly_d_table(res: DayResults) -> pd.DataFrame:
     """Table 2: yearly mean D and its relative standard deviation."""
     g = res.days.groupby("year")["D"]
-    out = pd.DataFrame({"days": g.size(), "mean_D": g.mean().round(4),
-                        "std_D_pct": (100 * g.std(ddof=0) / g.mean()).round(2)})
+    out = pd.DataFrame(
+        {
+            "days": g.size(),
+            "mean_D": g.mean().round(4),
+            "std_D_pct": (100 * g.std(ddof=0) / g.mean()).round(2),
+        }
+    )
     return out.reset_index()
 
 
 def monthly_d_table(res: DayResults) -> pd.DataFrame:
     """Fig. 2 data: monthly mean D per year."""
     g = res.days.groupby(["year", "month"])["D"]
-    return pd.DataFrame({"days": g.size(), "mean_D": g.mean().round(4),
-                         "std_D": g.std(ddof=0).round(4)}).reset_index()
+    return pd.DataFrame(
+        {"days": g.size(), "mean_D": g.mean().round(4), "std_D": g.std(ddof=0).round(4)}
+    ).reset_index()
 
 
 def agreement_table(res: DayResults) -> pd.DataFrame | None:
@@ -67,12 +79,20 @@ def agreement_table(res: DayResults) -> pd.DataFrame | None:
         return None
     d = res.days[res.days["truth"] != ""]
     rows = []
-    for col, label in (("class_default", "default (pyranometric sunshine)"),
-                       ("class_seed", "seed (paper: D and K_T)"), ("class_kt", "K_T alone"),
-                       ("class_csd", "detect_clearsky fraction")):
+    for col, label in (
+        ("class_default", "default (pyranometric sunshine)"),
+        ("class_seed", "seed (paper: D and K_T)"),
+        ("class_kt", "K_T alone"),
+        ("class_csd", "detect_clearsky fraction"),
+    ):
         if col in d:
-            rows.append({"rule": label, "days": len(d),
-                         "agreement": round(float((d[col] == d["truth"]).mean()), 4) if len(d) else np.nan})
+            rows.append(
+                {
+                    "rule": label,
+                    "days": len(d),
+                    "agreement": round(float((d[col] == d["truth"]).mean()), 4) if len(d) else np.nan,
+                }
+            )
     return pd.DataFrame(rows)
 
 
@@ -97,9 +117,13 @@ def write_tables(res: DayResults, out: Path) -> list[Path]:
     """Write every table as CSV and all of them, per year, in ``tables.md``."""
     out.mkdir(parents=True, exist_ok=True)
     written = []
-    tables = {"thresholds": threshold_table(res), "yearly_D": yearly_d_table(res),
-              "class_frequency": frequency_table(res), "class_stats": class_stats_table(res),
-              "monthly_D": monthly_d_table(res)}
+    tables = {
+        "thresholds": threshold_table(res),
+        "yearly_D": yearly_d_table(res),
+        "class_frequency": frequency_table(res),
+        "class_stats": class_stats_table(res),
+        "monthly_D": monthly_d_table(res),
+    }
     agr = agreement_table(res)
     if agr is not None:
         tables["agreement"] = agr
@@ -114,8 +138,10 @@ def write_tables(res: DayResults, out: Path) -> list[Path]:
         p = out / "excluded.csv"
         res.excluded.to_csv(p, index=False)
         written.append(p)
-    md = [f"# Day types ({res.config.method} rule in `class`)\n",
-          f"Grid step {res.step_s} s; {len(res.days)} days kept, {len(res.excluded)} excluded.\n"]
+    md = [
+        f"# Day types ({res.config.method} rule in `class`)\n",
+        f"Grid step {res.step_s} s; {len(res.days)} days kept, {len(res.excluded)} excluded.\n",
+    ]
     for year in sorted(res.days["year"].unique()):
         md.append(f"\n## {year}\n")
         for name, t in tables.items():

@@ -15,7 +15,19 @@ from .scene import PROFILES, Base, Globe, Scenario, Sensor, Site, profile
 from .views import checkerboard_poses, render_checkerboard, render_marker_view, render_plumb_view
 
 __all__ = [
-    "CameraModel", "Pose", "Frame", "render_frame", "render_checkerboard", "checkerboard_poses",
-    "render_marker_view", "render_plumb_view", "PROFILES", "Base", "Globe", "Scenario",
-    "Sensor", "Site", "profile",
+    "CameraModel",
+    "Pose",
+    "Frame",
+    "render_frame",
+    "render_checkerboard",
+    "checkerboard_poses",
+    "render_marker_view",
+    "render_plumb_view",
+    "PROFILES",
+    "Base",
+    "Globe",
+    "Scenario",
+    "Sensor",
+    "Site",
+    "profile",
 ]

@@ -38,8 +38,9 @@ class CameraModel:
     def project(self, pts_world, rvec, tvec) -> np.ndarray:
         """World points (N,3) -> distorted pixel coordinates (N,2)."""
         pts = np.ascontiguousarray(np.asarray(pts_world, dtype=np.float64).reshape(-1, 1, 3))
-        uv, _ = cv2.projectPoints(pts, np.asarray(rvec, float), np.asarray(tvec, float),
-                                  self.K, self.dist_array)
+        uv, _ = cv2.projectPoints(
+            pts, np.asarray(rvec, float), np.asarray(tvec, float), self.K, self.dist_array
+        )
         return uv.reshape(-1, 2)
 
     def ray_dirs(self) -> np.ndarray:
@@ -61,7 +62,7 @@ def _undistort_rays(cam: CameraModel, uv: np.ndarray) -> np.ndarray:
 
 @lru_cache(maxsize=8)
 def _ray_dirs(cam: CameraModel) -> np.ndarray:
-    v, u = np.mgrid[0:cam.height, 0:cam.width].astype(np.float64)
+    v, u = np.mgrid[0 : cam.height, 0 : cam.width].astype(np.float64)
     uv = np.stack([u.ravel(), v.ravel()], axis=1)
     d = _undistort_rays(cam, uv)
     out = d.reshape(cam.height, cam.width, 3)
@@ -90,7 +91,7 @@ class Pose:
         return -np.asarray(self.R).T @ np.asarray(self.t)
 
     @staticmethod
-    def look_at(center, target, up=(0.0, 0.0, 1.0)) -> "Pose":
+    def look_at(center, target, up=(0.0, 0.0, 1.0)) -> Pose:
         """Camera at ``center`` looking at ``target``; image 'up' towards world ``up``."""
         c = np.asarray(center, float)
         z = np.asarray(target, float) - c
@@ -103,7 +104,7 @@ class Pose:
         R = np.stack([x, y, z])  # rows: camera axes in world coordinates
         return Pose(R=R, t=-R @ c)
 
-    def perturbed(self, rng: np.random.Generator, rot_deg: float, trans_m: float) -> "Pose":
+    def perturbed(self, rng: np.random.Generator, rot_deg: float, trans_m: float) -> Pose:
         """Small random rotation about the camera centre and shift (pose jitter)."""
         if rot_deg <= 0 and trans_m <= 0:
             return self

@@ -16,19 +16,27 @@ from __future__ import annotations
 
 import argparse
 import json
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import cv2
 import numpy as np
 
 from .render import render_frame
-from .views import checkerboard_poses, render_checkerboard, render_marker_view, render_plumb_view
 from .scene import Scenario, profile
+from .views import checkerboard_poses, render_checkerboard, render_marker_view, render_plumb_view
 
 
-def write_dataset(scn: Scenario, out: Path, *, day=(2025, 3, 20), step_min: int = 15,
-                  n_boards: int = 12, seed: int = 11, scan_points: int = 60000) -> dict:
+def write_dataset(
+    scn: Scenario,
+    out: Path,
+    *,
+    day=(2025, 3, 20),
+    step_min: int = 15,
+    n_boards: int = 12,
+    seed: int = 11,
+    scan_points: int = 60000,
+) -> dict:
     out = Path(out)
     rng = np.random.default_rng(seed)
     (out / "checkerboards").mkdir(parents=True, exist_ok=True)
@@ -40,33 +48,40 @@ def write_dataset(scn: Scenario, out: Path, *, day=(2025, 3, 20), step_min: int 
     pts, _ = scn.globe.surface_points(scan_points, rng)
     pts = pts + rng.normal(0, 0.0002, pts.shape)
     with open(out / "globe_scan.ply", "w") as f:
-        f.write(f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty float x\n"
-                "property float y\nproperty float z\nend_header\n")
+        f.write(
+            f"ply\nformat ascii 1.0\nelement vertex {len(pts)}\nproperty float x\n"
+            "property float y\nproperty float z\nend_header\n"
+        )
         np.savetxt(f, pts, fmt="%.6f")
     with open(out / "markers_survey.csv", "w") as f:
         f.write("id,corner,x,y,z\n")
         for mid, k, x, y, z in scn.base.marker_table():
             e = rng.normal(0, 0.0003, 3)
             f.write(f"{mid},{k},{x + e[0]:.6f},{y + e[1]:.6f},{z + e[2]:.6f}\n")
-    t_mid = datetime(*day, 6, 30, tzinfo=timezone.utc).timestamp()
+    t_mid = datetime(*day, 6, 30, tzinfo=UTC).timestamp()
     cv2.imwrite(str(out / "marker_view.png"), render_marker_view(scn, t_mid, rng).image)
     cv2.imwrite(str(out / "plumb_view.png"), render_plumb_view(scn, t_mid, rng=rng).image)
-    t0 = datetime(*day, tzinfo=timezone.utc).timestamp()
+    t0 = datetime(*day, tzinfo=UTC).timestamp()
     ts = t0 + np.arange(0, 86400, step_min * 60)
     sun = scn.sun(ts)
     frames = []
     for t, el in zip(ts, sun["elevation"]):
         if el < 5:
             continue
-        name = datetime.fromtimestamp(float(t), timezone.utc).strftime("frame_%Y-%m-%dT%H-%M-%SZ.png")
+        name = datetime.fromtimestamp(float(t), UTC).strftime("frame_%Y-%m-%dT%H-%M-%SZ.png")
         fr = render_frame(scn, float(t), rng=rng)
         cv2.imwrite(str(out / "day" / name), fr.image)
         frames.append({"image": f"day/{name}", "az_deg": fr.truth["az_deg"], "el_deg": fr.truth["el_deg"]})
-    truth = {"profile": scn.name, "camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy,
-                                             "dist": list(cam.dist)},
-             "rvec": scn.pose.rvec.tolist(), "tvec": scn.pose.tvec.tolist(),
-             "zenith_model": scn.zenith_model.tolist(), "globe_radius": scn.globe.radius,
-             "site": {"lat": scn.site.latitude, "lon": scn.site.longitude}, "frames": frames}
+    truth = {
+        "profile": scn.name,
+        "camera": {"fx": cam.fx, "fy": cam.fy, "cx": cam.cx, "cy": cam.cy, "dist": list(cam.dist)},
+        "rvec": scn.pose.rvec.tolist(),
+        "tvec": scn.pose.tvec.tolist(),
+        "zenith_model": scn.zenith_model.tolist(),
+        "globe_radius": scn.globe.radius,
+        "site": {"lat": scn.site.latitude, "lon": scn.site.longitude},
+        "frames": frames,
+    }
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
     return truth
 

@@ -79,8 +79,11 @@ def shade_globe(globe: Globe, C, d, s, dni, dhi, n_sun):
     nz = n[:, 2]
     s = np.asarray(s, float)
     # diffuse: direct + sky + ground
-    E = dni * np.clip(n @ s, 0.0, None) + dhi * (1 + nz) / 2 \
+    E = (
+        dni * np.clip(n @ s, 0.0, None)
+        + dhi * (1 + nz) / 2
         + GROUND_ALBEDO * (dhi + dni * max(s[2], 0.0)) * (1 - nz) / 2
+    )
     Lout = globe.albedo / np.pi * E
     # specular mirror of the environment (sky above, ground below)
     r = 2 * ndv[:, None] * n - v
@@ -117,13 +120,13 @@ def sun_disk_samples(s: np.ndarray, n: int) -> np.ndarray:
 
 
 def ggx_sun(globe: Globe, n, v, ndv, s, dni, n_sun):
-    a2 = globe.roughness ** 2
+    a2 = globe.roughness**2
     out = np.zeros(n.shape[0])
     g1v = 2 * ndv / (ndv + np.sqrt(a2 + (1 - a2) * ndv * ndv))
-    for l in sun_disk_samples(s, n_sun):
-        ndl = n @ l
+    for sd in sun_disk_samples(s, n_sun):
+        ndl = n @ sd
         ok = ndl > 0
-        h = v + l
+        h = v + sd
         h /= np.linalg.norm(h, axis=1, keepdims=True)
         ndh = np.sum(n * h, axis=1)
         D = a2 / (np.pi * (ndh * ndh * (a2 - 1) + 1) ** 2)
@@ -131,6 +134,6 @@ def ggx_sun(globe: Globe, n, v, ndv, s, dni, n_sun):
         F = globe.f0 + (1 - globe.f0) * (1 - vdh) ** 5
         ndl_c = np.clip(ndl, 1e-6, 1)
         g1l = 2 * ndl_c / (ndl_c + np.sqrt(a2 + (1 - a2) * ndl_c * ndl_c))
-        # radiance = E_sample * f_s * (n.l),  f_s = D F G / (4 (n.l)(n.v))
+        # radiance = E_sample * f_s * (n.sd),  f_s = D F G / (4 (n.sd)(n.v))
         out += np.where(ok, (dni / n_sun) * D * F * g1v * g1l / (4 * ndv), 0.0)
     return out

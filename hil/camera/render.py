@@ -37,9 +37,15 @@ class Frame:
 
 
 # ----------------------------------------------------------------------------------------
-def render_frame(scn: Scenario, t: float, *, transmittance: float = 1.0,
-                 rng: np.random.Generator | None = None, pose: Pose | None = None,
-                 exposure_factor: float = 1.0) -> Frame:
+def render_frame(
+    scn: Scenario,
+    t: float,
+    *,
+    transmittance: float = 1.0,
+    rng: np.random.Generator | None = None,
+    pose: Pose | None = None,
+    exposure_factor: float = 1.0,
+) -> Frame:
     """Render the sensor's frame at POSIX time ``t`` for scenario ``scn``.
 
     ``transmittance`` (0..1) scales the direct beam (clouds); ``pose`` overrides the nominal
@@ -53,8 +59,9 @@ def render_frame(scn: Scenario, t: float, *, transmittance: float = 1.0,
     sun = scn.sun([t])
     s_model = sun["model"][0]
     dni = float(sun["dni"][0]) * transmittance
-    dhi = float(sun["dhi"][0]) + 0.25 * float(sun["dni"][0]) * (1 - transmittance) \
-        * max(np.sin(np.radians(sun["elevation"][0])), 0.0)
+    dhi = float(sun["dhi"][0]) + 0.25 * float(sun["dni"][0]) * (1 - transmittance) * max(
+        np.sin(np.radians(sun["elevation"][0])), 0.0
+    )
     if pose is None:
         pose = scn.pose.perturbed(rng, scn.pose_jitter_deg, scn.pose_jitter_m)
     L = radiance_image(scn, pose, s_model, dni, dhi)
@@ -75,8 +82,9 @@ def render_frame(scn: Scenario, t: float, *, transmittance: float = 1.0,
     return Frame(img, truth)
 
 
-def expose(L: np.ndarray, scn: Scenario, rng: np.random.Generator,
-           exposure_factor: float = 1.0) -> np.ndarray:
+def expose(
+    L: np.ndarray, scn: Scenario, rng: np.random.Generator, exposure_factor: float = 1.0
+) -> np.ndarray:
     """Radiance -> 8-bit grey: shot + read noise, quantisation, saturation, optional JPEG."""
     sen = scn.sensor
     frac = L * (exposure_factor / sen.full_scale_radiance)
@@ -84,7 +92,8 @@ def expose(L: np.ndarray, scn: Scenario, rng: np.random.Generator,
         e = frac * sen.full_well_e
         e = np.minimum(e, 4.0 * sen.full_well_e)  # well overflow: irrelevant beyond clip
         e = e + rng.standard_normal(e.shape, dtype=np.float32) * np.sqrt(
-            np.maximum(e, 0.0) + sen.read_noise_e ** 2)
+            np.maximum(e, 0.0) + sen.read_noise_e**2
+        )
         frac = e / sen.full_well_e
     dn = np.clip(np.rint(frac * 255.0), 0, 255).astype(np.uint8)
     if sen.noise and sen.jpeg_quality:
@@ -94,8 +103,7 @@ def expose(L: np.ndarray, scn: Scenario, rng: np.random.Generator,
 
 
 # ----------------------------------------------------------------------------------------
-def radiance_image(scn: Scenario, pose: Pose, s_model: np.ndarray, dni: float,
-                   dhi: float) -> np.ndarray:
+def radiance_image(scn: Scenario, pose: Pose, s_model: np.ndarray, dni: float, dhi: float) -> np.ndarray:
     cam = scn.camera
     H, W = cam.height, cam.width
     dcam = cam.ray_dirs()
@@ -138,7 +146,7 @@ def _background(scn: Scenario, C, dw, s, dni, dhi, pose: Pose) -> np.ndarray:
     px = x.astype(np.float64)
     py = y.astype(np.float64)
     bproj = px * s[0] + py * s[1]
-    shadow = (bproj < 0) & (bproj * bproj > px * px + py * py - scn.globe.radius ** 2)
+    shadow = (bproj < 0) & (bproj * bproj > px * px + py * py - scn.globe.radius**2)
     E = np.where(shadow, 0.0, dni * sz) + dhi
     footprint = np.linalg.norm(C) / np.sqrt(cam.fx * cam.fy)
     tex = _base_texture(base, 0.5 * footprint / base.texture_res)
@@ -146,8 +154,14 @@ def _background(scn: Scenario, C, dw, s, dni, dhi, pose: Pose) -> np.ndarray:
     mapy = ((base.half_size - y) / base.texture_res - 0.5).astype(np.float32)
     mapx[~down] = -10
     H, W = cam.height, cam.width
-    alb = cv2.remap(tex, mapx.reshape(H, W), mapy.reshape(H, W), cv2.INTER_LINEAR,
-                    borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0).reshape(-1)
+    alb = cv2.remap(
+        tex,
+        mapx.reshape(H, W),
+        mapy.reshape(H, W),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=-1.0,
+    ).reshape(-1)
     alb = np.where(alb < 0, GROUND_ALBEDO, alb)
     L = np.where(down, alb / np.pi * E, L).astype(np.float32)
     return L

@@ -120,8 +120,8 @@ class Base:
             img = 0.05 + 0.80 * img  # black ink 0.05, white paper 0.85
             c0, r0 = self._texel(m.corners[0, 0], m.corners[0, 1])
             q = px // 6  # white quiet zone of one cell
-            tex[r0 - q:r0 + px + q, c0 - q:c0 + px + q] = 0.85
-            tex[r0:r0 + px, c0:c0 + px] = img
+            tex[r0 - q : r0 + px + q, c0 - q : c0 + px + q] = 0.85
+            tex[r0 : r0 + px, c0 : c0 + px] = img
         return tex
 
     def _texel(self, x, y) -> tuple[int, int]:
@@ -196,7 +196,7 @@ class Scenario:
         up_model = self.R_model_to_enu.T @ np.array([0.0, 0.0, 1.0])
         return Pose.look_at(center, [0.0, 0.0, self.look_at_z], up=up_model)
 
-    def with_(self, **kw) -> "Scenario":
+    def with_(self, **kw) -> Scenario:
         return replace(self, **kw)
 
     # --- truth ------------------------------------------------------------------------
@@ -206,21 +206,21 @@ class Scenario:
         t = np.atleast_1d(np.asarray(times, dtype=float))
         idx = pd.DatetimeIndex(pd.to_datetime(t, unit="s", utc=True))
         sp = pvlib.solarposition.get_solarposition(
-            idx, self.site.latitude, self.site.longitude, altitude=self.site.altitude,
-            method="nrel_numpy")
+            idx, self.site.latitude, self.site.longitude, altitude=self.site.altitude, method="nrel_numpy"
+        )
         az = sp["azimuth"].to_numpy()
         el = sp["apparent_elevation"].to_numpy()
         enu = azel_to_enu(az, el)
         model = enu @ self.R_model_to_enu  # R^T v for row vectors
         zen = np.clip(90.0 - el, 0.0, 90.0)
-        am = np.nan_to_num(pvlib.atmosphere.get_relative_airmass(zen, model="kastenyoung1989"),
-                           nan=40.0)
-        dni = np.where(el > 0, 1361.0 * 0.7 ** (am ** 0.678), 0.0)
+        am = np.nan_to_num(pvlib.atmosphere.get_relative_airmass(zen, model="kastenyoung1989"), nan=40.0)
+        dni = np.where(el > 0, 1361.0 * 0.7 ** (am**0.678), 0.0)
         dhi = np.where(el > 0, 25.0 + 90.0 * np.sqrt(np.clip(np.sin(np.radians(el)), 0, 1)), 5.0)
         return {"azimuth": az, "elevation": el, "enu": enu, "model": model, "dni": dni, "dhi": dhi}
 
 
 # --- camera profiles ---------------------------------------------------------------------
+
 
 def seed_camera() -> CameraModel:
     """The paper's camera: 960 x 1080 px, f = 1.135 mm on a 5.37 x 4.04 mm sensor.
@@ -229,14 +229,30 @@ def seed_camera() -> CameraModel:
     paper's sensor size and image size imply).  Distortion: barrel, OpenCV parameters of the
     same sign and rough size as the paper's Australis correction near the globe.
     """
-    return CameraModel(width=960, height=1080, fx=1.135 / 5.37 * 960, fy=1.135 / 4.04 * 1080,
-                       cx=480.0, cy=540.6, dist=(-0.28, 0.06, -7.0e-4, 5.7e-3, 0.0), name="seed")
+    return CameraModel(
+        width=960,
+        height=1080,
+        fx=1.135 / 5.37 * 960,
+        fy=1.135 / 4.04 * 1080,
+        cx=480.0,
+        cy=540.6,
+        dist=(-0.28, 0.06, -7.0e-4, 5.7e-3, 0.0),
+        name="seed",
+    )
 
 
 def recommended_camera() -> CameraModel:
     """1280 x 1024 global-shutter machine-vision camera (4.8 um pixels) with a ~7 mm lens."""
-    return CameraModel(width=1280, height=1024, fx=1450.0, fy=1450.0, cx=641.3, cy=509.2,
-                       dist=(-0.09, 0.06, 2.0e-4, -3.0e-4, 0.0), name="recommended")
+    return CameraModel(
+        width=1280,
+        height=1024,
+        fx=1450.0,
+        fy=1450.0,
+        cx=641.3,
+        cy=509.2,
+        dist=(-0.09, 0.06, 2.0e-4, -3.0e-4, 0.0),
+        name="recommended",
+    )
 
 
 PROFILES = ("seed", "recommended")
@@ -249,17 +265,33 @@ def profile(name: str, *, noise: bool = True, **overrides) -> Scenario:
     JPEG); ``noise=False`` is the ideal camera (no noise, no JPEG, still 8-bit).
     """
     if name == "seed":
-        sensor = Sensor(full_scale_radiance=600.0, full_well_e=4000.0, read_noise_e=5.0,
-                        noise=noise, jpeg_quality=90 if noise else None)
-        scn = Scenario(name="seed", camera=seed_camera(), camera_distance=0.45,
-                       camera_elevation_deg=40.0, sensor=sensor,
-                       base=Base(marker_size=0.08, ring_radius=0.31))
+        sensor = Sensor(
+            full_scale_radiance=600.0,
+            full_well_e=4000.0,
+            read_noise_e=5.0,
+            noise=noise,
+            jpeg_quality=90 if noise else None,
+        )
+        scn = Scenario(
+            name="seed",
+            camera=seed_camera(),
+            camera_distance=0.45,
+            camera_elevation_deg=40.0,
+            sensor=sensor,
+            base=Base(marker_size=0.08, ring_radius=0.31),
+        )
     elif name == "recommended":
-        sensor = Sensor(full_scale_radiance=600.0, full_well_e=10000.0, read_noise_e=7.0,
-                        noise=noise, jpeg_quality=None)
-        scn = Scenario(name="recommended", camera=recommended_camera(), camera_distance=0.80,
-                       camera_elevation_deg=50.0, sensor=sensor,
-                       base=Base(marker_size=0.055, ring_radius=0.285))
+        sensor = Sensor(
+            full_scale_radiance=600.0, full_well_e=10000.0, read_noise_e=7.0, noise=noise, jpeg_quality=None
+        )
+        scn = Scenario(
+            name="recommended",
+            camera=recommended_camera(),
+            camera_distance=0.80,
+            camera_elevation_deg=50.0,
+            sensor=sensor,
+            base=Base(marker_size=0.055, ring_radius=0.285),
+        )
     else:
         raise HilError(f"unknown camera profile {name!r}; expected one of {', '.join(PROFILES)}")
     return replace(scn, **overrides) if overrides else scn

@@ -12,8 +12,16 @@ from .render import Frame, expose, radiance_image, render_frame
 from .scene import Scenario
 
 
-def render_checkerboard(cam: CameraModel, rvec, tvec, *, pattern=(9, 6), square=0.04,
-                        rng: np.random.Generator | None = None, noise_dn: float = 1.5) -> np.ndarray:
+def render_checkerboard(
+    cam: CameraModel,
+    rvec,
+    tvec,
+    *,
+    pattern=(9, 6),
+    square=0.04,
+    rng: np.random.Generator | None = None,
+    noise_dn: float = 1.5,
+) -> np.ndarray:
     """A planar checkerboard (``pattern`` inner corners, ``square`` m) at pose board->camera.
 
     Board frame: x along the columns, y along the rows, z into the board; inner corner
@@ -55,8 +63,9 @@ def render_checkerboard(cam: CameraModel, rvec, tvec, *, pattern=(9, 6), square=
     return np.clip(np.rint(dn), 0, 255).astype(np.uint8)
 
 
-def checkerboard_poses(cam: CameraModel, n: int, rng: np.random.Generator, *, pattern=(9, 6),
-                       square=0.04) -> list[tuple[np.ndarray, np.ndarray]]:
+def checkerboard_poses(
+    cam: CameraModel, n: int, rng: np.random.Generator, *, pattern=(9, 6), square=0.04
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Varied board poses that keep the whole board in view (for intrinsics)."""
     nx, ny = pattern
     w, h = (nx + 1) * square, (ny + 1) * square
@@ -80,7 +89,7 @@ def checkerboard_poses(cam: CameraModel, n: int, rng: np.random.Generator, *, pa
         if np.any(pc[:, 2] < 0.05):
             continue
         uv = cam.project(corners, cv2.Rodrigues(Rb)[0], tb)
-        if (uv.min() < 10 or np.any(uv[:, 0] > cam.width - 10) or np.any(uv[:, 1] > cam.height - 10)):
+        if uv.min() < 10 or np.any(uv[:, 0] > cam.width - 10) or np.any(uv[:, 1] > cam.height - 10):
             continue
         poses.append((cv2.Rodrigues(Rb)[0].ravel(), tb))
     return poses
@@ -114,8 +123,14 @@ def plumb_lines(scn: Scenario, n_lines: int = 4) -> list[tuple[np.ndarray, np.nd
     return out
 
 
-def render_plumb_view(scn: Scenario, t: float, *, n_lines: int = 4, string_diameter=0.003,
-                      rng: np.random.Generator | None = None) -> Frame:
+def render_plumb_view(
+    scn: Scenario,
+    t: float,
+    *,
+    n_lines: int = 4,
+    string_diameter=0.003,
+    rng: np.random.Generator | None = None,
+) -> Frame:
     """The installed camera's view with plumb strings hung in it (for levelling)."""
     rng = rng if rng is not None else np.random.default_rng(1)
     pose = scn.pose
@@ -135,7 +150,7 @@ def render_plumb_view(scn: Scenario, t: float, *, n_lines: int = 4, string_diame
         w = C - bot
         # closest points between ray C + t d and line bot + s z
         dz = d @ z
-        denom = 1 - dz ** 2
+        denom = 1 - dz**2
         dw = d @ w
         zw = z @ w
         tr = (dz * zw - dw) / np.maximum(denom, 1e-12)
@@ -149,8 +164,7 @@ def render_plumb_view(scn: Scenario, t: float, *, n_lines: int = 4, string_diame
         samples = bot + np.linspace(0, seg, 50)[:, None] * z
         truth_lines.append(cam.project(samples, pose.rvec, pose.tvec))
     img = expose(Lf.reshape(L.shape).astype(np.float32), scn, rng, exposure_factor=2.0)
-    return Frame(img, {"lines_uv": truth_lines, "zenith_model": scn.zenith_model,
-                       "lines_model": lines})
+    return Frame(img, {"lines_uv": truth_lines, "zenith_model": scn.zenith_model, "lines_model": lines})
 
 
 def render_marker_view(scn: Scenario, t: float, rng: np.random.Generator | None = None) -> Frame:

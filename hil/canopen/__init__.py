@@ -11,5 +11,14 @@ from .emulator import CanopenDriveEmulator, CanopenNetworkEmulator, SafeNetwork
 from .node import AxisNode, DriveBus, object_dictionary
 from .slcan import SlcanAdapter, open_slcan_pty
 
-__all__ = ["AxisNode", "CanopenDriveEmulator", "CanopenNetworkEmulator", "Cia402StateMachine",
-           "DriveBus", "SafeNetwork", "SlcanAdapter", "object_dictionary", "open_slcan_pty"]
+__all__ = [
+    "AxisNode",
+    "CanopenDriveEmulator",
+    "CanopenNetworkEmulator",
+    "Cia402StateMachine",
+    "DriveBus",
+    "SafeNetwork",
+    "SlcanAdapter",
+    "object_dictionary",
+    "open_slcan_pty",
+]

@@ -34,21 +34,21 @@ def command_of(cw: int) -> str:
 
 #: (state, command) -> next state; pairs not listed leave the state unchanged.
 TRANSITIONS: dict[tuple[State402, str], State402] = {
-    (S.SWITCH_ON_DISABLED, "shutdown"): S.READY_TO_SWITCH_ON,             # 2
-    (S.READY_TO_SWITCH_ON, "switch_on"): S.SWITCHED_ON,                   # 3
-    (S.READY_TO_SWITCH_ON, "enable_operation"): S.OPERATION_ENABLED,      # 3 + 4
-    (S.READY_TO_SWITCH_ON, "disable_voltage"): S.SWITCH_ON_DISABLED,      # 7
-    (S.READY_TO_SWITCH_ON, "quick_stop"): S.SWITCH_ON_DISABLED,           # 7
-    (S.SWITCHED_ON, "enable_operation"): S.OPERATION_ENABLED,             # 4
-    (S.SWITCHED_ON, "shutdown"): S.READY_TO_SWITCH_ON,                    # 6
-    (S.SWITCHED_ON, "disable_voltage"): S.SWITCH_ON_DISABLED,             # 10
-    (S.SWITCHED_ON, "quick_stop"): S.SWITCH_ON_DISABLED,                  # 10
-    (S.OPERATION_ENABLED, "switch_on"): S.SWITCHED_ON,                    # 5
-    (S.OPERATION_ENABLED, "shutdown"): S.READY_TO_SWITCH_ON,              # 8
-    (S.OPERATION_ENABLED, "disable_voltage"): S.SWITCH_ON_DISABLED,       # 9
-    (S.OPERATION_ENABLED, "quick_stop"): S.QUICK_STOP_ACTIVE,             # 11
-    (S.QUICK_STOP_ACTIVE, "disable_voltage"): S.SWITCH_ON_DISABLED,       # 12
-    (S.QUICK_STOP_ACTIVE, "enable_operation"): S.OPERATION_ENABLED,       # 16
+    (S.SWITCH_ON_DISABLED, "shutdown"): S.READY_TO_SWITCH_ON,  # 2
+    (S.READY_TO_SWITCH_ON, "switch_on"): S.SWITCHED_ON,  # 3
+    (S.READY_TO_SWITCH_ON, "enable_operation"): S.OPERATION_ENABLED,  # 3 + 4
+    (S.READY_TO_SWITCH_ON, "disable_voltage"): S.SWITCH_ON_DISABLED,  # 7
+    (S.READY_TO_SWITCH_ON, "quick_stop"): S.SWITCH_ON_DISABLED,  # 7
+    (S.SWITCHED_ON, "enable_operation"): S.OPERATION_ENABLED,  # 4
+    (S.SWITCHED_ON, "shutdown"): S.READY_TO_SWITCH_ON,  # 6
+    (S.SWITCHED_ON, "disable_voltage"): S.SWITCH_ON_DISABLED,  # 10
+    (S.SWITCHED_ON, "quick_stop"): S.SWITCH_ON_DISABLED,  # 10
+    (S.OPERATION_ENABLED, "switch_on"): S.SWITCHED_ON,  # 5
+    (S.OPERATION_ENABLED, "shutdown"): S.READY_TO_SWITCH_ON,  # 8
+    (S.OPERATION_ENABLED, "disable_voltage"): S.SWITCH_ON_DISABLED,  # 9
+    (S.OPERATION_ENABLED, "quick_stop"): S.QUICK_STOP_ACTIVE,  # 11
+    (S.QUICK_STOP_ACTIVE, "disable_voltage"): S.SWITCH_ON_DISABLED,  # 12
+    (S.QUICK_STOP_ACTIVE, "enable_operation"): S.OPERATION_ENABLED,  # 16
 }
 
 

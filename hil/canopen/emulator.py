@@ -13,12 +13,12 @@ import logging
 import threading
 import time
 from collections.abc import Callable
+from typing import Self
 
 import can
 import canopen
 
 from firmware_protocol.canopen import axis_node_id, check_node_id
-
 from hil.drive.firmware import DriveFirmware
 from hil.errors import HilError
 
@@ -42,7 +42,7 @@ class SafeNetwork(canopen.Network):
         for callback in list(self.subscribers.get(can_id, ())):
             try:
                 callback(can_id, data, timestamp)
-            except Exception as exc:  # bad wire data must not kill the bus
+            except Exception as exc:  # noqa: BLE001 - bad wire data must not kill the bus
                 log.warning("frame 0x%03X %s dropped: %s", can_id, bytes(data).hex(), exc)
         self.scanner.on_message_received(can_id)
 
@@ -59,8 +59,7 @@ class CanopenDriveEmulator:
         Monotonic seconds for bus timing.
     """
 
-    def __init__(self, firmware: DriveFirmware, node_id: int,
-                 wall: Callable[[], float] = time.monotonic):
+    def __init__(self, firmware: DriveFirmware, node_id: int, wall: Callable[[], float] = time.monotonic):
         n_axes = len(firmware.axes)
         try:
             check_node_id(node_id, n_axes)
@@ -68,8 +67,7 @@ class CanopenDriveEmulator:
             raise HilError(str(exc)) from None
         self.firmware = firmware
         self.bus = DriveBus(firmware)
-        self.nodes = [AxisNode(self.bus, k, axis_node_id(node_id, k), wall)
-                      for k in range(n_axes)]
+        self.nodes = [AxisNode(self.bus, k, axis_node_id(node_id, k), wall) for k in range(n_axes)]
 
     @property
     def node_ids(self) -> list[int]:
@@ -108,14 +106,20 @@ class CanopenNetworkEmulator:
         Passed to ``can.Bus``.
     """
 
-    def __init__(self, channel: str = "heliotrack", interface: str = "virtual", *,
-                 bus: can.BusABC | None = None, period_s: float = 0.05, **bus_kwargs):
+    def __init__(
+        self,
+        channel: str = "heliotrack",
+        interface: str = "virtual",
+        *,
+        bus: can.BusABC | None = None,
+        period_s: float = 0.05,
+        **bus_kwargs,
+    ):
         self.network = SafeNetwork(bus)
         if bus is None:
             self.network.connect(interface=interface, channel=channel, **bus_kwargs)
         else:
-            self.network.notifier = can.Notifier(bus, self.network.listeners,
-                                                 self.network.NOTIFIER_CYCLE)
+            self.network.notifier = can.Notifier(bus, self.network.listeners, self.network.NOTIFIER_CYCLE)
         self.period_s = period_s
         self.drives: list[CanopenDriveEmulator] = []
         self._lock = threading.Lock()
@@ -123,8 +127,9 @@ class CanopenNetworkEmulator:
         self._thread: threading.Thread | None = None
         self.service_errors = 0
 
-    def add_drive(self, firmware: DriveFirmware, node_id: int,
-                  wall: Callable[[], float] = time.monotonic) -> CanopenDriveEmulator:
+    def add_drive(
+        self, firmware: DriveFirmware, node_id: int, wall: Callable[[], float] = time.monotonic
+    ) -> CanopenDriveEmulator:
         """Put a drive on the bus (its nodes send their boot-up messages now)."""
         used = {i for d in self.drives for i in d.node_ids}
         drive = CanopenDriveEmulator(firmware, node_id, wall)
@@ -153,7 +158,7 @@ class CanopenNetworkEmulator:
                 self.service_errors += 1
                 log.exception("drive %s: service failed", d.node_ids)
 
-    def start(self) -> "CanopenNetworkEmulator":
+    def start(self) -> Self:
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="canopen-emulator", daemon=True)
         self._thread.start()
@@ -165,7 +170,7 @@ class CanopenNetworkEmulator:
             self.service()
             next_t += self.period_s
             delay = next_t - time.monotonic()
-            if delay < 0:          # overloaded: do not try to catch up in a burst
+            if delay < 0:  # overloaded: do not try to catch up in a burst
                 next_t = time.monotonic()
                 delay = 0
             self._stop.wait(delay)
@@ -180,7 +185,7 @@ class CanopenNetworkEmulator:
         self.drives.clear()
         self.network.disconnect()
 
-    def __enter__(self) -> "CanopenNetworkEmulator":
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:

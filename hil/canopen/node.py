@@ -26,12 +26,18 @@ from canopen.sdo import SdoAbortedError
 
 from firmware_protocol import Command, Fault, Mode, ProtocolError, Status, encode, register
 from firmware_protocol.canopen import (
-    AXIS_INDEX_OBJECT, FAULT_ERROR_CODES, MASTER_NODE_ID, PROFILE_POSITION,
-    Controlword, State402, Statusword, eds, entry,
+    AXIS_INDEX_OBJECT,
+    FAULT_ERROR_CODES,
+    MASTER_NODE_ID,
+    PROFILE_POSITION,
+    Controlword,
+    State402,
+    Statusword,
+    entry,
 )
 from firmware_protocol.codec import raw_to_words, words_to_raw
+from firmware_protocol.eds import eds
 from firmware_protocol.registers import AXIS_BASE, AXIS_REGISTERS, AXIS_STRIDE
-
 from hil.drive.firmware import DriveFirmware, FirmwareReject
 
 from .cia402 import Cia402StateMachine
@@ -40,10 +46,11 @@ log = logging.getLogger(__name__)
 
 ABORT_VALUE_RANGE = 0x06090030
 ABORT_READ_ONLY = 0x06010002
-ABORT_STATE = 0x08000022       # data cannot be transferred because of the device state
-EMCY_PDO_LENGTH = 0x8210       # PDO not processed due to length error
-_SNAPSHOT_WORDS = 8            # axis registers TARGET_ANGLE .. MODE (offsets 0-7)
-_NOT_ERROR_CODE = 0xFF00       # generic manufacturer code for a fault without a mapping
+ABORT_STATE = 0x08000022  # data cannot be transferred because of the device state
+EMCY_PDO_LENGTH = 0x8210  # PDO not processed due to length error
+_SNAPSHOT_WORDS = 8  # axis registers TARGET_ANGLE .. MODE (offsets 0-7)
+_NOT_ERROR_CODE = 0xFF00  # generic manufacturer code for a fault without a mapping
+
 
 def object_dictionary(node_id: int) -> canopen.ObjectDictionary:
     """The generated EDS parsed for ``node_id`` (a fresh copy each call)."""
@@ -87,11 +94,11 @@ class AxisNode:
         time out on the wall clock.
     """
 
-    def __init__(self, drive: DriveBus, axis: int, node_id: int,
-                 wall: Callable[[], float] = time.monotonic):
+    def __init__(self, drive: DriveBus, axis: int, node_id: int, wall: Callable[[], float] = time.monotonic):
         self.drive = drive
         self.fw = drive.fw
         self.axis = axis
+        self.node_id = node_id
         self.node = canopen.LocalNode(node_id, object_dictionary(node_id))
         self.sm = Cia402StateMachine()
         self.wall = wall
@@ -102,12 +109,12 @@ class AxisNode:
         self._fault_seen = Fault.NONE
         self._pdo_dirty = False
         self._sync_count = 0
-        self._last_tx: dict[int, tuple[list[int], float]] = {}   # TPDO no -> (values, t)
+        self._last_tx: dict[int, tuple[list[int], float]] = {}  # TPDO no -> (values, t)
         self.network: canopen.Network | None = None
 
     @property
     def id(self) -> int:
-        return self.node.id
+        return self.node_id
 
     # -- wiring ------------------------------------------------------------------------
     def attach(self, network: canopen.Network) -> None:
@@ -146,8 +153,8 @@ class AxisNode:
         with self.drive.lock:
             self.sm.reset()
             self.ack = False
-            self.node.nmt.send_command(0x81)      # INITIALISING: sends the boot-up message
-            self.node.nmt.send_command(0x80)      # PRE-OPERATIONAL: starts the heartbeat
+            self.node.nmt.send_command(0x81)  # INITIALISING: sends the boot-up message
+            self.node.nmt.send_command(0x80)  # PRE-OPERATIONAL: starts the heartbeat
             self.sm.boot()
             self._last_tx.clear()
 
@@ -159,7 +166,7 @@ class AxisNode:
         out = {}
         for reg in AXIS_REGISTERS:
             if reg.offset + reg.words <= _SNAPSHOT_WORDS:
-                out[reg.name] = words_to_raw(reg, words[reg.offset: reg.offset + reg.words])
+                out[reg.name] = words_to_raw(reg, words[reg.offset : reg.offset + reg.words])
         return out
 
     def _reg_raw(self, name: str) -> int:
@@ -179,15 +186,19 @@ class AxisNode:
         reg = register("TARGET_ANGLE")
         try:
             self.fw.write(reg.address(self.axis), raw_to_words(reg, actual))
-        except FirmwareReject:   # pragma: no cover - TARGET_ANGLE is always writable
+        except FirmwareReject:  # pragma: no cover - TARGET_ANGLE is always writable
             pass
 
     # -- values --------------------------------------------------------------------------
     def statusword(self, snap: dict[str, int]) -> int:
         st = Status(snap["STATUS"])
         sw = self.sm.state_bits | Statusword.REMOTE
-        if self.sm.state in (State402.READY_TO_SWITCH_ON, State402.SWITCHED_ON,
-                             State402.OPERATION_ENABLED, State402.QUICK_STOP_ACTIVE):
+        if self.sm.state in (
+            State402.READY_TO_SWITCH_ON,
+            State402.SWITCHED_ON,
+            State402.OPERATION_ENABLED,
+            State402.QUICK_STOP_ACTIVE,
+        ):
             sw |= Statusword.VOLTAGE_ENABLED
         if st & Status.AT_TARGET:
             sw |= Statusword.TARGET_REACHED
@@ -201,8 +212,7 @@ class AxisNode:
             sw |= Statusword.SET_POINT_ACK
         return int(sw)
 
-    def object_raw(self, index: int, subindex: int, snap: dict[str, int] | None = None
-                   ) -> int | None:
+    def object_raw(self, index: int, subindex: int, snap: dict[str, int] | None = None) -> int | None:
         """Live raw value of an object, or None when the data store holds it."""
         snap = snap if snap is not None else self._snapshot()
         if index == 0x6041:
@@ -263,7 +273,7 @@ class AxisNode:
         elif index == 0x1016 and subindex == 1:
             self._set_consumer(value)
         elif 0x1400 <= index < 0x1C00:
-            self._pdo_dirty = True   # stored after this callback; re-read in service()
+            self._pdo_dirty = True  # stored after this callback; re-read in service()
         else:
             try:
                 e = entry(index, subindex)
@@ -276,8 +286,7 @@ class AxisNode:
             try:
                 self._reg_write_raw(e.register, value)
             except (ProtocolError, FirmwareReject) as exc:
-                log.info("node %d: write 0x%04X:%02X = %d refused: %s", self.id, index,
-                         subindex, value, exc)
+                log.info("node %d: write 0x%04X:%02X = %d refused: %s", self.id, index, subindex, value, exc)
                 raise SdoAbortedError(ABORT_VALUE_RANGE) from None
 
     def _set_consumer(self, value: int) -> None:
@@ -315,7 +324,7 @@ class AxisNode:
 
     def _new_set_point(self, cw: int) -> None:
         if self.op_mode != PROFILE_POSITION:
-            return   # no acknowledge: the master sees the set-point was not taken
+            return  # no acknowledge: the master sees the set-point was not taken
         raw = self.target_raw
         if cw & Controlword.RELATIVE:
             raw += self._reg_raw("TARGET_ANGLE")
@@ -369,11 +378,10 @@ class AxisNode:
                 try:
                     self.write_object(index, subindex, value)
                 except SdoAbortedError as exc:
-                    log.info("node %d: RPDO value 0x%04X = %d ignored (%s)", self.id,
-                             index, value, exc)
+                    log.info("node %d: RPDO value 0x%04X = %d ignored (%s)", self.id, index, value, exc)
             self._service_locked(self.wall())
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:
             if self.node.nmt.state != "OPERATIONAL":
                 return
@@ -383,12 +391,11 @@ class AxisNode:
                 tt = pdo.trans_type
                 if not pdo.enabled or tt is None or tt > 240:
                     continue
-                if tt == 0 and not self._changed(no, pdo, snap) or \
-                        tt and self._sync_count % tt:
+                if tt == 0 and not self._changed(no, pdo, snap) or tt and self._sync_count % tt:
                     continue
                 self._send(no, pdo, snap, self.wall())
 
-    def _on_master_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:
+    def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
         with self.drive.lock:
             self.drive.beat()
 
@@ -399,7 +406,7 @@ class AxisNode:
             self._service_locked(self.wall())
 
     def _service_locked(self, t: float, reload_pdos: bool = True) -> None:
-        if self.node.nmt.state == "INITIALISING":   # NMT reset node / communication
+        if self.node.nmt.state == "INITIALISING":  # NMT reset node / communication
             self.node.data_store.clear()
             self._load_pdos(from_od=True)
             self._boot()
@@ -436,7 +443,7 @@ class AxisNode:
             for var, value in zip(pdo, values):
                 var.raw = value
             pdo.transmit()
-        except Exception as exc:   # a value that does not fit its mapping, a closed bus
+        except Exception as exc:  # noqa: BLE001 - a value that does not fit its mapping, a closed bus
             log.warning("node %d: TPDO%d not sent: %s", self.id, no, exc)
             return
         self._last_tx[no] = (values, t)

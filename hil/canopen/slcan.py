@@ -25,6 +25,7 @@ import select
 import termios
 import threading
 import time
+from typing import Self
 
 import can
 
@@ -37,7 +38,7 @@ ERROR = b"\a"
 HW_VERSION = "01"
 SW_VERSION = "10"
 SERIAL = "HT01"
-MAX_LINE = 64   # longest legal command is "T" + 8 + 1 + 16 = 26 chars; more is garbage
+MAX_LINE = 64  # longest legal command is "T" + 8 + 1 + 16 = 26 chars; more is garbage
 
 
 class SlcanAdapter:
@@ -59,7 +60,7 @@ class SlcanAdapter:
         self.listen_only = False
         self.timestamps = False
         self.bitrate_code = "6"
-        self.rx_dropped = 0      # frames not delivered because nobody reads the pty
+        self.rx_dropped = 0  # frames not delivered because nobody reads the pty
         self.bad_commands = 0
         self._fd = link.master_fd
         flags = fcntl.fcntl(self._fd, fcntl.F_GETFL)
@@ -68,11 +69,13 @@ class SlcanAdapter:
         fcntl.fcntl(self._fd, fcntl.F_SETFL, flags | os.O_NONBLOCK)
         self._write_lock = threading.Lock()
         self._stop = threading.Event()
-        self._threads = [threading.Thread(target=self._pty_loop, name="slcan-pty", daemon=True),
-                         threading.Thread(target=self._bus_loop, name="slcan-bus", daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._pty_loop, name="slcan-pty", daemon=True),
+            threading.Thread(target=self._bus_loop, name="slcan-bus", daemon=True),
+        ]
 
     # -- lifecycle ----------------------------------------------------------------------
-    def start(self) -> "SlcanAdapter":
+    def start(self) -> Self:
         for t in self._threads:
             t.start()
         return self
@@ -82,7 +85,7 @@ class SlcanAdapter:
         for t in self._threads:
             t.join(2)
 
-    def __enter__(self) -> "SlcanAdapter":
+    def __enter__(self) -> Self:
         return self.start()
 
     def __exit__(self, *exc) -> None:
@@ -121,13 +124,13 @@ class SlcanAdapter:
             while True:
                 cut = min((i for i in (buf.find(b"\r"), buf.find(b"\n")) if i >= 0), default=-1)
                 if cut < 0:
-                    if len(buf) > MAX_LINE:   # garbage without terminator
+                    if len(buf) > MAX_LINE:  # garbage without terminator
                         buf.clear()
                         self.bad_commands += 1
                         self._write(ERROR)
                     break
                 line = bytes(buf[:cut])
-                del buf[:cut + 1]
+                del buf[: cut + 1]
                 self._write(self.handle(line.decode("ascii", "replace")))
 
     def handle(self, cmd: str) -> bytes:
@@ -191,15 +194,16 @@ class SlcanAdapter:
         if dlc > 8 or can_id > (0x1FFFFFFF if ext else 0x7FF):
             raise ValueError("bad id or dlc")
         remote = c in "rR"
-        hexdata = arg[n_id + 1:]
+        hexdata = arg[n_id + 1 :]
         if remote:
             data = b""
         else:
             if len(hexdata) != 2 * dlc:
                 raise ValueError("data length does not match dlc")
             data = bytes.fromhex(hexdata)
-        self.bus.send(can.Message(arbitration_id=can_id, is_extended_id=ext, data=data,
-                                  dlc=dlc, is_remote_frame=remote))
+        self.bus.send(
+            can.Message(arbitration_id=can_id, is_extended_id=ext, data=data, dlc=dlc, is_remote_frame=remote)
+        )
         return b"Z\r" if ext else b"z\r"
 
     def _flush_stale(self) -> None:

@@ -60,12 +60,12 @@ class AxisModel:
 
     def __init__(self, params: AxisParams):
         self.p = params
-        self.motor = params.initial_angle    # gear input, in output degrees
-        self.output = params.initial_angle   # panel side
-        self.velocity = 0.0                  # motor side, deg/s
+        self.motor = params.initial_angle  # gear input, in output degrees
+        self.output = params.initial_angle  # panel side
+        self.velocity = 0.0  # motor side, deg/s
         self.target = params.initial_angle
         self.enabled = True
-        self.jammed = False                  # fault injection: motor cannot turn
+        self.jammed = False  # fault injection: motor cannot turn
         self.stall_timer = 0.0
         self.stalled = False
         self.hard_limit = False
@@ -107,7 +107,9 @@ class AxisModel:
         if abs(error) <= p.deadband:
             # Inside the deadband: brake to a stop.
             dv = p.accel * dt
-            self.velocity = 0.0 if abs(self.velocity) <= dv else self.velocity - math.copysign(dv, self.velocity)
+            self.velocity = (
+                0.0 if abs(self.velocity) <= dv else self.velocity - math.copysign(dv, self.velocity)
+            )
         else:
             # Braking curve: the fastest speed from which we can still stop at the target.
             v_cmd = math.copysign(min(p.max_speed, math.sqrt(2 * p.accel * abs(error))), error)

@@ -13,8 +13,16 @@ import threading
 from collections.abc import Callable, Sequence
 
 from firmware_protocol import (
-    MAGIC, PROTOCOL_VERSION, REGISTER_MAP, REGISTER_SPACE, Command, Fault, Mode, Status,
-    decode, encode,
+    MAGIC,
+    PROTOCOL_VERSION,
+    REGISTER_MAP,
+    REGISTER_SPACE,
+    Command,
+    Fault,
+    Mode,
+    Status,
+    decode,
+    encode,
 )
 from firmware_protocol.registers import Register
 
@@ -33,8 +41,10 @@ def check_axis_params(p: AxisParams, k: int = 0) -> None:
     if p.backlash < 0 or p.encoder_resolution < 0 or p.deadband < 0 or p.stall_time <= 0:
         problems.append("backlash, encoder resolution and deadband must be >= 0, stall time > 0")
     if not p.hard_min <= p.soft_min < p.soft_max <= p.hard_max:
-        problems.append(f"limits must satisfy hard_min <= soft_min < soft_max <= hard_max "
-                        f"({p.hard_min}, {p.soft_min}, {p.soft_max}, {p.hard_max})")
+        problems.append(
+            f"limits must satisfy hard_min <= soft_min < soft_max <= hard_max "
+            f"({p.hard_min}, {p.soft_min}, {p.soft_max}, {p.hard_max})"
+        )
     if not p.soft_min <= p.stow_angle <= p.soft_max:
         problems.append(f"stow angle {p.stow_angle} outside the soft limits")
     if problems:
@@ -52,7 +62,7 @@ class FirmwareReject(Exception):
 # address -> (register, axis or None, word index) for every defined word
 _WORDS: dict[int, tuple[Register, int | None, int]] = {}
 for _reg in REGISTER_MAP:
-    for _axis in (range(2) if _reg.per_axis else [None]):
+    for _axis in range(2) if _reg.per_axis else [None]:
         for _w in range(_reg.words):
             _WORDS[_reg.address(_axis) + _w] = (_reg, _axis, _w)
 
@@ -74,9 +84,13 @@ class DriveFirmware:
         clock: a step of the wall clock must neither fire nor delay the watchdog.
     """
 
-    def __init__(self, axes: Sequence[AxisParams], now: Callable[[], float],
-                 heartbeat_timeout: float = 10.0,
-                 monotonic: Callable[[], float] | None = None):
+    def __init__(
+        self,
+        axes: Sequence[AxisParams],
+        now: Callable[[], float],
+        heartbeat_timeout: float = 10.0,
+        monotonic: Callable[[], float] | None = None,
+    ):
         if not 1 <= len(axes) <= 2:
             raise ValueError("a drive has 1 or 2 axes")
         if not heartbeat_timeout >= 0:
@@ -121,7 +135,7 @@ class DriveFirmware:
 
     def _enter_comm_lost(self) -> None:
         self.comm_lost = True
-        for k, ax in enumerate(self.axes):
+        for k in range(len(self.axes)):
             if self.modes[k] != Mode.MAINTENANCE:
                 self._set_mode(k, Mode.STOW)
 
@@ -169,33 +183,55 @@ class DriveFirmware:
     def value(self, reg: Register, k: int | None) -> float | int:
         """Current engineering value of a register."""
         n = reg.name
-        if k is not None and k >= len(self.axes):
-            return 0
-        ax = self.axes[k] if k is not None else None
+        if k is not None:
+            return self._axis_value(n, k) if k < len(self.axes) else 0
         match n:
-            case "MAGIC": return MAGIC
-            case "PROTOCOL_VERSION": return PROTOCOL_VERSION
-            case "AXIS_COUNT": return len(self.axes)
-            case "FIRMWARE_VERSION": return FIRMWARE_VERSION
+            case "MAGIC":
+                return MAGIC
+            case "PROTOCOL_VERSION":
+                return PROTOCOL_VERSION
+            case "AXIS_COUNT":
+                return len(self.axes)
+            case "FIRMWARE_VERSION":
+                return FIRMWARE_VERSION
             case "DEVICE_STATUS":
                 s = Status(0)
                 for j in range(len(self.axes)):
                     s |= self.status(j)
                 return int(s)
-            case "COMMAND": return 0
-            case "HEARTBEAT": return self.heartbeat
-            case "HEARTBEAT_TIMEOUT": return self.heartbeat_timeout
-            case "UPTIME": return int(max(self._t - self._t0, 0))
-            case "TARGET_ANGLE": return ax.target
-            case "ACTUAL_ANGLE": return ax.encoder
-            case "VELOCITY": return max(min(ax.velocity, 32.0), -32.0)
-            case "STATUS": return int(self.status(k))
-            case "FAULT_CODE": return int(self.fault(k))
-            case "MODE": return int(self.modes[k])
-            case "SOFT_LIMIT_MIN": return ax.p.soft_min
-            case "SOFT_LIMIT_MAX": return ax.p.soft_max
-            case "MAX_SPEED": return ax.p.max_speed
-            case "STOW_ANGLE": return ax.p.stow_angle
+            case "COMMAND":
+                return 0
+            case "HEARTBEAT":
+                return self.heartbeat
+            case "HEARTBEAT_TIMEOUT":
+                return self.heartbeat_timeout
+            case "UPTIME":
+                return int(max(self._t - self._t0, 0))
+        raise AssertionError(f"register {n} has no value")  # pragma: no cover
+
+    def _axis_value(self, n: str, k: int) -> float | int:
+        ax = self.axes[k]
+        match n:
+            case "TARGET_ANGLE":
+                return ax.target
+            case "ACTUAL_ANGLE":
+                return ax.encoder
+            case "VELOCITY":
+                return max(min(ax.velocity, 32.0), -32.0)
+            case "STATUS":
+                return int(self.status(k))
+            case "FAULT_CODE":
+                return int(self.fault(k))
+            case "MODE":
+                return int(self.modes[k])
+            case "SOFT_LIMIT_MIN":
+                return ax.p.soft_min
+            case "SOFT_LIMIT_MAX":
+                return ax.p.soft_max
+            case "MAX_SPEED":
+                return ax.p.max_speed
+            case "STOW_ANGLE":
+                return ax.p.stow_angle
         raise AssertionError(f"register {n} has no value")  # pragma: no cover
 
     def read(self, address: int, count: int) -> list[int]:
@@ -224,7 +260,7 @@ class DriveFirmware:
             self.update()
             self.transactions += 1
             changes = self._parse_write(address, values)
-            for reg, k, value in changes:       # validated: now apply all of them
+            for reg, k, value in changes:  # validated: now apply all of them
                 self._apply(reg, k, value)
 
     def _parse_write(self, address: int, values: Sequence[int]):
@@ -242,7 +278,7 @@ class DriveFirmware:
                 raise FirmwareReject(2, f"{reg.name} is read-only")
             if k is not None and k >= len(self.axes):
                 raise FirmwareReject(2, f"axis {k} does not exist on this drive")
-            value = decode(reg, list(values[a - address: a - address + reg.words]))
+            value = decode(reg, list(values[a - address : a - address + reg.words]))
             self._validate(reg, k, value)
             changes.append((reg, k, value))
             a += reg.words
@@ -256,7 +292,7 @@ class DriveFirmware:
             raise FirmwareReject(3, f"COMMAND {value} is not a command")
         if reg.name == "MAX_SPEED" and not 0 < value <= 10:
             raise FirmwareReject(3, "MAX_SPEED must be in (0, 10] deg/s")
-        if reg.name in ("SOFT_LIMIT_MIN", "SOFT_LIMIT_MAX"):
+        if reg.name in ("SOFT_LIMIT_MIN", "SOFT_LIMIT_MAX") and k is not None:
             ax = self.axes[k]
             if not ax.p.hard_min <= value <= ax.p.hard_max:
                 raise FirmwareReject(3, f"{reg.name} outside the hard limits")
@@ -277,24 +313,33 @@ class DriveFirmware:
         timeout = None
         for reg, k, value in changes:
             match reg.name:
-                case "SOFT_LIMIT_MIN": lo[k] = value
-                case "SOFT_LIMIT_MAX": hi[k] = value
-                case "STOW_ANGLE": stow[k] = value
-                case "MODE": modes[k] = Mode(value)
-                case "HEARTBEAT_TIMEOUT": timeout = value
+                case "SOFT_LIMIT_MIN":
+                    lo[k] = value
+                case "SOFT_LIMIT_MAX":
+                    hi[k] = value
+                case "STOW_ANGLE":
+                    stow[k] = value
+                case "MODE":
+                    modes[k] = Mode(value)
+                case "HEARTBEAT_TIMEOUT":
+                    timeout = value
         for k in lo:
             if not lo[k] < hi[k]:
                 raise FirmwareReject(3, f"axis {k}: soft limits [{lo[k]:g}, {hi[k]:g}] inverted")
             if not lo[k] <= stow[k] <= hi[k]:
-                raise FirmwareReject(3, f"axis {k}: stow angle {stow[k]:g} outside the soft "
-                                        f"limits [{lo[k]:g}, {hi[k]:g}]")
+                raise FirmwareReject(
+                    3, f"axis {k}: stow angle {stow[k]:g} outside the soft limits [{lo[k]:g}, {hi[k]:g}]"
+                )
         if timeout == 0 and any(m != Mode.MAINTENANCE for m in modes.values()):
             raise FirmwareReject(3, "the watchdog can be switched off only in MAINTENANCE")
 
     def _apply(self, reg: Register, k: int | None, value) -> None:
-        ax = self.axes[k] if k is not None else None
+        if k is not None:
+            self._apply_axis(reg.name, k, value)
+            return
         match reg.name:
-            case "COMMAND": self._command(Command(value))
+            case "COMMAND":
+                self._command(Command(value))
             case "HEARTBEAT":
                 if value != self.heartbeat:
                     self.heartbeat = value
@@ -303,6 +348,10 @@ class DriveFirmware:
             case "HEARTBEAT_TIMEOUT":
                 self.heartbeat_timeout = value
                 self._last_heartbeat_change = self._t
+
+    def _apply_axis(self, name: str, k: int, value) -> None:
+        ax = self.axes[k]
+        match name:
             case "TARGET_ANGLE":
                 if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                     clamped = min(max(value, ax.p.soft_min), ax.p.soft_max)
@@ -310,9 +359,12 @@ class DriveFirmware:
                     ax.target = clamped
             case "MODE":
                 self._set_mode(k, Mode(value))
-            case "SOFT_LIMIT_MIN": ax.p.soft_min = value
-            case "SOFT_LIMIT_MAX": ax.p.soft_max = value
-            case "MAX_SPEED": ax.p.max_speed = value
+            case "SOFT_LIMIT_MIN":
+                ax.p.soft_min = value
+            case "SOFT_LIMIT_MAX":
+                ax.p.soft_max = value
+            case "MAX_SPEED":
+                ax.p.max_speed = value
             case "STOW_ANGLE":
                 ax.p.stow_angle = value
                 if self.modes[k] == Mode.STOW:

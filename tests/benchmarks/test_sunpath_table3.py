@@ -22,7 +22,8 @@ def test_aggregate_over_draws():
     per_draw = [{"noon_mean_s": m, "noon_std_s": s} for m, s in ((1.0, 20.0), (3.0, 24.0))]
     agg = aggregate(per_draw)
     assert agg["noon_std_s"] == pytest.approx(
-        {"mean": 22.0, "sd": np.sqrt(8.0), "min": 20.0, "max": 24.0, "draws": 2})
+        {"mean": 22.0, "sd": np.sqrt(8.0), "min": 20.0, "max": 24.0, "draws": 2}
+    )
     assert agg["days"] is None
     assert noon_lines_hold(agg) == {"noon_std_in_paper_range": False, "noon_mean_within_20_s": True}
 
@@ -32,8 +33,7 @@ def test_noise_free_paper_days_seed_against_whole_day():
     # std is the method's floor (about 14 s); the whole-day fit's is about 45 s.
     ds = draw(ANDIMESHK, 3.5, PAPER_DATES, 0.0, 0.0, seed=1)
     seed, _ = run_seed(ds.t, ds.az_obs, ds.el_obs, 3.5, lat_deg=ANDIMESHK.latitude)
-    whole, _ = run_seed(ds.t, ds.az_obs, ds.el_obs, 3.5, lat_deg=ANDIMESHK.latitude,
-                        fit="whole-day")
+    whole, _ = run_seed(ds.t, ds.az_obs, ds.el_obs, 3.5, lat_deg=ANDIMESHK.latitude, fit="whole-day")
     f_seed, f_whole = figures(ANDIMESHK, seed), figures(ANDIMESHK, whole)
     assert f_seed["days"] == f_whole["days"] == 36
     assert f_seed["noon_std_s"] < 20.0 and f_whole["noon_std_s"] > 40.0

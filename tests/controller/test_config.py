@@ -46,34 +46,53 @@ device_id = 1
 ROW = '[[trackers]]\nname = "r"\ntype = "single-axis"\nlink = "a"\ndevice_id = 2\n'
 
 
-@pytest.mark.parametrize("mutate, key, expected", [
-    (lambda s: s.replace("latitude = 10", "latitude = 100"), "site.latitude", "[-90, 90]"),
-    (lambda s: s.replace("latitude = 10", 'latitude = "north"'), "site.latitude", "a number"),
-    (lambda s: s.replace('link = "a"', 'link = "b"'), "trackers[0].link", "[[links]]"),
-    (lambda s: s.replace("device_id = 1", "device_id = 300"), "trackers[0].device_id", "[1, 247]"),
-    (lambda s: s.replace('type = "dual-axis"', 'type = "tri-axis"'), "trackers[0].type", "dual-axis"),
-    (lambda s: s + "[control]\nperiod_s = 60\nheartbeat_timeout_s = 30\n", "control.heartbeat_timeout_s", "more than"),
-    (lambda s: s + "[control]\nperiod = 60\n", "control.period", "known keys"),
-    (lambda s: s.replace("[site]\nlatitude = 10\n", "[site]\n"), "site.latitude", "missing"),
-    (lambda s: s + '[hotspot]\ncalibration = "b.toml"\n', "hotspot.calibration", "an existing file"),
-    # typos are errors, never silently dropped
-    (lambda s: s.replace("[[trackers]]", "[[trackersX]]"), "trackersX", "known keys"),
-    (lambda s: s + ROW + "max_angel = 50\n", "trackers[1].max_angel", "known keys"),
-    (lambda s: s + "[control]\nstow_wind_speed = 20\n", "control.stow_wind_speed", "known keys"),
-    # keys of the other tracker type or link kind
-    (lambda s: s.replace("device_id = 1", "device_id = 1\ngcr = 0.3"), "trackers[0].gcr", "known keys"),
-    (lambda s: s.replace('kind = "modbus-rtu"', 'kind = "modbus-rtu"\ntcp_port = 502'),
-     "links[0].tcp_port", "known keys"),
-    (lambda s: s.replace('kind = "modbus-rtu"', 'kind = "profibus"'), "links[0].kind", "canopen"),
-    (lambda s: s.replace('kind = "modbus-rtu"', 'kind = "modbus-rtu"\nparity = "X"'),
-     "links[0].parity", 'one of "N", "E", "O"'),
-    # stow angles within the axis limits, limits in order
-    (lambda s: s.replace("device_id = 1", "device_id = 1\nstow = [180.0, 95.0]"),
-     "trackers[0].stow[1]", "within the axis limits [0, 90]"),
-    (lambda s: s + ROW + "max_angle = 45\nstow = 50\n", "trackers[1].stow", "[-45, 45]"),
-    (lambda s: s.replace("device_id = 1", "device_id = 1\nelevation_limits = [60, 10]"),
-     "trackers[0].elevation_limits", "min < max"),
-])
+@pytest.mark.parametrize(
+    "mutate, key, expected",
+    [
+        (lambda s: s.replace("latitude = 10", "latitude = 100"), "site.latitude", "[-90, 90]"),
+        (lambda s: s.replace("latitude = 10", 'latitude = "north"'), "site.latitude", "a number"),
+        (lambda s: s.replace('link = "a"', 'link = "b"'), "trackers[0].link", "[[links]]"),
+        (lambda s: s.replace("device_id = 1", "device_id = 300"), "trackers[0].device_id", "[1, 247]"),
+        (lambda s: s.replace('type = "dual-axis"', 'type = "tri-axis"'), "trackers[0].type", "dual-axis"),
+        (
+            lambda s: s + "[control]\nperiod_s = 60\nheartbeat_timeout_s = 30\n",
+            "control.heartbeat_timeout_s",
+            "more than",
+        ),
+        (lambda s: s + "[control]\nperiod = 60\n", "control.period", "known keys"),
+        (lambda s: s.replace("[site]\nlatitude = 10\n", "[site]\n"), "site.latitude", "missing"),
+        (lambda s: s + '[hotspot]\ncalibration = "b.toml"\n', "hotspot.calibration", "an existing file"),
+        # typos are errors, never silently dropped
+        (lambda s: s.replace("[[trackers]]", "[[trackersX]]"), "trackersX", "known keys"),
+        (lambda s: s + ROW + "max_angel = 50\n", "trackers[1].max_angel", "known keys"),
+        (lambda s: s + "[control]\nstow_wind_speed = 20\n", "control.stow_wind_speed", "known keys"),
+        # keys of the other tracker type or link kind
+        (lambda s: s.replace("device_id = 1", "device_id = 1\ngcr = 0.3"), "trackers[0].gcr", "known keys"),
+        (
+            lambda s: s.replace('kind = "modbus-rtu"', 'kind = "modbus-rtu"\ntcp_port = 502'),
+            "links[0].tcp_port",
+            "known keys",
+        ),
+        (lambda s: s.replace('kind = "modbus-rtu"', 'kind = "profibus"'), "links[0].kind", "canopen"),
+        (
+            lambda s: s.replace('kind = "modbus-rtu"', 'kind = "modbus-rtu"\nparity = "X"'),
+            "links[0].parity",
+            'one of "N", "E", "O"',
+        ),
+        # stow angles within the axis limits, limits in order
+        (
+            lambda s: s.replace("device_id = 1", "device_id = 1\nstow = [180.0, 95.0]"),
+            "trackers[0].stow[1]",
+            "within the axis limits [0, 90]",
+        ),
+        (lambda s: s + ROW + "max_angle = 45\nstow = 50\n", "trackers[1].stow", "[-45, 45]"),
+        (
+            lambda s: s.replace("device_id = 1", "device_id = 1\nelevation_limits = [60, 10]"),
+            "trackers[0].elevation_limits",
+            "min < max",
+        ),
+    ],
+)
 def test_errors_name_file_key_and_expectation(tmp_path, mutate, key, expected):
     (tmp_path / "exists.toml").write_text("")
     path = write(tmp_path, mutate(BASE))
@@ -84,33 +103,64 @@ def test_errors_name_file_key_and_expectation(tmp_path, mutate, key, expected):
 
 
 def test_every_link_kind_from_toml():
-    cfg = parse_config({
-        "site": {"latitude": 10, "longitude": 20},
-        "links": [{"name": "rs485", "kind": "modbus-rtu", "port": "/dev/ttyUSB0",
-                   "baudrate": 19200, "parity": "E", "stopbits": 1},
-                  {"name": "lan", "kind": "modbus-tcp", "host": "10.0.0.7", "tcp_port": 1502},
-                  {"name": "can", "kind": "canopen", "interface": "slcan",
-                   "channel": "/dev/ttyACM0", "bitrate": 500000}],
-        "trackers": [{"name": f"t{i}", "type": "single-axis", "link": link, "device_id": 3}
-                     for i, link in enumerate(("rs485", "lan", "can"))]})
+    cfg = parse_config(
+        {
+            "site": {"latitude": 10, "longitude": 20},
+            "links": [
+                {
+                    "name": "rs485",
+                    "kind": "modbus-rtu",
+                    "port": "/dev/ttyUSB0",
+                    "baudrate": 19200,
+                    "parity": "E",
+                    "stopbits": 1,
+                },
+                {"name": "lan", "kind": "modbus-tcp", "host": "10.0.0.7", "tcp_port": 1502},
+                {
+                    "name": "can",
+                    "kind": "canopen",
+                    "interface": "slcan",
+                    "channel": "/dev/ttyACM0",
+                    "bitrate": 500000,
+                },
+            ],
+            "trackers": [
+                {"name": f"t{i}", "type": "single-axis", "link": link, "device_id": 3}
+                for i, link in enumerate(("rs485", "lan", "can"))
+            ],
+        }
+    )
     rtu, tcp, can = cfg.links
-    assert isinstance(rtu, ModbusRtuLink) and (rtu.port, rtu.baudrate, rtu.parity) == ("/dev/ttyUSB0", 19200, "E")
+    assert isinstance(rtu, ModbusRtuLink) and (rtu.port, rtu.baudrate, rtu.parity) == (
+        "/dev/ttyUSB0",
+        19200,
+        "E",
+    )
     assert isinstance(tcp, ModbusTcpLink) and (tcp.host, tcp.tcp_port) == ("10.0.0.7", 1502)
-    assert isinstance(can, CanopenLink) and (can.interface, can.channel, can.bitrate) == ("slcan", "/dev/ttyACM0", 500000)
+    assert isinstance(can, CanopenLink) and (can.interface, can.channel, can.bitrate) == (
+        "slcan",
+        "/dev/ttyACM0",
+        500000,
+    )
     assert not any(link.is_hil for link in cfg.links)
 
 
 def test_canopen_drives_occupy_one_node_per_axis():
-    doc = {"site": {"latitude": 10, "longitude": 20},
-           "links": [{"name": "can", "kind": "canopen"}],
-           "trackers": [{"name": "d", "type": "dual-axis", "link": "can", "device_id": 4},
-                        {"name": "r", "type": "single-axis", "link": "can", "device_id": 5}]}
+    doc = {
+        "site": {"latitude": 10, "longitude": 20},
+        "control": {"period_s": 10},
+        "links": [{"name": "can", "kind": "canopen"}],
+        "trackers": [
+            {"name": "d", "type": "dual-axis", "link": "can", "device_id": 4},
+            {"name": "r", "type": "single-axis", "link": "can", "device_id": 5},
+        ],
+    }
     with pytest.raises(ConfigError, match=r"trackers\[1\].device_id: expected an id not used"):
         parse_config(doc)
     doc["trackers"][1]["device_id"] = 6
     assert len(parse_config(doc).trackers) == 2
-    doc["trackers"][0]["device_id"] = 127
-    with pytest.raises(ConfigError, match="within 1..127"):
+    doc["trackers"][0]["device_id"] = 126
+    with pytest.raises(ConfigError, match="within 1..126"):
         parse_config(doc)
 
 
@@ -123,8 +173,10 @@ def test_diffuse_needs_a_pyranometer_and_minute_sampling(tmp_path):
 
 
 def test_pyranometer_must_be_on_a_modbus_link(tmp_path):
-    text = BASE.replace('kind = "modbus-rtu"', 'kind = "canopen"') + \
-        '[pyranometer]\nlink = "a"\ndevice_id = 10\n'
+    text = (
+        BASE.replace('kind = "modbus-rtu"', 'kind = "canopen"')
+        + '[pyranometer]\nlink = "a"\ndevice_id = 10\n'
+    )
     with pytest.raises(ConfigError, match="pyranometer.link: expected a Modbus link"):
         load_config(write(tmp_path, text))
 
@@ -147,10 +199,14 @@ def test_duplicate_device_on_a_link_is_refused(tmp_path):
 
 
 def test_derived_defaults():
-    cfg = parse_config({"site": {"latitude": 1, "longitude": 2},
-                        "control": {"period_s": 1.0},
-                        "links": [{"name": "a", "kind": "modbus-tcp"}],
-                        "trackers": [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}]})
+    cfg = parse_config(
+        {
+            "site": {"latitude": 1, "longitude": 2},
+            "control": {"period_s": 1.0},
+            "links": [{"name": "a", "kind": "modbus-tcp"}],
+            "trackers": [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}],
+        }
+    )
     assert isinstance(cfg, Config)
     assert cfg.control.lead_s == 0.5 and cfg.control.heartbeat_timeout_s == 5.0
     assert cfg.diffuse.enabled is False

@@ -33,9 +33,9 @@ def test_overcast_day_switches_once_and_stays():
     on = [t for t, a in states if a]
     assert on, "an overcast day must switch to DIFFUSE"
     first = on[0]
-    assert (first - T0) / 3600 < 10          # by mid-morning
+    assert (first - T0) / 3600 < 10  # by mid-morning
     flips = sum(1 for (_, a), (_, b) in zip(states, states[1:]) if a != b)
-    assert flips <= 2                         # in once (and out at dusk at most)
+    assert flips <= 2  # in once (and out at dusk at most)
 
 
 def test_disabled_switch_never_fires():

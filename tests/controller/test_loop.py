@@ -1,6 +1,6 @@
 """The controller loop against emulated drives, two trackers on one RTU line."""
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import pytest
 
@@ -29,7 +29,7 @@ def test_tracks_the_true_sun(plant):
 
 def test_dead_drive_does_not_stop_the_other(plant):
     run, ctl, fws, clock, cfg = plant
-    ctl.trackers[1].drive.device_id = 42        # nobody answers there now
+    ctl.trackers[1].drive.device_id = 42  # nobody answers there now
     recs = run(ctl.cycle())
     assert recs[1].error and "failed" in recs[1].error
     assert not recs[0].error and recs[0].targets_deg
@@ -37,7 +37,7 @@ def test_dead_drive_does_not_stop_the_other(plant):
 
 def test_night_stows(plant):
     run, ctl, fws, clock, cfg = plant
-    clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=timezone.utc).timestamp())
+    clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=UTC).timestamp())
     recs = run(ctl.cycle())
     assert all(r.mode == "STOW" and r.reason == "night" for r in recs)
     assert recs[0].targets_deg == cfg.trackers[0].stow_angles
@@ -45,18 +45,18 @@ def test_night_stows(plant):
 
 def test_watchdog_stow_is_recovered(plant):
     run, ctl, fws, clock, cfg = plant
-    clock.sleep(cfg.control.heartbeat_timeout_s + 10)   # controller silent: firmware stows
+    clock.sleep(cfg.control.heartbeat_timeout_s + 10)  # controller silent: firmware stows
     fws["dual-1"].update()
     assert fws["dual-1"].comm_lost
     run(ctl.cycle())
     assert not fws["dual-1"].comm_lost
-    assert int(fws["dual-1"].modes[0]) == 0     # back in AUTO
+    assert int(fws["dual-1"].modes[0]) == 0  # back in AUTO
 
 
 def test_heartbeat_is_rate_limited(plant):
     run, ctl, fws, clock, cfg = plant
     before = fws["dual-1"].heartbeat
-    run(ctl.cycle())                         # right after start: no heartbeat needed yet
+    run(ctl.cycle())  # right after start: no heartbeat needed yet
     assert fws["dual-1"].heartbeat == before
     clock.sleep(cfg.control.heartbeat_timeout_s / 3)
     run(ctl.cycle())
@@ -77,8 +77,8 @@ def test_an_unexpected_error_in_one_row_is_recorded_not_hidden(plant):
 
 def test_manual_override_outranks_night_stow(plant):
     run, ctl, fws, clock, cfg = plant
-    clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=timezone.utc).timestamp())
-    ctl.set_override(1, "Manual", 30.0, None)         # e.g. turned for cleaning at night
+    clock.advance_to(datetime(2024, 6, 1, 20, 0, tzinfo=UTC).timestamp())
+    ctl.set_override(1, "Manual", 30.0, None)  # e.g. turned for cleaning at night
     recs = run(ctl.cycle())
     assert recs[1].mode == "MANUAL" and recs[1].targets_deg == (30.0,)
     assert recs[0].mode == "STOW"

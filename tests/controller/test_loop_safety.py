@@ -19,7 +19,7 @@ def command(fw, cmd):
 def test_a_stow_by_someone_else_is_not_undone(default_plant):
     run, ctl, fws, clock, cfg = default_plant
     run(ctl.cycle())
-    command(fws["row-1"], Command.STOW)          # a local wind switch / maintenance panel
+    command(fws["row-1"], Command.STOW)  # a local wind switch / maintenance panel
     for _ in range(3):
         clock.sleep(cfg.control.period_s)
         recs = run(ctl.cycle())
@@ -33,15 +33,15 @@ def test_a_drive_fault_is_named_cleared_and_alarmed(default_plant):
     bridge = Northbound(ctl, "p")
     run(ctl.cycle())
     ax = fws["dual-1"].axes[1]
-    ax.hard_limit = True                         # the elevation axis hit its limit switch
+    ax.hard_limit = True  # the elevation axis hit its limit switch
     ax.target = ax.output = 45.0
     clock.sleep(cfg.control.period_s)
     recs = run(ctl.cycle())
     assert recs[0].health == "degraded"
     assert "axis 1 fault HARD_LIMIT" in recs[0].health_reason and "clear 1/3" in recs[0].health_reason
     bridge.publish(recs)
-    assert bridge.snapshot().trackers[0].alarm_bits & 1          # SunSpec Alm SetPoint
-    assert not ax.hard_limit                     # CLEAR_FAULT went out and the cause is gone
+    assert bridge.snapshot().trackers[0].alarm_bits & 1  # SunSpec Alm SetPoint
+    assert not ax.hard_limit  # CLEAR_FAULT went out and the cause is gone
     clock.sleep(cfg.control.period_s)
     recs = run(ctl.cycle())
     assert recs[0].health == "ok"
@@ -52,7 +52,7 @@ def test_a_fault_that_survives_the_clears_leaves_the_drive_lost(default_plant):
     run(ctl.cycle())
     ax = fws["row-1"].axes[0]
     for _ in range(8):
-        ax.hard_limit = True                     # keeps tripping (a broken switch)
+        ax.hard_limit = True  # keeps tripping (a broken switch)
         clock.sleep(cfg.control.period_s)
         recs = run(ctl.cycle())
     assert recs[1].health == "lost" and "needs service" in recs[1].health_reason
@@ -69,6 +69,7 @@ class FakeAnemometer:
     async def read(self, t):
         if self.fail:
             from controller.drives.base import DriveCommError
+
             raise DriveCommError("anemometer: no answer")
         return WindSample(t, self.gust * 0.7, self.gust, self.gust * 0.6)
 
@@ -79,10 +80,18 @@ class FakeAnemometer:
 @pytest.fixture
 def windy(default_plant):
     run, ctl, fws, clock, cfg = default_plant
-    wind = WindConfig(link="rs485-1", device_id=11, resume_dwell_s=600, poll_s=5,
-                      silent_timeout_s=60, single_axis_deg=0.0, dual_axis_elevation_deg=90.0)
+    wind = WindConfig(
+        link="rs485-1",
+        device_id=11,
+        resume_dwell_s=600,
+        poll_s=5,
+        silent_timeout_s=60,
+        single_axis_deg=0.0,
+        dual_axis_elevation_deg=90.0,
+    )
     ctl.config = replace(cfg, wind=wind)
     from controller.safety import SafetyState
+
     ctl.safety = SafetyState(wind, cfg.stow, clock.now())
     ctl.anemometer = FakeAnemometer()
     return run, ctl, fws, clock, ctl.config
@@ -91,19 +100,19 @@ def windy(default_plant):
 def test_a_gust_stows_every_drive_at_once_and_the_plant_resumes_after_the_dwell(windy):
     run, ctl, fws, clock, cfg = windy
     run(ctl.cycle())
-    ctl.set_override(0, "Manual", 45.0, 100.0)   # an operator's setpoint...
+    ctl.set_override(0, "Manual", 45.0, 100.0)  # an operator's setpoint...
     ctl.anemometer.gust = 24.0
     clock.sleep(10)
-    state = run(ctl.poll_weather())              # between two cycles
+    state = run(ctl.poll_weather())  # between two cycles
     assert state.stow and "gust 24.0" in state.reason
     assert all(fw.modes[k] == Mode.STOW for fw in fws.values() for k in range(len(fw.axes)))
     kinds = [e["kind"] for e in ctl.events]
     assert kinds.count("stow_confirmed") == 2
     clock.sleep(50)
     recs = run(ctl.cycle())
-    assert all(r.mode == "STOW" and r.reason.startswith("wind") for r in recs)   # ...is outranked
+    assert all(r.mode == "STOW" and r.reason.startswith("wind") for r in recs)  # ...is outranked
     ctl.anemometer.gust = 5.0
-    for _ in range(11):                          # calm for 10 min: still stowed
+    for _ in range(11):  # calm for 10 min: still stowed
         clock.sleep(55)
         run(ctl.poll_weather())
         recs = run(ctl.cycle())
@@ -131,6 +140,7 @@ def test_realtime_run_serves_the_whole_duration_whatever_the_period(default_plan
     ctl.realtime = True
     ctl.config = replace(cfg, control=replace(cfg.control, period_s=60.0, heartbeat_timeout_s=180.0))
     import time
+
     t0 = time.monotonic()
     res = run(ctl.run(1.5))
     assert time.monotonic() - t0 >= 1.5 and res["cycles"] == 1
@@ -140,11 +150,32 @@ def test_the_schedule_ignores_wall_clock_steps(default_plant):
     run, ctl, fws, clock, cfg = default_plant
     ctl.realtime = True
     ctl.config = replace(cfg, control=replace(cfg.control, period_s=0.5, heartbeat_timeout_s=5.0))
-    clock.step_wall(3600.0)                      # NTP jumps an hour forward ...
+    clock.step_wall(3600.0)  # NTP jumps an hour forward ...
     import time
+
     t0 = time.monotonic()
     res = run(ctl.run(1.2))
     assert 1.2 <= time.monotonic() - t0 < 3.0 and res["cycles"] in (2, 3)
-    clock.step_wall(-7200.0)                     # ... and back
+    clock.step_wall(-7200.0)  # ... and back
     res = run(ctl.run(1.2))
     assert res["cycles"] >= 4
+
+
+def test_a_drive_that_reboots_is_configured_again(default_plant):
+    from hil.drive import DriveFirmware
+
+    run, ctl, fws, clock, cfg = default_plant
+    fw = fws["row-1"]
+    run(ctl.cycle())
+    clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+    run(ctl.cycle())
+    # power cycle: the same firmware object comes back with its power-up state
+    fresh = DriveFirmware([ax.p for ax in fw.axes], clock.now, heartbeat_timeout=10.0)
+    fw.__dict__.update(fresh.__dict__)
+    fw.axes[0].p.soft_max = 90.0  # power-up default, not the configured 55
+    for _ in range(2):
+        clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+        recs = run(ctl.cycle())
+    assert any(e["kind"] == "drive_reboot" and e["tracker"] == "row-1" for e in ctl.events)
+    assert fw.heartbeat_timeout == cfg.control.heartbeat_timeout_s
+    assert fw.axes[0].p.soft_max == 55.0 and not recs[1].error

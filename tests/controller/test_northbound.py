@@ -1,6 +1,5 @@
 """SCADA sees the controller's plant and its overrides reach the drives (pysunspec2)."""
 
-
 import pytest
 from sunspec2.modbus.client import SunSpecModbusClientDeviceTCP
 
@@ -27,7 +26,7 @@ def test_scada_reads_the_live_plant(plant):
         dev = scan(srv.port)
         try:
             m = dev.models[601][0]
-            assert m.N.value == 2 and m.Typ.value == 5     # mixed plant reports Dual
+            assert m.N.value == 2 and m.Typ.value == 5  # mixed plant reports Dual
             dual, row = m.tracker[0], m.tracker[1]
             assert dual.Id.value == "dual-1" and row.Id.value == "row-1"
             assert dual.AzTrgt.cvalue == pytest.approx(ctl.trackers[0].last_targets[0], abs=1e-3)
@@ -41,13 +40,19 @@ def test_scada_reads_the_live_plant(plant):
 def test_operator_override_reaches_the_drive_and_automatic_releases_it(plant):
     run, ctl, bridge, fws, clock = plant
     bridge.publish(run(ctl.cycle()))
-    with SunSpecServer(bridge.snapshot, bridge.on_override, host="127.0.0.1", port=0,
-                       writes_enabled=True, allow=("127.0.0.1",)) as srv:
+    with SunSpecServer(
+        bridge.snapshot,
+        bridge.on_override,
+        host="127.0.0.1",
+        port=0,
+        writes_enabled=True,
+        allow=("127.0.0.1",),
+    ) as srv:
         dev = scan(srv.port)
         try:
-            blk = dev.models[601][0].tracker[1]            # the single-axis row
+            blk = dev.models[601][0].tracker[1]  # the single-axis row
             blk.ElCtl.cvalue = 20.0
-            blk.Ctl.value = 1                              # Manual
+            blk.Ctl.value = 1  # Manual
             blk.write()
         finally:
             dev.close()
@@ -55,7 +60,7 @@ def test_operator_override_reaches_the_drive_and_automatic_releases_it(plant):
     recs = run(ctl.cycle())
     assert recs[1].mode == "MANUAL" and recs[1].targets_deg == (20.0,)
     assert fws["row-1"].axes[0].target == pytest.approx(20.0)
-    assert recs[0].mode == "TRACK"                         # the other tracker is untouched
+    assert recs[0].mode == "TRACK"  # the other tracker is untouched
     ctl.set_override(None, "Automatic", None, None)
     assert run(ctl.cycle())[1].mode == "TRACK"
 

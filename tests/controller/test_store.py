@@ -15,7 +15,7 @@ def test_state_versions_and_round_trip(tmp_path):
         rec = st.get_state("sunpath")
         assert (rec.version, rec.updated, rec.body) == (2, 200.0, {"lat": 32.4})
         assert st.schema_version == SCHEMA_VERSION
-    with Store(tmp_path / "s.sqlite") as st:   # reopened: still there
+    with Store(tmp_path / "s.sqlite") as st:  # reopened: still there
         assert st.get_state("sunpath").version == 2
 
 
@@ -24,7 +24,7 @@ def test_nan_is_refused_not_stored(tmp_path):
         st.put_state("x", {"a": 1})
         with pytest.raises(ValueError):
             st.put_state("x", {"a": float("nan")})
-        assert st.get_state("x").body == {"a": 1}      # the good version is untouched
+        assert st.get_state("x").body == {"a": 1}  # the good version is untouched
 
 
 def test_history_is_rotated_by_age(tmp_path):
@@ -62,7 +62,7 @@ def test_a_foreign_sqlite_file_and_a_newer_schema_are_refused(tmp_path):
         db.execute(f"PRAGMA user_version={SCHEMA_VERSION + 1}")
     warnings = []
     assert open_store_or_none(newer, warnings.append) is None
-    assert "upgrade heliotrack" in warnings[0] and newer.exists()    # left as it is
+    assert "upgrade heliotrack" in warnings[0] and newer.exists()  # left as it is
 
 
 def test_killed_writers_never_corrupt_the_store():

@@ -1,42 +1,52 @@
 """The one time utility: every documented form, the zone rules, and the canonical writer."""
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import pytest
 
 from controller.errors import InputError
 from controller.timestamps import format_name_time, parse_timestamp, time_from_name, to_iso
 
-T = datetime(2025, 6, 21, 10, 15, 0, tzinfo=timezone.utc).timestamp()
+T = datetime(2025, 6, 21, 10, 15, 0, tzinfo=UTC).timestamp()
 
 
-@pytest.mark.parametrize("name, expected", [
-    # canonical (what heliotrack writes)
-    ("2025-06-21T10-15-00Z.png", T),
-    ("2025-06-21T10-15-00.250Z.png", T + 0.25),
-    # ISO 8601 extended, with and without a zone
-    ("2025-06-21T10:15:00Z.png", T),
-    ("2025-06-21 10:15:00.5.png", T + 0.5),
-    ("2025-06-21T13:45:00+03:30.jpg", T),
-    # ISO 8601 basic
-    ("20250621T101500Z.jpg", T),
-    ("IMG_20250621_134500+0330.jpg", T),
-    ("20250621T101500,125Z.tif", T + 0.125),
-    # camera style: the form the two old parsers disagreed on
-    ("2025-06-21-10-15-00.png", T),
-    ("cam1_2025-06-21_10-15-00.jpg", T),
-    ("2025-06-21T10-15-00-0300.png", T + 3 * 3600),
-])
+@pytest.mark.parametrize(
+    "name, expected",
+    [
+        # canonical (what heliotrack writes)
+        ("2025-06-21T10-15-00Z.png", T),
+        ("2025-06-21T10-15-00.250Z.png", T + 0.25),
+        # ISO 8601 extended, with and without a zone
+        ("2025-06-21T10:15:00Z.png", T),
+        ("2025-06-21 10:15:00.5.png", T + 0.5),
+        ("2025-06-21T13:45:00+03:30.jpg", T),
+        # ISO 8601 basic
+        ("20250621T101500Z.jpg", T),
+        ("IMG_20250621_134500+0330.jpg", T),
+        ("20250621T101500,125Z.tif", T + 0.125),
+        # camera style: the form the two old parsers disagreed on
+        ("2025-06-21-10-15-00.png", T),
+        ("cam1_2025-06-21_10-15-00.jpg", T),
+        ("2025-06-21T10-15-00-0300.png", T + 3 * 3600),
+    ],
+)
 def test_every_documented_form(name, expected):
     assert time_from_name(name) == pytest.approx(expected, abs=1e-6)
 
 
-@pytest.mark.parametrize("name", [
-    "IMG_0001.png", "2025-06-21.png", "2025-13-01T00-00-00Z.png", "2025-06-31T10-15-00Z.png",
-    "2025-06-21T25-15-00Z.png", "2025-06-21T10:15-00Z.png",  # mixed time separators
-    "20250621-10-15-00.png",                                 # basic date, extended time
-    "12025-06-21T10-15-00Z.png",                             # five-digit year
-])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "IMG_0001.png",
+        "2025-06-21.png",
+        "2025-13-01T00-00-00Z.png",
+        "2025-06-31T10-15-00Z.png",
+        "2025-06-21T25-15-00Z.png",
+        "2025-06-21T10:15-00Z.png",  # mixed time separators
+        "20250621-10-15-00.png",  # basic date, extended time
+        "12025-06-21T10-15-00Z.png",  # five-digit year
+    ],
+)
 def test_names_without_a_valid_timestamp(name):
     assert time_from_name(name) is None
 
@@ -57,7 +67,7 @@ def test_canonical_round_trip():
 def test_parse_timestamp_whole_string_and_zone_rule():
     assert parse_timestamp(" 2025-06-21T10:15:00Z ") == T
     assert parse_timestamp("2025-06-21T10-15-00Z") == T
-    assert parse_timestamp("2025-06-21T10:15:00") == T          # no zone: UTC
+    assert parse_timestamp("2025-06-21T10:15:00") == T  # no zone: UTC
     with pytest.raises(InputError, match="has no zone"):
         parse_timestamp("2025-06-21T10:15:00", "obs.csv:3: column 'time'", require_zone=True)
     with pytest.raises(InputError, match=r"^--time: expected a time"):

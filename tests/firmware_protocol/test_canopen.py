@@ -10,10 +10,21 @@ from canopen.objectdictionary import eds as eds_format
 
 from firmware_protocol import REGISTER_MAP, Fault, register
 from firmware_protocol.canopen import (
-    AXIS_MIRROR_BASE, EDS_NAME, FAULT_ERROR_CODES, GLOBAL_MIRROR_BASE, NOT_MAPPED,
-    OBJECTS, RPDOS, STANDARD_ALIASES, TPDOS, TYPE_BITS, eds, entry, mirror_index,
+    AXIS_MIRROR_BASE,
+    EDS_NAME,
+    FAULT_ERROR_CODES,
+    GLOBAL_MIRROR_BASE,
+    NOT_MAPPED,
+    OBJECTS,
+    RPDOS,
+    STANDARD_ALIASES,
+    TPDOS,
+    TYPE_BITS,
+    entry,
+    mirror_index,
     register_entry,
 )
+from firmware_protocol.eds import eds
 from firmware_protocol.generate import GENERATED_DIR, artefacts
 
 _SIGNED = {"int16", "int32"}
@@ -31,17 +42,40 @@ def test_eds_is_a_generated_artefact_and_committed():
 
 def test_committed_eds_loads_in_canopen():
     od = canopen.import_od(str(GENERATED_DIR / EDS_NAME), 9)
-    assert od[0x1800][1].default == 0x189          # $NODEID resolved
+    assert od[0x1800][1].default == 0x189  # $NODEID resolved
     assert od.device_information.nr_of_TXPDO == len(TPDOS)
 
 
 def test_mandatory_and_402_objects_exist(od):
-    for index in (0x1000, 0x1001, 0x1016, 0x1017, 0x1018, 0x1400, 0x1401, 0x1600, 0x1601,
-                  0x1800, 0x1A00, 0x1801, 0x1A01, 0x603F, 0x6040, 0x6041, 0x6060, 0x6061,
-                  0x6064, 0x606C, 0x607A, 0x607D, 0x6081, 0x6502):
+    for index in (
+        0x1000,
+        0x1001,
+        0x1016,
+        0x1017,
+        0x1018,
+        0x1400,
+        0x1401,
+        0x1600,
+        0x1601,
+        0x1800,
+        0x1A00,
+        0x1801,
+        0x1A01,
+        0x603F,
+        0x6040,
+        0x6041,
+        0x6060,
+        0x6061,
+        0x6064,
+        0x606C,
+        0x607A,
+        0x607D,
+        0x6081,
+        0x6502,
+    ):
         assert index in od, hex(index)
-    assert od[0x1000].default & 0xFFFF == 0x192     # CiA 402 device
-    assert od[0x6502].default & 1                   # profile position supported
+    assert od[0x1000].default & 0xFFFF == 0x192  # CiA 402 device
+    assert od[0x6502].default & 1  # profile position supported
 
 
 def test_every_register_has_an_object_with_its_scale_and_type(od):
@@ -66,13 +100,13 @@ def test_standard_aliases_carry_the_register_scale(od):
         assert e.register == name
         assert register_entry(name) == e
         if name == "HEARTBEAT_TIMEOUT":
-            assert e.scale == 0.001                  # ms in the low 16 bits of 0x1016:1
+            assert e.scale == 0.001  # ms in the low 16 bits of 0x1016:1
             continue
         assert e.scale == pytest.approx(reg.scale), name
         var = od[index] if not sub else od[index][sub]
         assert var.factor == pytest.approx(reg.scale)
-        assert len(var) >= 16 * reg.words            # standard objects may be wider
-    assert register("TARGET_ANGLE").scale == 0.001   # positions in 0.001 deg, as on Modbus
+        assert len(var) >= 16 * reg.words  # standard objects may be wider
+    assert register("TARGET_ANGLE").scale == 0.001  # positions in 0.001 deg, as on Modbus
 
 
 def test_pdo_mappings_are_consistent(od):

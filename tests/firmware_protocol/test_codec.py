@@ -1,9 +1,18 @@
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from firmware_protocol import (
-    AXIS_BASE, AXIS_STRIDE, MAGIC, REGISTER_MAP, ProtocolError, decode, decode_block, encode,
-    encode_values, register,
+    AXIS_BASE,
+    AXIS_STRIDE,
+    MAGIC,
+    REGISTER_MAP,
+    ProtocolError,
+    decode,
+    decode_block,
+    encode,
+    encode_values,
+    register,
 )
 from firmware_protocol.codec import _RANGES
 

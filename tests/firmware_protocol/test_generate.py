@@ -23,17 +23,20 @@ def test_c_header_compiles_and_matches_python(tmp_path):
     lines = []
     for reg in REGISTER_MAP:
         kind = "OFS" if reg.per_axis else "ADDR"
-        lines.append(f'printf("{reg.name} %d %d %.9g\\n", HT_{reg.name}_{kind}, '
-                     f'HT_{reg.name}_WORDS, (double)HT_{reg.name}_SCALE);')
+        lines.append(
+            f'printf("{reg.name} %d %d %.9g\\n", HT_{reg.name}_{kind}, '
+            f"HT_{reg.name}_WORDS, (double)HT_{reg.name}_SCALE);"
+        )
     for flag in Status:
         lines.append(f'printf("STATUS_{flag.name} %u\\n", HT_STATUS_{flag.name});')
     lines.append('printf("AXIS1_TARGET %d\\n", HT_AXIS_REG(1, HT_TARGET_ANGLE_OFS));')
     src = tmp_path / "main.c"
-    src.write_text('#include <stdio.h>\n#include "%s"\nint main(void){\n%s\nreturn 0;}\n'
-                   % (HEADER_NAME, "\n".join(lines)))
+    body = "\n".join(lines)
+    src.write_text(f'#include <stdio.h>\n#include "{HEADER_NAME}"\nint main(void){{\n{body}\nreturn 0;}}\n')
     exe = tmp_path / "main"
-    subprocess.run(["gcc", "-std=c99", "-Wall", "-Werror", "-I", str(tmp_path), str(src),
-                    "-o", str(exe)], check=True)
+    subprocess.run(
+        ["gcc", "-std=c99", "-Wall", "-Werror", "-I", str(tmp_path), str(src), "-o", str(exe)], check=True
+    )
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
     got = {m[0]: m[1:] for m in (line.split() for line in out.splitlines())}
     for reg in REGISTER_MAP:
@@ -43,4 +46,5 @@ def test_c_header_compiles_and_matches_python(tmp_path):
     for flag in Status:
         assert int(got[f"STATUS_{flag.name}"][0]) == int(flag)
     from firmware_protocol import register
+
     assert int(got["AXIS1_TARGET"][0]) == register("TARGET_ANGLE").address(1)

@@ -27,8 +27,19 @@ def short_config(tmp_path: Path, period: float = 300.0) -> Path:
 
 def test_simulate_writes_summary_and_log(tmp_path, capsys):
     out = tmp_path / "out"
-    rc = main(["simulate", "--config", str(short_config(tmp_path)), "--days", "1",
-               "--start", "2024-06-21", "--out", str(out)])
+    rc = main(
+        [
+            "simulate",
+            "--config",
+            str(short_config(tmp_path)),
+            "--days",
+            "1",
+            "--start",
+            "2024-06-21",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["days"] == 1 and s["cycles"] == 288 and s["start"] == "2024-06-21"
@@ -49,8 +60,11 @@ def test_simulate_writes_summary_and_log(tmp_path, capsys):
 def test_bad_config_is_a_clear_error_not_a_traceback(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(DEFAULT_CONFIG.read_text().replace("latitude = 32.4835", "latitude = 132.4835"))
-    r = subprocess.run([*HELIOTRACK, "simulate", "--config", str(bad), "--out", str(tmp_path)],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [*HELIOTRACK, "simulate", "--config", str(bad), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+    )
     assert r.returncode == 2
     assert "site.latitude" in r.stderr and str(bad) in r.stderr
     assert "Traceback" not in r.stderr
@@ -65,9 +79,26 @@ def test_protocol_export(tmp_path, capsys):
 
 @pytest.fixture
 def standalone_drive():
-    proc = subprocess.Popen([*HELIOTRACK, "hil", "drive", "--link", "pty", "--axes", "2",
-                             "--id", "5", "--heartbeat-timeout", "1.0", "--max-speed", "5"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            *HELIOTRACK,
+            "hil",
+            "drive",
+            "--link",
+            "pty",
+            "--axes",
+            "2",
+            "--id",
+            "5",
+            "--heartbeat-timeout",
+            "1.0",
+            "--max-speed",
+            "5",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         first = proc.stdout.readline().strip()
         assert first.startswith("PTY /dev/"), first
@@ -85,7 +116,7 @@ def test_standalone_drive_with_an_independent_master(standalone_drive):
     m.serial.timeout = 0.5
     assert m.read_registers(0, 3) == [0x4854, 0x0100, 2]
     target = register("TARGET_ANGLE").address(1)
-    m.write_long(target, 60_000, signed=True)                 # 60.000 deg elevation
+    m.write_long(target, 60_000, signed=True)  # 60.000 deg elevation
     assert m.read_long(target, signed=True) == 60_000
     # Keep the watchdog fed while the axis moves there.
     hb = register("HEARTBEAT").address()
@@ -104,7 +135,9 @@ def test_standalone_drive_with_an_independent_master(standalone_drive):
     assert status & Status.COMM_LOST
     assert m.read_register(register("MODE").address(1)) == Mode.STOW
     deadline = time.time() + 15
-    while time.time() < deadline and not Status(m.read_register(register("STATUS").address(1))) & Status.STOWED:
+    while (
+        time.time() < deadline and not Status(m.read_register(register("STATUS").address(1))) & Status.STOWED
+    ):
         time.sleep(0.2)
     assert Status(m.read_register(register("STATUS").address(1))) & Status.STOWED
     assert m.read_long(register("ACTUAL_ANGLE").address(1), signed=True) == pytest.approx(90_000, abs=30)
@@ -123,14 +156,27 @@ def test_realtime_simulation_serves_sunspec_to_a_scada_client(tmp_path):
     from sunspec2.modbus.modbus import ModbusClientException
 
     cfg = short_config(tmp_path, period=1.0)
-    proc = subprocess.Popen([*HELIOTRACK, "simulate", "--config", str(cfg), "--realtime",
-                             "--duration", "8", "--sunspec", "127.0.0.1:0"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [
+            *HELIOTRACK,
+            "simulate",
+            "--config",
+            str(cfg),
+            "--realtime",
+            "--duration",
+            "8",
+            "--sunspec",
+            "127.0.0.1:0",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         first = proc.stdout.readline().strip()
         assert first.startswith("SUNSPEC 127.0.0.1:"), first + proc.stderr.read()
         port = int(first.rsplit(":", 1)[1])
-        proc.stdout.readline()                       # wait for a first cycle
+        proc.stdout.readline()  # wait for a first cycle
         dev = SunSpecModbusClientDeviceTCP(slave_id=1, ipaddr="127.0.0.1", ipport=port, timeout=2)
         dev.scan()
         try:
@@ -142,7 +188,7 @@ def test_realtime_simulation_serves_sunspec_to_a_scada_client(tmp_path):
             blk = m.tracker[0]
             blk.Ctl.value = 1
             with pytest.raises(ModbusClientException, match="exception: 1"):
-                blk.write()                          # writes are off unless configured
+                blk.write()  # writes are off unless configured
         finally:
             dev.close()
         out, err = proc.communicate(timeout=30)
@@ -154,6 +200,7 @@ def test_realtime_simulation_serves_sunspec_to_a_scada_client(tmp_path):
 
 
 def test_sunspec_needs_realtime(tmp_path):
-    r = subprocess.run([*HELIOTRACK, "simulate", "--sunspec", "127.0.0.1:1502"],
-                       capture_output=True, text=True)
+    r = subprocess.run(
+        [*HELIOTRACK, "simulate", "--sunspec", "127.0.0.1:1502"], capture_output=True, text=True
+    )
     assert r.returncode == 2 and "--realtime" in r.stderr

@@ -5,15 +5,21 @@ from heliotrack.config_docs import DOCS_PATH, reference
 
 
 def test_config_reference_is_up_to_date():
-    assert DOCS_PATH.read_text() == reference(), \
-        "docs/config.md is stale: run `heliotrack config docs`"
+    assert DOCS_PATH.read_text() == reference(), "docs/config.md is stale: run `heliotrack config docs`"
 
 
 def test_reference_documents_every_key_of_every_table():
     text = reference()
-    for needle in ("`[[links]] kind = \"canopen\"`", "`bitrate`", "`[hil.drive]`", "`[camera]`",
-                   "`[sky]`", "`heartbeat_timeout_s`", "`3 x period_s, at least 5`",
-                   "| `parity` | string |  | `\"N\"` | \"N\", \"E\", \"O\" |"):
+    for needle in (
+        '`[[links]] kind = "canopen"`',
+        "`bitrate`",
+        "`[hil.drive]`",
+        "`[camera]`",
+        "`[sky]`",
+        "`heartbeat_timeout_s`",
+        "`3 x period_s, at least 5`",
+        '| `parity` | string |  | `"N"` | "N", "E", "O" |',
+    ):
         assert needle in text, needle
 
 
@@ -22,5 +28,5 @@ def test_config_validate_command(tmp_path, capsys):
 
     assert main(["config", "validate", "--scenario", str(DEFAULT_CONFIG)]) == 0
     assert "ok (1 link(s), 2 tracker(s))" in capsys.readouterr().out
-    assert main(["config", "validate", str(DEFAULT_CONFIG)]) == 2      # [hil] in a plant file
+    assert main(["config", "validate", str(DEFAULT_CONFIG)]) == 2  # [hil] in a plant file
     assert "hil: expected one of the known keys" in capsys.readouterr().err

@@ -1,6 +1,7 @@
 """Many rows from one process: a dead or hung row never delays the others."""
 
 import asyncio
+from dataclasses import replace
 
 import pytest
 
@@ -31,9 +32,10 @@ def farm():
 
 def _controller(farm):
     cfg = plant_config(N, farm.ports, period_s=1.0)
-    drives = {tr.name: open_drive("modbus-tcp", host="127.0.0.1", port=farm.ports[i],
-                                  device_id=1, timeout_s=TIMEOUT_S, retries=0)
-              for i, tr in enumerate(cfg.trackers)}
+    drives = {
+        tr.name: open_drive(replace(cfg.links_by_name[tr.link], timeout_s=TIMEOUT_S), tr.device_id)
+        for tr in cfg.trackers
+    }
     return Controller(cfg, drives, EphemerisSource(cfg.site), RealClock(), realtime=True)
 
 
@@ -52,11 +54,11 @@ def test_one_faulty_row_does_not_delay_the_others(farm, fault):
         await ctl.close()
         return before, after
 
-    before, after = asyncio.run(scenario())
+    _before, after = asyncio.run(scenario())
     for recs in after:
         faulty, healthy = recs[5], recs[:5] + recs[6:]
-        assert faulty.error                              # the row is reported, not hidden
-        assert not any(r.error for r in healthy)         # nobody else fails
+        assert faulty.error  # the row is reported, not hidden
+        assert not any(r.error for r in healthy)  # nobody else fails
         # Every healthy row finished before the faulty one gave up (or failed fast):
         # their exchanges ran concurrently with it, never queued behind it.
         if fault == "hung":

@@ -19,8 +19,9 @@ def _run(sky: str, enabled: bool) -> dict:
     return run_simulation(cfg, start=date(2024, 3, 20), hours=13, progress=False)
 
 
-@pytest.mark.parametrize("sky, enabled, diffuse", [
-    ("overcast", True, True), ("overcast", False, False), ("clear", True, False)])
+@pytest.mark.parametrize(
+    "sky, enabled, diffuse", [("overcast", True, True), ("overcast", False, False), ("clear", True, False)]
+)
 def test_diffuse_follows_the_emulated_pyranometer(sky, enabled, diffuse):
     s = _run(sky, enabled)
     assert s["modbus"]["sensor_errors"] == 0 and s["modbus"]["errors"] == 0

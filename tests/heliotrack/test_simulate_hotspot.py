@@ -11,7 +11,7 @@ HOTSPOT_CONFIG = REPO / "config" / "hil-hotspot.toml"
 def scenario(tmp_path, sky="clear", period=600.0):
     text = HOTSPOT_CONFIG.read_text()
     text = text.replace("period_s = 60.0", f"period_s = {period}")
-    text = text.replace("enabled = true ", "enabled = false ")        # DIFFUSE needs 1-min data
+    text = text.replace("enabled = true ", "enabled = false ")  # DIFFUSE needs 1-min data
     text = text.replace('sky = "clear"', f'sky = "{sky}"')
     text = text.replace('calibration = "calibration/', f'calibration = "{REPO}/config/calibration/')
     state = tmp_path / "sunpath.json"
@@ -23,19 +23,33 @@ def scenario(tmp_path, sky="clear", period=600.0):
 
 def simulate(tmp_path, cfg, hours=1.0):
     out = tmp_path / "out"
-    assert main(["simulate", "--config", str(cfg), "--start", "2024-03-20T05:00:00+00:00",
-                 "--hours", str(hours), "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--config",
+                str(cfg),
+                "--start",
+                "2024-03-20T05:00:00+00:00",
+                "--hours",
+                str(hours),
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     return json.loads((out / "summary.json").read_text())
 
 
 def test_clear_sky_tracks_on_camera_observations(tmp_path):
     cfg, state = scenario(tmp_path)
     s = simulate(tmp_path, cfg)
-    assert s["sources"] == {"observed": 12}          # every setpoint rests on the camera
+    assert s["sources"] == {"observed": 12}  # every setpoint rests on the camera
     assert s["modbus"]["errors"] == 0
     # A 10-minute period leads/lags the sun by up to 1.25 deg; the sensor adds ~0.1.
     assert s["trackers"]["row-1"]["pointing_error_deg"]["p95"] < 1.5
-    assert state.exists()                            # learned state persisted at shutdown
+    assert state.exists()  # learned state persisted at shutdown
 
 
 def test_frame_interval_leaves_the_filter_to_predict_between_frames(tmp_path):
@@ -56,7 +70,7 @@ def test_frame_interval_leaves_the_filter_to_predict_between_frames(tmp_path):
 def test_overcast_sky_falls_back_without_a_camera_fix(tmp_path):
     cfg, _ = scenario(tmp_path, sky="overcast")
     s = simulate(tmp_path, cfg)
-    assert "observed" not in s["sources"]            # no glint under a stratus deck
+    assert "observed" not in s["sources"]  # no glint under a stratus deck
     assert set(s["sources"]) <= {"ephemeris", "predicted"}
     assert s["modbus"]["errors"] == 0
 

@@ -42,6 +42,7 @@ def test_exceptions_on_the_wire(client):
 def test_foreign_slave_id_gets_no_answer(client):
     c, *_ = client
     from pymodbus.exceptions import ModbusIOException
+
     with pytest.raises(ModbusIOException):
         c.read_holding_registers(0, count=3, device_id=9)
     # The line is still usable afterwards.
@@ -49,7 +50,7 @@ def test_foreign_slave_id_gets_no_answer(client):
 
 
 def test_independent_master_minimalmodbus(pty_drive):
-    fw, path, clock = pty_drive
+    fw, path, _clock = pty_drive
     inst = minimalmodbus.Instrument(path, 1)
     inst.serial.baudrate = 115200
     inst.serial.timeout = 0.5

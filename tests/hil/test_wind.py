@@ -18,7 +18,7 @@ def test_gust_factor_and_storm_profile():
     w = WindScript(0.0, ("calm", "storm"), seed=1)
     calm = w.speed(10 * 3600 + np.arange(0, 3600, 0.25))
     assert 1.5 < calm.mean() < 4.5
-    peak = 86400 + STORM_DAY_START_S + 1800 + 1800        # mid-hold of the storm day
+    peak = 86400 + STORM_DAY_START_S + 1800 + 1800  # mid-hold of the storm day
     assert 16 < w.mean_10min(peak) < 22
     assert 1.25 < w.gust(peak) / w.mean_10min(peak) < 1.8
     before = 86400 + STORM_DAY_START_S - 600
@@ -35,9 +35,9 @@ def test_anemometer_registers_and_injected_faults():
     assert decode(ANE["ANE_GUST"], [words[2]]) >= decode(ANE["ANE_MEAN_10MIN"], [words[3]]) * 0.9
     count = words[5]
     t[0] += 1.0
-    assert a.read(0, 7)[5] == (count + 4) % 65536        # 4 Hz sampling
+    assert a.read(0, 7)[5] == (count + 4) % 65536  # 4 Hz sampling
     a.frozen_at = t[0]
     t[0] += 10.0
-    assert a.read(0, 7)[5] == (count + 4) % 65536        # frozen: the counter stops
+    assert a.read(0, 7)[5] == (count + 4) % 65536  # frozen: the counter stops
     a.override = 90.0
-    assert a.read(0, 7)[6] & 2                           # out of range
+    assert a.read(0, 7)[6] & 2  # out of range

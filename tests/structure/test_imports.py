@@ -53,7 +53,7 @@ def test_no_private_name_is_imported_across_modules():
             if isinstance(node, ast.ImportFrom) and node.module != "__future__":
                 base = (node.module or "").split(".")[0]
                 if node.level == 0 and base not in PACKAGES:
-                    continue      # third-party privates are the libraries' business
+                    continue  # third-party privates are the libraries' business
                 for alias in node.names:
                     if alias.name.startswith("_") and not alias.name.startswith("__"):
                         bad.append(f"{module_name(path)}:{node.lineno} imports {alias.name}")

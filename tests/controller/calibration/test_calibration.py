@@ -2,13 +2,17 @@ import cv2
 import numpy as np
 import pytest
 
-from controller.calibration.azimuth import (ephemeris_offset, ephemeris_rotation, fit_lobe_coeff,
-                                            noon_offset)
+from controller.calibration.azimuth import ephemeris_offset, ephemeris_rotation, fit_lobe_coeff, noon_offset
 from controller.calibration.bundle import CameraCal
 from controller.calibration.level import zenith_from_lines
 from controller.calibration.pose import solve_pose
-from controller.calibration.surface import (estimate_normals, fit_radial_poly, fit_sphere_points,
-                                            radial_poly_eval, read_cloud)
+from controller.calibration.surface import (
+    estimate_normals,
+    fit_radial_poly,
+    fit_sphere_points,
+    radial_poly_eval,
+    read_cloud,
+)
 from controller.errors import InputError
 from controller.sun.types import angle_between_deg
 from controller.vision.mirror import lobe_correct
@@ -89,7 +93,7 @@ def test_zenith_from_plumb_lines_and_outlier_rejection():
     zen = np.array([0.01, -0.02, 1.0])
     zen /= np.linalg.norm(zen)
     lines = []
-    for k in range(5):
+    for _ in range(5):
         ray = R.T @ np.array([rng.uniform(-0.4, 0.4), rng.uniform(-0.2, 0.2), 1.0])
         P = C + 0.5 * ray / np.linalg.norm(ray)
         seg = P + np.linspace(-0.15, 0.15, 30)[:, None] * zen

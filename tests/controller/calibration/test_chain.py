@@ -25,8 +25,21 @@ def test_calibrate_all_recovers_the_installation(dataset, method, capsys):
 
     scn, folder = dataset
     bpath = folder / f"bundle-{method}.toml"
-    rc = main(["calibrate", "all", str(folder), "--lat", "32.4835", "--lon", "48.3364",
-               "--method", method, "--bundle", str(bpath)])
+    rc = main(
+        [
+            "calibrate",
+            "all",
+            str(folder),
+            "--lat",
+            "32.4835",
+            "--lon",
+            "48.3364",
+            "--method",
+            method,
+            "--bundle",
+            str(bpath),
+        ]
+    )
     assert rc == 0
     steps = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
     assert steps[0]["step"] == "intrinsics" and steps[0]["rms_px"] < 0.3

@@ -6,10 +6,11 @@ import asyncio
 import math
 import time
 
-import canopen
 import pytest
 
 from controller.drives import DriveCommError, open_drive
+from controller.drives.canopen import CanopenDrive, SharedNetwork
+from controller.drives.links import CanopenLink
 from firmware_protocol import Command, Fault, Mode, ProtocolError, Status
 from hil.drive import DriveFirmware
 from tests.hil.canopen.rig import emulated, one_axis, two_axes
@@ -17,6 +18,11 @@ from tests.hil.canopen.rig import emulated, one_axis, two_axes
 
 def run(coro):
     return asyncio.run(coro)
+
+
+def can(channel: str, **kw) -> CanopenLink:
+    """A ``[[links]]`` table for the emulator's virtual bus."""
+    return CanopenLink(name="can-1", interface="virtual", channel=channel, **kw)
 
 
 async def settle(d, predicate, timeout=3.0):
@@ -30,19 +36,22 @@ async def settle(d, predicate, timeout=3.0):
 
 
 def test_connect_targets_state_and_configuration(sim_clock):
-    with emulated(axes=two_axes(), node_id=10, now=sim_clock.now) as (fw, emu, ch):
+    with emulated(axes=two_axes(), node_id=10, now=sim_clock.now) as (fw, _emu, ch):
+
         async def scenario():
-            d = open_drive("canopen", node_id=10, channel=ch, interface="virtual", timeout_s=0.5)
+            d = open_drive(can(ch), 10)
+            assert isinstance(d, CanopenDrive)
             await d.connect()
             try:
                 assert d.axis_count == 2
-                await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)],
-                                  stow_angles=[180, 80])
+                await d.configure(
+                    heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80]
+                )
                 assert fw.heartbeat_timeout == pytest.approx(50)
                 assert fw.axes[1].p.soft_min == pytest.approx(5)
                 assert fw.axes[1].p.stow_angle == pytest.approx(80)
                 st = await d.exchange([150.0, 30.0])
-                assert st.axes[0].target_deg == pytest.approx(150.0)   # state after the write
+                assert st.axes[0].target_deg == pytest.approx(150.0)  # state after the write
                 assert fw.axes[1].target == pytest.approx(30.0)
                 for _ in range(10):
                     await d.heartbeat()
@@ -51,24 +60,26 @@ def test_connect_targets_state_and_configuration(sim_clock):
                 assert st.axes[0].actual_deg == pytest.approx(150.0, abs=0.03)
                 assert st.axes[1].actual_deg == pytest.approx(30.0, abs=0.03)
                 assert st.axes[1].mode == Mode.AUTO and st.axes[1].fault == Fault.NONE
-                await d.write_targets([400.0, 30.0])                   # clamped by the drive
+                await d.write_targets([400.0, 30.0])  # clamped by the drive
                 st = await settle(d, lambda s: s.axes[0].status & Status.TARGET_CLAMPED)
                 assert st.axes[0].target_deg == pytest.approx(350.0)
                 assert d.stats.errors == 0 and d.stats.transactions > 0
             finally:
                 await d.close()
+
         run(scenario())
 
 
 def test_heartbeat_loss_stows_and_resume_recovers(sim_clock):
-    with emulated(axes=one_axis(), node_id=3, now=sim_clock.now) as (fw, emu, ch):
+    with emulated(axes=one_axis(), node_id=3, now=sim_clock.now) as (fw, _emu, ch):
+
         async def scenario():
-            d = open_drive("canopen", node_id=3, channel=ch, timeout_s=0.5)
+            d = open_drive(can(ch), 3)
             await d.connect()
             try:
                 await d.configure(heartbeat_timeout_s=2.0)
                 await d.write_targets([20.0])
-                sim_clock.sleep(3.0)                                    # no heartbeat
+                sim_clock.sleep(3.0)  # no heartbeat
                 st = await settle(d, lambda s: s.axes[0].mode == Mode.STOW)
                 assert st.axes[0].mode == Mode.STOW
                 assert st.axes[0].status & Status.COMM_LOST
@@ -81,20 +92,22 @@ def test_heartbeat_loss_stows_and_resume_recovers(sim_clock):
                 assert fw.axes[0].target == pytest.approx(5.0)
             finally:
                 await d.close()
+
         run(scenario())
 
 
 def test_fault_is_reported_and_clear_fault_recovers():
-    with emulated(axes=one_axis(stall_time=0.1), node_id=4) as (fw, emu, ch):
+    with emulated(axes=one_axis(stall_time=0.1), node_id=4) as (fw, _emu, ch):
+
         async def scenario():
-            d = open_drive("canopen", node_id=4, channel=ch, timeout_s=0.5)
+            d = open_drive(can(ch), 4)
             await d.connect()
             try:
                 fw.axes[0].jammed = True
                 await d.write_targets([10.0])
                 st = await settle(d, lambda s: s.faulted)
                 assert st.faulted and st.axes[0].fault == Fault.STALL
-                await d.write_targets([0.0])        # skipped: FAULT is in the state, no error
+                await d.write_targets([0.0])  # skipped: FAULT is in the state, no error
                 fw.axes[0].jammed = False
                 await d.command(Command.CLEAR_FAULT)
                 st = await settle(d, lambda s: not s.faulted)
@@ -103,16 +116,18 @@ def test_fault_is_reported_and_clear_fault_recovers():
                 assert fw.axes[0].target == pytest.approx(2.0)
             finally:
                 await d.close()
+
         run(scenario())
 
 
 def test_errors_are_clear_and_nothing_unsafe_is_sent():
     with emulated(axes=one_axis(), node_id=6) as (fw, emu, ch):
+
         async def scenario():
-            ghost = open_drive("canopen", node_id=40, channel=ch, timeout_s=0.05, retries=0)
+            ghost = open_drive(can(ch, timeout_s=0.05, retries=0), 40)
             with pytest.raises(DriveCommError, match="node 40"):
                 await ghost.connect()
-            d = open_drive("canopen", node_id=6, channel=ch, timeout_s=0.5)
+            d = open_drive(can(ch), 6)
             await d.connect()
             try:
                 with pytest.raises(ProtocolError):
@@ -126,7 +141,7 @@ def test_errors_are_clear_and_nothing_unsafe_is_sent():
                 with pytest.raises(DriveCommError, match="not OPERATION ENABLED"):
                     await d.write_targets([3.0])
                 assert fw.axes[0].target == 0.0
-                emu.remove_drive(emu.drives[0])                          # cable pulled
+                emu.remove_drive(emu.drives[0])  # cable pulled
                 await asyncio.sleep(0.05)
                 d.stale_s = 0.2
                 await asyncio.sleep(0.3)
@@ -134,6 +149,7 @@ def test_errors_are_clear_and_nothing_unsafe_is_sent():
                     await d.read_state()
             finally:
                 await d.close()
+
         run(scenario())
 
 
@@ -143,24 +159,75 @@ def test_many_drives_share_one_network():
         fws = [fw0] + [DriveFirmware(one_axis(), time.time, heartbeat_timeout=0) for _ in range(n - 1)]
         for i, f in enumerate(fws[1:], start=2):
             emu.add_drive(f, i)
-        net = canopen.Network()
-        net.connect(interface="virtual", channel=ch)
+        link = can(ch, pdo_mapping="eds")
 
         async def scenario():
-            drives = [open_drive("canopen", node_id=i + 1, network=net, pdo_from_eds=True)
-                      for i in range(n)]
+            drives = [open_drive(link, i + 1) for i in range(n)]
             await asyncio.gather(*(d.connect() for d in drives))
+            net = drives[0].network
             try:
+                assert all(d.network is net for d in drives)  # one bus, one network
                 states = await asyncio.gather(*(d.exchange([0.25 * k]) for k, d in enumerate(drives)))
                 assert [s.axes[0].target_deg for s in states] == pytest.approx([0.25 * k for k in range(n)])
                 with pytest.raises(DriveCommError, match="already in use"):
-                    await open_drive("canopen", node_id=1, network=net).connect()
-                assert net.nodes[1] is drives[0].axes[0].node     # the failed one left it alone
+                    await open_drive(link, 1).connect()
+                assert net.nodes[1] is drives[0].axes[0].node  # the failed one left it alone
                 assert (await drives[0].read_state()).axes[0].target_deg == 0.0
             finally:
                 await asyncio.gather(*(d.close() for d in drives))
             assert not net.nodes
-        try:
-            run(scenario())
-        finally:
-            net.disconnect()
+            assert ("virtual", ch) not in SharedNetwork._open  # the last one closed it
+
+        run(scenario())
+
+
+def test_a_bus_only_the_simulator_provides_is_refused():
+    from controller.drives import LinkSettingsError
+
+    with pytest.raises(LinkSettingsError, match='channel = "hil"'):
+        open_drive(CanopenLink(name="can-1"), 1)
+
+
+def test_the_master_heartbeat_is_one_frame_per_round_of_drives():
+    from tests.hil.canopen.rig import wait_for
+
+    with emulated(axes=one_axis(), node_id=1) as (_fw, emu, ch):
+        for i in range(2, 5):
+            emu.add_drive(DriveFirmware(one_axis(), time.time, heartbeat_timeout=0), i)
+        seen = []
+        emu.network.subscribe(0x77F, lambda *frame: seen.append(frame))
+
+        async def scenario():
+            drives = [open_drive(can(ch, pdo_mapping="eds"), i) for i in range(1, 5)]
+            await asyncio.gather(*(d.connect() for d in drives))
+            try:
+                before = sum(d.stats.transactions for d in drives)
+                # Two rounds back to back, as two control cycles of a fast simulated clock:
+                # every round reaches the bus (four drives, one frame each round).
+                for _ in range(2):
+                    await asyncio.gather(*(d.heartbeat() for d in drives))
+                    await asyncio.sleep(0)
+                assert sum(d.stats.transactions for d in drives) - before == 2
+            finally:
+                await asyncio.gather(*(d.close() for d in drives))
+
+        run(scenario())
+        assert wait_for(lambda: len(seen) >= 2)
+        assert all(frame[1] == bytearray(b"\x05") for frame in seen)
+
+
+def test_connecting_again_starts_afresh():
+    with emulated(axes=one_axis(), node_id=9) as (fw, _emu, ch):
+
+        async def scenario():
+            d = open_drive(can(ch), 9)
+            await d.connect()
+            try:
+                await d.connect()  # as the loop does after a failed configuration
+                assert d.axis_count == 1
+                await d.write_targets([4.0])
+                assert fw.axes[0].target == pytest.approx(4.0)
+            finally:
+                await d.close()
+
+        run(scenario())

@@ -5,6 +5,7 @@ import asyncio
 import pytest
 
 from controller.drives import DriveCommError, open_drive
+from controller.drives.links import ModbusRtuLink, ModbusTcpLink
 from firmware_protocol import Command, Mode, Status
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
@@ -16,15 +17,18 @@ def run(coro):
     return asyncio.run(coro)
 
 
+def rtu(path: str, **kw) -> ModbusRtuLink:
+    return ModbusRtuLink(name="rs485", port=path, **kw)
+
+
 def test_connect_targets_state_and_configuration(pty_drive):
     fw, path, clock = pty_drive
 
     async def scenario():
-        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3, retries=1)
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
         await d.connect()
         assert d.axis_count == 2
-        await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)],
-                          stow_angles=[180, 80])
+        await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80])
         assert fw.heartbeat_timeout == pytest.approx(50)
         assert fw.axes[1].p.soft_min == pytest.approx(5) and fw.axes[1].p.stow_angle == pytest.approx(80)
         await d.write_targets([150.0, 30.0])
@@ -49,10 +53,10 @@ def test_connect_targets_state_and_configuration(pty_drive):
 
 
 def test_timeouts_become_drive_comm_errors_with_counts(pty_drive):
-    fw, path, _ = pty_drive
+    _fw, path, _ = pty_drive
 
     async def scenario():
-        d = open_drive("modbus-rtu", port=path, device_id=5, timeout_s=0.05, retries=1)
+        d = open_drive(rtu(path, timeout_s=0.05, retries=1), 5)
         with pytest.raises(DriveCommError, match="id 5"):
             await d.connect()
         assert d.stats.errors == 2 and d.stats.retries == 1
@@ -70,7 +74,7 @@ def test_not_a_heliotrack_drive():
             pass
 
     async def scenario(path):
-        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3)
+        d = open_drive(rtu(path, timeout_s=0.3), 1)
         with pytest.raises(DriveCommError, match="not a heliotrack drive"):
             await d.connect()
         await d.close()
@@ -84,7 +88,7 @@ def test_implausible_state_is_an_error_not_a_crash(pty_drive):
     fw.modes[0] = 7  # a firmware bug puts an unknown mode on the wire
 
     async def scenario():
-        d = open_drive("modbus-rtu", port=path, device_id=1, timeout_s=0.3, retries=0)
+        d = open_drive(rtu(path, timeout_s=0.3, retries=0), 1)
         await d.connect()
         with pytest.raises(DriveCommError, match="implausible"):
             await d.read_state()
@@ -97,7 +101,7 @@ def test_modbus_tcp_backend_on_loopback(sim_clock):
     fw = DriveFirmware(two_axes(), sim_clock.now)
 
     async def scenario(port):
-        d = open_drive("modbus-tcp", host="127.0.0.1", port=port, device_id=3)
+        d = open_drive(ModbusTcpLink(name="tcp", host="127.0.0.1", tcp_port=port), 3)
         await d.connect()
         st = await d.exchange([181.0, 89.0])
         assert fw.axes[0].target == pytest.approx(181.0)
@@ -106,8 +110,3 @@ def test_modbus_tcp_backend_on_loopback(sim_clock):
 
     with ModbusServerThread({3: fw}, tcp=("127.0.0.1", 0)) as srv:
         run(scenario(srv.tcp_port))
-
-
-def test_unknown_backend():
-    with pytest.raises(ValueError, match="known: .*modbus-rtu"):
-        open_drive("profibus")

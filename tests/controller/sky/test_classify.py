@@ -78,16 +78,16 @@ def test_rolling_window_api():
     assert w3.name == "III"
     ws = classify_window(clear["times"], clear["ghi"], SITE, hours=4, end=noon, method="seed")
     assert ws.name == "I"
-    night = classify_window(clear["times"], clear["ghi"], SITE, hours=3,
-                            end=noon - 12 * 3600 - 2 * 3600)
+    night = classify_window(clear["times"], clear["ghi"], SITE, hours=3, end=noon - 12 * 3600 - 2 * 3600)
     assert night.sky_class == 0
 
 
 def test_config_from_toml_table_names_the_key():
     from controller.errors import ConfigError
 
-    cfg = SkyConfig.from_mapping({"method": "seed", "d_thresholds": [1.2, 1.4],
-                                  "max_missing_s": 1800}, "plant.toml")
+    cfg = SkyConfig.from_mapping(
+        {"method": "seed", "d_thresholds": [1.2, 1.4], "max_missing_s": 1800}, "plant.toml"
+    )
     assert cfg.method == "seed" and cfg.d_thresholds == (1.2, 1.4) and cfg.max_missing_s == 1800.0
     with pytest.raises(ConfigError, match=r"plant.toml: sky.methd"):
         SkyConfig.from_mapping({"methd": "seed"}, "plant.toml")

@@ -4,8 +4,7 @@ import pvlib
 import pytest
 
 from benchmarks.skytype import fbm
-from controller.sky.fractal import (fit_dimension, mean_abs_increments, scale_lags,
-                                    variation_dimension)
+from controller.sky.fractal import fit_dimension, mean_abs_increments, scale_lags, variation_dimension
 
 
 @pytest.mark.parametrize("hurst", [0.2, 0.4, 0.6, 0.8])
@@ -49,8 +48,7 @@ def test_sum_over_every_pair_would_shift_the_slope_by_one():
 
 def test_non_overlapping_variant_agrees_on_brownian_motion():
     rng = np.random.default_rng(2)
-    ds = [variation_dimension(fbm(43200, 0.5, rng), 2.0, increments="non-overlapping")
-          for _ in range(6)]
+    ds = [variation_dimension(fbm(43200, 0.5, rng), 2.0, increments="non-overlapping") for _ in range(6)]
     assert abs(np.mean(ds) - 1.5) < 0.06
 
 

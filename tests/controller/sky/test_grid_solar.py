@@ -3,15 +3,15 @@ import pandas as pd
 import pytest
 
 from controller.sky.grid import build_day_grid, infer_step
-from controller.sky.solar import (cos_zenith_rows, daily_extraterrestrial_irradiation,
-                                  row_geometry)
+from controller.sky.solar import cos_zenith_rows, daily_extraterrestrial_irradiation, row_geometry
 from controller.sun.source import Site, solar_position
 
 
 @pytest.mark.parametrize("lat,lon", [(55.79, 12.52), (-23.5, -46.6), (35.8, 50.95)])
 def test_analytic_zenith_matches_spa(lat, lon):
-    t0 = np.array([pd.Timestamp("2016-03-10", tz="UTC").value / 1e9,
-                   pd.Timestamp("2016-07-01", tz="UTC").value / 1e9])
+    t0 = np.array(
+        [pd.Timestamp("2016-03-10", tz="UTC").value / 1e9, pd.Timestamp("2016-07-01", tz="UTC").value / 1e9]
+    )
     geo = row_geometry(t0 + 43200)
     cz = cos_zenith_rows(t0, 600, 144, lat, lon, geo)
     t = (t0[:, None] + np.arange(144) * 600).ravel()
@@ -51,8 +51,7 @@ def test_shuffled_duplicated_jittered_samples_bin_like_clean_ones():
     clean = build_day_grid(t, g, 10.0)
     dup = np.concatenate([np.arange(t.size), rng.choice(t.size, 500)])  # duplicates
     order = rng.permutation(dup.size)
-    messy = build_day_grid(t[dup][order] + rng.uniform(-5, 5, dup.size), g[dup][order], 10.0,
-                           step_s=60)
+    messy = build_day_grid(t[dup][order] + rng.uniform(-5, 5, dup.size), g[dup][order], 10.0, step_s=60)
     assert np.array_equal(clean.day_index, messy.day_index)
     np.testing.assert_allclose(np.nan_to_num(messy.ghi), np.nan_to_num(clean.ghi), rtol=1e-6)
     assert messy.n_samples.sum() == t.size + 500

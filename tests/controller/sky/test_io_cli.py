@@ -11,18 +11,25 @@ from .conftest import SITE
 
 def _write(path, ds, time_name="timestamp", ghi_name="GHI", dni_name="DNI", n=None):
     sl = slice(None, n)
-    pd.DataFrame({time_name: pd.to_datetime(ds["times"][sl], unit="s", utc=True)
-                  .strftime("%Y-%m-%dT%H:%M:%SZ"),
-                  ghi_name: ds["ghi"][sl].round(1), dni_name: ds["dni"][sl].round(1)}
-                 ).to_csv(path, index=False)
+    pd.DataFrame(
+        {
+            time_name: pd.to_datetime(ds["times"][sl], unit="s", utc=True).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            ghi_name: ds["ghi"][sl].round(1),
+            dni_name: ds["dni"][sl].round(1),
+        }
+    ).to_csv(path, index=False)
     return path
 
 
 def test_cli_end_to_end(tmp_path, dataset_1min, capsys):
     f = _write(tmp_path / "station.csv", dataset_1min)
     out = tmp_path / "out"
-    assert main(["classify", str(f), "--lat", str(SITE.latitude), "--lon", str(SITE.longitude),
-                 "--out", str(out)]) == 0
+    assert (
+        main(
+            ["classify", str(f), "--lat", str(SITE.latitude), "--lon", str(SITE.longitude), "--out", str(out)]
+        )
+        == 0
+    )
     days = pd.read_csv(out / "days.csv")
     assert list(days.columns[:6]) == ["date", "n_samples", "D", "K_T", "class", "truth"]
     assert len(days) == 40 and set(days["class"]) <= {"I", "II", "III"}
@@ -36,8 +43,25 @@ def test_cli_end_to_end(tmp_path, dataset_1min, capsys):
     assert "agreement with sunshine truth, default" in capsys.readouterr().out
     # the paper's rule fills `class` on request
     out2 = tmp_path / "seed"
-    assert main(["classify", str(f), "--lat", "55.79", "--lon", "12.52", "--method", "seed",
-                 "--threshold-rule", "tertiles", "--out", str(out2)]) == 0
+    assert (
+        main(
+            [
+                "classify",
+                str(f),
+                "--lat",
+                "55.79",
+                "--lon",
+                "12.52",
+                "--method",
+                "seed",
+                "--threshold-rule",
+                "tertiles",
+                "--out",
+                str(out2),
+            ]
+        )
+        == 0
+    )
     seed = pd.read_csv(out2 / "days.csv")
     assert (seed["class"] == seed["class_seed"]).all()
     assert pd.read_csv(out2 / "thresholds.csv")["rule"].iloc[0] == "tertiles"
@@ -56,13 +80,16 @@ def test_column_guessing_and_explicit_names(tmp_path, dataset_1min):
         read_csv_record(g, time_col="when", ghi_col="nope")
 
 
-@pytest.mark.parametrize("body,match", [
-    ("time,ghi\n2016-06-01T00:00:00Z,1\nyesterday,2\n", r"row 3, column 'time'.*UTC time"),
-    ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,-300\n", r"row 3, column 'ghi'.*between"),
-    ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,lots\n", r"row 3, column 'ghi'.*'lots'"),
-    ("time,ghi\n", "no data rows"),
-    ("", "not a readable CSV"),
-])
+@pytest.mark.parametrize(
+    "body,match",
+    [
+        ("time,ghi\n2016-06-01T00:00:00Z,1\nyesterday,2\n", r"row 3, column 'time'.*UTC time"),
+        ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,-300\n", r"row 3, column 'ghi'.*between"),
+        ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,lots\n", r"row 3, column 'ghi'.*'lots'"),
+        ("time,ghi\n", "no data rows"),
+        ("", "not a readable CSV"),
+    ],
+)
 def test_bad_csv_input(tmp_path, body, match):
     f = tmp_path / "bad.csv"
     f.write_text(body)
@@ -96,10 +123,10 @@ def test_cli_reports_bad_input_without_traceback(tmp_path, capsys):
 def test_cli_on_a_short_record_says_why_nothing_was_classified(tmp_path, capsys):
     g = tmp_path / "short.csv"
     t = pd.date_range("2016-06-01T10:00Z", periods=20, freq="1min")
-    pd.DataFrame({"time": t.strftime("%Y-%m-%dT%H:%M:%SZ"), "ghi": np.linspace(300, 400, 20)}
-                 ).to_csv(g, index=False)
-    assert main(["classify", str(g), "--lat", "55.8", "--lon", "12.5",
-                 "--out", str(tmp_path / "o")]) == 2
+    pd.DataFrame({"time": t.strftime("%Y-%m-%dT%H:%M:%SZ"), "ghi": np.linspace(300, 400, 20)}).to_csv(
+        g, index=False
+    )
+    assert main(["classify", str(g), "--lat", "55.8", "--lon", "12.5", "--out", str(tmp_path / "o")]) == 2
     assert "no day could be classified" in capsys.readouterr().err
 
 
@@ -111,9 +138,18 @@ def _write_surfrad(path, ds, days=2):
     rows = []
     for i, ts in enumerate(t):
         vals = dict.fromkeys(SURFRAD_COLUMNS, 0)
-        vals.update(year=ts.year, jday=ts.day_of_year, month=ts.month, day=ts.day, hour=ts.hour,
-                    minute=ts.minute, dt=ts.hour + ts.minute / 60, zen=-9999.9,
-                    dw_solar=round(float(ds["ghi"][i]), 1), direct_n=round(float(ds["dni"][i]), 1))
+        vals.update(
+            year=ts.year,
+            jday=ts.day_of_year,
+            month=ts.month,
+            day=ts.day,
+            hour=ts.hour,
+            minute=ts.minute,
+            dt=ts.hour + ts.minute / 60,
+            zen=-9999.9,
+            dw_solar=round(float(ds["ghi"][i]), 1),
+            direct_n=round(float(ds["dni"][i]), 1),
+        )
         if i == 700:
             vals["dw_solar"] = -9999.9  # a missing sample
         rows.append(" ".join(str(vals[c]) for c in SURFRAD_COLUMNS))

@@ -27,13 +27,17 @@ def test_grab_returns_the_newest_frame_not_later_than_t(tmp_path):
     assert f.time == T0 and f.image.shape == (4, 6) and f.image[0, 0] == 0
     assert src.grab(T0 + 60).time == T0 + 60
     assert src.grab(T0 + 121).time == pytest.approx(T0 + 120.5)
-    assert src.grab(T0 + 120.5 + 90.1) is None          # too old
+    assert src.grab(T0 + 120.5 + 90.1) is None  # too old
     assert f.name == "2026-03-20T10-15-00Z.png"
 
 
 def test_every_documented_name_form_is_read(tmp_path):
-    names = ["2026-03-20T10-15-00Z.png", "cam_20260320T101600Z.png", "2026-03-20_10-17-00.png",
-             "2026-03-20T13:48:00+03:30.png"]
+    names = [
+        "2026-03-20T10-15-00Z.png",
+        "cam_20260320T101600Z.png",
+        "2026-03-20_10-17-00.png",
+        "2026-03-20T13:48:00+03:30.png",
+    ]
     _frames(tmp_path / "f", range(4), names)
     src = FolderFrameSource(tmp_path / "f")
     assert list(src.times) == [T0, T0 + 60, T0 + 120, T0 + 180]
@@ -65,5 +69,5 @@ def test_a_truncated_frame_is_no_frame_and_is_counted(tmp_path):
 def test_a_frame_cut_short_at_the_end_is_no_frame(tmp_path):
     _frames(tmp_path / "f", [T0])
     path = tmp_path / "f" / (format_name_time(T0) + ".png")
-    path.write_bytes(path.read_bytes()[:-12])          # IEND gone: OpenCV would decode it
+    path.write_bytes(path.read_bytes()[:-12])  # IEND gone: OpenCV would decode it
     assert FolderFrameSource(tmp_path / "f").grab(T0) is None

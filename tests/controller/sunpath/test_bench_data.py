@@ -2,7 +2,7 @@
 
 import pandas as pd
 
-from benchmarks.sunpath import PAPER_DATES, PAPER_TABLE4_ER_S, make_dataset, paper_samples_per_day
+from benchmarks.sunpath_common import PAPER_DATES, PAPER_TABLE4_ER_S, make_dataset, paper_samples_per_day
 from controller.sunpath.days import split_days
 
 from ._synth import ANDIMESHK

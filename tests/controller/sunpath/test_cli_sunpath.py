@@ -43,8 +43,7 @@ def test_kalman_rows_and_state(obs_csv, tmp_path, capsys):
     assert rows[-1]["method"] == "kalman"
     assert abs(float(rows[-1]["lat_deg"]) - ANDIMESHK.latitude) < 0.3
     assert json.loads(state.read_text())["format"] == "heliotrack.sunpath.state"
-    assert main(["sunpath", "predict", "--state", str(state),
-                 "--at", "2024-03-13T12:00:00+03:30"]) == 0
+    assert main(["sunpath", "predict", "--state", str(state), "--at", "2024-03-13T12:00:00+03:30"]) == 0
     pred = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(pred) == 1 and pred[0]["source"] == "predicted"
     assert 150 < float(pred[0]["az_deg"]) < 210
@@ -52,17 +51,50 @@ def test_kalman_rows_and_state(obs_csv, tmp_path, capsys):
 
 def test_seed_jsonl(obs_csv, tmp_path):
     out = tmp_path / "o.jsonl"
-    assert main(["sunpath", str(obs_csv), "--method", "seed", "--lat", "32.4835", "--lon",
-                 "48.3364", "--utc-offset", "3.5", "--out", str(out)]) == 0
+    assert (
+        main(
+            [
+                "sunpath",
+                str(obs_csv),
+                "--method",
+                "seed",
+                "--lat",
+                "32.4835",
+                "--lon",
+                "48.3364",
+                "--utc-offset",
+                "3.5",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     rows = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(rows) == 3 and rows[0]["method"] == "seed"
     assert rows[0]["declination_deg"] is not None
 
 
 def test_predict_from_ephemeris_and_errors(tmp_path, capsys):
-    assert main(["sunpath", "predict", "--lat", "32.4835", "--lon", "48.3364",
-                 "--start", "2024-03-13T08:00:00Z", "--end", "2024-03-13T09:00:00Z",
-                 "--step-min", "30"]) == 0
+    assert (
+        main(
+            [
+                "sunpath",
+                "predict",
+                "--lat",
+                "32.4835",
+                "--lon",
+                "48.3364",
+                "--start",
+                "2024-03-13T08:00:00Z",
+                "--end",
+                "2024-03-13T09:00:00Z",
+                "--step-min",
+                "30",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert [r["source"] for r in rows] == ["ephemeris"] * 3
     bad = tmp_path / "bad.csv"
@@ -97,10 +129,12 @@ def test_seed_fit_variants_are_selectable(paper_csv, capsys):
     obs = read_observations(paper_csv)
     t, az, el = [o.time for o in obs], [o.az_deg for o in obs], [o.el_deg for o in obs]
     noons = {}
-    for extra, kw in (([], {}), (["--fit", "whole-day"], {"fit": "whole-day"}),
-                      (["--chain-prior"], {"use_prior": True})):
-        assert main(["sunpath", str(paper_csv), "--method", "seed", "--utc-offset", "3.5",
-                     *extra]) == 0
+    for extra, kw in (
+        ([], {}),
+        (["--fit", "whole-day"], {"fit": "whole-day"}),
+        (["--chain-prior"], {"use_prior": True}),
+    ):
+        assert main(["sunpath", str(paper_csv), "--method", "seed", "--utc-offset", "3.5", *extra]) == 0
         rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
         want, _ = run_seed(t, az, el, 3.5, **kw)
         assert [r["noon_utc"] for r in rows] == [w.as_row()["noon_utc"] for w in want]
@@ -114,7 +148,24 @@ def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):
     assert main(["sunpath", str(obs_csv), "--declination", "free", "--utc-offset", "3.5"]) == 0
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(rows) == 3 and abs(float(rows[-1]["lat_deg"]) - ANDIMESHK.latitude) < 0.3
-    assert main(["sunpath", str(obs_csv), "--method", "seed", "--lat", "32.4835", "--lon",
-                 "48.3364", "--utc-offset", "3.5", "--noon-elevation", "vertex"]) == 0
+    assert (
+        main(
+            [
+                "sunpath",
+                str(obs_csv),
+                "--method",
+                "seed",
+                "--lat",
+                "32.4835",
+                "--lon",
+                "48.3364",
+                "--utc-offset",
+                "3.5",
+                "--noon-elevation",
+                "vertex",
+            ]
+        )
+        == 0
+    )
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(rows) == 3 and rows[0]["method"] == "seed"

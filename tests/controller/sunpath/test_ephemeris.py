@@ -20,8 +20,14 @@ def test_spherical_model_matches_spa(site):
     t = 1718000000.0 + 600.0 * np.arange(144)
     sp = solar_position(site, t)
     g = geocentric_sun(t)
-    az, el = azel_from_hour_angle(g.hour_angle_deg(site.longitude), g.dec_deg, site.latitude,
-                                  1.0, site.pressure / 100.0, site.temperature_c)
+    az, el = azel_from_hour_angle(
+        g.hour_angle_deg(site.longitude),
+        g.dec_deg,
+        site.latitude,
+        1.0,
+        site.pressure / 100.0,
+        site.temperature_c,
+    )
     up = sp["apparent_elevation"].to_numpy() > 2
     assert np.abs(wrap180(az - sp["azimuth"].to_numpy()))[up].max() < 0.01
     assert np.abs(el - sp["apparent_elevation"].to_numpy())[up].max() < 0.005  # parallax
@@ -29,8 +35,9 @@ def test_spherical_model_matches_spa(site):
 
 def test_transit_matches_pvlib():
     day = pd.Timestamp("2024-05-01", tz="UTC")
-    ref = pvlib.solarposition.sun_rise_set_transit_spa(pd.DatetimeIndex([day]),
-                                                       SANTIAGO.latitude, SANTIAGO.longitude)
+    ref = pvlib.solarposition.sun_rise_set_transit_spa(
+        pd.DatetimeIndex([day]), SANTIAGO.latitude, SANTIAGO.longitude
+    )
     got = transit_time(day.timestamp() + 16 * 3600, SANTIAGO.longitude)[0]
     assert abs(got - ref["transit"].iloc[0].timestamp()) < 1.0
 

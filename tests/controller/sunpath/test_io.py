@@ -11,25 +11,33 @@ def _write(tmp_path, text):
 
 
 def test_reads_sorted_with_default_sigma(tmp_path):
-    p = _write(tmp_path, "time,az_deg,el_deg,sigma_deg\n"
-                         "2024-03-01T09:00:00Z,170,50,\n"
-                         "2024-03-01T08:15:00+03:30,-10,20.5,0.5\n\n")
+    p = _write(
+        tmp_path,
+        "time,az_deg,el_deg,sigma_deg\n"
+        "2024-03-01T09:00:00Z,170,50,\n"
+        "2024-03-01T08:15:00+03:30,-10,20.5,0.5\n\n",
+    )
     obs = read_observations(p)
     assert [o.el_deg for o in obs] == [20.5, 50.0]
     assert obs[0].time == pytest.approx(1709268300.0)
     assert obs[0].az_deg == 350.0 and obs[0].sigma_deg == 0.5 and obs[1].sigma_deg == 0.3
 
 
-@pytest.mark.parametrize("text,needle", [
-    ("time,az_deg\n2024-03-01T09:00:00Z,1\n", "missing column(s) el_deg"),
-    ("time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,2\n2024-03-01T09:15:00Z,1,abc\n",
-     "row 3, column 'el_deg'"),
-    ("time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,95\n", "between -90 and 90"),
-    ("time,az_deg,el_deg\n2024-03-01 09:00,1,2\n", "no zone"),
-    ("time,az_deg,el_deg\nyesterday,1,2\n", "row 2, column 'time'"),
-    ("time,az_deg,el_deg,sigma_deg\n2024-03-01T09:00:00Z,1,2,-1\n", "column 'sigma_deg'"),
-    ("time,az_deg,el_deg\n", "no observations"),
-])
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        ("time,az_deg\n2024-03-01T09:00:00Z,1\n", "missing column(s) el_deg"),
+        (
+            "time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,2\n2024-03-01T09:15:00Z,1,abc\n",
+            "row 3, column 'el_deg'",
+        ),
+        ("time,az_deg,el_deg\n2024-03-01T09:00:00Z,1,95\n", "between -90 and 90"),
+        ("time,az_deg,el_deg\n2024-03-01 09:00,1,2\n", "no zone"),
+        ("time,az_deg,el_deg\nyesterday,1,2\n", "row 2, column 'time'"),
+        ("time,az_deg,el_deg,sigma_deg\n2024-03-01T09:00:00Z,1,2,-1\n", "column 'sigma_deg'"),
+        ("time,az_deg,el_deg\n", "no observations"),
+    ],
+)
 def test_clear_errors(tmp_path, text, needle):
     with pytest.raises(InputError) as err:
         read_observations(_write(tmp_path, text))

@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from controller.sun.types import SunObservation, angle_between_deg, azel_to_enu
+from controller.sunpath.batch import run_kalman
 from controller.sunpath.ephemeris import geocentric_sun, transit_time, wrap180
-from controller.sunpath.kalman import KalmanConfig, SunPathKalman, run_kalman
+from controller.sunpath.kalman import KalmanConfig, SunPathKalman
 
 from ._synth import ANDIMESHK, SANTIAGO, observations, sample_times
 
@@ -63,8 +64,7 @@ def test_outliers_are_gated(learnt):
     res = kf.update(bad)
     assert not res.accepted and res.mahalanobis2 > kf.config.gate_chi2
     assert np.allclose(kf.x, x0)
-    good = SunObservation(t + 60, (kf.predict(t + 60).az_deg + 20.0) % 360,
-                          kf.predict(t + 60).el_deg, 0.3)
+    good = SunObservation(t + 60, (kf.predict(t + 60).az_deg + 20.0) % 360, kf.predict(t + 60).el_deg, 0.3)
     assert kf.update(good).accepted
 
 

@@ -9,8 +9,10 @@ from controller.sunpath.localisation import (
 )
 
 
-@pytest.mark.parametrize("lat,dec,side", [(32.5, -10.0, "south"), (-33.4, 15.0, "north"),
-                                          (-33.4, -23.0, "north"), (10.0, 20.0, "north")])
+@pytest.mark.parametrize(
+    "lat,dec,side",
+    [(32.5, -10.0, "south"), (-33.4, 15.0, "north"), (-33.4, -23.0, "north"), (10.0, 20.0, "north")],
+)
 def test_noon_formulas_round_trip(lat, dec, side):
     el = 90.0 - abs(lat - dec)
     assert latitude_from_noon(el, dec, side) == pytest.approx(lat)

@@ -35,13 +35,15 @@ def test_centre_is_the_grid_point_or_half_step_nearest():
     assert nearest_centre(GRID, 12.43) == 12.375 and nearest_centre(GRID, 12.45) == 12.5
 
 
-@pytest.mark.parametrize("site,off,day,n,whole_day_at_least_s", [
-    (ANDIMESHK, 3.5, "2024-02-12", 35, 50.0),   # 08:00-16:30 about a 12:31 noon
-    (ANDIMESHK, 3.5, "2024-05-30", 36, 50.0),   # 08:00-16:45 about a 12:14 noon
-    (SANTIAGO, -4.0, "2024-06-20", 36, 40.0),   # 08:00-16:45 (elevation > 3) about 12:45
-])
-def test_mirrored_fit_removes_the_whole_day_window_bias(site, off, day, n,
-                                                       whole_day_at_least_s):
+@pytest.mark.parametrize(
+    "site,off,day,n,whole_day_at_least_s",
+    [
+        (ANDIMESHK, 3.5, "2024-02-12", 35, 50.0),  # 08:00-16:30 about a 12:31 noon
+        (ANDIMESHK, 3.5, "2024-05-30", 36, 50.0),  # 08:00-16:45 about a 12:14 noon
+        (SANTIAGO, -4.0, "2024-06-20", 36, 40.0),  # 08:00-16:45 (elevation > 3) about 12:45
+    ],
+)
+def test_mirrored_fit_removes_the_whole_day_window_bias(site, off, day, n, whole_day_at_least_s):
     # No noise: the whole-day vertex is pulled towards the centre of an unevenly placed
     # window by tens of seconds; the balanced fit is within about ten.
     t = sample_times(day, 1, off, start_h=8.0, n_per_day=n)

@@ -6,8 +6,9 @@ import pandas as pd
 import pytest
 
 from controller.sunpath import initial_fit, kalman
+from controller.sunpath.batch import run_kalman
 from controller.sunpath.ephemeris import GeocentricSun, geocentric_sun
-from controller.sunpath.kalman import DEC, RATE, KalmanConfig, SunPathKalman, orbit_advance_deg, run_kalman
+from controller.sunpath.kalman import DEC, RATE, KalmanConfig, SunPathKalman, orbit_advance_deg
 
 from ._synth import ANDIMESHK, SANTIAGO, observations, sample_times
 
@@ -25,25 +26,35 @@ def test_orbit_advance_kepler_rate():
     jan = float(orbit_advance_deg(_ts("2024-01-03"), _ts("2024-01-04")))
     jul = float(orbit_advance_deg(_ts("2024-07-04"), _ts("2024-07-05")))
     assert jan == pytest.approx(1.019, abs=0.002) and jul == pytest.approx(0.953, abs=0.002)
+
     # Against SPA's apparent longitude (via its declination and RA) over a 34-day break.
     def lam(t):
         g = geocentric_sun(t)
-        return np.degrees(np.arctan2(np.sin(np.radians(g.ra_deg)),
-                                     np.cos(np.radians(g.ra_deg)) * np.cos(np.radians(23.4393))
-                                     ))[0] % 360.0
+        return (
+            np.degrees(
+                np.arctan2(
+                    np.sin(np.radians(g.ra_deg)), np.cos(np.radians(g.ra_deg)) * np.cos(np.radians(23.4393))
+                )
+            )[0]
+            % 360.0
+        )
+
     a, b = _ts("2024-02-22T09:00"), _ts("2024-03-27T09:00")
     true_adv = (lam(b) - lam(a)) % 360.0
     assert float(orbit_advance_deg(a, b)) == pytest.approx(true_adv, abs=0.01)
     assert abs(float(orbit_advance_deg(a, b, "mean")) - true_adv) > 0.1  # why Kepler
 
 
-@pytest.fixture(scope="module", params=[(ANDIMESHK, 3.5), (SANTIAGO, -4.0)],
-                ids=["north", "south"])
+@pytest.fixture(scope="module", params=[(ANDIMESHK, 3.5), (SANTIAGO, -4.0)], ids=["north", "south"])
 def february(request):
     """Three February days, site unknown, sky-only declination."""
     site, off = request.param
-    t = np.concatenate([sample_times("2024-02-12", 2, off, start_h=8.0, n_per_day=35),
-                        sample_times("2024-02-21", 2, off, start_h=8.0, n_per_day=35)])
+    t = np.concatenate(
+        [
+            sample_times("2024-02-12", 2, off, start_h=8.0, n_per_day=35),
+            sample_times("2024-02-21", 2, off, start_h=8.0, n_per_day=35),
+        ]
+    )
     obs, _, _ = observations(site, t, seed=3)
     rows, kf = run_kalman(obs, KalmanConfig(declination="free"), utc_offset_h=off)
     return site, off, rows, kf
@@ -80,7 +91,8 @@ def test_free_mode_never_reads_spa_declination(monkeypatch):
     monkeypatch.setattr(initial_fit, "geocentric_sun", poisoned)  # and its start
     rows_b, kf_b = run_kalman(obs, KalmanConfig(declination="free"), utc_offset_h=off)
     assert [r.declination_deg for r in rows_a] == pytest.approx(
-        [r.declination_deg for r in rows_b], abs=1e-12)
+        [r.declination_deg for r in rows_b], abs=1e-12
+    )
     assert np.allclose(kf_a.x, kf_b.x, atol=1e-12)
     # ... whereas the ephemeris mode does read it.
     rows_c, _ = run_kalman(obs, KalmanConfig(declination="ephemeris"), utc_offset_h=off)
@@ -101,7 +113,7 @@ def test_old_free_state_file_is_converted(february):
     old["x"] = x
     P = np.array(d["P"])
     P[DEC, :] = P[:, DEC] = P[RATE, :] = P[:, RATE] = 0.0
-    P[DEC, DEC], P[RATE, RATE] = 0.05 ** 2, 0.01 ** 2
+    P[DEC, DEC], P[RATE, RATE] = 0.05**2, 0.01**2
     old["P"] = P.tolist()
     kf2 = SunPathKalman.from_dict(old)
     dec2, _ = kf2.declination(kf2.t)

@@ -37,8 +37,7 @@ def test_prior_makes_one_observation_enough():
         fit_parabola([8.0, 9.0], [1.0, 2.0])
 
 
-@pytest.mark.parametrize("site,offset,side", [(ANDIMESHK, 243.926, "south"),
-                                             (SANTIAGO, 10.0, "north")])
+@pytest.mark.parametrize("site,offset,side", [(ANDIMESHK, 243.926, "south"), (SANTIAGO, 10.0, "north")])
 def test_azimuth_alignment_at_culmination(site, offset, side):
     t = sample_times("2024-03-20", 1, 3.5 if site is ANDIMESHK else -4.0)
     obs, _, _ = observations(site, t, noise_deg=0.05, az_offset_deg=offset, seed=1)
@@ -53,8 +52,16 @@ def test_seed_noon_windowed_near_transit(site, off):
     # formulas recover the site to within the model error of a parabola.
     t = sample_times("2024-04-01", 2, off)
     obs, az, el = observations(site, t, noise_deg=0.0)
-    rows, fits = run_seed([o.time for o in obs], az, el, off, lat_deg=site.latitude,
-                          window_h=1.5, fit="whole-day", use_prior=True)
+    rows, fits = run_seed(
+        [o.time for o in obs],
+        az,
+        el,
+        off,
+        lat_deg=site.latitude,
+        window_h=1.5,
+        fit="whole-day",
+        use_prior=True,
+    )
     assert len(rows) == 2 and fits[1].used_prior
     for r in rows:
         tr = transit_time(r.noon_utc, site.longitude)[0]
@@ -89,6 +96,7 @@ def test_whole_day_vertex_is_biased_and_measured_elevation_is_not():
     (r_v,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude, noon_elevation="vertex")
     (r_n,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
     from controller.sunpath.ephemeris import geocentric_sun
+
     dec = geocentric_sun(transit_time(r_v.noon_utc, ANDIMESHK.longitude)[0]).dec_deg[0]
     assert r_v.declination_deg - dec < -2.0
     assert abs(r_n.declination_deg - dec) < 0.2
@@ -107,10 +115,15 @@ def test_no_measured_noon_elevation_when_the_sun_is_hidden_at_noon():
     tt = np.array([o.time for o in obs])
     (r,), _ = run_seed(tt, az, el, 3.5, lat_deg=ANDIMESHK.latitude)
     keep = np.abs(tt - r.noon_utc) > 1800.0
-    (rc,), _ = run_seed(tt[keep], np.asarray(az)[keep], np.asarray(el)[keep], 3.5,
-                        lat_deg=ANDIMESHK.latitude)
+    (rc,), _ = run_seed(tt[keep], np.asarray(az)[keep], np.asarray(el)[keep], 3.5, lat_deg=ANDIMESHK.latitude)
     assert np.isnan(rc.declination_deg) and np.isnan(rc.lat_deg) and np.isnan(rc.noon_el_deg)
     assert np.isfinite(rc.noon_utc) and abs(rc.lon_deg - ANDIMESHK.longitude) < 1.0
-    (rt,), _ = run_seed(tt[keep], np.asarray(az)[keep], np.asarray(el)[keep], 3.5,
-                        lat_deg=ANDIMESHK.latitude, transit_tolerance_s=3600.0)
+    (rt,), _ = run_seed(
+        tt[keep],
+        np.asarray(az)[keep],
+        np.asarray(el)[keep],
+        3.5,
+        lat_deg=ANDIMESHK.latitude,
+        transit_tolerance_s=3600.0,
+    )
     assert np.isfinite(rt.declination_deg)

@@ -77,12 +77,15 @@ def test_cloud_gap_switches_without_jump_and_persists(tmp_path):
 
 def _spa_obs(site, times, sigma=0.1):
     sp = solar_position(site, np.asarray(times, float))
-    return [SunObservation(float(t), float(a), float(e), sigma, sensor="spa")
-            for t, a, e in zip(times, sp["azimuth"], sp["apparent_elevation"])]
+    return [
+        SunObservation(float(t), float(a), float(e), sigma, sensor="spa")
+        for t, a, e in zip(times, sp["azimuth"], sp["apparent_elevation"])
+    ]
 
 
-@pytest.mark.parametrize("site_lat, t0", [(32.4835, "2024-03-27T05:00:00Z"),
-                                          (-33.4489, "2024-12-21T14:30:00Z")])
+@pytest.mark.parametrize(
+    "site_lat, t0", [(32.4835, "2024-03-27T05:00:00Z"), (-33.4489, "2024-12-21T14:30:00Z")]
+)
 def test_two_frame_extrapolation_follows_the_sun(site_lat, t0):
     import pandas as pd
 
@@ -95,15 +98,14 @@ def test_two_frame_extrapolation_follows_the_sun(site_lat, t0):
     truth = _spa_obs(site, [t + 1800.0])[0]
     e = extrapolate_two(o1, o2, t + 1800.0)
     assert e.source == EstimateSource.PREDICTED
-    err = np.hypot((e.az_deg - truth.az_deg) * np.cos(np.radians(truth.el_deg)),
-                   e.el_deg - truth.el_deg)
+    err = np.hypot((e.az_deg - truth.az_deg) * np.cos(np.radians(truth.el_deg)), e.el_deg - truth.el_deg)
     # The great circle, 15 min ahead: 0.01 deg at the equinox, 0.09 at the solstice
     # (the small circle's curvature), within the stated one-sigma per axis.
     sig_axis = 0.1 * np.sqrt(3.0) + CURVATURE_DEG_PER_H2 * 0.25 * 0.5
     assert err < min(0.1, sig_axis)
     assert e.sigma_deg == pytest.approx(np.sqrt(2.0) * sig_axis, rel=1e-6)
-    assert extrapolate_two(o1, o2, t + 900.0 + 3601.0) is None       # too old
-    assert extrapolate_two(o1, o1, t) is None                          # no baseline
+    assert extrapolate_two(o1, o2, t + 900.0 + 3601.0) is None  # too old
+    assert extrapolate_two(o1, o1, t) is None  # no baseline
 
 
 def test_sparse_frames_before_the_filter_starts_are_bridged():
@@ -115,7 +117,7 @@ def test_sparse_frames_before_the_filter_starts_are_bridged():
     t = pd.Timestamp("2024-03-27T05:00:00Z").timestamp()
     o1, o2 = _spa_obs(ANDIMESHK, [t, t + 900.0])
     src.observe(o1)
-    assert src.estimate(t + 600.0) is None             # one frame: nothing to extrapolate
+    assert src.estimate(t + 600.0) is None  # one frame: nothing to extrapolate
     src.observe(o2)
     assert not src.kf.initialised
     e = src.estimate(t + 1500.0, now=t + 1470.0)

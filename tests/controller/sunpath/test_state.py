@@ -28,9 +28,14 @@ def test_round_trip_is_atomic(tmp_path):
     assert load_state(tmp_path / "missing.json") is None
 
 
-@pytest.mark.parametrize("content", ["{not json", json.dumps({"format": "other"}),
-                                     json.dumps({"format": "heliotrack.sunpath.state",
-                                                 "version": 1, "filter": {"kind": "x"}})])
+@pytest.mark.parametrize(
+    "content",
+    [
+        "{not json",
+        json.dumps({"format": "other"}),
+        json.dumps({"format": "heliotrack.sunpath.state", "version": 1, "filter": {"kind": "x"}}),
+    ],
+)
 def test_corrupt_file_is_reported_and_kept(tmp_path, content):
     path = tmp_path / "s.json"
     path.write_text(content)

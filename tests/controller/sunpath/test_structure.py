@@ -8,8 +8,11 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[3]
 PACKAGE = ROOT / "controller" / "sunpath"
-MINE = [*PACKAGE.glob("*.py"), *ROOT.glob("benchmarks/sunpath*.py"),
-        ROOT / "heliotrack" / "commands" / "sunpath.py"]
+MINE = [
+    *PACKAGE.glob("*.py"),
+    *ROOT.glob("benchmarks/sunpath*.py"),
+    ROOT / "heliotrack" / "commands" / "sunpath.py",
+]
 
 
 @pytest.mark.parametrize("path", MINE, ids=lambda p: p.name)

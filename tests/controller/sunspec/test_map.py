@@ -57,8 +57,8 @@ def test_too_many_trackers_is_refused():
 def test_scaling_round_trip_and_sentinels():
     assert deg_to_raw(12.3456) == 12346
     assert raw_to_deg(33300) == 33.3
-    assert deg_to_raw(None) == -2**31 and raw_to_deg(-2**31) is None
-    assert deg_to_raw(float("nan")) == -2**31
+    assert deg_to_raw(None) == -(2**31) and raw_to_deg(-(2**31)) is None
+    assert deg_to_raw(float("nan")) == -(2**31)
 
 
 def test_encoder_marker_and_end_model():
@@ -71,7 +71,7 @@ def test_encoder_marker_and_end_model():
     assert regs[-2:] == [0xFFFF, 0]
     el = m.slot("ElPos", 1)
     off = el.address - m.base_address
-    assert raw_to_deg(decode_point(el.point, regs[off:off + 2])) == pytest.approx(30.5)
+    assert raw_to_deg(decode_point(el.point, regs[off : off + 2])) == pytest.approx(30.5)
 
 
 def test_partial_range_matches_full_render():
@@ -84,21 +84,29 @@ def test_partial_range_matches_full_render():
     for start in (40000, 40001, 40071, 40100, 40121, 40150):
         for count in (1, 3, 7, 40):
             count = min(count, m.base_address + m.size - start)
-            assert enc.registers(plant, ct.staged, start, count) == \
-                full[start - m.base_address:start - m.base_address + count]
+            assert (
+                enc.registers(plant, ct.staged, start, count)
+                == full[start - m.base_address : start - m.base_address + count]
+            )
 
 
 def test_single_axis_typ_and_rotation_in_elevation():
     m = SunSpecMap(1)
-    plant = PlantSnapshot("row", "single-axis", datetime(2026, 3, 20),
-                          [TrackerSnapshot.row("R0", -25.0, -24.5)])
+    plant = PlantSnapshot(
+        "row", "single-axis", datetime(2026, 3, 20), [TrackerSnapshot.row("R0", -25.0, -24.5)]
+    )
     ct = ControlTable(m)
     ct.refresh(plant)
     enc = Encoder(m)
     typ = m.slot("Typ")
     assert enc.registers(plant, ct.staged, typ.address, 1) == [typ.point.symbol_value("Horizontal")]
-    tilted = PlantSnapshot("row", "single-axis", datetime(2026, 3, 20),
-                           [TrackerSnapshot.row("R0", -25.0, -24.5)], axis_tilt_deg=5.0)
+    tilted = PlantSnapshot(
+        "row",
+        "single-axis",
+        datetime(2026, 3, 20),
+        [TrackerSnapshot.row("R0", -25.0, -24.5)],
+        axis_tilt_deg=5.0,
+    )
     assert enc.registers(tilted, ct.staged, typ.address, 1) == [typ.point.symbol_value("Tilted")]
     el, az = m.slot("ElPos", 0), m.slot("AzPos", 0)
     assert raw_to_deg(decode_point(el.point, enc.registers(plant, ct.staged, el.address, 2))) == -24.5
@@ -112,14 +120,17 @@ def test_control_write_must_cover_whole_writable_points():
     ct.refresh(plant)
     el = m.slot("ElCtl", 0)
     with pytest.raises(WriteRefused) as e:
-        ct.apply_write(plant, el.address + 1, [0])          # half an int32
+        ct.apply_write(plant, el.address + 1, [0])  # half an int32
     assert e.value.code == 2
     with pytest.raises(WriteRefused) as e:
         ct.apply_write(plant, m.slot("ElTrgt", 0).address, [0, 1000])
     assert e.value.code == 2
     # ElCtl + AzCtl + Ctl in one request: one command
-    words = (encode_point(el.point, 45000) + encode_point(el.point, 90000)
-             + encode_point(m.slot("Ctl", 0).point, 1))
+    words = (
+        encode_point(el.point, 45000)
+        + encode_point(el.point, 90000)
+        + encode_point(m.slot("Ctl", 0).point, 1)
+    )
     cmds = ct.apply_write(plant, el.address, words)
     assert [(c.tracker, c.ctl, c.el_deg, c.az_deg) for c in cmds] == [(0, "Manual", 45.0, 90.0)]
 
@@ -130,23 +141,35 @@ def parse_sunspec(doc, file="<config>"):
 
 def test_parse_sunspec_defaults_and_values():
     assert parse_sunspec({}) == SunSpecConfig()
-    cfg = parse_sunspec({"sunspec": {"enabled": True, "port": 0, "writes_enabled": True,
-                                     "allow": ["127.0.0.1", "10.0.0.0/24"], "device_address": 3}})
+    cfg = parse_sunspec(
+        {
+            "sunspec": {
+                "enabled": True,
+                "port": 0,
+                "writes_enabled": True,
+                "allow": ["127.0.0.1", "10.0.0.0/24"],
+                "device_address": 3,
+            }
+        }
+    )
     assert cfg.enabled and cfg.port == 0 and cfg.writes_enabled
     assert cfg.allow == ("127.0.0.1", "10.0.0.0/24") and cfg.device_address == 3
     assert cfg.host == "127.0.0.1"
 
 
-@pytest.mark.parametrize("table, key", [
-    ({"port": 70000}, "sunspec.port"),
-    ({"port": "1502"}, "sunspec.port"),
-    ({"host": "scada.example"}, "sunspec.host"),
-    ({"allow": ["127.0.0.1", "not-an-ip"]}, "sunspec.allow[1]"),
-    ({"allow": "127.0.0.1"}, "sunspec.allow"),
-    ({"writes_enabled": "yes"}, "sunspec.writes_enabled"),
-    ({"device_address": 0}, "sunspec.device_address"),
-    ({"bogus": 1}, "sunspec.bogus"),
-])
+@pytest.mark.parametrize(
+    "table, key",
+    [
+        ({"port": 70000}, "sunspec.port"),
+        ({"port": "1502"}, "sunspec.port"),
+        ({"host": "scada.example"}, "sunspec.host"),
+        ({"allow": ["127.0.0.1", "not-an-ip"]}, "sunspec.allow[1]"),
+        ({"allow": "127.0.0.1"}, "sunspec.allow"),
+        ({"writes_enabled": "yes"}, "sunspec.writes_enabled"),
+        ({"device_address": 0}, "sunspec.device_address"),
+        ({"bogus": 1}, "sunspec.bogus"),
+    ],
+)
 def test_parse_sunspec_errors_name_file_and_key(table, key):
     with pytest.raises(ConfigError) as e:
         parse_sunspec({"sunspec": table}, "plant.toml")
@@ -160,18 +183,29 @@ def test_largest_plant_that_fits_below_65536():
         SunSpecMap(1157)
 
 
-@pytest.mark.parametrize("peer, allowed", [
-    ("127.0.0.1", True), ("10.0.0.7", True), ("10.0.1.7", False), ("::ffff:10.0.0.7", True),
-    ("::1", False), (None, False), ("", False), ("garbage", False),
-])
+@pytest.mark.parametrize(
+    "peer, allowed",
+    [
+        ("127.0.0.1", True),
+        ("10.0.0.7", True),
+        ("10.0.1.7", False),
+        ("::ffff:10.0.0.7", True),
+        ("::1", False),
+        (None, False),
+        ("", False),
+        ("garbage", False),
+    ],
+)
 def test_peer_allowlist(peer, allowed):
     from controller.sunspec.server import _networks, peer_allowed
+
     assert peer_allowed(peer, _networks(["127.0.0.1", "10.0.0.0/24"])) is allowed
 
 
 def test_tracker_mode_accepts_control_mode_members():
     from controller.modes import ControlMode
     from controller.sunspec.encode import ctl_name_for_mode
+
     tr = TrackerSnapshot("t", 1.0, 2.0, 1.0, 2.0, ControlMode.MANUAL)
     assert tr.mode == "MANUAL" and ctl_name_for_mode(tr.mode) == "Manual"
     with pytest.raises(ValueError):

@@ -13,7 +13,7 @@ from sunspec2.modbus.modbus import ModbusClientError
 from controller.sunspec import PlantSnapshot, SunSpecServer, TrackerSnapshot
 from heliotrack.sunspec_latency import poll_latency
 
-HOST = "127.0.0.1"      # never anything else in tests
+HOST = "127.0.0.1"  # never anything else in tests
 
 
 class Plant:
@@ -27,15 +27,25 @@ class Plant:
 
     def _tracker(self, i, **kw):
         if self.kind == "single-axis":
-            return TrackerSnapshot.row(f"row-{i}", -40.0 + 7.25 * i, -39.871 + 7.25 * i,
-                                       alarm_bits=i % 8, **kw)
-        return TrackerSnapshot(f"trk-{i:02d}", 10.0 + 11.125 * i, 95.5 + 23.001 * i,
-                               9.999 + 11.125 * i, 96.0 + 23.0 * i, "TRACK", i % 8, **kw)
+            return TrackerSnapshot.row(
+                f"row-{i}", -40.0 + 7.25 * i, -39.871 + 7.25 * i, alarm_bits=i % 8, **kw
+            )
+        return TrackerSnapshot(
+            f"trk-{i:02d}",
+            10.0 + 11.125 * i,
+            95.5 + 23.001 * i,
+            9.999 + 11.125 * i,
+            96.0 + 23.0 * i,
+            "TRACK",
+            i % 8,
+            **kw,
+        )
 
     def __call__(self) -> PlantSnapshot:
         with self.lock:
-            return PlantSnapshot("heliotrack-test", self.kind, datetime(2026, 6, 21, 14, 3, 7),
-                                 list(self.trackers))
+            return PlantSnapshot(
+                "heliotrack-test", self.kind, datetime(2026, 6, 21, 14, 3, 7), list(self.trackers)
+            )
 
     def on_override(self, cmd):
         self.overrides.append(cmd)
@@ -79,7 +89,7 @@ def test_pysunspec2_scans_and_reads_every_tracker_with_scale_factor(serve, n):
         assert m.ID.value == 601 and m.L.value == 26 + 22 * n
         assert m.N.value == n and m.Dgr_SF.value == -3
         assert m.Nam.value == "heliotrack-test"
-        assert m.Typ.value == 5          # Dual
+        assert m.Typ.value == 5  # Dual
         assert (m.DtLoc.value, m.TmLoc.value, m.Day.value) == ("20260621", "140307", 172)
         assert m.GlblCtl.value == 0
         assert len(m.tracker) == n
@@ -108,8 +118,9 @@ def test_reads_follow_the_snapshot(serve):
     try:
         m = dev.models[601][0]
         with plant.lock:
-            plant.trackers[1] = TrackerSnapshot("trk-01", 50.0, 200.0, 49.0, 201.0, "MANUAL", 0,
-                                                manual_el_deg=49.0, manual_az_deg=201.0)
+            plant.trackers[1] = TrackerSnapshot(
+                "trk-01", 50.0, 200.0, 49.0, 201.0, "MANUAL", 0, manual_el_deg=49.0, manual_az_deg=201.0
+            )
         m.read()
         blk = m.tracker[1]
         assert (blk.ElPos.cvalue, blk.Ctl.value, blk.ElCtl.cvalue) == (49.0, 1, 49.0)
@@ -124,7 +135,7 @@ def test_single_axis_rotation_is_served_in_elevation_points(serve):
     dev = scan(srv)
     try:
         m = dev.models[601][0]
-        assert m.Typ.value == 2          # Horizontal
+        assert m.Typ.value == 2  # Horizontal
         for i, tr in enumerate(plant.trackers):
             blk = m.tracker[i]
             assert blk.ElPos.cvalue == pytest.approx(tr.el_pos_deg, abs=5e-4)
@@ -155,7 +166,7 @@ def _refused_with(exc_info, code):
 
 def test_writes_refused_when_disabled(serve):
     plant = Plant(2)
-    srv = serve(plant, allow=[HOST])           # allowlisted, but writes not enabled
+    srv = serve(plant, allow=[HOST])  # allowlisted, but writes not enabled
     dev = scan(srv)
     try:
         with pytest.raises(ModbusClientError) as e:
@@ -197,12 +208,20 @@ def test_writes_accepted_and_delivered_when_enabled_and_allowlisted(serve):
         _write(dev, 2, ElCtl=35.125, AzCtl=210.5, Ctl=1)
         assert len(plant.overrides) == 1
         cmd = plant.overrides[-1]
-        assert (cmd.tracker, cmd.ctl, cmd.el_deg, cmd.az_deg, cmd.peer) == \
-            (2, "Manual", 35.125, 210.5, "127.0.0.1")
+        assert (cmd.tracker, cmd.ctl, cmd.el_deg, cmd.az_deg, cmd.peer) == (
+            2,
+            "Manual",
+            35.125,
+            210.5,
+            "127.0.0.1",
+        )
         # a later write of one point carries the staged rest of the scope
         _write(dev, 2, ElCtl=20.0)
-        assert (plant.overrides[-1].ctl, plant.overrides[-1].el_deg, plant.overrides[-1].az_deg) == \
-            ("Manual", 20.0, 210.5)
+        assert (plant.overrides[-1].ctl, plant.overrides[-1].el_deg, plant.overrides[-1].az_deg) == (
+            "Manual",
+            20.0,
+            210.5,
+        )
         m = dev.models[601][0]
         m.read()
         blk = m.tracker[2]
@@ -224,16 +243,19 @@ def test_writes_accepted_and_delivered_when_enabled_and_allowlisted(serve):
         dev.close()
 
 
-@pytest.mark.parametrize("points, code", [
-    ({"ElCtl": 90.5}, 3),          # above the horizon range
-    ({"ElCtl": -91.0}, 3),
-    ({"AzCtl": 360.0}, 3),         # azimuth in [0, 360)
-    ({"AzCtl": -0.5}, 3),
-    ({"ElCtl": 85.0}, 3),          # inside the protocol range, outside this tracker's limits
-    ({"Ctl": 3}, 3),               # model 601 Ctl has no value 3
-    ({"ElTrgt": 40.0}, 2),         # read-only point
-    ({"Alm": 0}, 2),
-])
+@pytest.mark.parametrize(
+    "points, code",
+    [
+        ({"ElCtl": 90.5}, 3),  # above the horizon range
+        ({"ElCtl": -91.0}, 3),
+        ({"AzCtl": 360.0}, 3),  # azimuth in [0, 360)
+        ({"AzCtl": -0.5}, 3),
+        ({"ElCtl": 85.0}, 3),  # inside the protocol range, outside this tracker's limits
+        ({"Ctl": 3}, 3),  # model 601 Ctl has no value 3
+        ({"ElTrgt": 40.0}, 2),  # read-only point
+        ({"Alm": 0}, 2),
+    ],
+)
 def test_invalid_writes_refused(serve, points, code):
     plant = Plant(2, el_limits_deg=(5.0, 80.0))
     srv = serve(plant, writes_enabled=True)
@@ -262,8 +284,12 @@ def test_single_axis_refuses_azimuth_writes_and_takes_rotation(serve):
             _write(dev, 0, ElCtl=-60.0)
         _refused_with(e, 3)
         _write(dev, 0, ElCtl=-30.0, Ctl=1)
-        assert [(c.tracker, c.ctl, c.el_deg, c.az_deg) for c in plant.overrides][-1] == \
-            (0, "Manual", -30.0, None)
+        assert [(c.tracker, c.ctl, c.el_deg, c.az_deg) for c in plant.overrides][-1] == (
+            0,
+            "Manual",
+            -30.0,
+            None,
+        )
     finally:
         dev.close()
 

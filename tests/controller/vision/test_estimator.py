@@ -23,8 +23,7 @@ def est(scn):
     return HotspotEstimator(truth_bundle(scn))
 
 
-@pytest.mark.parametrize("t", [utc(2025, 6, 21, 4, 0), utc(2025, 6, 21, 9, 0),
-                               utc(2025, 12, 21, 12, 0)])
+@pytest.mark.parametrize("t", [utc(2025, 6, 21, 4, 0), utc(2025, 6, 21, 9, 0), utc(2025, 12, 21, 12, 0)])
 def test_direction_matches_truth_in_the_model_frame(scn, est, t):
     fr = render_frame(scn, t)
     res = est.estimate_image(fr.image, t)

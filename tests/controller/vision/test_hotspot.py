@@ -6,22 +6,25 @@ from controller.vision.hotspot import _knee, segment_fast, segment_seed
 
 
 def _blob_image(rng, shape=(120, 140), blobs=((60, 70, 6.0, 400.0),), bg=12):
-    yy, xx = np.mgrid[0:shape[0], 0:shape[1]]
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
     img = np.full(shape, float(bg))
     for cy, cx, sig, peak in blobs:
-        img += peak * np.exp(-((yy - cy) ** 2 + (xx - cx) ** 2) / (2 * sig ** 2))
+        img += peak * np.exp(-((yy - cy) ** 2 + (xx - cx) ** 2) / (2 * sig**2))
     img += rng.normal(0, 2.0, shape)
     return np.clip(np.rint(img), 0, 255).astype(np.uint8)
 
 
 def _disk_mask(shape=(120, 140), r=55):
-    yy, xx = np.mgrid[0:shape[0], 0:shape[1]]
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]]
     return (((yy - 60) ** 2 + (xx - 70) ** 2) < r * r).astype(np.uint8)
 
 
 def test_knee_is_the_end_of_the_plateau():
-    curve = [(255, 0)] + [(i, 50) for i in range(254, 240, -1)] + \
-            [(i, 50 + 40 * (241 - i)) for i in range(240, 127, -1)]
+    curve = (
+        [(255, 0)]
+        + [(i, 50) for i in range(254, 240, -1)]
+        + [(i, 50 + 40 * (241 - i)) for i in range(240, 127, -1)]
+    )
     assert _knee(curve) in (241, 240)
 
 
@@ -46,8 +49,15 @@ def test_single_glint_is_found_at_its_place():
 @given(st.integers(0, 10_000), st.integers(1, 3), st.sampled_from(["pseudocode", "prose"]))
 def test_fast_mask_identical_to_literal_algorithm(seed, nblobs, rule):
     rng = np.random.default_rng(seed)
-    blobs = [(rng.uniform(15, 105), rng.uniform(15, 125), rng.uniform(1.5, 7),
-              rng.choice([300.0, 600.0, rng.uniform(200, 900)])) for _ in range(nblobs)]
+    blobs = [
+        (
+            rng.uniform(15, 105),
+            rng.uniform(15, 125),
+            rng.uniform(1.5, 7),
+            rng.choice([300.0, 600.0, rng.uniform(200, 900)]),
+        )
+        for _ in range(nblobs)
+    ]
     img = _blob_image(rng, blobs=blobs)
     M = _disk_mask()
     a = segment_seed(img, M, end_rule=rule)

@@ -13,8 +13,13 @@ from controller.vision.imageio import header_size, load_grey, read_image
 def _png_header_only(w: int, h: int) -> bytes:
     ihdr = struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0)
     chunk = b"IHDR" + ihdr
-    return (b"\x89PNG\r\n\x1a\n" + struct.pack(">I", len(ihdr)) + chunk
-            + struct.pack(">I", zlib.crc32(chunk)) + b"\x00\x00\x00\x00IEND\xaeB`\x82")
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + struct.pack(">I", len(ihdr))
+        + chunk
+        + struct.pack(">I", zlib.crc32(chunk))
+        + b"\x00\x00\x00\x00IEND\xaeB`\x82"
+    )
 
 
 def test_sizes_from_the_header(tmp_path):
@@ -30,10 +35,14 @@ def test_a_huge_image_is_refused_before_decoding(tmp_path):
     assert read_image(p) == (None, "image_too_large")
 
 
-@pytest.mark.parametrize("content, reason", [
-    (b"", "empty_file"), (b"not an image at all", "undecodable_image"),
-    (b"\xff\xd8\xff\xe0 garbage", "truncated_file"),
-])
+@pytest.mark.parametrize(
+    "content, reason",
+    [
+        (b"", "empty_file"),
+        (b"not an image at all", "undecodable_image"),
+        (b"\xff\xd8\xff\xe0 garbage", "truncated_file"),
+    ],
+)
 def test_bad_files_give_reasons(tmp_path, content, reason):
     p = tmp_path / "x.jpg"
     p.write_bytes(content)

@@ -7,7 +7,6 @@ import pytest
 
 from hil.camera import CameraModel, checkerboard_poses, profile, render_checkerboard, render_frame
 from hil.errors import HilError
-
 from tests.controller.vision.helpers import small_scenario, utc
 
 
@@ -67,12 +66,13 @@ def test_noise_is_reproducible_and_unbiased():
 def test_checkerboard_corners_are_subpixel_exact():
     cam = CameraModel(400, 300, 330.0, 330.0, 199.5, 149.5, (-0.1, 0.02, 0, 0, 0))
     rng = np.random.default_rng(2)
-    (rvec, tvec), = checkerboard_poses(cam, 1, rng)
+    ((rvec, tvec),) = checkerboard_poses(cam, 1, rng)
     img = render_checkerboard(cam, rvec, tvec, rng=rng, noise_dn=0.0)
     ok, corners = cv2.findChessboardCorners(img, (9, 6))
     assert ok
-    corners = cv2.cornerSubPix(img, corners, (5, 5), (-1, -1),
-                               (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4))
+    corners = cv2.cornerSubPix(
+        img, corners, (5, 5), (-1, -1), (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+    )
     obj = np.zeros((54, 3))
     obj[:, :2] = (np.mgrid[0:9, 0:6].T.reshape(-1, 2) + 1) * 0.04
     truth = cam.project(obj, rvec, tvec)

@@ -20,7 +20,7 @@ import time
 import canopen
 
 MASTER_HEARTBEAT_COB = 0x700 + 0x7F
-SCALE_DEG = 0.001   # 0x607A / 0x6064 units, from the EDS comments / docs
+SCALE_DEG = 0.001  # 0x607A / 0x6064 units, from the EDS comments / docs
 
 
 def main(argv: list[str]) -> int:
@@ -39,7 +39,7 @@ def main(argv: list[str]) -> int:
         node.sdo[0x1016][1].raw = (0x7F << 16) | 1000
         report["consumer_heartbeat"] = node.sdo[0x1016][1].raw
         node.nmt.state = "PRE-OPERATIONAL"
-        node.setup_402_state_machine()              # reads the PDO mapping by SDO
+        node.setup_402_state_machine()  # reads the PDO mapping by SDO
         node.nmt.state = "OPERATIONAL"
         node.op_mode = "PROFILED POSITION"
         node.state = "OPERATION ENABLED"
@@ -47,9 +47,9 @@ def main(argv: list[str]) -> int:
         report["op_mode"] = node.op_mode
         raw = round(target_deg / SCALE_DEG)
         node.rpdo[1]["Target position"].raw = raw
-        node.controlword = 0x3F                     # enable + new set-point + immediately
+        node.controlword = 0x3F  # enable + new set-point + immediately
         deadline = time.monotonic() + 1.0
-        while not node.statusword & (1 << 12):      # set-point acknowledge
+        while not node.statusword & (1 << 12):  # set-point acknowledge
             if time.monotonic() > deadline:
                 raise RuntimeError("set-point not acknowledged")
             node.check_statusword()
@@ -62,9 +62,10 @@ def main(argv: list[str]) -> int:
                 break
             if time.monotonic() > deadline:
                 raise RuntimeError(f"target not reached: position {pos} deg, statusword {sw:#06x}")
-        report.update(ok=True, position_deg=pos, statusword=sw,
-                      sdo_position_deg=node.sdo[0x6064].raw * SCALE_DEG)
-    except Exception as exc:  # reported, not raised: the test prints the report
+        report.update(
+            ok=True, position_deg=pos, statusword=sw, sdo_position_deg=node.sdo[0x6064].raw * SCALE_DEG
+        )
+    except Exception as exc:  # noqa: BLE001 - reported, not raised: the test prints the report
         report["error"] = f"{type(exc).__name__}: {exc}"
     finally:
         beat.stop()

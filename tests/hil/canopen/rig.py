@@ -13,17 +13,43 @@ from hil.drive import AxisParams, DriveFirmware
 
 
 def one_axis(**kw) -> list[AxisParams]:
-    base = dict(max_speed=10.0, accel=50.0, soft_min=-60.0, soft_max=60.0, hard_min=-65.0, hard_max=65.0,
-                stow_angle=0.0, initial_angle=0.0)
+    base = {
+        "max_speed": 10.0,
+        "accel": 50.0,
+        "soft_min": -60.0,
+        "soft_max": 60.0,
+        "hard_min": -65.0,
+        "hard_max": 65.0,
+        "stow_angle": 0.0,
+        "initial_angle": 0.0,
+    }
     base.update(kw)
     return [AxisParams(**base)]
 
 
 def two_axes() -> list[AxisParams]:
-    return [AxisParams(max_speed=10.0, accel=50.0, soft_min=0.0, soft_max=360.0, hard_min=-5.0,
-                       hard_max=365.0, stow_angle=180.0, initial_angle=180.0),
-            AxisParams(max_speed=10.0, accel=50.0, soft_min=0.0, soft_max=90.0, hard_min=-5.0,
-                       hard_max=95.0, stow_angle=90.0, initial_angle=90.0)]
+    return [
+        AxisParams(
+            max_speed=10.0,
+            accel=50.0,
+            soft_min=0.0,
+            soft_max=360.0,
+            hard_min=-5.0,
+            hard_max=365.0,
+            stow_angle=180.0,
+            initial_angle=180.0,
+        ),
+        AxisParams(
+            max_speed=10.0,
+            accel=50.0,
+            soft_min=0.0,
+            soft_max=90.0,
+            hard_min=-5.0,
+            hard_max=95.0,
+            stow_angle=90.0,
+            initial_angle=90.0,
+        ),
+    ]
 
 
 def channel() -> str:
@@ -32,8 +58,9 @@ def channel() -> str:
 
 
 @contextmanager
-def emulated(axes=None, node_id: int = 5, now=time.time, heartbeat_timeout: float = 0.0,
-             period_s: float = 0.01):
+def emulated(
+    axes=None, node_id: int = 5, now=time.time, heartbeat_timeout: float = 0.0, period_s: float = 0.01
+):
     """(firmware, emulator, channel) with the drive on a fresh virtual bus."""
     ch = channel()
     fw = DriveFirmware(axes or one_axis(), now, heartbeat_timeout=heartbeat_timeout)
@@ -49,7 +76,7 @@ def emulated(axes=None, node_id: int = 5, now=time.time, heartbeat_timeout: floa
 def master(ch: str):
     """A canopen Network on ``ch`` (the master side)."""
     net = canopen.Network()
-    net.NOTIFIER_CYCLE = 0.05   # disconnect waits for one notifier cycle
+    net.NOTIFIER_CYCLE = 0.05  # disconnect waits for one notifier cycle
     net.connect(interface="virtual", channel=ch)
     try:
         yield net

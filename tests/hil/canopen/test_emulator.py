@@ -31,30 +31,34 @@ def _set_point(node, deg: float, cw: int = 0x3F) -> bool:
 
 
 def test_402_state_machine_and_profile_position_reach_the_target():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         assert wait_for(lambda: node.state == "SWITCH ON DISABLED")
         assert node.sdo[0x1000].raw & 0xFFFF == 0x192
         _enable(node)
         assert _set_point(node, 3.0)
-        assert wait_for(lambda: not node.statusword & ACK)       # handshake completes
-        assert wait_for(lambda: node.statusword & Statusword.TARGET_REACHED
-                        and abs(node.tpdo_values[0x6064] - 3000) <= 20, 5.0)
+        assert wait_for(lambda: not node.statusword & ACK)  # handshake completes
+        assert wait_for(
+            lambda: (
+                node.statusword & Statusword.TARGET_REACHED and abs(node.tpdo_values[0x6064] - 3000) <= 20
+            ),
+            5.0,
+        )
         assert fw.true_angles()[0] == pytest.approx(3.0, abs=0.05)
-        assert node.sdo[0x2100].raw == 3000                      # effective target mirror
+        assert node.sdo[0x2100].raw == 3000  # effective target mirror
 
 
 def test_set_point_is_not_taken_unless_operation_enabled():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         node.state = "SWITCHED ON"
-        assert not _set_point(node, 10.0, cw=0x37)      # new set-point, operation disabled
+        assert not _set_point(node, 10.0, cw=0x37)  # new set-point, operation disabled
         assert node.state == "SWITCHED ON"
         assert fw.axes[0].target == 0.0
         _enable(node)
-        assert not _set_point(node, 10.0, cw=0x13F)     # halt bit: set-points are not taken
+        assert not _set_point(node, 10.0, cw=0x13F)  # halt bit: set-points are not taken
         assert fw.axes[0].target == 0.0
-        node.sdo[0x6060].raw = 0                         # no mode: no profile position
+        node.sdo[0x6060].raw = 0  # no mode: no profile position
         assert not _set_point(node, 10.0)
         assert fw.axes[0].target == 0.0
         node.sdo[0x6060].raw = 1
@@ -62,18 +66,18 @@ def test_set_point_is_not_taken_unless_operation_enabled():
 
 
 def test_leaving_operation_enabled_halts_the_axis():
-    with emulated(axes=one_axis(max_speed=2.0, accel=20.0)) as (fw, emu, ch), master(ch) as net:
+    with emulated(axes=one_axis(max_speed=2.0, accel=20.0)) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         assert _set_point(node, 50.0)
         assert wait_for(lambda: fw.axes[0].velocity > 1.0)
-        node.state = "SWITCHED ON"                       # disable operation
-        assert fw.axes[0].target < 10.0                  # stops where it is, not at 50
+        node.state = "SWITCHED ON"  # disable operation
+        assert fw.axes[0].target < 10.0  # stops where it is, not at 50
         assert wait_for(lambda: fw.axes[0].velocity == 0.0)
 
 
 def test_out_of_limit_set_point_is_clamped_and_flagged():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         assert _set_point(node, 500.0)
@@ -83,7 +87,7 @@ def test_out_of_limit_set_point_is_clamped_and_flagged():
 
 
 def test_fault_reaction_emcy_and_fault_reset():
-    with emulated(axes=one_axis(stall_time=0.2)) as (fw, emu, ch), master(ch) as net:
+    with emulated(axes=one_axis(stall_time=0.2)) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         fw.axes[0].jammed = True
@@ -91,9 +95,8 @@ def test_fault_reaction_emcy_and_fault_reset():
         assert wait_for(lambda: node.state == "FAULT", 5.0)
         assert node.sdo[0x603F].raw == FAULT_ERROR_CODES[Fault.STALL]
         assert node.sdo[0x1001].raw & 1
-        assert wait_for(lambda: any(e.code == FAULT_ERROR_CODES[Fault.STALL]
-                                    for e in node.emcy.log))
-        with pytest.raises(RuntimeError):   # cause still present: stays in FAULT
+        assert wait_for(lambda: any(e.code == FAULT_ERROR_CODES[Fault.STALL] for e in node.emcy.log))
+        with pytest.raises(RuntimeError):  # cause still present: stays in FAULT
             node.state = "OPERATION ENABLED"
         assert node.state == "FAULT"
         fw.axes[0].jammed = False
@@ -104,27 +107,27 @@ def test_fault_reaction_emcy_and_fault_reset():
 
 
 def test_heartbeat_consumer_stows_on_loss(sim_clock):
-    with emulated(now=sim_clock.now) as (fw, emu, ch), master(ch) as net:
+    with emulated(now=sim_clock.now) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         node.sdo[0x1016][1].raw = (MASTER_NODE_ID << 16) | 1500
         assert fw.heartbeat_timeout == pytest.approx(1.5)
         assert node.sdo[0x1016][1].raw == (MASTER_NODE_ID << 16) | 1500
         assert _set_point(node, 20.0)
-        for _ in range(5):                               # alive: heartbeats keep it tracking
+        for _ in range(5):  # alive: heartbeats keep it tracking
             net.send_message(0x700 + MASTER_NODE_ID, b"\x05")
             time.sleep(0.02)
             sim_clock.sleep(1.0)
         assert fw.modes[0] == Mode.AUTO
-        sim_clock.sleep(2.0)                             # silence longer than 1.5 s
+        sim_clock.sleep(2.0)  # silence longer than 1.5 s
         assert wait_for(lambda: node.tpdo_values.get(0x2107) == Mode.STOW)
         assert Status(node.tpdo_values[0x2105]) & Status.COMM_LOST
         assert node.statusword & Statusword.WARNING
-        assert fw.axes[0].target == 0.0                  # the stow angle
+        assert fw.axes[0].target == 0.0  # the stow angle
 
 
 def test_sync_triggers_synchronous_tpdos():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         node.nmt.state = "PRE-OPERATIONAL"
         node.tpdo[1].trans_type = 1
@@ -133,40 +136,40 @@ def test_sync_triggers_synchronous_tpdos():
         time.sleep(0.1)
         before = node.tpdo[1].timestamp
         time.sleep(0.15)
-        assert node.tpdo[1].timestamp == before          # no SYNC, no TPDO1
+        assert node.tpdo[1].timestamp == before  # no SYNC, no TPDO1
         net.sync.transmit()
         assert wait_for(lambda: node.tpdo[1].timestamp != before)
 
 
 def test_bad_wire_data_is_refused():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         with pytest.raises(SdoAbortedError):
-            node.sdo[0x6060].raw = 3                     # profile velocity: not supported
+            node.sdo[0x6060].raw = 3  # profile velocity: not supported
         with pytest.raises(SdoAbortedError):
-            node.sdo[0x607D][1].raw = -100_000           # beyond the hard limit
+            node.sdo[0x607D][1].raw = -100_000  # beyond the hard limit
         with pytest.raises(SdoAbortedError):
-            node.sdo[0x6064].raw = 5                     # read-only
+            node.sdo[0x6064].raw = 5  # read-only
         with pytest.raises(SdoAbortedError):
-            node.sdo[0x2107].raw = 9                     # not a Mode
+            node.sdo[0x2107].raw = 9  # not a Mode
         # A too-short RPDO1 is not processed: no set-point, an EMCY 0x8210 instead.
         net.send_message(0x205, b"\x3f\x00\x10")
         assert wait_for(lambda: any(e.code == 0x8210 for e in node.emcy.log))
         assert fw.axes[0].target == 0.0
-        net.send_message(0x000, b"\x01")                 # malformed NMT command: dropped
-        assert _set_point(node, 1.0)                     # the bus still works
+        net.send_message(0x000, b"\x01")  # malformed NMT command: dropped
+        assert _set_point(node, 1.0)  # the bus still works
 
 
 def test_nmt_reset_reboots_the_node():
-    with emulated() as (fw, emu, ch), master(ch) as net:
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
         _enable(node)
         states = []
         node.nmt.add_heartbeat_callback(states.append)
         node.nmt.send_command(0x81)
-        assert wait_for(lambda: 0 in states and states[-1] == 127)    # boot-up, PRE-OP
-        assert node.sdo[0x6041].raw & 0x4F == 0x40                     # SWITCH ON DISABLED
+        assert wait_for(lambda: 0 in states and states[-1] == 127)  # boot-up, PRE-OP
+        assert node.sdo[0x6041].raw & 0x4F == 0x40  # SWITCH ON DISABLED
 
 
 def test_two_axes_are_two_nodes_of_one_drive():
@@ -178,12 +181,13 @@ def test_two_axes_are_two_nodes_of_one_drive():
         assert _set_point(a1, 80.0)
         assert fw.axes[1].target == 80.0 and fw.axes[0].target == 180.0
         with pytest.raises(HilError):
-            emu.add_drive(fw, 21)                        # node 21 is taken
+            emu.add_drive(fw, 21)  # node 21 is taken
 
 
 def test_many_drives_share_one_virtual_bus():
     from hil.drive import DriveFirmware
-    with emulated(node_id=1) as (fw, emu, ch), master(ch) as net:
+
+    with emulated(node_id=1) as (_fw, emu, ch), master(ch) as net:
         fws = [DriveFirmware(one_axis(), time.time, heartbeat_timeout=0) for _ in range(12)]
         for i, f in enumerate(fws):
             emu.add_drive(f, 2 + i)

@@ -27,21 +27,21 @@ def adapter():
 def test_lawicel_command_replies():
     with PtyLink.open() as link:
         bus = can.Bus(interface="virtual", channel=channel())
-        ad = SlcanAdapter(link, bus)   # not started: handle() only
+        ad = SlcanAdapter(link, bus)  # not started: handle() only
         try:
-            assert ad.handle("t1230") == ERROR          # channel closed
+            assert ad.handle("t1230") == ERROR  # channel closed
             assert ad.handle("S6") == OK
             assert ad.handle("S9") == ERROR
             assert ad.handle("O") == OK
-            assert ad.handle("S6") == ERROR             # bit rate only while closed
+            assert ad.handle("S6") == ERROR  # bit rate only while closed
             assert ad.handle("V") == b"V0110\r"
             assert ad.handle("N").startswith(b"N")
             assert ad.handle("F") == b"F00\r"
             assert ad.handle("t12321122") == b"z\r"
             assert ad.handle("T000001232AABB") == b"Z\r"
-            assert ad.handle("t1232112") == ERROR        # data shorter than DLC
-            assert ad.handle("t8001") == ERROR           # 11-bit id out of range, short
-            assert ad.handle("t12391122334455667788") == ERROR   # DLC 9
+            assert ad.handle("t1232112") == ERROR  # data shorter than DLC
+            assert ad.handle("t8001") == ERROR  # 11-bit id out of range, short
+            assert ad.handle("t12391122334455667788") == ERROR  # DLC 9
             assert ad.handle("?") == ERROR
             assert ad.handle("C") == OK
             assert ad.bad_commands == 4
@@ -71,4 +71,4 @@ def test_python_can_slcan_client_reaches_the_virtual_bus(adapter):
     finally:
         client.shutdown()
         node_side.shutdown()
-    assert wait_for(lambda: not ad.is_open)   # the client's shutdown sent "C"
+    assert wait_for(lambda: not ad.is_open)  # the client's shutdown sent "C"

@@ -19,10 +19,10 @@ def test_speed_and_acceleration_limits():
     ax = make(max_speed=0.5, accel=1.0, backlash=0.0)
     ax.target = 100.0
     ax.advance(0.2)
-    assert ax.velocity == pytest.approx(0.2, abs=1e-6)      # accel-limited
+    assert ax.velocity == pytest.approx(0.2, abs=1e-6)  # accel-limited
     ax.advance(5.0)
-    assert ax.velocity == pytest.approx(0.5)                # speed-limited
-    assert ax.output == pytest.approx(0.5 ** 2 / 2 + 0.5 * (5.2 - 0.5), abs=0.02)
+    assert ax.velocity == pytest.approx(0.5)  # speed-limited
+    assert ax.output == pytest.approx(0.5**2 / 2 + 0.5 * (5.2 - 0.5), abs=0.02)
 
 
 def test_backlash_is_dead_travel_after_reversal():
@@ -34,7 +34,7 @@ def test_backlash_is_dead_travel_after_reversal():
     ax.advance(0.3)  # the motor turns back but first crosses the play
     assert ax.output == pytest.approx(out_before)
     ax.advance(20)
-    assert ax.output == pytest.approx(4.0, abs=1e-3)        # the loop closes on the output
+    assert ax.output == pytest.approx(4.0, abs=1e-3)  # the loop closes on the output
 
 
 def test_encoder_quantisation():
@@ -51,7 +51,7 @@ def test_jammed_motor_latches_stall_fault():
     assert not ax.stalled
     ax.advance(1.0)
     assert ax.stalled and ax.output == 0.0
-    assert not ax.clear_faults()        # still jammed
+    assert not ax.clear_faults()  # still jammed
     ax.jammed = False
     assert ax.clear_faults()
 

@@ -1,6 +1,6 @@
 import pytest
 
-from firmware_protocol import Command, Fault, MAGIC, Mode, Status, decode, encode, register
+from firmware_protocol import MAGIC, Command, Fault, Mode, Status, decode, encode, register
 from hil.drive import DriveFirmware, FirmwareReject
 from tests.conftest import two_axes
 
@@ -48,11 +48,11 @@ def test_out_of_limit_target_is_clamped_and_flagged(fw, sim_clock):
 
 def test_watchdog_stows_when_heartbeat_stops(fw, sim_clock):
     write(fw, "TARGET_ANGLE", 100.0, 0)
-    for beat in range(1, 12):           # alive for 11 s
+    for beat in range(1, 12):  # alive for 11 s
         write(fw, "HEARTBEAT", beat)
         sim_clock.sleep(1.0)
     assert not Status(read(fw, "DEVICE_STATUS")) & Status.COMM_LOST
-    sim_clock.sleep(10.5)               # silence longer than the timeout
+    sim_clock.sleep(10.5)  # silence longer than the timeout
     status = Status(read(fw, "STATUS", 0))
     assert status & Status.COMM_LOST
     assert read(fw, "MODE", 0) == Mode.STOW
@@ -82,19 +82,19 @@ def test_stow_command_and_maintenance_mode(fw, sim_clock):
     write(fw, "COMMAND", Command.STOW)
     assert read(fw, "MODE", 0) == Mode.STOW
     assert read(fw, "MODE", 1) == Mode.MAINTENANCE
-    assert read(fw, "COMMAND") == 0     # executed and cleared
+    assert read(fw, "COMMAND") == 0  # executed and cleared
 
 
 def test_rejects_leave_state_unchanged(fw):
     before = fw.read(0, 64)
     with pytest.raises(FirmwareReject) as e:
-        fw.write(addr("ACTUAL_ANGLE", 0), [0, 5])          # read-only
+        fw.write(addr("ACTUAL_ANGLE", 0), [0, 5])  # read-only
     assert e.value.code == 2
     with pytest.raises(FirmwareReject) as e:
-        fw.write(addr("TARGET_ANGLE", 0) + 1, [5])          # half of an int32
+        fw.write(addr("TARGET_ANGLE", 0) + 1, [5])  # half of an int32
     assert e.value.code == 2
     with pytest.raises(FirmwareReject) as e:
-        fw.write(addr("MODE", 0), [9])                      # not a mode
+        fw.write(addr("MODE", 0), [9])  # not a mode
     assert e.value.code == 3
     # A multi-register write with one bad register applies nothing.
     with pytest.raises(FirmwareReject):

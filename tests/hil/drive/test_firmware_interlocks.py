@@ -29,7 +29,7 @@ def test_stow_angle_outside_the_soft_limits_is_refused(fw):
     with pytest.raises(FirmwareReject) as e:
         write(fw, "STOW_ANGLE", hi + 10, 1)
     assert e.value.code == 3
-    write(fw, "STOW_ANGLE", (lo + hi) / 2, 1)            # inside: fine
+    write(fw, "STOW_ANGLE", (lo + hi) / 2, 1)  # inside: fine
 
 
 def test_inverted_soft_limits_are_refused_whatever_the_order_of_writes(fw):
@@ -52,11 +52,11 @@ def test_the_watchdog_cannot_be_switched_off_outside_maintenance(fw):
     assert e.value.code == 3
     write(fw, "MODE", int(Mode.MAINTENANCE), 0)
     write(fw, "MODE", int(Mode.MAINTENANCE), 1)
-    write(fw, "HEARTBEAT_TIMEOUT", 0.0)                 # commissioning: allowed
+    write(fw, "HEARTBEAT_TIMEOUT", 0.0)  # commissioning: allowed
 
 
 def test_a_mode_write_cannot_leave_stow_without_resume(fw, sim_clock):
-    sim_clock.sleep(11.0)                               # watchdog: COMM_LOST, STOW
+    sim_clock.sleep(11.0)  # watchdog: COMM_LOST, STOW
     assert read(fw, "STATUS", 0) & Status.COMM_LOST
     with pytest.raises(FirmwareReject):
         write(fw, "MODE", int(Mode.AUTO), 0)
@@ -66,15 +66,14 @@ def test_a_mode_write_cannot_leave_stow_without_resume(fw, sim_clock):
 def test_the_watchdog_ignores_wall_clock_steps():
     wall = [1_000_000.0]
     mono = [50.0]
-    fw = DriveFirmware(two_axes(), lambda: wall[0], heartbeat_timeout=10.0,
-                       monotonic=lambda: mono[0])
-    wall[0] += 3600.0                                   # NTP steps the wall clock forward
+    fw = DriveFirmware(two_axes(), lambda: wall[0], heartbeat_timeout=10.0, monotonic=lambda: mono[0])
+    wall[0] += 3600.0  # NTP steps the wall clock forward
     fw.update()
     assert not fw.comm_lost
-    wall[0] -= 7200.0                                   # ... and back
+    wall[0] -= 7200.0  # ... and back
     mono[0] += 5.0
     write(fw, "HEARTBEAT", 1)
-    mono[0] += 9.0                                      # 9 s after the heartbeat: alive
+    mono[0] += 9.0  # 9 s after the heartbeat: alive
     fw.update()
     assert not fw.comm_lost
     mono[0] += 2.0

@@ -1,0 +1,118 @@
+"""The master's bookkeeping of one drive axis (one CiA 402 node): what its TPDOs said, and
+when they and its heartbeat were last heard."""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import canopen
+from canopen.objectdictionary import eds as eds_format
+
+from firmware_protocol import Fault, Mode, Status, register
+from firmware_protocol.canopen import State402, mirror_index, state_from_statusword
+from firmware_protocol.eds import eds
+
+from ..base import AxisState, DriveCommError
+
+_TARGET = register("TARGET_ANGLE")
+_ACTUAL = register("ACTUAL_ANGLE")
+_VELOCITY = register("VELOCITY")
+IDX_STATUS = mirror_index(register("STATUS"))
+IDX_FAULT = mirror_index(register("FAULT_CODE"))
+IDX_MODE = mirror_index(register("MODE"))
+#: The target the firmware works with (after clamping), mirrored in a TPDO.
+IDX_EFFECTIVE_TARGET = mirror_index(_TARGET)
+
+
+def load_od(eds_path: str | Path | None, node_id: int) -> canopen.ObjectDictionary:
+    """The object dictionary of node ``node_id``: from ``eds_path``, or the generated one."""
+    if eds_path is None:
+        return eds_format.import_eds(io.StringIO(eds()), node_id)
+    return canopen.import_od(str(eds_path), node_id)
+
+
+class Axis402:
+    """One axis: its ``BaseNode402`` and the reception times of its TPDOs and heartbeat.
+
+    Times are ``time.monotonic()`` seconds, written by canopen's receive thread.
+    """
+
+    def __init__(self, node: canopen.BaseNode402):
+        self.node = node
+        self.tpdo_time: dict[int, float] = {}  # TPDO number -> monotonic reception
+        self.heartbeat_time: float | None = None
+
+    @property
+    def statusword(self) -> int:
+        """The last statusword a TPDO carried (0 before any)."""
+        return int(self.node.tpdo_values.get(0x6041, 0))
+
+    @property
+    def state(self) -> State402 | None:
+        return state_from_statusword(self.statusword)
+
+    def enabled_tpdos(self) -> list[int]:
+        return [n for n, pdo in self.node.tpdo.items() if pdo.enabled]
+
+    def tpdos_mapping(self, index: int) -> list[int]:
+        """Numbers of the enabled TPDOs that carry object ``index``."""
+        return [
+            n for n, pdo in self.node.tpdo.items() if pdo.enabled and any(v.index == index for v in pdo.map)
+        ]
+
+    def reflects_target(self, raw: int, since: float) -> bool:
+        """The drive's effective target is ``raw``, or every TPDO carrying it has been heard
+        since ``since`` (the drive took the set-point and clamped it)."""
+        if self.node.tpdo_values.get(IDX_EFFECTIVE_TARGET) == raw:
+            return True
+        return all(self.tpdo_time.get(n, 0.0) > since for n in self.tpdos_mapping(IDX_EFFECTIVE_TARGET))
+
+    def check_fresh(self, now: float, stale_s: float, producer_heartbeat_ms: int, label: str) -> None:
+        """Refuse a state that is no longer the drive's.
+
+        Raises
+        ------
+        DriveCommError
+            The node's heartbeat stopped (three periods), it left OPERATIONAL, or one of
+            its TPDOs is older than ``stale_s``.
+        """
+        node = self.node
+        if (
+            self.heartbeat_time is not None
+            and now - self.heartbeat_time > 3 * producer_heartbeat_ms / 1000 > 0
+        ):
+            raise DriveCommError(f"{label}: heartbeat of node {node.id} lost")
+        if node.nmt.state not in ("OPERATIONAL", "INITIALISING") and self.heartbeat_time:
+            raise DriveCommError(
+                f"{label}: node {node.id} left OPERATIONAL (NMT {node.nmt.state}); reconnect"
+            )
+        for number in self.enabled_tpdos():
+            t = self.tpdo_time.get(number)
+            if t is None or now - t > stale_s:
+                raise DriveCommError(f"{label}: no TPDO{number} from node {node.id} for {stale_s:g} s")
+
+    def axis_state(self, label: str) -> AxisState:
+        """The axis as its last TPDOs describe it (degrees, deg/s).
+
+        Raises
+        ------
+        DriveCommError
+            An object the state needs is not mapped, or a code on the wire is unknown.
+        """
+        v = self.node.tpdo_values
+        try:
+            return AxisState(
+                actual_deg=v[0x6064] * _ACTUAL.scale,
+                target_deg=v[IDX_EFFECTIVE_TARGET] * _TARGET.scale,
+                velocity_dps=v[0x606C] * _VELOCITY.scale,
+                status=Status(int(v[IDX_STATUS])),
+                fault=Fault(int(v[IDX_FAULT])),
+                mode=Mode(int(v[IDX_MODE])),
+            )
+        except KeyError as exc:
+            raise DriveCommError(
+                f"{label}: node {self.node.id} does not map 0x{exc.args[0]:04X} in a TPDO"
+            ) from None
+        except ValueError as exc:  # an unknown fault or mode code on the wire
+            raise DriveCommError(f"{label}: implausible state from node {self.node.id}: {exc}") from None

@@ -1,0 +1,76 @@
+"""Writing a CANopen drive's configuration: consumer heartbeat, soft limits, stow angles.
+
+The limits and the stow angle go in an order a firmware with interlocks accepts at every
+step (:func:`~controller.drives.soft_limits.soft_limit_steps`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import partial
+from typing import TYPE_CHECKING
+
+from firmware_protocol import register
+from firmware_protocol.canopen import mirror_index
+from firmware_protocol.codec import to_raw
+
+from ..base import DriveCommError, LinkSettingsError, soft_limit_steps
+
+if TYPE_CHECKING:
+    from .drive import CanopenDrive
+
+LIMIT_MIN = register("SOFT_LIMIT_MIN")
+LIMIT_MAX = register("SOFT_LIMIT_MAX")
+STOW = register("STOW_ANGLE")
+
+
+async def configure_drive(
+    drive: CanopenDrive,
+    *,
+    heartbeat_timeout_s: float | None = None,
+    soft_limits: Sequence[tuple[float, float]] | None = None,
+    stow_angles: Sequence[float] | None = None,
+) -> None:
+    if not drive.axes:
+        raise DriveCommError(f"{drive.label}: not connected")
+    if heartbeat_timeout_s is not None:
+        ms = round(heartbeat_timeout_s * 1000)
+        if not 0 <= ms <= 0xFFFF:
+            raise LinkSettingsError(
+                f"{drive.label}: heartbeat timeout {heartbeat_timeout_s:g} s "
+                "outside the 0..65.535 s a CANopen consumer heartbeat "
+                "time holds"
+            )
+        value = (drive.master_node_id << 16) | ms
+        for axis in drive.axes:
+            await drive.sdo(
+                "consumer heartbeat write", partial(setattr, axis.node.sdo[0x1016][1], "raw", value)
+            )
+    limits, stows = list(soft_limits or ()), list(stow_angles or ())
+    for k, (lo, hi) in enumerate(limits):
+        if to_raw(LIMIT_MIN, lo) > to_raw(LIMIT_MAX, hi):
+            raise ValueError(f"soft limits of axis {k}: min {lo} > max {hi}")
+    for k in range(max(len(limits), len(stows))):
+        node = drive.axes[k].node
+        new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+        stow = stows[k] if k < len(stows) else None
+        current = (0.0, 0.0)
+        if new is not None and stow is not None:
+            lo_raw = await drive.sdo("soft limit read", partial(getattr, node.sdo[0x607D][1], "raw"))
+            hi_raw = await drive.sdo("soft limit read", partial(getattr, node.sdo[0x607D][2], "raw"))
+            current = (lo_raw * LIMIT_MIN.scale, hi_raw * LIMIT_MAX.scale)
+        for step in soft_limit_steps(current, new, stow):
+            if isinstance(step, tuple):  # min first: valid on the way (see the steps)
+                await drive.sdo(
+                    "soft limit write",
+                    partial(setattr, node.sdo[0x607D][1], "raw", to_raw(LIMIT_MIN, step[0])),
+                )
+                await drive.sdo(
+                    "soft limit write",
+                    partial(setattr, node.sdo[0x607D][2], "raw", to_raw(LIMIT_MAX, step[1])),
+                )
+            else:
+                await drive.sdo(
+                    "stow angle write",
+                    partial(setattr, node.sdo[mirror_index(STOW)], "raw", to_raw(STOW, step)),
+                )

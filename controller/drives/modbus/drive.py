@@ -1,0 +1,289 @@
+"""Modbus RTU and TCP drive links over pymodbus's asyncio clients (``modbus-rtu``, ``modbus-tcp``)."""
+
+from __future__ import annotations
+
+from collections.abc import Awaitable, Callable, Sequence
+from typing import Any
+
+from firmware_protocol import (
+    AXIS_STRIDE,
+    MAGIC,
+    PROTOCOL_VERSION,
+    Command,
+    Fault,
+    Mode,
+    Status,
+    decode,
+    encode,
+    register,
+)
+from firmware_protocol.codec import axis_block_address, decode_axis
+
+from ..base import (
+    AxisState,
+    DriveCommError,
+    DriveIdentity,
+    DriveLink,
+    DriveState,
+    LinkStats,
+    soft_limit_steps,
+)
+from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from .client import checked, endpoint, modbus_client, retry_policy
+
+_ID_WORDS = 3
+_TARGET = register("TARGET_ANGLE")
+_LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
+_STOW = register("STOW_ANGLE")
+
+
+class ModbusDrive(DriveLink):
+    """A drive on a pymodbus asyncio client (serial RTU or TCP).
+
+    Parameters
+    ----------
+    client : pymodbus async client
+        Or the :class:`~controller.drives.modbus.client.SharedSerialClient` of a port.
+    device_id : int
+        Modbus slave id of the drive.
+    retries : int
+        Extra attempts after a failed transaction.
+    label : str
+        Used in error messages (``"/dev/ttyUSB0 id 4"``).
+    reopen : callable, optional
+        Returns the client again after :meth:`close` (a shared line's client is released
+        on close; connecting again must take the line's current one, not keep its own).
+    """
+
+    def __init__(
+        self,
+        client: Any,
+        device_id: int,
+        retries: int = 2,
+        label: str = "",
+        reopen: Callable[[], Any] | None = None,
+    ):
+        self.client = client
+        self.reopen = reopen
+        self.device_id = device_id
+        self.retries = retries
+        self.policy = retry_policy(retries)
+        self.label = label or f"id {device_id}"
+        self.axis_count = 0
+        self.stats = LinkStats()
+        self._beat = 0
+        self._closed = False
+
+    async def _call(
+        self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
+    ) -> Any:
+        """One request to this slave under the link's retry policy."""
+        return await self.policy.run(
+            lambda: checked(request, *args, device_id=self.device_id, **kwargs),
+            what=what,
+            label=self.label,
+            stats=self.stats,
+        )
+
+    async def connect(self) -> None:
+        if self._closed:  # connected again after close (the loop's reconnection)
+            self._closed = False
+            if self.reopen is not None:
+                self.client = self.reopen()
+        if not await self.client.connect():
+            raise DriveCommError(f"{self.label}: cannot open the link")
+        words = (
+            await self._call("identification read", self.client.read_holding_registers, 0, count=_ID_WORDS)
+        ).registers
+        if words[0] != MAGIC:
+            raise DriveCommError(f"{self.label}: not a heliotrack drive (register 0 = {words[0]:#06x})")
+        if words[1] >> 8 != PROTOCOL_VERSION >> 8:
+            raise DriveCommError(
+                f"{self.label}: protocol {words[1] >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x"
+            )
+        if not 1 <= words[2] <= 2:
+            raise DriveCommError(f"{self.label}: implausible axis count {words[2]}")
+        self.axis_count = words[2]
+
+    async def close(self) -> None:
+        if not self._closed:  # once: a shared line's client counts its users
+            self._closed = True
+            self.client.close()
+
+    def _decode_state(self, words: Sequence[int]) -> DriveState:
+        axes = []
+        try:
+            for k in range(self.axis_count):
+                v = decode_axis(words, k * AXIS_STRIDE)
+                axes.append(
+                    AxisState(
+                        actual_deg=float(v["ACTUAL_ANGLE"]),
+                        target_deg=float(v["TARGET_ANGLE"]),
+                        velocity_dps=float(v["VELOCITY"]),
+                        status=Status(int(v["STATUS"])),
+                        fault=Fault(int(v["FAULT_CODE"])),
+                        mode=Mode(int(v["MODE"])),
+                    )
+                )
+        except (ValueError, KeyError) as exc:  # an unknown mode or fault code on the wire
+            raise DriveCommError(f"{self.label}: implausible state from the drive: {exc}") from None
+        dev = Status(0)
+        for a in axes:
+            dev |= a.status
+        return DriveState(self.axis_count, tuple(axes), dev)
+
+    async def read_state(self) -> DriveState:
+        rr = await self._call(
+            "state read",
+            self.client.read_holding_registers,
+            axis_block_address(0),
+            count=AXIS_STRIDE * self.axis_count,
+        )
+        return self._decode_state(rr.registers)
+
+    def _check(self, angles_deg: Sequence[float]) -> None:
+        if len(angles_deg) != self.axis_count:
+            raise ValueError(f"{self.label}: {len(angles_deg)} targets for {self.axis_count} axes")
+
+    async def write_targets(self, angles_deg: Sequence[float]) -> None:
+        self._check(angles_deg)
+        for k, angle in enumerate(angles_deg):
+            await self._call(
+                "target write", self.client.write_registers, _TARGET.address(k), encode(_TARGET, angle)
+            )
+
+    async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
+        """Axis 1's target by FC16, then axis 0's target and the state read in one FC23."""
+        self._check(angles_deg)
+        for k in range(1, self.axis_count):
+            await self._call(
+                "target write",
+                self.client.write_registers,
+                _TARGET.address(k),
+                encode(_TARGET, angles_deg[k]),
+            )
+        rr = await self._call(
+            "target write + state read",
+            self.client.readwrite_registers,
+            read_address=axis_block_address(0),
+            read_count=AXIS_STRIDE * self.axis_count,
+            write_address=_TARGET.address(0),
+            values=encode(_TARGET, angles_deg[0]),
+        )
+        return self._decode_state(rr.registers)
+
+    async def heartbeat(self) -> None:
+        self._beat = (self._beat + 1) & 0xFFFF
+        await self._call("heartbeat", self.client.write_register, register("HEARTBEAT").address(), self._beat)
+
+    async def command(self, cmd: Command) -> None:
+        await self._call(
+            f"command {cmd.name}", self.client.write_register, register("COMMAND").address(), int(cmd)
+        )
+
+    async def configure(
+        self,
+        *,
+        heartbeat_timeout_s: float | None = None,
+        soft_limits: Sequence[tuple[float, float]] | None = None,
+        stow_angles: Sequence[float] | None = None,
+    ) -> None:
+        if heartbeat_timeout_s is not None:
+            reg = register("HEARTBEAT_TIMEOUT")
+            await self._call(
+                "configure", self.client.write_registers, reg.address(), encode(reg, heartbeat_timeout_s)
+            )
+        limits, stows = list(soft_limits or ()), list(stow_angles or ())
+        for k in range(max(len(limits), len(stows))):
+            new = (limits[k][0], limits[k][1]) if k < len(limits) else None
+            stow = stows[k] if k < len(stows) else None
+            current = await self._soft_limits(k) if new is not None and stow is not None else (0.0, 0.0)
+            for step in soft_limit_steps(current, new, stow):
+                if isinstance(step, tuple):
+                    await self._call(
+                        "configure",
+                        self.client.write_registers,
+                        _LIMIT_MIN.address(k),
+                        encode(_LIMIT_MIN, step[0]) + encode(_LIMIT_MAX, step[1]),
+                    )
+                else:
+                    await self._call(
+                        "configure", self.client.write_registers, _STOW.address(k), encode(_STOW, step)
+                    )
+
+    async def _soft_limits(self, k: int) -> tuple[float, float]:
+        """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
+        rr = await self._call(
+            "soft limit read",
+            self.client.read_holding_registers,
+            _LIMIT_MIN.address(k),
+            count=_LIMIT_MIN.words + _LIMIT_MAX.words,
+        )
+        words = rr.registers
+        return (
+            float(decode(_LIMIT_MIN, words[: _LIMIT_MIN.words])),
+            float(decode(_LIMIT_MAX, words[_LIMIT_MIN.words :])),
+        )
+
+    async def identify(self) -> DriveIdentity:
+        first, last = register("MAGIC"), register("UPTIME")
+        n = last.address() + last.words - first.address()
+        rr = await self._call(
+            "identification read", self.client.read_holding_registers, first.address(), count=n
+        )
+        w = rr.registers
+
+        def val(name: str) -> float:
+            reg = register(name)
+            a = reg.address() - first.address()
+            return float(decode(reg, w[a : a + reg.words]))
+
+        return DriveIdentity(
+            int(val("AXIS_COUNT")), int(val("PROTOCOL_VERSION")), int(val("FIRMWARE_VERSION")), val("UPTIME")
+        )
+
+    async def read_register(self, name: str, axis: int | None = None) -> float | int:
+        reg = register(name)
+        rr = await self._call(
+            f"read {name}", self.client.read_holding_registers, reg.address(axis), count=reg.words
+        )
+        return decode(reg, rr.registers)
+
+
+class ModbusRtuDrive(ModbusDrive):
+    """A drive on a Modbus RTU line (link kind ``modbus-rtu``)."""
+
+    config_type = ModbusRtuLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusRtuDrive:
+        """Slave ``device_id`` on the line's shared client (see
+        :func:`~controller.drives.modbus.client.modbus_client`)."""
+        if not isinstance(link, ModbusRtuLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )
+
+
+class ModbusTcpDrive(ModbusDrive):
+    """A drive behind Modbus TCP (link kind ``modbus-tcp``)."""
+
+    config_type = ModbusTcpLink
+
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusTcpDrive:
+        """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
+        if not isinstance(link, ModbusTcpLink):
+            raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )

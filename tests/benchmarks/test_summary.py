@@ -1,0 +1,29 @@
+"""`heliotrack bench` summary: headline rows from every committed result, a miss exits 1."""
+
+import json
+import shutil
+
+from benchmarks import BENCHMARKS, RESULTS_DIR
+from benchmarks.summary import headlines, load_results
+from heliotrack.cli import main
+
+
+def test_every_committed_result_gives_headline_rows():
+    for name, rec in load_results(list(BENCHMARKS)).items():
+        if rec is None:
+            continue
+        rows = headlines(name, rec["result"])
+        assert rows, name
+        assert not any(r.figure == "result file" for r in rows), (name, rows)
+
+
+def test_summary_marks_a_miss_and_the_command_exits_1(tmp_path, capsys):
+    shutil.copy(RESULTS_DIR / "persistence.json", tmp_path / "persistence.json")
+    assert main(["bench", "persistence", "--summary-only", "--results-dir", str(tmp_path)]) == 0
+    rec = json.loads((tmp_path / "persistence.json").read_text())
+    rec["result"]["corruptions"] = 2
+    (tmp_path / "persistence.json").write_text(json.dumps(rec))
+    assert main(["bench", "persistence", "--summary-only", "--results-dir", str(tmp_path)]) == 1
+    assert "persistence: corruptions = 2 (target 0)" in capsys.readouterr().err
+    md = (tmp_path / "summary.md").read_text()
+    assert "| persistence" in md and "**miss**" in md and "(not run)" in md
