@@ -65,8 +65,10 @@ def _calibrate_chain(scn, step_min: int):
 
     L = scn.lens
     rng = np.random.default_rng(5)
-    views = [(f"b{i}", render_checkerboard(L, rv, tv, rng=rng))
-             for i, (rv, tv) in enumerate(checkerboard_poses(L, 30, rng, max_theta_deg=80.0))]
+    views = [
+        (f"b{i}", render_checkerboard(L, rv, tv, rng=rng))
+        for i, (rv, tv) in enumerate(checkerboard_poses(L, 30, rng, max_theta_deg=80.0))
+    ]
     lens_cal = calibrate_fisheye(views, (L.width, L.height))
     est = FisheyeEstimator(FisheyeBundle(camera=lens_cal.camera))
     ts, dirs, uvs = [], [], []
@@ -78,20 +80,29 @@ def _calibrate_chain(scn, step_min: int):
             uvs.append(r.centre_uv)
     s = scn.site
     site = Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude)
-    fit = fit_orientation(ts, np.array(dirs), site, uv=np.array(uvs), camera=lens_cal.camera,
-                          refine="lens")
+    fit = fit_orientation(ts, np.array(dirs), site, uv=np.array(uvs), camera=lens_cal.camera, refine="lens")
     R_true = scn.R_enu_from_cam
     rot_err = float(np.degrees(np.arccos(np.clip((np.trace(fit.enu_from_camera @ R_true.T) - 1) / 2, -1, 1))))
-    bundle = FisheyeBundle(camera=fit.camera or lens_cal.camera,
-                           orientation=OrientationCal(enu_from_camera=as_mat3(fit.enu_from_camera),
-                                                      residual_deg=fit.residual_deg, frames=fit.used),
-                           site=SiteCal(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
+    bundle = FisheyeBundle(
+        camera=fit.camera or lens_cal.camera,
+        orientation=OrientationCal(
+            enu_from_camera=as_mat3(fit.enu_from_camera), residual_deg=fit.residual_deg, frames=fit.used
+        ),
+        site=SiteCal(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude),
+    )
     c = lens_cal.camera
-    info = {"lens_rms_px": round(lens_cal.rms_px, 4), "views": len(lens_cal.used),
-            "fx_error_px": round(c.fx - L.fx, 3), "cx_error_px": round(c.cx - L.cx, 3),
-            "cy_error_px": round(c.cy - L.cy, 3), "orientation_residual_deg": round(fit.residual_deg, 4),
-            "orientation_residual_px": round(fit.residual_px or 0.0, 4), "detections": fit.used,
-            "rotation_error_deg": round(rot_err, 4), "tilt_deg": round(fit.tilt_deg, 3)}
+    info = {
+        "lens_rms_px": round(lens_cal.rms_px, 4),
+        "views": len(lens_cal.used),
+        "fx_error_px": round(c.fx - L.fx, 3),
+        "cx_error_px": round(c.cx - L.cx, 3),
+        "cy_error_px": round(c.cy - L.cy, 3),
+        "orientation_residual_deg": round(fit.residual_deg, 4),
+        "orientation_residual_px": round(fit.residual_px or 0.0, 4),
+        "detections": fit.used,
+        "rotation_error_deg": round(rot_err, 4),
+        "tilt_deg": round(fit.tilt_deg, 3),
+    }
     return replace(bundle), info
 
 
@@ -105,8 +116,12 @@ def clear_days(profile: str, sites, step_min: int) -> dict:
         scn = sky_profile(profile, site=WORLD_SITES[site_name])
         chain_bundle, chain_info = _calibrate_chain(scn, step_min)
         known = truth_bundle(scn)
-        ests: dict = {"default_known": FisheyeEstimator(known), "default_chain": FisheyeEstimator(chain_bundle),
-                "seed": SeedEstimator(known), "seed_centroid_lens": SeedThroughLens(known)}
+        ests: dict = {
+            "default_known": FisheyeEstimator(known),
+            "default_chain": FisheyeEstimator(chain_bundle),
+            "seed": SeedEstimator(known),
+            "seed_centroid_lens": SeedThroughLens(known),
+        }
         rows: dict = {k: [] for k in ests}
         not_found: dict = {k: {} for k in ests}
         sig = []
@@ -130,10 +145,15 @@ def clear_days(profile: str, sites, step_min: int) -> dict:
         res = {"frames": n, "chain_calibration": chain_info}
         for k in ests:
             e = np.array(rows[k]) if rows[k] else np.zeros((0, 2))
-            res[k] = {"found": len(rows[k]), "all_el_ge_5": stats(e[:, 1] if len(e) else []),
-                      "el_ge_10": stats(e[e[:, 0] >= 10, 1] if len(e) else []),
-                      "not_found": not_found[k]}
-        res["default_known"]["frac_within_2sigma"] = round(float(np.mean(np.array(sig) < 2)), 3) if sig else None
+            res[k] = {
+                "found": len(rows[k]),
+                "all_el_ge_5": stats(e[:, 1] if len(e) else []),
+                "el_ge_10": stats(e[e[:, 0] >= 10, 1] if len(e) else []),
+                "not_found": not_found[k],
+            }
+        res["default_known"]["frac_within_2sigma"] = (
+            round(float(np.mean(np.array(sig) < 2)), 3) if sig else None
+        )
         out[site_name] = res
     return out
 
@@ -154,12 +174,16 @@ def suites(quick: bool) -> dict:
     from hil.skycam import sky_profile
 
     base = sky_profile("seed")
-    make = {"default": lambda s: FisheyeEstimator(truth_bundle(s)),
-            "default_no_site": lambda s: FisheyeEstimator(truth_bundle(s, site=False)),
-            "seed": lambda s: SeedEstimator(truth_bundle(s)),
-            "seed_centroid_lens": lambda s: SeedThroughLens(truth_bundle(s))}
-    return {"clouds": run_sequences(cloud_sequences(base, quick), make),
-            "distractors": run_sequences(distractor_sequences(base, quick), make)}
+    make = {
+        "default": lambda s: FisheyeEstimator(truth_bundle(s)),
+        "default_no_site": lambda s: FisheyeEstimator(truth_bundle(s, site=False)),
+        "seed": lambda s: SeedEstimator(truth_bundle(s)),
+        "seed_centroid_lens": lambda s: SeedThroughLens(truth_bundle(s)),
+    }
+    return {
+        "clouds": run_sequences(cloud_sequences(base, quick), make),
+        "distractors": run_sequences(distractor_sequences(base, quick), make),
+    }
 
 
 def robustness(quick: bool) -> dict:
@@ -192,14 +216,17 @@ def fps(quick: bool) -> dict:
 
     out: dict = {"load_average_before": [round(x, 2) for x in os.getloadavg()]}
     n = 10 if quick else 30
-    for label, scn in (("640x480", sky_profile("seed")),
-                       ("1920x1080", sky_profile("hd").with_(lens=full_hd_lens()))):
+    for label, scn in (
+        ("640x480", sky_profile("seed")),
+        ("1920x1080", sky_profile("hd").with_(lens=full_hd_lens())),
+    ):
         ts = [utc(2025, 3, 20, 4, 0) + 900.0 * k for k in range(n)]
         images = [render_sky(scn, t).image for t in ts]
         b = truth_bundle(scn)
-        out[label] = {"default": frames_per_second(lambda b=b: FisheyeEstimator(b), images, ts[0]),
-                      "seed": frames_per_second(lambda b=b: SeedEstimator(b), images, ts[0],
-                                                repeats=3)}
+        out[label] = {
+            "default": frames_per_second(lambda b=b: FisheyeEstimator(b), images, ts[0]),
+            "seed": frames_per_second(lambda b=b: SeedEstimator(b), images, ts[0], repeats=3),
+        }
     out["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
     return out
 
@@ -212,9 +239,13 @@ def run(quick: bool = False) -> dict:
     sets = suites(quick)
     rob = robustness(quick)
     speed = fps(quick)
-    pooled = {p: {k: {"all_el_ge_5": _pool(d, k, "all_el_ge_5"), "el_ge_10": _pool(d, k, "el_ge_10")}
-                  for k in ("default_known", "default_chain", "seed", "seed_centroid_lens")}
-              for p, d in (("seed", seed_clear), ("hd", hd_clear))}
+    pooled = {
+        p: {
+            k: {"all_el_ge_5": _pool(d, k, "all_el_ge_5"), "el_ge_10": _pool(d, k, "el_ge_10")}
+            for k in ("default_known", "default_chain", "seed", "seed_centroid_lens")
+        }
+        for p, d in (("seed", seed_clear), ("hd", hd_clear))
+    }
     dflt = sets["clouds"]["default"]
     dist = sets["distractors"]["default"]
     acceptance = {
@@ -222,12 +253,20 @@ def run(quick: bool = False) -> dict:
         "clear_1280x960_rms_le_0.02": pooled["hd"]["default_known"]["all_el_ge_5"]["rms_deg"] <= 0.02,
         "broken_cloud_visible_rms_le_0.2": (dflt["error_where_visible"].get("rms_deg") or 9) <= 0.2,
         "zero_false_detections": dflt["counts"]["false_detection"] + dist["counts"]["false_detection"] == 0,
-        "misses_le_5pct": max(dflt["counts"]["miss_rate_of_visible"],
-                              dist["counts"]["miss_rate_of_visible"]) <= 0.05,
+        "misses_le_5pct": max(dflt["counts"]["miss_rate_of_visible"], dist["counts"]["miss_rate_of_visible"])
+        <= 0.05,
         "fps_640x480_ge_200": speed["640x480"]["default"]["fps"] >= 200,
         "fps_1920x1080_ge_50": speed["1920x1080"]["default"]["fps"] >= 50,
     }
-    return {"definitions": DEFINITIONS, "pooled_clear": pooled, "clear_seed_profile": seed_clear,
-            "clear_hd_profile": hd_clear, "clouds": sets["clouds"], "distractors": sets["distractors"],
-            "variations_seed_profile": rob, "fps": speed, "acceptance": acceptance,
-            "seconds": round(time.perf_counter() - t0, 1)}
+    return {
+        "definitions": DEFINITIONS,
+        "pooled_clear": pooled,
+        "clear_seed_profile": seed_clear,
+        "clear_hd_profile": hd_clear,
+        "clouds": sets["clouds"],
+        "distractors": sets["distractors"],
+        "variations_seed_profile": rob,
+        "fps": speed,
+        "acceptance": acceptance,
+        "seconds": round(time.perf_counter() - t0, 1),
+    }

@@ -43,13 +43,15 @@ def truth_bundle(scn, *, site: bool = True, orientation: bool = True, camera=Non
     from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 
     L = scn.lens
-    cam = camera or CameraCal(width=L.width, height=L.height, fx=L.fx, fy=L.fy, cx=L.cx, cy=L.cy,
-                              dist=tuple(L.D), model="fisheye")
+    cam = camera or CameraCal(
+        width=L.width, height=L.height, fx=L.fx, fy=L.fy, cx=L.cx, cy=L.cy, dist=tuple(L.D), model="fisheye"
+    )
     s = scn.site
     return FisheyeBundle(
         camera=cam,
         orientation=OrientationCal(enu_from_camera=as_mat3(scn.R_enu_from_cam)) if orientation else None,
-        site=SiteCal(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude) if site else None)
+        site=SiteCal(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude) if site else None,
+    )
 
 
 def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -73,9 +75,13 @@ def stats(errs) -> dict:
     e = np.asarray([x for x in errs if x is not None and np.isfinite(x)], float)
     if e.size == 0:
         return {"n": 0}
-    return {"n": int(e.size), "rms_deg": round(float(np.sqrt(np.mean(e ** 2))), 4),
-            "median_deg": round(float(np.median(e)), 4), "p95_deg": round(float(np.percentile(e, 95)), 4),
-            "max_deg": round(float(e.max()), 4)}
+    return {
+        "n": int(e.size),
+        "rms_deg": round(float(np.sqrt(np.mean(e**2))), 4),
+        "median_deg": round(float(np.median(e)), 4),
+        "p95_deg": round(float(np.percentile(e, 95)), 4),
+        "max_deg": round(float(e.max()), 4),
+    }
 
 
 def day_frames(scn, day: tuple[int, int, int], step_min: int, min_el: float = 5.0):
@@ -83,16 +89,31 @@ def day_frames(scn, day: tuple[int, int, int], step_min: int, min_el: float = 5.
     t0 = utc(*day)
     ts = t0 + np.arange(0, 86400, step_min * 60)
     sp = scn.sun(ts)
-    return [(float(t), float(a), float(e)) for t, a, e in zip(ts, sp["azimuth"], sp["elevation"]) if e >= min_el]
+    return [
+        (float(t), float(a), float(e)) for t, a, e in zip(ts, sp["azimuth"], sp["elevation"]) if e >= min_el
+    ]
 
 
 @dataclass
 class Tally:
     """Counts of the cloud and distractor suites, and the errors of correct detections."""
 
-    counts: dict = field(default_factory=lambda: {k: 0 for k in (
-        "frames", "correct_detection", "false_detection", "miss", "correct_rejection",
-        "dimmed_not_found", "visible", "hidden", "dimmed")})
+    counts: dict = field(
+        default_factory=lambda: {
+            k: 0
+            for k in (
+                "frames",
+                "correct_detection",
+                "false_detection",
+                "miss",
+                "correct_rejection",
+                "dimmed_not_found",
+                "visible",
+                "hidden",
+                "dimmed",
+            )
+        }
+    )
     errors_visible: list = field(default_factory=list)
     sigma_ratios: list = field(default_factory=list)
     reasons: dict = field(default_factory=dict)
@@ -123,9 +144,12 @@ class Tally:
         c = dict(self.counts)
         c["miss_rate_of_visible"] = round(c["miss"] / max(c["visible"], 1), 4)
         r = np.asarray(self.sigma_ratios)
-        return {"counts": c, "error_where_visible": stats(self.errors_visible),
-                "frac_within_2sigma": round(float(np.mean(r < 2.0)), 3) if r.size else None,
-                "miss_reasons": dict(sorted(self.reasons.items()))}
+        return {
+            "counts": c,
+            "error_where_visible": stats(self.errors_visible),
+            "frac_within_2sigma": round(float(np.mean(r < 2.0)), 3) if r.size else None,
+            "miss_reasons": dict(sorted(self.reasons.items())),
+        }
 
 
 def run_sequences(sequences, make_estimators: dict) -> dict:
@@ -159,8 +183,13 @@ def cloud_sequences(base, quick: bool):
             frames = day_frames(base, day, 10, min_el=15.0)
             t0 = frames[int(rng.integers(0, max(len(frames) - 4, 1)))][0]
             wx, wy = (float(x) for x in rng.uniform(-10, 10, 2))
-            clouds = CloudField(coverage=cov, seed=int(rng.integers(1, 10_000)), wind_mps=(wx, wy),
-                                tau_max=float(rng.uniform(6, 16)), scale_m=float(rng.uniform(600, 1500)))
+            clouds = CloudField(
+                coverage=cov,
+                seed=int(rng.integers(1, 10_000)),
+                wind_mps=(wx, wy),
+                tau_max=float(rng.uniform(6, 16)),
+                scale_m=float(rng.uniform(600, 1500)),
+            )
             out.append((base.with_(clouds=clouds), [(t0 + 60.0 * i, {}) for i in range(n_frames)]))
     return out
 
@@ -182,25 +211,43 @@ def distractor_sequences(base, quick: bool):
             sun = base.sun([t0])
             dis: SpecularReflection | AircraftGlint | FlareGhost
             if kind == "reflection":
-                dis = SpecularReflection(az_deg=float((sun["azimuth"][0] + rng.uniform(40, 320)) % 360),
-                                         el_deg=float(rng.uniform(-8, 45)),
-                                         strength=float(rng.uniform(0.6, 1.0)))
+                dis = SpecularReflection(
+                    az_deg=float((sun["azimuth"][0] + rng.uniform(40, 320)) % 360),
+                    el_deg=float(rng.uniform(-8, 45)),
+                    strength=float(rng.uniform(0.6, 1.0)),
+                )
             elif kind == "glint":
-                dis = AircraftGlint(az0_deg=float(rng.uniform(0, 360)), el0_deg=float(rng.uniform(20, 70)),
-                                    t0=t0, daz_dps=float(rng.uniform(-0.08, 0.08)),
-                                    del_dps=float(rng.uniform(-0.02, 0.02)),
-                                    radius_px=float(rng.uniform(1.0, 3.0)) * base.lens.width / 640,
-                                    duration_s=n_frames * 60.0)
+                dis = AircraftGlint(
+                    az0_deg=float(rng.uniform(0, 360)),
+                    el0_deg=float(rng.uniform(20, 70)),
+                    t0=t0,
+                    daz_dps=float(rng.uniform(-0.08, 0.08)),
+                    del_dps=float(rng.uniform(-0.02, 0.02)),
+                    radius_px=float(rng.uniform(1.0, 3.0)) * base.lens.width / 640,
+                    duration_s=n_frames * 60.0,
+                )
             else:
-                dis = FlareGhost(position=float(rng.uniform(0.4, 1.0)),
-                                 radius_px=float(rng.uniform(6, 11)) * base.lens.width / 640,
-                                 level=float(rng.uniform(1.1, 1.8)),
-                                 tint=(float(rng.uniform(0.7, 1.0)), float(rng.uniform(0.7, 1.0)),
-                                       float(rng.uniform(0.7, 1.0))))
+                dis = FlareGhost(
+                    position=float(rng.uniform(0.4, 1.0)),
+                    radius_px=float(rng.uniform(6, 11)) * base.lens.width / 640,
+                    level=float(rng.uniform(1.1, 1.8)),
+                    tint=(
+                        float(rng.uniform(0.7, 1.0)),
+                        float(rng.uniform(0.7, 1.0)),
+                        float(rng.uniform(0.7, 1.0)),
+                    ),
+                )
             scn = base.with_(distractors=(dis,))
             hide = range(n_frames // 3, 2 * n_frames // 3)
-            out.append((scn, [(t0 + 60.0 * i, {"sun_transmittance": 0.0} if i in hide else {})
-                              for i in range(n_frames)]))
+            out.append(
+                (
+                    scn,
+                    [
+                        (t0 + 60.0 * i, {"sun_transmittance": 0.0} if i in hide else {})
+                        for i in range(n_frames)
+                    ],
+                )
+            )
     return out
 
 
@@ -209,25 +256,37 @@ def variations(base):
     from hil.skycam import FisheyeLens, orientation
 
     g, sen, sky = base.glare, base.sensor, base.sky
-    other_lens = FisheyeLens(width=640, height=480, fx=150.0, fy=151.0, cx=322.4, cy=236.8,
-                             D=(-0.015, -0.004, 0.0008, -0.0001), fov_deg=200.0, name="other")
+    other_lens = FisheyeLens(
+        width=640,
+        height=480,
+        fx=150.0,
+        fy=151.0,
+        cx=322.4,
+        cy=236.8,
+        D=(-0.015, -0.004, 0.0008, -0.0001),
+        fov_deg=200.0,
+        name="other",
+    )
     return {
         "nominal": base,
         "glare round on the sky (image_weight 0)": base.with_(glare=replace(g, image_weight=0.0)),
         "glare round on the sensor (image_weight 1)": base.with_(glare=replace(g, image_weight=1.0)),
         "narrow glare (radius 2 deg, power 4)": base.with_(glare=replace(g, radius_deg=2.0, power=4.0)),
         "wide soft glare (radius 5 deg, power 2, halo 0.3)": base.with_(
-            glare=replace(g, radius_deg=5.0, power=2.0, halo_level=0.3)),
+            glare=replace(g, radius_deg=5.0, power=2.0, halo_level=0.3)
+        ),
         "CCD smear 0.3": base.with_(glare=replace(g, smear="ccd", smear_level=0.3)),
         "bloom 2 radii": base.with_(glare=replace(g, smear="bloom", smear_level=2.0)),
         "bright auto-exposed sky": base.with_(sensor=replace(sen, auto_exposure=True)),
         "JPEG q75": base.with_(sensor=replace(sen, jpeg_quality=75)),
         "lossless": base.with_(sensor=replace(sen, jpeg_quality=None)),
         "other lens (200 deg, fx 150)": base.with_(lens=other_lens),
-        "tilted 6 deg": base.with_(enu_from_camera=orientation(yaw_deg=-40.0, tilt_deg=6.0,
-                                                               tilt_azimuth_deg=200.0)),
+        "tilted 6 deg": base.with_(
+            enu_from_camera=orientation(yaw_deg=-40.0, tilt_deg=6.0, tilt_azimuth_deg=200.0)
+        ),
         "hazy horizon (terrain 1 deg, brighter ground)": base.with_(
-            sky=replace(sky, terrain_deg=1.0, ground_level=0.35)),
+            sky=replace(sky, terrain_deg=1.0, ground_level=0.35)
+        ),
     }
 
 
@@ -246,8 +305,12 @@ def frames_per_second(make_estimator, images, t0: float, repeats: int = 5) -> di
         for i, img in enumerate(images):
             est.estimate_image(img, t0 + i)
         best = min(best, (time.perf_counter() - start) / len(images))
-    return {"ms_per_frame": round(1000 * best, 3), "fps": round(1.0 / best, 1), "frames": len(images),
-            "repeats": repeats}
+    return {
+        "ms_per_frame": round(1000 * best, 3),
+        "fps": round(1.0 / best, 1),
+        "frames": len(images),
+        "repeats": repeats,
+    }
 
 
 class SeedThroughLens:

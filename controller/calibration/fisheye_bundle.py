@@ -30,7 +30,6 @@ transpose.  Read with the project's one schema (:mod:`controller.schema`): unkno
 errors, and every error names the file, the key and what was expected.
 """
 
-# ruff: noqa: RUF009  (setting() and internal() return dataclasses.field(...), as in the schema)
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -56,12 +55,13 @@ ORTHONORMAL_TOL = 1e-3
 class OrientationCal:
     """The camera's rotation to ENU."""
 
-    enu_from_camera: Mat3 = setting(doc="3 x 3 rotation whose columns are the camera's x, y, "
-                                    "z axes (OpenCV) in ENU: d_enu = M d_cam.")
-    residual_deg: float | None = setting(None, doc="RMS residual of the fit that produced it.",
-                                         unit="deg", ge=0)
-    method: str | None = setting(None, doc='How it was obtained ("sun", "sun+horizon", '
-                                 '"survey").')
+    enu_from_camera: Mat3 = setting(
+        doc="3 x 3 rotation whose columns are the camera's x, y, z axes (OpenCV) in ENU: d_enu = M d_cam."
+    )
+    residual_deg: float | None = setting(
+        None, doc="RMS residual of the fit that produced it.", unit="deg", ge=0
+    )
+    method: str | None = setting(None, doc='How it was obtained ("sun", "sun+horizon", "survey").')
     frames: int | None = setting(None, doc="Number of detections used.", ge=0)
 
     def __schema_check__(self, at: Where) -> OrientationCal:
@@ -70,7 +70,8 @@ class OrientationCal:
         if dev > ORTHONORMAL_TOL or np.linalg.det(M) <= 0:
             raise at.child("enu_from_camera").error(
                 f"a rotation matrix (orthonormal within {ORTHONORMAL_TOL}, determinant +1)",
-                [list(r) for r in self.enu_from_camera])
+                [list(r) for r in self.enu_from_camera],
+            )
         return replace(self, enu_from_camera=as_mat3(nearest_rotation(M)))
 
     @property
@@ -94,16 +95,15 @@ class FisheyeBundle:
     camera: CameraCal = setting(doc='Lens intrinsics; model = "fisheye" (cv2.fisheye).')
     orientation: OrientationCal | None = setting(None, doc="Rotation to ENU.")
     site: SiteCal | None = setting(None, doc="Site of the camera.")
-    mask: Path | None = setting(None, doc="Mask image of the camera's size (white = use).",
-                                path="file")
-    notes: dict[str, Any] = setting(default_factory=dict, doc="Free-form notes of the "
-                                    "calibration run (ignored).")
+    mask: Path | None = setting(None, doc="Mask image of the camera's size (white = use).", path="file")
+    notes: dict[str, Any] = setting(
+        default_factory=dict, doc="Free-form notes of the calibration run (ignored)."
+    )
     path: Path | None = internal(None)
 
     def __schema_check__(self, at: Where) -> FisheyeBundle:
         if self.camera.model != "fisheye":
-            raise at.child("camera").child("model").error('"fisheye" (a cv2.fisheye lens)',
-                                                          self.camera.model)
+            raise at.child("camera").child("model").error('"fisheye" (a cv2.fisheye lens)', self.camera.model)
         return self
 
     @property
@@ -162,15 +162,27 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
                 pass
         out.append(f"mask = {_fmt(m)}")
     c = b.camera
-    out += ["", "[camera]", 'model = "fisheye"', f"width = {c.width}", f"height = {c.height}",
-            f"fx = {_fmt(c.fx)}", f"fy = {_fmt(c.fy)}", f"cx = {_fmt(c.cx)}", f"cy = {_fmt(c.cy)}",
-            f"dist = {_fmt(list(c.dist))}"]
+    out += [
+        "",
+        "[camera]",
+        'model = "fisheye"',
+        f"width = {c.width}",
+        f"height = {c.height}",
+        f"fx = {_fmt(c.fx)}",
+        f"fy = {_fmt(c.fy)}",
+        f"cx = {_fmt(c.cx)}",
+        f"cy = {_fmt(c.cy)}",
+        f"dist = {_fmt(list(c.dist))}",
+    ]
     if c.rms_px is not None:
         out.append(f"rms_px = {_fmt(c.rms_px)}")
     o = b.orientation
     if o is not None:
-        out += ["", "[orientation]",
-                "enu_from_camera = [" + ", ".join(_fmt(list(r)) for r in o.enu_from_camera) + "]"]
+        out += [
+            "",
+            "[orientation]",
+            "enu_from_camera = [" + ", ".join(_fmt(list(r)) for r in o.enu_from_camera) + "]",
+        ]
         if o.residual_deg is not None:
             out.append(f"residual_deg = {_fmt(o.residual_deg)}")
         if o.method is not None:
@@ -179,8 +191,13 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             out.append(f"frames = {int(o.frames)}")
     if b.site is not None:
         s = b.site
-        out += ["", "[site]", f"latitude = {_fmt(s.latitude)}", f"longitude = {_fmt(s.longitude)}",
-                f"altitude = {_fmt(s.altitude)}"]
+        out += [
+            "",
+            "[site]",
+            f"latitude = {_fmt(s.latitude)}",
+            f"longitude = {_fmt(s.longitude)}",
+            f"altitude = {_fmt(s.altitude)}",
+        ]
     if b.notes:
         out += ["", "[notes]"] + [f"{k} = {_fmt(v)}" for k, v in b.notes.items()]
     return "\n".join(out) + "\n"
@@ -199,8 +216,7 @@ def update_fisheye_bundle(path: str | Path, **changes: Any) -> FisheyeBundle:
         b = load_fisheye_bundle(path)
     else:
         if "camera" not in changes:
-            raise ConfigError(path, "camera",
-                              "the lens first (heliotrack calibrate fisheye lens ...)")
+            raise ConfigError(path, "camera", "the lens first (heliotrack calibrate fisheye lens ...)")
         b = FisheyeBundle(camera=changes["camera"], path=path)
     b = replace(b, **changes)
     save_fisheye_bundle(b, path)

@@ -49,9 +49,13 @@ def find_corners(grey: np.ndarray, pattern: tuple[int, int]) -> np.ndarray | Non
     return c.reshape(-1, 2).astype(np.float64)
 
 
-def calibrate_fisheye(views: Sequence[tuple[str, np.ndarray]], size: tuple[int, int],
-                      pattern: tuple[int, int] = (9, 6), square: float = 0.04,
-                      min_views: int = 6) -> LensCalibration:
+def calibrate_fisheye(
+    views: Sequence[tuple[str, np.ndarray]],
+    size: tuple[int, int],
+    pattern: tuple[int, int] = (9, 6),
+    square: float = 0.04,
+    min_views: int = 6,
+) -> LensCalibration:
     """Fisheye intrinsics from grey checkerboard views ``[(name, image), ...]`` of ``size``
     (width, height).  Raises :class:`InputError` when too few views are usable."""
     W, H = size
@@ -76,11 +80,21 @@ def calibrate_fisheye(views: Sequence[tuple[str, np.ndarray]], size: tuple[int, 
             rejected[names[bad]] = "degenerate for the fisheye calibration"
             del names[bad], pts[bad]
     else:
-        raise InputError(f"fisheye lens calibration: {len(pts)} usable checkerboard views, "
-                         f"need >= {min_views} ({len(rejected)} rejected)")
-    cam = CameraCal(width=W, height=H, fx=float(K[0, 0]), fy=float(K[1, 1]), cx=float(K[0, 2]),
-                    cy=float(K[1, 2]), dist=tuple(float(x) for x in D.ravel()), rms_px=float(rms),
-                    model="fisheye")
+        raise InputError(
+            f"fisheye lens calibration: {len(pts)} usable checkerboard views, "
+            f"need >= {min_views} ({len(rejected)} rejected)"
+        )
+    cam = CameraCal(
+        width=W,
+        height=H,
+        fx=float(K[0, 0]),
+        fy=float(K[1, 1]),
+        cx=float(K[0, 2]),
+        cy=float(K[1, 2]),
+        dist=tuple(float(x) for x in D.ravel()),
+        rms_px=float(rms),
+        model="fisheye",
+    )
     return LensCalibration(camera=cam, rms_px=float(rms), used=names, rejected=rejected)
 
 
@@ -90,8 +104,9 @@ def _calibrate(obj: np.ndarray, pts: list[np.ndarray], size: tuple[int, int]):
     K = np.array([[f0, 0.0, (W - 1) / 2.0], [0.0, f0, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
     D = np.zeros((4, 1))
     flags = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW | cv2.CALIB_USE_INTRINSIC_GUESS
-    rms, K_out, D_out, _, _ = cv2.fisheye.calibrate([obj] * len(pts), pts, (W, H), K, D,
-                                                    flags=flags, criteria=_CALIB)
+    rms, K_out, D_out, _, _ = cv2.fisheye.calibrate(
+        [obj] * len(pts), pts, (W, H), K, D, flags=flags, criteria=_CALIB
+    )
     return float(rms), np.asarray(K_out, float), np.asarray(D_out, float)
 
 
@@ -99,7 +114,7 @@ def _worst_view(obj: np.ndarray, pts: list[np.ndarray], size: tuple[int, int]) -
     """The view whose removal lets the calibration run (the first found), else the last."""
     for i in range(len(pts)):
         try:
-            _calibrate(obj, pts[:i] + pts[i + 1:], size)
+            _calibrate(obj, pts[:i] + pts[i + 1 :], size)
             return i
         except cv2.error:
             continue

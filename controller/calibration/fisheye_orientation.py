@@ -42,11 +42,11 @@ class OrientationFit:
     """Result of :func:`fit_orientation` (angles in degrees)."""
 
     enu_from_camera: np.ndarray
-    residual_deg: float            # RMS angle between R d_i and s_i over the inliers
-    residual_px: float | None      # RMS pixel residual after the refinement
+    residual_deg: float  # RMS angle between R d_i and s_i over the inliers
+    residual_px: float | None  # RMS pixel residual after the refinement
     used: int
     rejected: int
-    tilt_deg: float                # the optical axis's angle from the zenith
+    tilt_deg: float  # the optical axis's angle from the zenith
     camera: CameraCal | None = None  # the refined lens (refine="lens")
     horizon_disagreement_deg: float | None = None
 
@@ -71,10 +71,18 @@ def sun_vectors(site: Site, times: Sequence[float]) -> np.ndarray:
     return azel_to_enu(sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
 
 
-def fit_orientation(times: Sequence[float], d_cam: np.ndarray, site: Site, *,
-                    uv: np.ndarray | None = None, camera: CameraCal | None = None,
-                    refine: str | None = "rotation", horizon_zenith_cam: np.ndarray | None = None,
-                    horizon_sigma_deg: float = 0.1, min_used: int = 6) -> OrientationFit:
+def fit_orientation(
+    times: Sequence[float],
+    d_cam: np.ndarray,
+    site: Site,
+    *,
+    uv: np.ndarray | None = None,
+    camera: CameraCal | None = None,
+    refine: str | None = "rotation",
+    horizon_zenith_cam: np.ndarray | None = None,
+    horizon_sigma_deg: float = 0.1,
+    min_used: int = 6,
+) -> OrientationFit:
     """``enu_from_camera`` from sun detections ``d_cam`` (N, 3) at ``times`` (POSIX s).
 
     ``uv`` (N, 2) and ``camera``: the detections' pixels and the lens, for the pixel
@@ -100,8 +108,9 @@ def fit_orientation(times: Sequence[float], d_cam: np.ndarray, site: Site, *,
     res_px = None
     cam_out = None
     if refine and uv is not None and camera is not None:
-        R, cam_out, res_px = _refine(R, np.asarray(uv, float)[keep], s[keep], camera, refine,
-                                     horizon_zenith_cam, horizon_sigma_deg)
+        R, cam_out, res_px = _refine(
+            R, np.asarray(uv, float)[keep], s[keep], camera, refine, horizon_zenith_cam, horizon_sigma_deg
+        )
         if cam_out is not None:  # the detections' directions change with the lens
             from ..vision.fisheye.lens import FisheyeLens
 
@@ -114,14 +123,26 @@ def fit_orientation(times: Sequence[float], d_cam: np.ndarray, site: Site, *,
         h = np.asarray(horizon_zenith_cam, float)
         dis = math.degrees(math.acos(float(np.clip(h @ zen / np.linalg.norm(h), -1, 1))))
     return OrientationFit(
-        enu_from_camera=R, residual_deg=float(np.sqrt(np.mean(err[keep] ** 2))), residual_px=res_px,
-        used=int(keep.sum()), rejected=int((~keep).sum()),
-        tilt_deg=math.degrees(math.acos(float(np.clip(zen[2], -1, 1)))), camera=cam_out,
-        horizon_disagreement_deg=dis)
+        enu_from_camera=R,
+        residual_deg=float(np.sqrt(np.mean(err[keep] ** 2))),
+        residual_px=res_px,
+        used=int(keep.sum()),
+        rejected=int((~keep).sum()),
+        tilt_deg=math.degrees(math.acos(float(np.clip(zen[2], -1, 1)))),
+        camera=cam_out,
+        horizon_disagreement_deg=dis,
+    )
 
 
-def _refine(R0: np.ndarray, uv: np.ndarray, s_enu: np.ndarray, cam: CameraCal, mode: str,
-            horizon: np.ndarray | None, sigma_h_deg: float):
+def _refine(
+    R0: np.ndarray,
+    uv: np.ndarray,
+    s_enu: np.ndarray,
+    cam: CameraCal,
+    mode: str,
+    horizon: np.ndarray | None,
+    sigma_h_deg: float,
+):
     """Least squares on pixels: rotation (and the lens with priors); returns (R, cam, rms px)."""
     lens_free = mode == "lens"
     p0 = np.array([cam.fx, cam.fy, cam.cx, cam.cy, cam.dist[0], cam.dist[1]])
@@ -139,8 +160,9 @@ def _refine(R0: np.ndarray, uv: np.ndarray, s_enu: np.ndarray, cam: CameraCal, m
         Rc, K, D, p = unpack(x)
         dc = s_enu @ Rc.T
         ok = dc[:, 2] > 1e-6
-        pr, _ = cv2.fisheye.projectPoints(np.where(ok[:, None], dc, [0, 0, 1.0]).reshape(-1, 1, 3),
-                                          np.zeros(3), np.zeros(3), K, D)
+        pr, _ = cv2.fisheye.projectPoints(
+            np.where(ok[:, None], dc, [0, 0, 1.0]).reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, D
+        )
         r = (pr.reshape(-1, 2) - uv) * ok[:, None]
         out = [r.ravel()]
         if lens_free:
@@ -153,12 +175,18 @@ def _refine(R0: np.ndarray, uv: np.ndarray, s_enu: np.ndarray, cam: CameraCal, m
     x0 = np.concatenate([rv0, p0]) if lens_free else rv0
     sol = least_squares(residuals, x0, loss="soft_l1", f_scale=0.5, x_scale="jac")
     Rc, _, _, p = unpack(sol.x)
-    r = residuals(sol.x)[:2 * len(uv)].reshape(-1, 2)
+    r = residuals(sol.x)[: 2 * len(uv)].reshape(-1, 2)
     rms = float(np.sqrt(np.mean(np.sum(r * r, axis=1))))
     cam_out = None
     if lens_free:
-        cam_out = replace(cam, fx=float(p[0]), fy=float(p[1]), cx=float(p[2]), cy=float(p[3]),
-                          dist=(float(p[4]), float(p[5]), cam.dist[2], cam.dist[3]))
+        cam_out = replace(
+            cam,
+            fx=float(p[0]),
+            fy=float(p[1]),
+            cx=float(p[2]),
+            cy=float(p[3]),
+            dist=(float(p[4]), float(p[5]), cam.dist[2], cam.dist[3]),
+        )
     return Rc.T, cam_out, rms
 
 
@@ -174,9 +202,15 @@ class HorizonLevel:
     tilt_deg: float
 
 
-def level_from_horizon(image: np.ndarray, camera: CameraCal, *, n_rays: int = 360,
-                       theta_lo_deg: float = 72.0, min_step: float = 12.0,
-                       min_points: int = 40) -> HorizonLevel:
+def level_from_horizon(
+    image: np.ndarray,
+    camera: CameraCal,
+    *,
+    n_rays: int = 360,
+    theta_lo_deg: float = 72.0,
+    min_step: float = 12.0,
+    min_points: int = 40,
+) -> HorizonLevel:
     """The zenith of a camera that looks up, from the sky-to-ground step near 90 deg off axis.
 
     ``image``: BGR or grey uint8.  Raises :class:`InputError` when the horizon is not found
@@ -205,10 +239,10 @@ def level_from_horizon(image: np.ndarray, camera: CameraCal, *, n_rays: int = 36
         if not np.isfinite(dk).any():
             continue
         j = int(np.nanargmin(dk))
-        if not 1 <= j < len(dk) - 1 or not np.isfinite(dk[j - 1:j + 2]).all():
+        if not 1 <= j < len(dk) - 1 or not np.isfinite(dk[j - 1 : j + 2]).all():
             continue
-        sky = np.nanmedian(vals[k, max(j - 8, 0):j])
-        ground = np.nanmedian(vals[k, j + 2:j + 10])
+        sky = np.nanmedian(vals[k, max(j - 8, 0) : j])
+        ground = np.nanmedian(vals[k, j + 2 : j + 10])
         if not (sky - ground >= min_step and sky - ground >= 0.25 * sky):
             continue
         y0, y1, y2 = dk[j - 1], dk[j], dk[j + 1]
@@ -233,6 +267,10 @@ def level_from_horizon(image: np.ndarray, camera: CameraCal, *, n_rays: int = 36
             break
         keep = new
     el = np.degrees(np.arcsin(np.clip(v @ z, -1, 1)))
-    return HorizonLevel(zenith_cam=z, residual_deg=float(np.sqrt(np.mean(el[keep] ** 2))),
-                        points=int(keep.sum()), rejected=int((~keep).sum()),
-                        tilt_deg=math.degrees(math.acos(float(np.clip(z[2], -1, 1)))))
+    return HorizonLevel(
+        zenith_cam=z,
+        residual_deg=float(np.sqrt(np.mean(el[keep] ** 2))),
+        points=int(keep.sum()),
+        rejected=int((~keep).sum()),
+        tilt_deg=math.degrees(math.acos(float(np.clip(z[2], -1, 1)))),
+    )

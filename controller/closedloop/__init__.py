@@ -11,6 +11,15 @@ from .fuzzy import FuzzyPID, FuzzyPIDGains
 from .geometry import dual_axis_enu_from_camera, dual_axis_errors, single_axis_error
 from .learner import MisalignmentStore, OffsetLearner
 
-__all__ = ["MODES", "AxisCommand", "ClosedLoopAxis", "FuzzyPID", "FuzzyPIDGains",
-           "MisalignmentStore", "OffsetLearner", "dual_axis_enu_from_camera", "dual_axis_errors",
-           "single_axis_error"]
+__all__ = [
+    "MODES",
+    "AxisCommand",
+    "ClosedLoopAxis",
+    "FuzzyPID",
+    "FuzzyPIDGains",
+    "MisalignmentStore",
+    "OffsetLearner",
+    "dual_axis_enu_from_camera",
+    "dual_axis_errors",
+    "single_axis_error",
+]

@@ -33,17 +33,23 @@ class AxisCommand:
     """What the axis asks of its drive at one cycle."""
 
     setpoint_deg: float
-    source: str               # "camera" (closed loop), "learned" (feed-forward), "hold"
-    offset_deg: float         # the learned offset in use (0 in the paper's mode)
-    correction_deg: float     # the PID's share of the setpoint
+    source: str  # "camera" (closed loop), "learned" (feed-forward), "hold"
+    offset_deg: float  # the learned offset in use (0 in the paper's mode)
+    correction_deg: float  # the PID's share of the setpoint
 
 
 class ClosedLoopAxis:
     """Per-axis controller; ``update`` once per cycle (frame) with what was measured."""
 
-    def __init__(self, *, mode: str = "assisted", gains: FuzzyPIDGains | None = None,
-                 learner: OffsetLearner | None = None, correction_decay_s: float = 600.0,
-                 max_error_deg: float = 90.0):
+    def __init__(
+        self,
+        *,
+        mode: str = "assisted",
+        gains: FuzzyPIDGains | None = None,
+        learner: OffsetLearner | None = None,
+        correction_decay_s: float = 600.0,
+        max_error_deg: float = 90.0,
+    ):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         self.mode = mode
@@ -55,8 +61,9 @@ class ClosedLoopAxis:
         self.correction = 0.0
         self._t: float | None = None
 
-    def update(self, t: float, error_deg: float | None, position_deg: float,
-               reference_deg: float | None = None) -> AxisCommand:
+    def update(
+        self, t: float, error_deg: float | None, position_deg: float, reference_deg: float | None = None
+    ) -> AxisCommand:
         """One cycle at POSIX ``t``.
 
         ``error_deg``: the camera's offset of the sun along this axis (None: no sun seen);

@@ -26,27 +26,42 @@ import numpy as np
 NB, NM, NS, ZO, PS, PM, PB = range(-3, 4)
 
 #: Rows: e from NB to PB; columns: ec from NB to PB.
-DKP = np.array([[PB, PB, PM, PM, PS, ZO, ZO],
-                [PB, PB, PM, PS, PS, ZO, NS],
-                [PM, PM, PM, PS, ZO, NS, NS],
-                [PM, PM, PS, ZO, NS, NM, NM],
-                [PS, PS, ZO, NS, NS, NM, NM],
-                [PS, ZO, NS, NM, NM, NM, NB],
-                [ZO, ZO, NM, NM, NM, NB, NB]], float)
-DKI = np.array([[NB, NB, NM, NM, NS, ZO, ZO],
-                [NB, NB, NM, NS, NS, ZO, ZO],
-                [NB, NM, NS, NS, ZO, PS, PS],
-                [NM, NM, NS, ZO, PS, PM, PM],
-                [NM, NS, ZO, PS, PS, PM, PB],
-                [ZO, ZO, PS, PS, PM, PB, PB],
-                [ZO, ZO, PS, PM, PM, PB, PB]], float)
-DKD = np.array([[PS, NS, NB, NB, NB, NM, PS],
-                [PS, NS, NB, NM, NM, NS, ZO],
-                [ZO, NS, NM, NM, NS, NS, ZO],
-                [ZO, NS, NS, NS, NS, NS, ZO],
-                [ZO, ZO, ZO, ZO, ZO, ZO, ZO],
-                [PB, NS, PS, PS, PS, PS, PB],
-                [PB, PM, PM, PM, PS, PS, PB]], float)
+DKP = np.array(
+    [
+        [PB, PB, PM, PM, PS, ZO, ZO],
+        [PB, PB, PM, PS, PS, ZO, NS],
+        [PM, PM, PM, PS, ZO, NS, NS],
+        [PM, PM, PS, ZO, NS, NM, NM],
+        [PS, PS, ZO, NS, NS, NM, NM],
+        [PS, ZO, NS, NM, NM, NM, NB],
+        [ZO, ZO, NM, NM, NM, NB, NB],
+    ],
+    float,
+)
+DKI = np.array(
+    [
+        [NB, NB, NM, NM, NS, ZO, ZO],
+        [NB, NB, NM, NS, NS, ZO, ZO],
+        [NB, NM, NS, NS, ZO, PS, PS],
+        [NM, NM, NS, ZO, PS, PM, PM],
+        [NM, NS, ZO, PS, PS, PM, PB],
+        [ZO, ZO, PS, PS, PM, PB, PB],
+        [ZO, ZO, PS, PM, PM, PB, PB],
+    ],
+    float,
+)
+DKD = np.array(
+    [
+        [PS, NS, NB, NB, NB, NM, PS],
+        [PS, NS, NB, NM, NM, NS, ZO],
+        [ZO, NS, NM, NM, NS, NS, ZO],
+        [ZO, NS, NS, NS, NS, NS, ZO],
+        [ZO, ZO, ZO, ZO, ZO, ZO, ZO],
+        [PB, NS, PS, PS, PS, PS, PB],
+        [PB, PM, PM, PM, PS, PS, PB],
+    ],
+    float,
+)
 
 
 def memberships(x: float) -> np.ndarray:

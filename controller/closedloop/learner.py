@@ -52,7 +52,7 @@ class OffsetLearner:
 
     def __post_init__(self) -> None:
         if self.last_t is None and self.accepted == 0:
-            self.variance = self.initial_sigma_deg ** 2
+            self.variance = self.initial_sigma_deg**2
 
     @property
     def sigma_deg(self) -> float:
@@ -65,7 +65,7 @@ class OffsetLearner:
 
     def predict(self, t: float) -> None:
         if self.last_t is not None and t > self.last_t:
-            self.variance += self.drift_deg_per_sqrt_h ** 2 * (t - self.last_t) / 3600.0
+            self.variance += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
         self.last_t = t if self.last_t is None else max(self.last_t, t)
 
     def update(self, t: float, z_deg: float) -> bool:
@@ -73,13 +73,13 @@ class OffsetLearner:
         if not math.isfinite(z_deg):
             return False
         self.predict(t)
-        r = self.meas_sigma_deg ** 2
+        r = self.meas_sigma_deg**2
         innov = z_deg - self.estimate_deg
-        if self.accepted > 0 and innov ** 2 > self.gate_sigma ** 2 * (self.variance + r):
+        if self.accepted > 0 and innov**2 > self.gate_sigma**2 * (self.variance + r):
             self.refused += 1
             self.refused_run += 1
             if self.refused_run >= self.restart_after:
-                self.estimate_deg, self.variance = z_deg, self.initial_sigma_deg ** 2
+                self.estimate_deg, self.variance = z_deg, self.initial_sigma_deg**2
                 self.refused_run = 0
             return False
         k = self.variance / (self.variance + r)
@@ -115,13 +115,15 @@ class MisalignmentStore:
         return self.learners.setdefault(row, {}).setdefault(axis, OffsetLearner())
 
     def offsets(self) -> dict[str, dict[str, float]]:
-        return {row: {ax: lr.estimate_deg for ax, lr in axes.items()}
-                for row, axes in self.learners.items()}
+        return {row: {ax: lr.estimate_deg for ax, lr in axes.items()} for row, axes in self.learners.items()}
 
     def save(self, path: str | Path | None = None) -> Path:
         p = Path(path) if path is not None else self.path
         if p is None:
             raise ValueError("MisalignmentStore.save: no path")
-        data = {"rows": {row: {ax: lr.to_dict() for ax, lr in axes.items()}
-                         for row, axes in self.learners.items()}}
+        data = {
+            "rows": {
+                row: {ax: lr.to_dict() for ax, lr in axes.items()} for row, axes in self.learners.items()
+            }
+        }
         return atomic_write(p, json.dumps(data, indent=1) + "\n")

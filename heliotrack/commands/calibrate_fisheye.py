@@ -36,14 +36,20 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     a.add_argument("--bundle", type=Path, required=True)
     a.add_argument("images", nargs="+", type=Path)
     a.set_defaults(func=_lens)
-    o = steps.add_parser("orientation", help="rotation to ENU from a day of the camera's sun "
-                         "detections (site and frame times known)")
+    o = steps.add_parser(
+        "orientation",
+        help="rotation to ENU from a day of the camera's sun detections (site and frame times known)",
+    )
     o.add_argument("--lat", type=float, help="site latitude, deg north (else the bundle's [site])")
     o.add_argument("--lon", type=float, help="site longitude, deg east")
     o.add_argument("--alt", type=float, default=0.0, help="site altitude, m")
-    o.add_argument("--refine", choices=("none", "rotation", "lens"), default="lens",
-                   help="refine on pixels: the rotation and the lens (default; the lens held to "
-                        "its checkerboard values by priors), the rotation only, or not")
+    o.add_argument(
+        "--refine",
+        choices=("none", "rotation", "lens"),
+        default="lens",
+        help="refine on pixels: the rotation and the lens (default; the lens held to "
+        "its checkerboard values by priors), the rotation only, or not",
+    )
     o.add_argument("--horizon", type=Path, help="a clear frame whose horizon constrains the zenith")
     o.add_argument("--bundle", type=Path, required=True)
     o.add_argument("images", nargs="+", type=Path, help="sky frames named with their UTC time")
@@ -79,10 +85,21 @@ def _lens(args) -> int:
     h, w = views[0][1].shape[:2]
     res = calibrate_fisheye(views, (w, h), _pattern(args.pattern), args.square)
     update_fisheye_bundle(args.bundle, camera=res.camera)
-    print(json.dumps({"step": "fisheye lens", "rms_px": round(res.rms_px, 4), "views": len(res.used),
-                      "rejected": res.rejected, "fx": round(res.camera.fx, 3),
-                      "cx": round(res.camera.cx, 3), "cy": round(res.camera.cy, 3),
-                      "dist": [round(x, 6) for x in res.camera.dist], "bundle": str(args.bundle)}))
+    print(
+        json.dumps(
+            {
+                "step": "fisheye lens",
+                "rms_px": round(res.rms_px, 4),
+                "views": len(res.used),
+                "rejected": res.rejected,
+                "fx": round(res.camera.fx, 3),
+                "cx": round(res.camera.cx, 3),
+                "cy": round(res.camera.cy, 3),
+                "dist": [round(x, 6) for x in res.camera.dist],
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0
 
 
@@ -131,21 +148,41 @@ def _orientation(args) -> int:
         if img is None:
             raise InputError(f"{args.horizon}: {reason}")
         zen = level_from_horizon(img, bundle.camera).zenith_cam
-    fit = fit_orientation(times, np.asarray(dirs).reshape(-1, 3),
-                          Site(latitude=site.latitude, longitude=site.longitude, altitude=site.altitude),
-                          uv=np.asarray(uvs).reshape(-1, 2), camera=bundle.camera,
-                          refine=None if args.refine == "none" else args.refine, horizon_zenith_cam=zen)
+    fit = fit_orientation(
+        times,
+        np.asarray(dirs).reshape(-1, 3),
+        Site(latitude=site.latitude, longitude=site.longitude, altitude=site.altitude),
+        uv=np.asarray(uvs).reshape(-1, 2),
+        camera=bundle.camera,
+        refine=None if args.refine == "none" else args.refine,
+        horizon_zenith_cam=zen,
+    )
     method = "sun" + ("+horizon" if zen is not None else "") + ("+lens" if fit.camera else "")
-    new = replace(bundle, orientation=OrientationCal(
-        enu_from_camera=as_mat3(fit.enu_from_camera), residual_deg=round(fit.residual_deg, 5),
-        method=method, frames=fit.used), site=site)
+    new = replace(
+        bundle,
+        orientation=OrientationCal(
+            enu_from_camera=as_mat3(fit.enu_from_camera),
+            residual_deg=round(fit.residual_deg, 5),
+            method=method,
+            frames=fit.used,
+        ),
+        site=site,
+    )
     if fit.camera is not None:
         new = replace(new, camera=fit.camera)
     save_fisheye_bundle(new, args.bundle)
-    out = {"step": "fisheye orientation", "method": method, "frames": len(args.images),
-           "detections": len(times), "not_found": missing, "used": fit.used, "rejected": fit.rejected,
-           "residual_deg": round(fit.residual_deg, 4), "tilt_deg": round(fit.tilt_deg, 4),
-           "bundle": str(args.bundle)}
+    out = {
+        "step": "fisheye orientation",
+        "method": method,
+        "frames": len(args.images),
+        "detections": len(times),
+        "not_found": missing,
+        "used": fit.used,
+        "rejected": fit.rejected,
+        "residual_deg": round(fit.residual_deg, 4),
+        "tilt_deg": round(fit.tilt_deg, 4),
+        "bundle": str(args.bundle),
+    }
     if fit.residual_px is not None:
         out["residual_px"] = round(fit.residual_px, 4)
     if fit.horizon_disagreement_deg is not None:
@@ -164,12 +201,18 @@ def _level(args) -> int:
     if img is None:
         raise InputError(f"{args.image}: {reason}")
     lv = level_from_horizon(img, bundle.camera)
-    out = {"step": "fisheye level", "zenith_cam": [round(float(x), 7) for x in lv.zenith_cam],
-           "tilt_deg": round(lv.tilt_deg, 4), "residual_deg": round(lv.residual_deg, 4),
-           "points": lv.points, "rejected": lv.rejected}
+    out = {
+        "step": "fisheye level",
+        "zenith_cam": [round(float(x), 7) for x in lv.zenith_cam],
+        "tilt_deg": round(lv.tilt_deg, 4),
+        "residual_deg": round(lv.residual_deg, 4),
+        "points": lv.points,
+        "rejected": lv.rejected,
+    }
     if bundle.enu_from_camera is not None:
         z = bundle.enu_from_camera.T @ np.array([0.0, 0.0, 1.0])
         out["disagreement_with_orientation_deg"] = round(
-            math.degrees(math.acos(float(np.clip(z @ lv.zenith_cam, -1, 1)))), 4)
+            math.degrees(math.acos(float(np.clip(z @ lv.zenith_cam, -1, 1)))), 4
+        )
     print(json.dumps(out))
     return 0

@@ -31,8 +31,16 @@ def board_corners(pattern=(9, 6), square=0.04) -> np.ndarray:
     return np.stack([(i.ravel() + 1) * square, (j.ravel() + 1) * square, np.zeros(nx * ny)], 1)
 
 
-def render_checkerboard(lens: FisheyeLens, rvec, tvec, *, pattern=(9, 6), square=0.04,
-                        rng: np.random.Generator | None = None, noise_dn: float = 1.5) -> np.ndarray:
+def render_checkerboard(
+    lens: FisheyeLens,
+    rvec,
+    tvec,
+    *,
+    pattern=(9, 6),
+    square=0.04,
+    rng: np.random.Generator | None = None,
+    noise_dn: float = 1.5,
+) -> np.ndarray:
     """Grey (H, W) uint8 view of a planar checkerboard at pose board -> camera."""
     rng = rng if rng is not None else np.random.default_rng(0)
     R = _rodrigues(rvec)
@@ -68,8 +76,15 @@ def render_checkerboard(lens: FisheyeLens, rvec, tvec, *, pattern=(9, 6), square
     return np.clip(np.rint(dn), 0, 255).astype(np.uint8)
 
 
-def checkerboard_poses(lens: FisheyeLens, n: int, rng: np.random.Generator, *, pattern=(9, 6),
-                       square=0.04, max_theta_deg: float = 72.0) -> list[tuple[np.ndarray, np.ndarray]]:
+def checkerboard_poses(
+    lens: FisheyeLens,
+    n: int,
+    rng: np.random.Generator,
+    *,
+    pattern=(9, 6),
+    square=0.04,
+    max_theta_deg: float = 72.0,
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Board poses spread over the field (off-axis angles up to ``max_theta_deg``), each
     roughly facing the camera, spanning ~25-45 deg, wholly inside the image circle."""
     nx, ny = pattern
@@ -80,8 +95,9 @@ def checkerboard_poses(lens: FisheyeLens, n: int, rng: np.random.Generator, *, p
     while len(poses) < n and tries < 200 * n:
         tries += 1
         # even coverage in theta: half the boards beyond 40 deg, where the distortion lives
-        theta = np.radians(rng.uniform(0.0, max_theta_deg) if len(poses) % 2 else
-                           rng.uniform(40.0, max_theta_deg))
+        theta = np.radians(
+            rng.uniform(0.0, max_theta_deg) if len(poses) % 2 else rng.uniform(40.0, max_theta_deg)
+        )
         phi = rng.uniform(0, 2 * np.pi)
         c_dir = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
         span = np.radians(rng.uniform(25.0, 45.0))
@@ -105,8 +121,12 @@ def checkerboard_poses(lens: FisheyeLens, n: int, rng: np.random.Generator, *, p
         th = np.degrees(np.arctan2(np.hypot(pc[:, 0], pc[:, 1]), pc[:, 2]))
         if not inside.all() or th.max() > max_theta_deg + 8:
             continue
-        if (uv[:, 0].min() < 8 or uv[:, 1].min() < 8 or uv[:, 0].max() > lens.width - 9
-                or uv[:, 1].max() > lens.height - 9):
+        if (
+            uv[:, 0].min() < 8
+            or uv[:, 1].min() < 8
+            or uv[:, 0].max() > lens.width - 9
+            or uv[:, 1].max() > lens.height - 9
+        ):
             continue
         rvec = _rvec(R)
         poses.append((rvec, t))

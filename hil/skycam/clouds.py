@@ -60,9 +60,9 @@ def _texture(seed: int, beta: float) -> np.ndarray:
     kk = np.hypot(k[:, None], k[None, :])
     kk[0, 0] = 1.0
     # fractal within a band: nothing larger than ~4 cloud sizes (10 texels per cloud size)
-    amp = kk ** (-beta / 2.0) * (1.0 - np.exp(-(kk * 40.0) ** 2))
+    amp = kk ** (-beta / 2.0) * (1.0 - np.exp(-((kk * 40.0) ** 2)))
     amp[0, 0] = 0.0
-    amp[kk > 0.25] *= np.exp(-((kk[kk > 0.25] - 0.25) / 0.05) ** 2)  # no texel-scale aliasing
+    amp[kk > 0.25] *= np.exp(-(((kk[kk > 0.25] - 0.25) / 0.05) ** 2))  # no texel-scale aliasing
     spec = amp * (rng.standard_normal((TEX, TEX)) + 1j * rng.standard_normal((TEX, TEX)))
     tex = np.real(np.fft.ifft2(spec))
     tex = (tex - tex.mean()) / tex.std()
@@ -77,8 +77,10 @@ def _blurred(seed: int, beta: float) -> tuple[np.ndarray, np.ndarray]:
     spec = np.fft.fft2(_texture(seed, beta))
     k = np.fft.fftfreq(TEX)
     k2 = k[:, None] ** 2 + k[None, :] ** 2
-    out = tuple(np.real(np.fft.ifft2(spec * np.exp(-2.0 * np.pi ** 2 * s * s * k2))).astype(np.float32)
-                for s in (2.0, 6.0))  # periodic Gaussian blur
+    out = tuple(
+        np.real(np.fft.ifft2(spec * np.exp(-2.0 * np.pi**2 * s * s * k2))).astype(np.float32)
+        for s in (2.0, 6.0)
+    )  # periodic Gaussian blur
     for a in out:
         a.setflags(write=False)
     return out  # type: ignore[return-value]
@@ -89,8 +91,7 @@ def _threshold(seed: int, beta: float, coverage: float) -> float:
     return float(np.quantile(_texture(seed, beta), 1.0 - coverage))
 
 
-def optical_depth(field: CloudField, dirs_enu: np.ndarray, t: float,
-                  pixel_rad: float = 0.0) -> np.ndarray:
+def optical_depth(field: CloudField, dirs_enu: np.ndarray, t: float, pixel_rad: float = 0.0) -> np.ndarray:
     """Optical depth along ENU unit directions (N, 3) at POSIX time ``t`` (0 below ~0.5 deg).
 
     ``pixel_rad``: the angular size of a pixel; far views (whose pixel covers several
@@ -135,8 +136,9 @@ def hg_ratio(chi: np.ndarray, g: float = 0.85) -> np.ndarray:
     return ((1.0 - g) ** 3 / denom).astype(np.float32)
 
 
-def cloud_radiance(field: CloudField, tau: np.ndarray, L_behind: np.ndarray, chi: np.ndarray,
-                   sun_dim: float, level: float) -> np.ndarray:
+def cloud_radiance(
+    field: CloudField, tau: np.ndarray, L_behind: np.ndarray, chi: np.ndarray, sun_dim: float, level: float
+) -> np.ndarray:
     """Radiance (N, 3) of views with optical depth ``tau`` in front of ``L_behind`` (N, 3).
 
     ``chi``: angle to the sun (rad); ``sun_dim``: the sun's beam transmittance from the air

@@ -29,8 +29,16 @@ def frame_name(t: float, suffix: str = ".png") -> str:
     return datetime.fromtimestamp(float(t), UTC).strftime("%Y-%m-%dT%H-%M-%SZ") + suffix
 
 
-def write_dataset(scn: SkyScene, out: Path, *, day: tuple[int, int, int] = (2025, 3, 20), step_min: int = 15,
-                  n_boards: int = 30, seed: int = 11, min_el_deg: float = 5.0) -> dict:
+def write_dataset(
+    scn: SkyScene,
+    out: Path,
+    *,
+    day: tuple[int, int, int] = (2025, 3, 20),
+    step_min: int = 15,
+    n_boards: int = 30,
+    seed: int = 11,
+    min_el_deg: float = 5.0,
+) -> dict:
     """Render the installer's folder; returns the truth written to ``truth.json``."""
     out = Path(out)
     rng = np.random.default_rng(seed)
@@ -38,8 +46,9 @@ def write_dataset(scn: SkyScene, out: Path, *, day: tuple[int, int, int] = (2025
     (out / "day").mkdir(exist_ok=True)
     lens = scn.lens
     for k, (rv, tv) in enumerate(checkerboard_poses(lens, n_boards, rng, max_theta_deg=80.0)):
-        cv2.imwrite(str(out / "checkerboards" / f"board_{k:02d}.png"),
-                    render_checkerboard(lens, rv, tv, rng=rng))
+        cv2.imwrite(
+            str(out / "checkerboards" / f"board_{k:02d}.png"), render_checkerboard(lens, rv, tv, rng=rng)
+        )
     t0 = datetime(day[0], day[1], day[2], tzinfo=UTC).timestamp()
     ts = t0 + np.arange(0, 86400, step_min * 60)
     sun = scn.sun(ts)
@@ -53,12 +62,26 @@ def write_dataset(scn: SkyScene, out: Path, *, day: tuple[int, int, int] = (2025
         frames.append({"image": f"day/{name}", "az_deg": float(az), "el_deg": float(el)})
     noon = float(ts[int(np.argmax(sun["elevation"]))])
     cv2.imwrite(str(out / "horizon.png"), render_sky(scn, noon, rng=rng).image)
-    truth = {"profile": scn.name,
-             "lens": {"width": lens.width, "height": lens.height, "fx": lens.fx, "fy": lens.fy,
-                      "cx": lens.cx, "cy": lens.cy, "D": list(lens.D), "fov_deg": lens.fov_deg},
-             "enu_from_camera": [list(r) for r in scn.enu_from_camera],
-             "site": {"latitude": scn.site.latitude, "longitude": scn.site.longitude,
-                      "altitude": scn.site.altitude}, "frames": frames}
+    truth = {
+        "profile": scn.name,
+        "lens": {
+            "width": lens.width,
+            "height": lens.height,
+            "fx": lens.fx,
+            "fy": lens.fy,
+            "cx": lens.cx,
+            "cy": lens.cy,
+            "D": list(lens.D),
+            "fov_deg": lens.fov_deg,
+        },
+        "enu_from_camera": [list(r) for r in scn.enu_from_camera],
+        "site": {
+            "latitude": scn.site.latitude,
+            "longitude": scn.site.longitude,
+            "altitude": scn.site.altitude,
+        },
+        "frames": frames,
+    }
     (out / "truth.json").write_text(json.dumps(truth, indent=1))
     return truth
 

@@ -78,5 +78,6 @@ def glint_signal(dist_px: np.ndarray, radius_px: float) -> np.ndarray:
     """A point source's saturated spot: a Gaussian core that crosses full scale at
     ``radius_px`` and a faint PSF wing."""
     sigma = max(radius_px, 0.5) / np.sqrt(2.0 * np.log(4.0))  # = 1 at radius_px for peak 4
-    return (4.0 * np.exp(-0.5 * (dist_px / sigma) ** 2)
-            + 0.05 / (1.0 + (dist_px / (3 * radius_px)) ** 2)).astype(np.float32)
+    return (
+        4.0 * np.exp(-0.5 * (dist_px / sigma) ** 2) + 0.05 / (1.0 + (dist_px / (3 * radius_px)) ** 2)
+    ).astype(np.float32)

@@ -51,8 +51,10 @@ class FisheyeLens:
             raise HilError(f"lens {self.name!r}: fov_deg must be within (0, 360), got {self.fov_deg}")
         th = np.linspace(0.0, self.theta_max, 512)
         if np.any(np.diff(self.theta_d(th)) <= 0):
-            raise HilError(f"lens {self.name!r}: theta_d(theta) is not increasing up to "
-                           f"{self.fov_deg / 2:.1f} deg with D = {self.D}")
+            raise HilError(
+                f"lens {self.name!r}: theta_d(theta) is not increasing up to "
+                f"{self.fov_deg / 2:.1f} deg with D = {self.D}"
+            )
 
     # -- model ------------------------------------------------------------------------
     @property
@@ -121,9 +123,16 @@ class FisheyeLens:
         """The same lens on a sensor with ``factor`` times the pixels per side."""
         w = round(self.width * factor)
         h = round(self.height * factor)
-        return replace(self, width=w, height=h, fx=self.fx * factor, fy=self.fy * factor,
-                       cx=(self.cx + 0.5) * factor - 0.5, cy=(self.cy + 0.5) * factor - 0.5,
-                       name=name or f"{self.name}x{factor:g}")
+        return replace(
+            self,
+            width=w,
+            height=h,
+            fx=self.fx * factor,
+            fy=self.fy * factor,
+            cx=(self.cx + 0.5) * factor - 0.5,
+            cy=(self.cy + 0.5) * factor - 0.5,
+            name=name or f"{self.name}x{factor:g}",
+        )
 
     def deg_per_px(self, theta_rad: float = 0.0) -> tuple[float, float]:
         """(radial, tangential) degrees per pixel at off-axis angle ``theta_rad``."""
@@ -137,7 +146,7 @@ class FisheyeLens:
 
 @lru_cache(maxsize=6)
 def _rays(lens: FisheyeLens) -> tuple[np.ndarray, np.ndarray]:
-    v, u = np.mgrid[0:lens.height, 0:lens.width].astype(np.float64)
+    v, u = np.mgrid[0 : lens.height, 0 : lens.width].astype(np.float64)
     d, ok = lens.unproject(np.stack([u.ravel(), v.ravel()], axis=1))
     d = d.reshape(lens.height, lens.width, 3).astype(np.float32)
     ok = ok.reshape(lens.height, lens.width)
@@ -152,8 +161,17 @@ def seed_lens() -> FisheyeLens:
     Mild barrel Kannala-Brandt terms put the 90-deg circle at ~231 px from the centre, so the
     whole sky fits the 480-px height and a sliver of ground shows beyond the horizon.
     """
-    return FisheyeLens(width=640, height=480, fx=166.0, fy=166.0, cx=319.5, cy=239.5,
-                       D=(-0.0420, 0.0010, -0.0005, 0.0), fov_deg=190.0, name="seed")
+    return FisheyeLens(
+        width=640,
+        height=480,
+        fx=166.0,
+        fy=166.0,
+        cx=319.5,
+        cy=239.5,
+        D=(-0.0420, 0.0010, -0.0005, 0.0),
+        fov_deg=190.0,
+        name="seed",
+    )
 
 
 def hd_lens() -> FisheyeLens:
@@ -165,5 +183,14 @@ def hd_lens() -> FisheyeLens:
 
 def full_hd_lens() -> FisheyeLens:
     """1920 x 1080 (16:9) sensor with the sky circle inside the height (for timing)."""
-    return FisheyeLens(width=1920, height=1080, fx=372.0, fy=372.0, cx=959.5, cy=539.5,
-                       D=(-0.0420, 0.0010, -0.0005, 0.0), fov_deg=190.0, name="fullhd")
+    return FisheyeLens(
+        width=1920,
+        height=1080,
+        fx=372.0,
+        fy=372.0,
+        cx=959.5,
+        cy=539.5,
+        D=(-0.0420, 0.0010, -0.0005, 0.0),
+        fov_deg=190.0,
+        name="fullhd",
+    )

@@ -65,9 +65,15 @@ def visibility_class(transmittance: float, glare_radius_deg: float, above_terrai
     return "visible" if transmittance >= VISIBLE_T else "dimmed"
 
 
-def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = None,
-               sun: tuple[float, float] | None = None, sun_transmittance: float | None = None,
-               exposure: float | None = None) -> SkyFrame:
+def render_sky(
+    scn: SkyScene,
+    t: float,
+    *,
+    rng: np.random.Generator | None = None,
+    sun: tuple[float, float] | None = None,
+    sun_transmittance: float | None = None,
+    exposure: float | None = None,
+) -> SkyFrame:
     """Render the sky camera's frame at POSIX time ``t``.
 
     ``sun``: (azimuth, apparent elevation) in deg to skip the SPA call (must be the truth at
@@ -107,8 +113,9 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
     T_sun = T_sun if above else 0.0
     if scn.clouds is not None:
         cl = np.flatnonzero(tau > 1e-4)
-        L[cl] = cloud_radiance(scn.clouds, tau[cl], L[cl], chi[cl], dim * min(1.0, T_sun + 0.3),
-                               scn.sky.zenith_level)
+        L[cl] = cloud_radiance(
+            scn.clouds, tau[cl], L[cl], chi[cl], dim * min(1.0, T_sun + 0.3), scn.sky.zenith_level
+        )
 
     if scn.sensor.auto_exposure:
         away = L[::7][chi[::7] > np.radians(20.0)]  # the metering ignores the sun's surroundings
@@ -163,8 +170,9 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
             guv = c - dis.position * (uv_sun - c)
             dist = np.hypot(px - guv[0], py - guv[1])
             amp = dis.level * exposure * T_sun * dim
-            sig = sig + (amp * soft_disk(dist, dis.radius_px, 2.5))[:, None] * np.asarray(dis.tint,
-                                                                                          np.float32)
+            sig = sig + (amp * soft_disk(dist, dis.radius_px, 2.5))[:, None] * np.asarray(
+                dis.tint, np.float32
+            )
             rec.update(uv=guv.tolist())
         truth_d.append(rec)
 
@@ -179,17 +187,27 @@ def render_sky(scn: SkyScene, t: float, *, rng: np.random.Generator | None = Non
         rr, cc = np.nonzero(full >= 0.02)
         if rr.size:
             roi = (int(rr.min()), int(rr.max()) + 1, int(cc.min()), int(cc.max()) + 1)
-            apply_smear(g, img, full[roi[0]:roi[1], roi[2]:roi[3]], roi)
+            apply_smear(g, img, full[roi[0] : roi[1], roi[2] : roi[3]], roi)
     image = expose(img, scn, rng)
     sat_r = (g.core_deg * np.sqrt(max(strength, 1.0) ** (2.0 / g.power) - 1.0)) if strength > 1 else 0.0
     truth = {
-        "time": float(t), "az_deg": az, "el_deg": el, "sun_enu": s_enu, "sun_cam": s_cam,
-        "sun_uv": uv_sun.tolist(), "sun_in_image": bool(in_circle[0]),
-        "terrain_deg": terrain, "tau_sun": tau_sun, "transmittance": T_sun,
-        "air_mass_dimming": dim, "glare_radius_deg": float(sat_r), "exposure": exposure,
+        "time": float(t),
+        "az_deg": az,
+        "el_deg": el,
+        "sun_enu": s_enu,
+        "sun_cam": s_cam,
+        "sun_uv": uv_sun.tolist(),
+        "sun_in_image": bool(in_circle[0]),
+        "terrain_deg": terrain,
+        "tau_sun": tau_sun,
+        "transmittance": T_sun,
+        "air_mass_dimming": dim,
+        "glare_radius_deg": float(sat_r),
+        "exposure": exposure,
         "visibility": visibility_class(T_sun, float(sat_r), above and bool(in_circle[0])),
         "cloud_fraction": float(np.mean(tau[is_sky] > 0.1)) if scn.clouds is not None else 0.0,
-        "distractors": truth_d, "enu_from_camera": R,
+        "distractors": truth_d,
+        "enu_from_camera": R,
     }
     return SkyFrame(image, truth)
 
@@ -201,7 +219,8 @@ def expose(signal: np.ndarray, scn: SkyScene, rng: np.random.Generator) -> np.nd
     if sen.noise:
         e = np.minimum(x, 4.0) * sen.full_well_e
         e = e + rng.standard_normal(e.shape, dtype=np.float32) * np.sqrt(
-            np.maximum(e, 0.0) + sen.read_noise_e ** 2)
+            np.maximum(e, 0.0) + sen.read_noise_e**2
+        )
         x = e / sen.full_well_e
     dn = np.clip(np.rint(x * 255.0), 0, 255).astype(np.uint8)[:, :, ::-1]
     dn = np.ascontiguousarray(dn)

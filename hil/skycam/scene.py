@@ -54,12 +54,18 @@ class SkySensor:
 Matrix3 = tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]
 
 
-def orientation(yaw_deg: float = 0.0, tilt_deg: float = 0.0, tilt_azimuth_deg: float = 0.0,
-                look_el_deg: float = 90.0, look_az_deg: float = 0.0) -> Matrix3:
+def orientation(
+    yaw_deg: float = 0.0,
+    tilt_deg: float = 0.0,
+    tilt_azimuth_deg: float = 0.0,
+    look_el_deg: float = 90.0,
+    look_az_deg: float = 0.0,
+) -> Matrix3:
     """``enu_from_camera`` of a camera looking at elevation ``look_el_deg`` / azimuth
     ``look_az_deg`` (90: the zenith), turned by ``yaw_deg`` about its optical axis (counter-
     clockwise seen from below for a zenith camera), then tipped by ``tilt_deg`` towards
     ``tilt_azimuth_deg`` (installation error)."""
+
     def rot(axis, ang):
         a = np.asarray(axis, float) / np.linalg.norm(axis)
         K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
@@ -107,8 +113,9 @@ class SkyScene:
 def sun_position(site: Site, times, enu_from_camera: np.ndarray | None = None) -> dict:
     t = np.atleast_1d(np.asarray(times, dtype=float))
     idx = pd.DatetimeIndex(pd.to_datetime(t, unit="s", utc=True))
-    sp = pvlib.solarposition.get_solarposition(idx, site.latitude, site.longitude,
-                                               altitude=site.altitude, method="nrel_numpy")
+    sp = pvlib.solarposition.get_solarposition(
+        idx, site.latitude, site.longitude, altitude=site.altitude, method="nrel_numpy"
+    )
     az = sp["azimuth"].to_numpy()
     el = sp["apparent_elevation"].to_numpy()
     a, e = np.radians(az), np.radians(el)
@@ -132,13 +139,18 @@ def sky_profile(name: str, *, noise: bool = True, **overrides) -> SkyScene:
     """
     if name == "seed":
         lens = seed_lens()
-        sensor = SkySensor(full_well_e=6000.0, read_noise_e=8.0, noise=noise,
-                           jpeg_quality=90 if noise else None)
+        sensor = SkySensor(
+            full_well_e=6000.0, read_noise_e=8.0, noise=noise, jpeg_quality=90 if noise else None
+        )
     elif name == "hd":
         lens = hd_lens()
         sensor = SkySensor(full_well_e=10000.0, read_noise_e=6.0, noise=noise, jpeg_quality=None)
     else:
         raise HilError(f"unknown sky-camera profile {name!r}; expected one of {', '.join(PROFILES)}")
-    scn = SkyScene(name=name, lens=lens, sensor=sensor,
-                   enu_from_camera=orientation(yaw_deg=17.0, tilt_deg=0.8, tilt_azimuth_deg=120.0))
+    scn = SkyScene(
+        name=name,
+        lens=lens,
+        sensor=sensor,
+        enu_from_camera=orientation(yaw_deg=17.0, tilt_deg=0.8, tilt_azimuth_deg=120.0),
+    )
     return replace(scn, **overrides) if overrides else scn

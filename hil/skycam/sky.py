@@ -25,7 +25,7 @@ import numpy as np
 # CIE gradation group IV; an indicatrix milder than the clear types' (see the docstring)
 _A, _B, _C, _D, _E = -1.0, -0.8, 0.8, -2.0, 0.45
 
-BLUE = np.array([0.48, 0.70, 1.0], np.float32)   # R, G, B of the deep sky (normalised)
+BLUE = np.array([0.48, 0.70, 1.0], np.float32)  # R, G, B of the deep sky (normalised)
 WHITE = np.array([1.0, 1.0, 1.0], np.float32)
 GROUND = np.array([0.55, 0.50, 0.36], np.float32)
 
@@ -61,8 +61,8 @@ def _dome_mean(sun_enu: np.ndarray) -> float:
     if _DOME is None:
         n = 800
         k = np.arange(n) + 0.5
-        z = 1.0 - k / n                         # uniform in cos(zenith): equal area
-        az = np.pi * (1 + 5 ** 0.5) * k         # golden-angle spiral
+        z = 1.0 - k / n  # uniform in cos(zenith): equal area
+        az = np.pi * (1 + 5**0.5) * k  # golden-angle spiral
         r = np.sqrt(1 - z * z)
         _DOME = np.stack([r * np.cos(az), r * np.sin(az), z], 1).astype(np.float32)
     chi = np.arccos(np.clip(_DOME @ np.asarray(sun_enu, np.float32), -1.0, 1.0))
@@ -96,8 +96,14 @@ def ground_and_horizon(model: SkyModel, dirs_enu: np.ndarray) -> tuple[np.ndarra
     return is_sky, ground
 
 
-def sky_radiance(model: SkyModel, dirs_enu: np.ndarray, sun_enu: np.ndarray, sun_el_deg: float,
-                 is_sky: np.ndarray, ground: np.ndarray) -> np.ndarray:
+def sky_radiance(
+    model: SkyModel,
+    dirs_enu: np.ndarray,
+    sun_enu: np.ndarray,
+    sun_el_deg: float,
+    is_sky: np.ndarray,
+    ground: np.ndarray,
+) -> np.ndarray:
     """RGB radiance (N, 3) float32 of the clear sky, and of the ground where ``is_sky`` is
     False, for ENU unit directions (N, 3) (see :func:`ground_and_horizon`)."""
     d = dirs_enu

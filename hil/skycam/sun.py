@@ -67,11 +67,16 @@ def air_mass_dimming(el_deg: float) -> float:
         return 0.0
     z = np.radians(90.0 - max(el_deg, -0.8))
     am = 1.0 / (np.cos(z) + 0.50572 * (96.07995 - np.degrees(z)) ** -1.6364)
-    return float(0.7 ** (am ** 0.678) / 0.7)
+    return float(0.7 ** (am**0.678) / 0.7)
 
 
-def glare_signal(model: GlareModel, chi_deg: np.ndarray, pix_deg: np.ndarray, strength: float,
-                 aureole_transmittance: np.ndarray | float = 1.0) -> np.ndarray:
+def glare_signal(
+    model: GlareModel,
+    chi_deg: np.ndarray,
+    pix_deg: np.ndarray,
+    strength: float,
+    aureole_transmittance: np.ndarray | float = 1.0,
+) -> np.ndarray:
     """Glare (full-scale units, unclipped) of a source of relative ``strength`` (X T A).
 
     ``chi_deg``: angle of each view from the source (deg); ``pix_deg``: pixel distance from the
@@ -80,12 +85,16 @@ def glare_signal(model: GlareModel, chi_deg: np.ndarray, pix_deg: np.ndarray, st
     """
     w = model.image_weight
     core = (1.0 - w) * model.profile(chi_deg) * aureole_transmittance + w * model.profile(pix_deg)
-    halo = model.halo_level * np.exp(-(chi_deg / model.halo_deg) ** 2) / model.amplitude
+    halo = model.halo_level * np.exp(-((chi_deg / model.halo_deg) ** 2)) / model.amplitude
     return (strength * (core + halo)).astype(np.float32)
 
 
-def apply_smear(model: GlareModel, signal: np.ndarray, glare: np.ndarray, roi: tuple[int, int, int, int],
-                ) -> np.ndarray:
+def apply_smear(
+    model: GlareModel,
+    signal: np.ndarray,
+    glare: np.ndarray,
+    roi: tuple[int, int, int, int],
+) -> np.ndarray:
     """Add the sensor's smear to ``signal`` (H, W, 3) in place; ``glare`` is the sun's glare
     in ``roi = (r0, r1, c0, c1)`` (single channel, full-scale units)."""
     if model.smear == "none" or model.smear_level <= 0:

@@ -19,5 +19,14 @@ from .lens import FisheyeLens
 from .result import FisheyeResult
 from .seed import SeedEstimator
 
-__all__ = ["FisheyeEstimator", "FisheyeLens", "FisheyeOptions", "FisheyeResult", "GlareOptions",
-           "SeedEstimator", "as_bgr8", "glare_channel", "load_frame"]
+__all__ = [
+    "FisheyeEstimator",
+    "FisheyeLens",
+    "FisheyeOptions",
+    "FisheyeResult",
+    "GlareOptions",
+    "SeedEstimator",
+    "as_bgr8",
+    "glare_channel",
+    "load_frame",
+]

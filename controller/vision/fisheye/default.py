@@ -42,8 +42,17 @@ from .lens import FisheyeLens
 from .result import FisheyeResult, not_found
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
-REASON_ORDER = ("static_glare", "glare_shrunk", "below_horizon", "irregular_glare",
-                "incomplete_glare", "low_contrast", "glare_too_small", "glare_too_large", "no_rim")
+REASON_ORDER = (
+    "static_glare",
+    "glare_shrunk",
+    "below_horizon",
+    "irregular_glare",
+    "incomplete_glare",
+    "low_contrast",
+    "glare_too_small",
+    "glare_too_large",
+    "no_rim",
+)
 
 
 @dataclass(frozen=True)
@@ -58,18 +67,18 @@ class FisheyeOptions:
 
     glare: GlareOptions = field(default_factory=GlareOptions)
     gates: GateOptions = field(default_factory=GateOptions)
-    min_peak: float = 200.0            # grey level: below it nothing is saturated
-    sat_margin: float = 4.0            # grey levels under the peak that count as saturated
-    min_radius_deg: float = 0.8        # the sun's disk is 0.27 deg; smaller: a point source, or too dim
+    min_peak: float = 200.0  # grey level: below it nothing is saturated
+    sat_margin: float = 4.0  # grey levels under the peak that count as saturated
+    min_radius_deg: float = 0.8  # the sun's disk is 0.27 deg; smaller: a point source, or too dim
     max_radius_deg: float = 20.0
     min_inlier_fraction: float = 0.35
-    max_gap_deg: float = 150.0         # largest arc of the rim without an inlier
-    max_rms_px: float = 0.6            # rim residual RMS: this many pixels at the glare ...
-    max_rms_rel: float = 0.08          # ... plus this fraction of its radius
+    max_gap_deg: float = 150.0  # largest arc of the rim without an inlier
+    max_rms_px: float = 0.6  # rim residual RMS: this many pixels at the glare ...
+    max_rms_rel: float = 0.08  # ... plus this fraction of its radius
     min_core_fill: float = 0.9
-    min_contrast: float = 0.12         # (peak - sky) / peak
+    min_contrast: float = 0.12  # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
-    ambiguity_ratio: float = 1.25      # the sun's glare must be this much larger
+    ambiguity_ratio: float = 1.25  # the sun's glare must be this much larger
     max_blobs: int = 6
     sigma_floor_deg: float = 0.015
     near_horizon_deg: float = 12.0
@@ -103,8 +112,7 @@ class FisheyeEstimator:
         self.ephemeris = None
         if bundle.site is not None and self.R is not None and self.options.gates.ephemeris:
             s = bundle.site
-            self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude,
-                                            altitude=s.altitude))
+            self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
         self._last: tuple[float, np.ndarray] | None = None
         self.history = GlareHistory()
         dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
@@ -141,8 +149,15 @@ class FisheyeEstimator:
         if img is None:
             return not_found(None, reason or "no_image", t, self.frame, self.algorithm)
         if img.shape[:2] != self.shape:
-            return not_found(None, "size_mismatch", t, self.frame, self.algorithm,
-                             expected_shape=list(self.shape), got_shape=list(img.shape[:2]))
+            return not_found(
+                None,
+                "size_mismatch",
+                t,
+                self.frame,
+                self.algorithm,
+                expected_shape=list(self.shape),
+                got_shape=list(img.shape[:2]),
+            )
         grey = glare_channel(img)
         _, peak, _, _ = cv2.minMaxLoc(grey, self.mask)
         if peak < o.min_peak:
@@ -154,8 +169,10 @@ class FisheyeEstimator:
         low = 0
         for blob in blobs:
             for x, y, r in blob.centres:
-                if any(math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
-                       for c in cands):
+                if any(
+                    math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
+                    for c in cands
+                ):
                     continue  # another centre of a glare already measured
                 if self._below_horizon(x, y, r):
                     low += 1
@@ -172,13 +189,22 @@ class FisheyeEstimator:
             why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
             return not_found(None, why, t, self.frame, self.algorithm, candidates=len(cands) + low)
         gates = self._gates(t, prior)
-        passing = [c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg
-                                              for g in gates)]
+        passing = [
+            c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in gates)
+        ]
         if gates and not passing:
-            near = min(max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates)
-                       for c in sun_like)
-            return not_found(None, "gate_rejected", t, self.frame, self.algorithm,
-                             gates=[g.name for g in gates], beyond_gate_deg=round(near, 3))
+            near = min(
+                max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
+            )
+            return not_found(
+                None,
+                "gate_rejected",
+                t,
+                self.frame,
+                self.algorithm,
+                gates=[g.name for g in gates],
+                beyond_gate_deg=round(near, 3),
+            )
         passing.sort(key=lambda c: -c.fit.radius_deg)
         flags = ["several_candidates"] if len(sun_like) > 1 else []
         best = passing[0]
@@ -192,8 +218,9 @@ class FisheyeEstimator:
                 best = movers[0]
                 flags.append("chosen_by_motion")
             else:
-                return not_found(None, "ambiguous_candidates", t, self.frame, self.algorithm,
-                                 candidates=len(passing))
+                return not_found(
+                    None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
+                )
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
         if t is not None:
             self._last = (float(t), self._gd(best))
@@ -207,8 +234,10 @@ class FisheyeEstimator:
         d_enu = self.R @ d_cam if self.R is not None else None
         el = float(math.degrees(math.asin(np.clip(d_enu[2], -1, 1)))) if d_enu is not None else None
         reason = None
-        if (fit.rms_deg > o.max_rms_px * fit.deg_per_px + o.max_rms_rel * fit.radius_deg
-                or fit.core_fill < o.min_core_fill):
+        if (
+            fit.rms_deg > o.max_rms_px * fit.deg_per_px + o.max_rms_rel * fit.radius_deg
+            or fit.core_fill < o.min_core_fill
+        ):
             reason = "irregular_glare"
         elif fit.inlier_fraction < o.min_inlier_fraction or fit.max_gap_deg > o.max_gap_deg:
             reason = "incomplete_glare"
@@ -260,8 +289,9 @@ class FisheyeEstimator:
         out: list[Gate] = []
         pd = prior_direction(prior) if self.R is not None else None
         if pd is not None:
-            out.append(Gate("prior", pd[0], max(g.prior_min_deg, g.prior_k_sigma * pd[1] + g.base_deg),
-                            "enu"))
+            out.append(
+                Gate("prior", pd[0], max(g.prior_min_deg, g.prior_k_sigma * pd[1] + g.base_deg), "enu")
+            )
         if self.ephemeris is not None and t is not None:
             o = self.bundle.orientation
             slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
@@ -269,8 +299,14 @@ class FisheyeEstimator:
         if self._last is not None and t is not None:
             dt = float(t) - self._last[0]
             if 0.0 <= dt <= g.max_gap_s:
-                out.append(Gate("sequence", self._last[1], g.base_deg + g.rate_deg_per_min * dt / 60.0,
-                                self.frame if self.R is not None else "camera"))
+                out.append(
+                    Gate(
+                        "sequence",
+                        self._last[1],
+                        g.base_deg + g.rate_deg_per_min * dt / 60.0,
+                        self.frame if self.R is not None else "camera",
+                    )
+                )
         return out
 
     def _result(self, c: Candidate, t: float | None, flags: list[str]) -> FisheyeResult:
@@ -283,8 +319,7 @@ class FisheyeEstimator:
         # the bending and of the radius: systematic, not averaged down by the rays
         sig_rim = 0.5 * f.rms_deg
         sig_partial = 0.5 * f.radius_deg * (1.0 - f.inlier_fraction) ** 2
-        sigma = math.sqrt(sig_fit ** 2 + sig_rim ** 2 + o.sigma_floor_deg ** 2 + self.sigma_cal ** 2
-                          + sig_partial ** 2)
+        sigma = math.sqrt(sig_fit**2 + sig_rim**2 + o.sigma_floor_deg**2 + self.sigma_cal**2 + sig_partial**2)
         if f.inlier_fraction < 0.9:
             flags.append("outliers_rejected")
         if f.smear:
@@ -296,13 +331,22 @@ class FisheyeEstimator:
         x, y, z = (float(a) for a in c.d_cam)
         W, H = self.shape[1], self.shape[0]
         return FisheyeResult(
-            image=None, found=True, time=t, frame=self.frame, algorithm=self.algorithm,
-            az_deg=float(az), el_deg=float(el), sigma_deg=sigma, d_cam=c.d_cam,
-            centre_uv=f.centre_uv, offset_px=(f.centre_uv[0] - W / 2, f.centre_uv[1] - H / 2),
+            image=None,
+            found=True,
+            time=t,
+            frame=self.frame,
+            algorithm=self.algorithm,
+            az_deg=float(az),
+            el_deg=float(el),
+            sigma_deg=sigma,
+            d_cam=c.d_cam,
+            centre_uv=f.centre_uv,
+            offset_px=(f.centre_uv[0] - W / 2, f.centre_uv[1] - H / 2),
             offset_deg=(math.degrees(math.atan2(x, z)), math.degrees(math.atan2(y, z))),
-            radius_deg=f.radius_deg, quality=tuple(flags),
-            extra={"rim_rms_deg": round(f.rms_deg, 5), "rim_inliers": f.n_inliers,
-                   "rim_rays": f.n_rays})
+            radius_deg=f.radius_deg,
+            quality=tuple(flags),
+            extra={"rim_rms_deg": round(f.rms_deg, 5), "rim_inliers": f.n_inliers, "rim_rays": f.n_rays},
+        )
 
 
 def glare_channel(img: np.ndarray) -> np.ndarray:
@@ -326,6 +370,7 @@ def _load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | No
         return None
     m = cv2.imread(str(bundle.mask), cv2.IMREAD_GRAYSCALE)
     if m is None or m.shape != shape:
-        raise ConfigError(bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image",
-                          str(bundle.mask))
+        raise ConfigError(
+            bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
+        )
     return np.where(m > 0, 255, 0).astype(np.uint8)

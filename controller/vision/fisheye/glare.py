@@ -67,22 +67,22 @@ class Blob:
 class GlareFit:
     """Result of fitting the rim of one glare candidate (angles in degrees)."""
 
-    axis: np.ndarray               # unit sun direction, camera frame
+    axis: np.ndarray  # unit sun direction, camera frame
     radius_deg: float
     rms_deg: float
     n_rays: int
     n_valid: int
     n_inliers: int
-    max_gap_deg: float             # largest angular gap between inlier rays around the centre
+    max_gap_deg: float  # largest angular gap between inlier rays around the centre
     centre_uv: tuple[float, float]
     radius_px: float
     peak: float
     background: float
-    core_fill: float               # fraction of the disk's inner part at or above the level
+    core_fill: float  # fraction of the disk's inner part at or above the level
     deg_per_px: float
     smear: str | None = None
     flags: list[str] = field(default_factory=list)
-    image_share: float = 0.0       # how much the glare is round in the image rather than on the sky
+    image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
 
     @property
     def inlier_fraction(self) -> float:
@@ -96,8 +96,9 @@ class GlareFit:
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
 
 
-def find_blobs(grey: np.ndarray, threshold: float, valid: np.ndarray | None, *,
-               max_blobs: int = 6, min_area_px: int = 3) -> list[Blob]:
+def find_blobs(
+    grey: np.ndarray, threshold: float, valid: np.ndarray | None, *, max_blobs: int = 6, min_area_px: int = 3
+) -> list[Blob]:
     """Blobs of ``grey >= threshold`` inside ``valid``, largest first.
 
     The blobs are labelled on a block-reduced mask (any saturated pixel marks its block),
@@ -163,8 +164,10 @@ def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_leve
         if r1 - r0 < 2 or x1 <= x0:
             continue
         inner = float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level
-        aside = [grey[r0:r1, max(int(a), 0):min(int(b) + 1, W)] for a, b in
-                 ((xc - 2.5 * r, xc - 1.5 * r), (xc + 1.5 * r, xc + 2.5 * r))]
+        aside = [
+            grey[r0:r1, max(int(a), 0) : min(int(b) + 1, W)]
+            for a, b in ((xc - 2.5 * r, xc - 1.5 * r), (xc + 1.5 * r, xc + 2.5 * r))
+        ]
         clear = all(float(np.mean(a >= sat_level)) < 0.2 for a in aside if a.size)
         sides.append(inner and clear)
     return bool(sides) and all(sides)
@@ -187,9 +190,17 @@ def _crossings(vals: np.ndarray, radii: np.ndarray, level: np.ndarray) -> tuple[
     return radii[jj - 1] + frac * (radii[jj] - radii[jj - 1]), has
 
 
-def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: float,
-              peak: float, opts: GlareOptions = GlareOptions(), *,
-              up_cam: np.ndarray | None = None) -> GlareFit | None:
+def fit_glare(
+    grey: np.ndarray,
+    lens: FisheyeLens,
+    x0: float,
+    y0: float,
+    r_px: float,
+    peak: float,
+    opts: GlareOptions = GlareOptions(),
+    *,
+    up_cam: np.ndarray | None = None,
+) -> GlareFit | None:
     """Measure the glare around (x0, y0) (px; a point inside it, ``r_px`` its rough radius).
 
     Rays are cast on the sphere around the current axis (equal angular steps, projected
@@ -243,23 +254,25 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
             if outer.size < 8:
                 return None
             bg = float(np.median(outer))
-            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel],
-                                 peak - bg, rsky)
+            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], peak - bg, rsky)
             by_el = None
             if up_cam is not None and not rsky.all():
                 # rings cut by the horizon: model the sky by elevation instead of a dipole
                 el0 = math.asin(float(np.clip(a @ up_cam, -1, 1)))
                 t_r = np.cos(phi[ring_sel])[:, None] * e1 + np.sin(phi[ring_sel])[:, None] * e2
-                sin_el = (np.cos(ring_chi)[None, :] * float(a @ up_cam)
-                          + np.sin(ring_chi)[None, :] * (t_r @ up_cam)[:, None])
+                sin_el = (
+                    np.cos(ring_chi)[None, :] * float(a @ up_cam)
+                    + np.sin(ring_chi)[None, :] * (t_r @ up_cam)[:, None]
+                )
                 xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
-                by_el = sky_by_elevation(rvals, ring_chi, phi[ring_sel], rho,
-                                          vertical_ok[ring_sel], rsky, xr, peak - bg)
+                by_el = sky_by_elevation(
+                    rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], rsky, xr, peak - bg
+                )
         if by_el is not None:
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)
             xk = (np.arcsin(np.clip(sin_k, -1, 1)) - math.asin(float(np.clip(a @ up_cam, -1, 1)))) / rho
-            shift = by_el[0] * xk + by_el[1] * xk ** 2 + by_el[2] * xk ** 3
+            shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
         level = bg + opts.level * (peak - bg) + shift
@@ -302,8 +315,11 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
         # neither model, and the cone is the default
         # and only when the cone's rim is elliptical the way the lens makes a round image
         # (g), which a rim bent by clouds is not
-        if (g >= 0.5 and n_p >= 0.8 * len(uv_rim)
-                and (n_p >= 1.25 * n_a + 2 or (n_p >= n_a and p_rms < 0.5 * rms_a_px))):
+        if (
+            g >= 0.5
+            and n_p >= 0.8 * len(uv_rim)
+            and (n_p >= 1.25 * n_a + 2 or (n_p >= n_a and p_rms < 0.5 * rms_a_px))
+        ):
             d_c, ok_c = lens.rays([[pcx, pcy]])
             if ok_c[0]:
                 a = d_c[0]
@@ -319,12 +335,24 @@ def fit_glare(grey: np.ndarray, lens: FisheyeLens, x0: float, y0: float, r_px: f
     if not (0 <= xc < W and 0 <= yc < H):
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
-    return GlareFit(axis=a, radius_deg=math.degrees(rho), rms_deg=math.degrees(rms),
-                    n_rays=n_rays, n_valid=int(has.sum()), n_inliers=len(idx),
-                    max_gap_deg=_max_gap(idx, n_rays), centre_uv=(xc, yc), radius_px=r_fit,
-                    peak=peak, background=bg,
-                    core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
-                    deg_per_px=dpp, smear=smear_kind, flags=flags, image_share=g)
+    return GlareFit(
+        axis=a,
+        radius_deg=math.degrees(rho),
+        rms_deg=math.degrees(rms),
+        n_rays=n_rays,
+        n_valid=int(has.sum()),
+        n_inliers=len(idx),
+        max_gap_deg=_max_gap(idx, n_rays),
+        centre_uv=(xc, yc),
+        radius_px=r_fit,
+        peak=peak,
+        background=bg,
+        core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
+        deg_per_px=dpp,
+        smear=smear_kind,
+        flags=flags,
+        image_share=g,
+    )
 
 
 def _fit_circle_px(uv: np.ndarray, k: float, floor_px: float):
@@ -348,8 +376,9 @@ def _fit_circle_px(uv: np.ndarray, k: float, floor_px: float):
     return (float(centre[0]), float(centre[1])), inl, rms
 
 
-def _pixel_round_bias(lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def _pixel_round_bias(
+    lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72
+) -> tuple[np.ndarray, np.ndarray]:
     """For a disk round in the image, centred on the image of ``a`` and ``rho`` wide on the
     sphere: (the offset of its fitted cone's axis from ``a``, its ellipticity (c2, s2))."""
     uv, ok = lens.project(a[None, :])

@@ -32,8 +32,14 @@ def _deg(a: np.ndarray, b: np.ndarray) -> float:
 class GlareHistory:
     """Recent sun-like glares of a sequence: (time, [(direction, radius deg), ...])."""
 
-    def __init__(self, keep_s: float = 1800.0, static_after_s: float = 300.0,
-                 tol_deg: float = 0.3, shrink: float = 0.5, shrink_memory_s: float = 3600.0):
+    def __init__(
+        self,
+        keep_s: float = 1800.0,
+        static_after_s: float = 300.0,
+        tol_deg: float = 0.3,
+        shrink: float = 0.5,
+        shrink_memory_s: float = 3600.0,
+    ):
         self.keep_s = keep_s
         self.static_after_s = static_after_s
         self.tol_deg = tol_deg

@@ -84,8 +84,9 @@ class FisheyeLens:
         d = np.asarray(dirs, np.float64).reshape(-1, 3)
         valid = d[:, 2] > 1e-9
         safe = np.where(valid[:, None], d, [0.0, 0.0, 1.0])
-        uv, _ = cv2.fisheye.projectPoints(np.ascontiguousarray(safe.reshape(-1, 1, 3)),
-                                          np.zeros(3), np.zeros(3), self.K, self.D)
+        uv, _ = cv2.fisheye.projectPoints(
+            np.ascontiguousarray(safe.reshape(-1, 1, 3)), np.zeros(3), np.zeros(3), self.K, self.D
+        )
         return uv.reshape(-1, 2), valid
 
     # -- scale -----------------------------------------------------------------------------

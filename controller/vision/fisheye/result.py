@@ -65,9 +65,15 @@ class FisheyeResult:
         """The measurement for the sun-path filter, or None when nothing was found."""
         if not self.found or self.time is None or self.az_deg is None or self.el_deg is None:
             return None
-        return SunObservation(time=float(self.time), az_deg=float(self.az_deg),
-                              el_deg=float(self.el_deg), sigma_deg=float(self.sigma_deg or 0.3),
-                              frame=self.frame, quality=tuple(self.quality), sensor="fisheye")
+        return SunObservation(
+            time=float(self.time),
+            az_deg=float(self.az_deg),
+            el_deg=float(self.el_deg),
+            sigma_deg=float(self.sigma_deg or 0.3),
+            frame=self.frame,
+            quality=tuple(self.quality),
+            sensor="fisheye",
+        )
 
     def to_json(self) -> dict:
         """One JSON-ready line: ``image``, ``found``, ``reason`` (when not found), ``az_deg``,
@@ -77,9 +83,16 @@ class FisheyeResult:
             d["reason"] = self.reason
         if self.time is not None:
             d["time"] = self.time
-        d.update({"algorithm": self.algorithm, "frame": self.frame, "az_deg": _r(self.az_deg),
-                  "el_deg": _r(self.el_deg), "sigma_deg": _r(self.sigma_deg),
-                  "quality": list(self.quality)})
+        d.update(
+            {
+                "algorithm": self.algorithm,
+                "frame": self.frame,
+                "az_deg": _r(self.az_deg),
+                "el_deg": _r(self.el_deg),
+                "sigma_deg": _r(self.sigma_deg),
+                "quality": list(self.quality),
+            }
+        )
         if self.centre_uv is not None:
             d["centre_uv"] = [_r(self.centre_uv[0], 3), _r(self.centre_uv[1], 3)]
         if self.offset_px is not None:
@@ -96,7 +109,16 @@ def _r(x, nd: int = 5):
     return None if x is None else round(float(x), nd)
 
 
-def not_found(image: str | None, reason: str, t: float | None, frame: str, algorithm: str,
-              **extra) -> FisheyeResult:
-    return FisheyeResult(image=image, found=False, reason=reason, time=t, frame=frame,
-                         algorithm=algorithm, quality=(reason,), extra=dict(extra))
+def not_found(
+    image: str | None, reason: str, t: float | None, frame: str, algorithm: str, **extra
+) -> FisheyeResult:
+    return FisheyeResult(
+        image=image,
+        found=False,
+        reason=reason,
+        time=t,
+        frame=frame,
+        algorithm=algorithm,
+        quality=(reason,),
+        extra=dict(extra),
+    )

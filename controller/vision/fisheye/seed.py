@@ -79,15 +79,22 @@ class SeedEstimator:
 
     algorithm = "seed"
 
-    def __init__(self, bundle: FisheyeBundle, *, delta: float = 0.10, n_t: float | None = None,
-                 offset_bound_px: float | None = None):
+    def __init__(
+        self,
+        bundle: FisheyeBundle,
+        *,
+        delta: float = 0.10,
+        n_t: float | None = None,
+        offset_bound_px: float | None = None,
+    ):
         cam = bundle.camera
         self.bundle = bundle
         self.shape = (cam.height, cam.width)
         scale = cam.width * cam.height / (640.0 * 480.0)
         self.n_t = float(n_t) if n_t is not None else N_T_640x480 * scale
-        self.offset_bound = (float(offset_bound_px) if offset_bound_px is not None
-                             else 20.0 * cam.width / 640.0)
+        self.offset_bound = (
+            float(offset_bound_px) if offset_bound_px is not None else 20.0 * cam.width / 640.0
+        )
         self.delta = delta
         self.R = bundle.enu_from_camera
         self.frame = "enu" if self.R is not None else "model"
@@ -106,7 +113,7 @@ class SeedEstimator:
         ``x = x0 + (X - x0) sqrt(R^2 - (Y - y0)^2) / R``, ``y = Y``."""
         H, W = self.shape
         Y, X = np.mgrid[0:H, 0:W].astype(np.float32)
-        half = np.sqrt(np.maximum(self.radius ** 2 - (Y - self.y0) ** 2, 0.0))
+        half = np.sqrt(np.maximum(self.radius**2 - (Y - self.y0) ** 2, 0.0))
         mx = (self.x0 + (X - self.x0) * half / self.radius).astype(np.float32)
         inside = (np.abs(X - self.x0) <= self.radius) & (half > 0)
         mx[~inside] = -1.0
@@ -114,8 +121,14 @@ class SeedEstimator:
 
     def correct(self, mask: np.ndarray) -> np.ndarray:
         """The longitude correction of a mask (nearest neighbour)."""
-        return cv2.remap(mask, self._maps[0], self._maps[1], cv2.INTER_NEAREST,
-                         borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return cv2.remap(
+            mask,
+            self._maps[0],
+            self._maps[1],
+            cv2.INTER_NEAREST,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=0,
+        )
 
     def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
         img, reason = load_frame(path)
@@ -131,8 +144,15 @@ class SeedEstimator:
         if img is None:
             return not_found(None, reason or "no_image", t, self.frame, self.algorithm)
         if img.shape[:2] != self.shape:
-            return not_found(None, "size_mismatch", t, self.frame, self.algorithm,
-                             expected_shape=list(self.shape), got_shape=list(img.shape[:2]))
+            return not_found(
+                None,
+                "size_mismatch",
+                t,
+                self.frame,
+                self.algorithm,
+                expected_shape=list(self.shape),
+                got_shape=list(img.shape[:2]),
+            )
         corrected = self.correct(segment(img, self.delta))
         n, _, stats, cents = cv2.connectedComponentsWithStats(corrected, connectivity=8)
         if n <= 1:
@@ -142,8 +162,9 @@ class SeedEstimator:
         if self._prev is not None and self._prev[2] is not None and t is not None:
             bound += 0.3 * abs(t - self._prev[2]) / 60.0 / self._deg_per_px
         for k in range(1, n):
-            w, h, area = (float(stats[k, i]) for i in (cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT,
-                                                       cv2.CC_STAT_AREA))
+            w, h, area = (
+                float(stats[k, i]) for i in (cv2.CC_STAT_WIDTH, cv2.CC_STAT_HEIGHT, cv2.CC_STAT_AREA)
+            )
             u, v = float(cents[k, 0]), float(cents[k, 1])
             if not ASPECT[0] < w / h < ASPECT[1]:
                 failed["shape"] += 1
@@ -154,8 +175,9 @@ class SeedEstimator:
             else:
                 passing.append((area, u, v))
         if not passing:
-            return not_found(None, "no_region_passes_rules", t, self.frame, self.algorithm,
-                             rejected=failed, regions=n - 1)
+            return not_found(
+                None, "no_region_passes_rules", t, self.frame, self.algorithm, rejected=failed, regions=n - 1
+            )
         area_px, U, V = max(passing)
         self._prev = (U, V, t)
         lam = math.asin(float(np.clip((U - self.x0) / self.radius, -1, 1)))
@@ -165,13 +187,25 @@ class SeedEstimator:
         az, el = enu_to_azel(vec)
         H, W = self.shape
         # the centroid back in the fisheye image (the row is kept by the correction)
-        half = math.sqrt(max(self.radius ** 2 - (V - self.y0) ** 2, 0.0))
+        half = math.sqrt(max(self.radius**2 - (V - self.y0) ** 2, 0.0))
         u_fish = self.x0 + (U - self.x0) * half / self.radius
         flags = ("several_candidates",) if len(passing) > 1 else ()
         return FisheyeResult(
-            image=None, found=True, time=t, frame=self.frame, algorithm=self.algorithm,
-            az_deg=float(az), el_deg=float(el), sigma_deg=1.0, d_cam=d_cam,
-            centre_uv=(u_fish, V), offset_px=(U - W / 2, V - H / 2),
-            offset_deg=(math.degrees(math.atan2(d_cam[0], d_cam[2])),
-                        math.degrees(math.atan2(d_cam[1], d_cam[2]))),
-            quality=flags, extra={"area_px": int(area_px), "corrected_uv": [round(U, 3), round(V, 3)]})
+            image=None,
+            found=True,
+            time=t,
+            frame=self.frame,
+            algorithm=self.algorithm,
+            az_deg=float(az),
+            el_deg=float(el),
+            sigma_deg=1.0,
+            d_cam=d_cam,
+            centre_uv=(u_fish, V),
+            offset_px=(U - W / 2, V - H / 2),
+            offset_deg=(
+                math.degrees(math.atan2(d_cam[0], d_cam[2])),
+                math.degrees(math.atan2(d_cam[1], d_cam[2])),
+            ),
+            quality=flags,
+            extra={"area_px": int(area_px), "corrected_uv": [round(U, 3), round(V, 3)]},
+        )

@@ -50,8 +50,15 @@ def harmonics(phi: np.ndarray, M: np.ndarray) -> np.ndarray:
     return out
 
 
-def sky_dipole(vals: np.ndarray, chi: np.ndarray, phi: np.ndarray, rho: float, rays_ok: np.ndarray,
-                contrast: float, sky: np.ndarray | None = None) -> np.ndarray:
+def sky_dipole(
+    vals: np.ndarray,
+    chi: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    rays_ok: np.ndarray,
+    contrast: float,
+    sky: np.ndarray | None = None,
+) -> np.ndarray:
     """The sky's dipole (grey levels along cos, sin of the ray angle) at the rim's radius.
 
     In rings outside the rim, the measured dipole is the sky's, ``k1 chi + k2 chi^2``, plus
@@ -95,9 +102,16 @@ def sky_dipole(vals: np.ndarray, chi: np.ndarray, phi: np.ndarray, rho: float, r
     return dip * (cap / nrm) if nrm > cap else dip
 
 
-def sky_by_elevation(vals: np.ndarray, chi: np.ndarray, phi: np.ndarray, rho: float,
-                      rays_ok: np.ndarray, sky: np.ndarray, x: np.ndarray, contrast: float
-                      ) -> np.ndarray | None:
+def sky_by_elevation(
+    vals: np.ndarray,
+    chi: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    rays_ok: np.ndarray,
+    sky: np.ndarray,
+    x: np.ndarray,
+    contrast: float,
+) -> np.ndarray | None:
     """The sky's asymmetry as a function of elevation, for a glare near the horizon.
 
     ``x``: each ring sample's elevation minus the axis's, over ``rho``.  Model of the ring
@@ -116,8 +130,7 @@ def sky_by_elevation(vals: np.ndarray, chi: np.ndarray, phi: np.ndarray, rho: fl
     if not np.isfinite(prof).all():
         return None
     dprof = np.gradient(prof, chi)
-    rings = [(lo, hi) for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8),
-                                     (2.8, 3.2))]
+    rings = [(lo, hi) for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))]
     rows, rhs = [], []
     n_rings = 0
     for j, (lo, hi) in enumerate(rings):
@@ -134,16 +147,15 @@ def sky_by_elevation(vals: np.ndarray, chi: np.ndarray, phi: np.ndarray, rho: fl
         sj = float(chi[sel].mean()) / rho - 1.0
         one = np.zeros((ok.sum(), len(rings)))
         one[:, j] = 1.0
-        cols = np.column_stack([one, -dp * np.cos(phi[ok]), -dp * np.sin(phi[ok]),
-                                xx, xx ** 2, xx ** 3, xx * sj])
+        cols = np.column_stack([one, -dp * np.cos(phi[ok]), -dp * np.sin(phi[ok]), xx, xx**2, xx**3, xx * sj])
         rows.append(cols)
         rhs.append(m)
     if n_rings < 3:
         return None
     A = np.concatenate(rows)
     b = np.concatenate(rhs)
-    used = np.flatnonzero(np.abs(A[:, :len(rings)]).sum(0) > 0)
-    A = np.concatenate([A[:, used], A[:, len(rings):]], axis=1)
+    used = np.flatnonzero(np.abs(A[:, : len(rings)]).sum(0) > 0)
+    A = np.concatenate([A[:, used], A[:, len(rings) :]], axis=1)
     keep = np.ones(len(b), bool)
     sol = np.zeros(A.shape[1])
     for _ in range(2):

@@ -39,8 +39,9 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
         e1, e2 = tangent_basis(a)
         ang = np.arccos(np.clip(v @ a, -1.0, 1.0))
         psi = np.arctan2(v @ e2, v @ e1)
-        A = np.stack([np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi), np.cos(3 * psi),
-                      np.sin(3 * psi)], 1)
+        A = np.stack(
+            [np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi), np.cos(3 * psi), np.sin(3 * psi)], 1
+        )
         coef, *_ = np.linalg.lstsq(A[inl], ang[inl], rcond=None)
         ell = coef[1:3]
         res = ang - A @ coef
@@ -79,8 +80,9 @@ def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 32) -> np.ndarr
     return np.abs(v @ nrm[best] - c[best]) <= tol[best]
 
 
-def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
-             iters: int = 4) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
+def fit_cone(
+    v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5, iters: int = 4
+) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
     """Robust small circle (or ellipse) through unit vectors ``v`` (N, 3).
 
     The plane fit gives the axis (an ellipse's centre too, by its symmetry); the angular
@@ -109,7 +111,7 @@ def fit_cone(v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5,
     if good:
         best = max(good, key=lambda j: int(sols[j][2].sum()))
     else:
-        best = int(np.argmin([float(np.minimum(r ** 2, tol * tol).sum()) for _, _, _, r, _ in sols]))
+        best = int(np.argmin([float(np.minimum(r**2, tol * tol).sum()) for _, _, _, r, _ in sols]))
     a, c, inl, res, ell = sols[best]
     rho = float(np.arccos(np.clip(c, -1.0, 1.0)))
     rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
@@ -126,10 +128,15 @@ def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
-def sample_sphere(grey: np.ndarray, lens: FisheyeLens, a: np.ndarray, e1: np.ndarray,
-                   e2: np.ndarray, up_cam: np.ndarray | None,
-                   grids: list[tuple[np.ndarray, np.ndarray]],
-                   ) -> list[tuple[np.ndarray, np.ndarray]]:
+def sample_sphere(
+    grey: np.ndarray,
+    lens: FisheyeLens,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    up_cam: np.ndarray | None,
+    grids: list[tuple[np.ndarray, np.ndarray]],
+) -> list[tuple[np.ndarray, np.ndarray]]:
     """Bilinear samples of ``grey`` at directions ``cos(chi) a + sin(chi) (cos(phi) e1 +
     sin(phi) e2)`` for each (phi, chi) grid, with one projection through the lens.
 
@@ -162,12 +169,13 @@ def sample_sphere(grey: np.ndarray, lens: FisheyeLens, a: np.ndarray, e1: np.nda
     my = (uv[:, 1] - y0).astype(np.float32).reshape(1, -1)
     vals = np.empty(dirs.shape[0], np.float32)
     for i in range(0, dirs.shape[0], 30000):  # remap maps are limited to 32767 per side
-        vals[i:i + 30000] = cv2.remap(win, mx[:, i:i + 30000], my[:, i:i + 30000], cv2.INTER_LINEAR,
-                                      borderMode=cv2.BORDER_REPLICATE).ravel()
+        vals[i : i + 30000] = cv2.remap(
+            win, mx[:, i : i + 30000], my[:, i : i + 30000], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        ).ravel()
     vals[~okp] = np.nan
     out, k = [], 0
     for b in blocks:
         n = b.shape[0] * b.shape[1]
-        out.append((vals[k:k + n].reshape(b.shape[:2]), sky[k:k + n].reshape(b.shape[:2])))
+        out.append((vals[k : k + n].reshape(b.shape[:2]), sky[k : k + n].reshape(b.shape[:2])))
         k += n
     return out

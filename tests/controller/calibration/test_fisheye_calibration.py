@@ -24,10 +24,20 @@ from hil.skycam import render_sky, seed_lens
 from hil.skycam.checkerboard import checkerboard_poses, render_checkerboard
 from tests.controller.vision.fisheye.helpers import small_scene, truth_bundle, utc
 
-DOC = {"camera": {"model": "fisheye", "width": 640, "height": 480, "fx": 166.0, "fy": 166.0,
-                  "cx": 319.5, "cy": 239.5, "dist": [-0.042, 0.001, -0.0005, 0.0]},
-       "orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
-       "site": {"latitude": 32.5, "longitude": 48.3}}
+DOC = {
+    "camera": {
+        "model": "fisheye",
+        "width": 640,
+        "height": 480,
+        "fx": 166.0,
+        "fy": 166.0,
+        "cx": 319.5,
+        "cy": 239.5,
+        "dist": [-0.042, 0.001, -0.0005, 0.0],
+    },
+    "orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+    "site": {"latitude": 32.5, "longitude": 48.3},
+}
 
 
 def rot_deg(A, B) -> float:
@@ -43,15 +53,27 @@ def test_bundle_round_trip(tmp_path):
     assert 'model = "fisheye"' in p.read_text()
 
 
-@pytest.mark.parametrize("patch, key", [
-    ({"camera": {**DOC["camera"], "model": "pinhole", "dist": [0, 0, 0, 0, 0]}}, "camera.model"),
-    ({"camera": {**DOC["camera"], "dist": [0.1, 0.2]}}, "camera.dist"),
-    ({"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}}, "orientation.enu_from_camera"),
-    ({"orientation": {"enu_from_camera": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}}, "orientation.enu_from_camera"),
-    ({"site": {"latitude": 123.0, "longitude": 0.0}}, "site.latitude"),
-    ({"extra": 1}, "extra"),
-    ({"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "typo": 3}}, "orientation.typo"),
-])
+@pytest.mark.parametrize(
+    "patch, key",
+    [
+        ({"camera": {**DOC["camera"], "model": "pinhole", "dist": [0, 0, 0, 0, 0]}}, "camera.model"),
+        ({"camera": {**DOC["camera"], "dist": [0.1, 0.2]}}, "camera.dist"),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}},
+            "orientation.enu_from_camera",
+        ),
+        (
+            {"orientation": {"enu_from_camera": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}},
+            "orientation.enu_from_camera",
+        ),
+        ({"site": {"latitude": 123.0, "longitude": 0.0}}, "site.latitude"),
+        ({"extra": 1}, "extra"),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "typo": 3}},
+            "orientation.typo",
+        ),
+    ],
+)
 def test_bundle_errors_name_the_key(patch, key):
     with pytest.raises(ConfigError) as exc:
         fisheye_bundle_from_dict({**DOC, **patch})
@@ -68,8 +90,10 @@ def test_a_nearly_orthonormal_matrix_is_tidied():
 def test_lens_calibration_from_rendered_boards():
     lens = seed_lens()
     rng = np.random.default_rng(7)
-    views = [(f"b{i}", render_checkerboard(lens, rv, tv, rng=rng))
-             for i, (rv, tv) in enumerate(checkerboard_poses(lens, 20, rng, max_theta_deg=75))]
+    views = [
+        (f"b{i}", render_checkerboard(lens, rv, tv, rng=rng))
+        for i, (rv, tv) in enumerate(checkerboard_poses(lens, 20, rng, max_theta_deg=75))
+    ]
     views.append(("blank", np.zeros((480, 640), np.uint8)))
     res = calibrate_fisheye(views, (640, 480))
     assert res.rms_px < 0.15 and "blank" in res.rejected
@@ -97,7 +121,7 @@ def test_orientation_from_a_day_of_sun_vectors_rejects_a_distractor():
     R_true = scn.R_enu_from_cam
     rng = np.random.default_rng(1)
     d = s @ R_true + rng.normal(0, np.radians(0.02), s.shape)  # camera frame, 0.02 deg noise
-    d[5] = np.array([0.3, 0.1, 0.95])                            # a reflection taken for the sun
+    d[5] = np.array([0.3, 0.1, 0.95])  # a reflection taken for the sun
     fit = fit_orientation(ts, d, site, refine=None)
     assert fit.rejected >= 1 and fit.residual_deg < 0.05
     assert rot_deg(fit.enu_from_camera, R_true) < 0.02

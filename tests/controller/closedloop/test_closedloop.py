@@ -26,8 +26,9 @@ def sun_angle(t: float) -> float:
     return 60.0 * math.sin(math.pi * (t / DAY - 0.5))
 
 
-def simulate(mode: str, delta: float, *, gap=(6 * 3600.0, 8 * 3600.0), noise=0.02, speed=1.0,
-             eph_error=0.0, seed=0):
+def simulate(
+    mode: str, delta: float, *, gap=(6 * 3600.0, 8 * 3600.0), noise=0.02, speed=1.0, eph_error=0.0, seed=0
+):
     """A position servo (``speed`` deg/s) whose panel sits ``delta`` off its encoder; the camera
     sees the sun except during ``gap``.  Returns (times, pointing errors, seen) and the axis."""
     rng = np.random.default_rng(seed)

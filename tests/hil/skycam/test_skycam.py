@@ -36,8 +36,10 @@ def small(noise=False, **kw):
 
 
 def test_hil_skycam_does_not_import_the_controller():
-    code = ("import sys, hil.skycam, hil.skycam.render, hil.skycam.dataset; "
-            "print(any(m.startswith('controller') for m in sys.modules))")
+    code = (
+        "import sys, hil.skycam, hil.skycam.render, hil.skycam.dataset; "
+        "print(any(m.startswith('controller') for m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -59,8 +61,9 @@ def test_lens_agrees_with_opencv_in_front_of_the_lens():
     th = np.radians(np.linspace(1, 85, 30))
     d = np.stack([np.sin(th) * 0.6, np.sin(th) * 0.8, np.cos(th)], 1)
     uv, _ = lens.project(d)
-    ref, _ = cv2.fisheye.projectPoints(d.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), lens.K,
-                                       np.asarray(lens.D, float).reshape(4, 1))
+    ref, _ = cv2.fisheye.projectPoints(
+        d.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), lens.K, np.asarray(lens.D, float).reshape(4, 1)
+    )
     np.testing.assert_allclose(uv, ref.reshape(-1, 2), atol=1e-6)
 
 
@@ -73,9 +76,12 @@ def test_truth_is_pvlib_apparent_position_and_camera_frame_is_consistent():
     scn = small()
     fr = render_sky(scn, T_MORNING)
     tr = fr.truth
-    sp = pvlib.solarposition.get_solarposition(pd.DatetimeIndex([pd.Timestamp(T_MORNING, unit="s", tz="UTC")]),
-                                               scn.site.latitude, scn.site.longitude,
-                                               altitude=scn.site.altitude)
+    sp = pvlib.solarposition.get_solarposition(
+        pd.DatetimeIndex([pd.Timestamp(T_MORNING, unit="s", tz="UTC")]),
+        scn.site.latitude,
+        scn.site.longitude,
+        altitude=scn.site.altitude,
+    )
     assert tr["el_deg"] == pytest.approx(float(sp["apparent_elevation"].iloc[0]), abs=1e-9)
     assert tr["az_deg"] == pytest.approx(float(sp["azimuth"].iloc[0]), abs=1e-9)
     np.testing.assert_allclose(scn.R_enu_from_cam @ tr["sun_cam"], tr["sun_enu"], atol=1e-12)
@@ -83,8 +89,8 @@ def test_truth_is_pvlib_apparent_position_and_camera_frame_is_consistent():
 
 def test_orientation_tips_the_optical_axis_towards_the_given_azimuth():
     R = np.asarray(orientation(tilt_deg=10.0, tilt_azimuth_deg=90.0))
-    axis = R @ np.array([0.0, 0.0, 1.0])          # the optical axis in ENU
-    assert axis[0] > 0 and abs(axis[1]) < 1e-12     # towards East
+    axis = R @ np.array([0.0, 0.0, 1.0])  # the optical axis in ENU
+    assert axis[0] > 0 and abs(axis[1]) < 1e-12  # towards East
     assert np.degrees(np.arccos(axis[2])) == pytest.approx(10.0)
 
 
@@ -123,19 +129,27 @@ def test_ccd_smear_lights_the_sun_column_and_bloom_saturates_it():
     u, v = render_sky(base, T_MORNING).truth["sun_uv"]
     col, row_far = round(u), round(v) + 60
     plain = cv2.cvtColor(render_sky(base, T_MORNING).image, cv2.COLOR_BGR2GRAY)
-    ccd = cv2.cvtColor(render_sky(base.with_(glare=replace(base.glare, smear="ccd", smear_level=0.3)),
-                                  T_MORNING).image, cv2.COLOR_BGR2GRAY)
+    ccd = cv2.cvtColor(
+        render_sky(base.with_(glare=replace(base.glare, smear="ccd", smear_level=0.3)), T_MORNING).image,
+        cv2.COLOR_BGR2GRAY,
+    )
     assert int(ccd[row_far, col]) - int(plain[row_far, col]) > 40
     assert abs(int(ccd[row_far, col + 40]) - int(plain[row_far, col + 40])) < 3
-    bloom = cv2.cvtColor(render_sky(base.with_(glare=replace(base.glare, smear="bloom", smear_level=2.0)),
-                                    T_MORNING).image, cv2.COLOR_BGR2GRAY)
+    bloom = cv2.cvtColor(
+        render_sky(base.with_(glare=replace(base.glare, smear="bloom", smear_level=2.0)), T_MORNING).image,
+        cv2.COLOR_BGR2GRAY,
+    )
     assert (bloom[:, col] >= 254).sum() > 1.5 * (plain[:, col] >= 254).sum()
 
 
 def test_distractors_are_bright_where_the_truth_puts_them():
-    scn = small(distractors=(SpecularReflection(az_deg=250.0, el_deg=30.0, strength=0.9),
-                             AircraftGlint(az0_deg=20.0, el0_deg=50.0, t0=T_MORNING - 10, radius_px=1.5),
-                             FlareGhost(position=0.7, radius_px=5.0, level=1.4)))
+    scn = small(
+        distractors=(
+            SpecularReflection(az_deg=250.0, el_deg=30.0, strength=0.9),
+            AircraftGlint(az0_deg=20.0, el0_deg=50.0, t0=T_MORNING - 10, radius_px=1.5),
+            FlareGhost(position=0.7, radius_px=5.0, level=1.4),
+        )
+    )
     fr = render_sky(scn, T_MORNING)
     grey = cv2.cvtColor(fr.image, cv2.COLOR_BGR2GRAY)
     kinds = {d["kind"]: d for d in fr.truth["distractors"]}
@@ -163,7 +177,7 @@ def test_bad_requests_raise_hil_errors():
 def test_checkerboard_corners_are_where_the_lens_puts_them():
     lens = seed_lens()
     rng = np.random.default_rng(2)
-    (rvec, tvec), = checkerboard_poses(lens, 1, rng, max_theta_deg=50)
+    ((rvec, tvec),) = checkerboard_poses(lens, 1, rng, max_theta_deg=50)
     img = render_checkerboard(lens, rvec, tvec, rng=rng, noise_dn=0.0)
     ok, c = cv2.findChessboardCorners(img, (9, 6))
     assert ok

@@ -21,11 +21,13 @@ def small_scene(noise: bool = False, scale: float = 0.5, **kw):
 
 def truth_bundle(scn, *, orientation: bool = True, site: bool = True, mask=None) -> FisheyeBundle:
     L = scn.lens
-    cam = CameraCal(width=L.width, height=L.height, fx=L.fx, fy=L.fy, cx=L.cx, cy=L.cy,
-                    dist=tuple(L.D), model="fisheye")
+    cam = CameraCal(
+        width=L.width, height=L.height, fx=L.fx, fy=L.fy, cx=L.cx, cy=L.cy, dist=tuple(L.D), model="fisheye"
+    )
     s = scn.site
     return FisheyeBundle(
         camera=cam,
         orientation=OrientationCal(enu_from_camera=as_mat3(scn.R_enu_from_cam)) if orientation else None,
         site=SiteCal(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude) if site else None,
-        mask=mask)
+        mask=mask,
+    )

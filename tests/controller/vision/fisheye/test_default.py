@@ -79,8 +79,9 @@ def test_the_ephemeris_gate_ignores_a_sun_sized_reflection(scn):
 
 def test_a_reflection_below_the_horizon_is_not_the_sun(scn):
     refl = SpecularReflection(az_deg=250.0, el_deg=-4.0, strength=1.0)
-    fr = render_sky(scn.with_(distractors=(refl,), sky=replace(scn.sky, terrain_deg=0.0)), T,
-                    sun_transmittance=0.0)
+    fr = render_sky(
+        scn.with_(distractors=(refl,), sky=replace(scn.sky, terrain_deg=0.0)), T, sun_transmittance=0.0
+    )
     res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, T)
     assert not res.found and res.reason == "below_horizon"
 
@@ -115,12 +116,15 @@ def test_bloom_does_not_pull_the_centre():
     assert err_deg(res, fr.truth) < 0.12
 
 
-@pytest.mark.parametrize("image, reason", [
-    (np.zeros((10, 10, 3), np.uint8), "size_mismatch"),
-    (np.full((240, 320), np.nan, np.float32), "non_finite_pixels"),
-    (np.zeros((240, 320, 3), np.int64), "unsupported_image_format"),
-    (None, "no_image"),
-])
+@pytest.mark.parametrize(
+    "image, reason",
+    [
+        (np.zeros((10, 10, 3), np.uint8), "size_mismatch"),
+        (np.full((240, 320), np.nan, np.float32), "non_finite_pixels"),
+        (np.zeros((240, 320, 3), np.int64), "unsupported_image_format"),
+        (None, "no_image"),
+    ],
+)
 def test_bad_images_are_reasons_not_tracebacks(scn, image, reason):
     res = FisheyeEstimator(truth_bundle(scn)).estimate_image(image, T)
     assert not res.found and res.reason == reason
@@ -137,11 +141,17 @@ def test_bad_files_are_reasons_not_tracebacks(scn, tmp_path):
     (tmp_path / "text.png").write_text("not an image")
     cv2.imwrite(str(tmp_path / "wrong.png"), np.zeros((100, 120, 3), np.uint8))
     est = FisheyeEstimator(truth_bundle(scn))
-    got = {p: est.estimate_file(tmp_path / p, T).reason for p in
-           ("trunc.png", "empty.png", "text.png", "wrong.png", "missing.png")}
-    assert got == {"trunc.png": "truncated_file", "empty.png": "empty_file",
-                   "text.png": "undecodable_image", "wrong.png": "size_mismatch",
-                   "missing.png": "file_not_found"}
+    got = {
+        p: est.estimate_file(tmp_path / p, T).reason
+        for p in ("trunc.png", "empty.png", "text.png", "wrong.png", "missing.png")
+    }
+    assert got == {
+        "trunc.png": "truncated_file",
+        "empty.png": "empty_file",
+        "text.png": "undecodable_image",
+        "wrong.png": "size_mismatch",
+        "missing.png": "file_not_found",
+    }
     assert est.estimate_file(good, T).found
 
 

@@ -34,7 +34,9 @@ def _circle(axis, rho, n, rng, noise=0.0):
     e1, e2 = tangent_basis(axis)
     ph = np.linspace(0, 2 * np.pi, n, endpoint=False)
     r = rho + rng.normal(0, noise, n)
-    return np.cos(r)[:, None] * axis + np.sin(r)[:, None] * (np.cos(ph)[:, None] * e1 + np.sin(ph)[:, None] * e2)
+    return np.cos(r)[:, None] * axis + np.sin(r)[:, None] * (
+        np.cos(ph)[:, None] * e1 + np.sin(ph)[:, None] * e2
+    )
 
 
 def test_cone_fit_ignores_a_bulge_and_a_dent():
@@ -42,8 +44,8 @@ def test_cone_fit_ignores_a_bulge_and_a_dent():
     a = np.array([0.3, -0.2, 0.9])
     a /= np.linalg.norm(a)
     v = _circle(a, math.radians(4.0), 120, rng, noise=math.radians(0.01))
-    bulge = _circle(a, math.radians(6.0), 120, rng)[:25]      # a saturated cloud edge
-    dent = _circle(a, math.radians(2.5), 120, rng)[60:75]      # a cloud over part of the rim
+    bulge = _circle(a, math.radians(6.0), 120, rng)[:25]  # a saturated cloud edge
+    dent = _circle(a, math.radians(2.5), 120, rng)[60:75]  # a cloud over part of the rim
     pts = np.concatenate([v[25:60], v[75:], bulge, dent])
     axis, rho, inl, _rms, _ = fit_cone(pts)
     assert math.degrees(math.acos(min(1.0, axis @ a))) < 0.01
