@@ -225,6 +225,26 @@ class SunPathSettings:
 
 
 @dataclass(frozen=True, kw_only=True)
+class StoreConfig:
+    """The SQLite store of learned state and history (survives power loss)."""
+
+    path: Path | None = setting(
+        None,
+        doc="The store file (none: no store, and the sun-path "
+        "state goes to `[sunpath] state`); `heliotrack run --state DIR` "
+        "puts it in DIR.",
+        path="new",
+    )
+    history_days: float = setting(
+        30.0,
+        doc="Observations and setpoints older than this are deleted (once a day).",
+        unit="d",
+        ge=1,
+        le=3650,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class PyranometerConfig:
     """A Modbus pyranometer on one of the links (SMP-like input registers)."""
 
@@ -251,6 +271,7 @@ class Config:
     sunspec: SunSpecConfig = setting(default_factory=SunSpecConfig, doc="SunSpec server.")
     wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
     stow: StowConfig = setting(default_factory=StowConfig, doc="Snow and hail stow.")
+    store: StoreConfig = setting(default_factory=StoreConfig, doc="State and history store.")
     file: str = internal("<config>")
 
     @property

@@ -25,9 +25,11 @@ from .config import Config
 from .diffuse import DiffuseSwitch
 from .drives.base import DriveCommError, DriveLink, DriveState
 from .health import Health
+from .history import History
 from .modes import ControlMode, ModeDecision, decide_mode
 from .records import CycleRecord, TrackerRuntime
 from .safety import SafetyState, StowOrder, clamp_targets
+from .store import Store
 from .sun.source import SunSource
 from .sun.types import SunEstimate
 from .wind_polling import WindPolling, WindSensor
@@ -67,12 +69,16 @@ class Controller(WindPolling):
         pyranometer: Any = None,
         sensor: Any = None,
         anemometer: WindSensor | None = None,
+        store: Store | None = None,
     ):
         self.config = config
         self.realtime = realtime
         self.pyranometer = pyranometer
         self.anemometer = anemometer
         self.sensor = sensor  # a camera sun sensor feeding ``sun`` (sun-path filter)
+        self.history = History(store, config.store.history_days) if store is not None else None
+        if store is not None:
+            sun.use_store(store, clock.now())
         self._saved_day: int | None = None
         self._last_el_deg = math.inf
         self._last_frame_t = -math.inf
@@ -179,6 +185,7 @@ class Controller(WindPolling):
         t = self.clock.now()
         aim_t = t + self.config.control.lead_s
         await self._observe(t)
+        self._daily(t)
         est = self.sun.estimate(aim_t, now=t)
         self._last_el_deg = est.el_deg if est is not None else math.inf
         overcast = await self._sky(t)
@@ -220,6 +227,8 @@ class Controller(WindPolling):
                 rec.latency_s = time.perf_counter() - t_wall
                 self._link_failed(tr, rec.error)
             rec.health, rec.health_reason = tr.health.state.value, tr.health.reason
+        if self.history is not None:
+            self.history.add_cycle(records)
         self.cycles += 1
         return records
 
@@ -254,11 +263,18 @@ class Controller(WindPolling):
             self._last_frame_t = t
             obs = await asyncio.to_thread(self.sensor.observe, t)
             if obs is not None:
-                self.sun.observe(obs)
+                accepted = self.sun.observe(obs)
+                if self.history is not None:
+                    self.history.add_observation(obs, accepted)
                 self._check_sun_site()
+
+    def _daily(self, t: float) -> None:
+        """Once a day: save what the sun source learned (atomically), rotate the history."""
         day = int(t // 86400)
         if self._saved_day is not None and day != self._saved_day:
-            self.sun.save()  # atomic; once a day and at shutdown
+            self.sun.save()
+            if self.history is not None:
+                self.history.rotate(t)
         self._saved_day = day
 
     def _check_sun_site(self) -> None:
@@ -442,8 +458,7 @@ class Controller(WindPolling):
         }
 
     async def close(self) -> None:
-        if self.sensor is not None:
-            self.sun.save()
+        self.sun.save()
         for sensor in (self.pyranometer, self.anemometer):
             if sensor is not None:
                 await sensor.close()

@@ -76,19 +76,18 @@ def manual(
     """
     now = state.axes if state is not None else None
 
-    def given(v: float | None) -> bool:
-        return v is not None and math.isfinite(v)
+    def pick(v: float | None, axis: int, stow: float) -> float:
+        if v is not None and math.isfinite(v):
+            return float(v)
+        return now[axis].actual_deg if now else stow
 
     if isinstance(cfg, SingleAxisTracker):
-        rot = el_deg if given(el_deg) else (now[0].actual_deg if now else cfg.stow)
-        return (min(max(float(rot), -cfg.max_angle), cfg.max_angle),)  # type: ignore[arg-type]
+        rot = pick(el_deg, 0, cfg.stow)
+        return (min(max(rot, -cfg.max_angle), cfg.max_angle),)
     assert isinstance(cfg, DualAxisTracker)
-    az = az_deg if given(az_deg) else (now[0].actual_deg if now else cfg.stow[0])
-    el = el_deg if given(el_deg) else (now[1].actual_deg if now else cfg.stow[1])
     az = wrap_into_range(
-        float(az),
-        *cfg.azimuth_limits,  # type: ignore[arg-type]
-        near=now[0].actual_deg if now else None,
+        pick(az_deg, 0, cfg.stow[0]), *cfg.azimuth_limits, near=now[0].actual_deg if now else None
     )
+    el = pick(el_deg, 1, cfg.stow[1])
     lo, hi = cfg.elevation_limits
-    return az, min(max(float(el), lo), hi)  # type: ignore[arg-type]
+    return az, min(max(el, lo), hi)

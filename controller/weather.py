@@ -179,8 +179,10 @@ def read_flag_file(path: Path) -> StowReason | None | str:
         return f"{path}: cannot read the stow flag ({exc.strerror})"
     words = text.split()
     word = words[0].lower() if words else "none"
-    if word in ("snow", "hail"):
-        return word  # type: ignore[return-value]
+    if word == "snow":
+        return "snow"
+    if word == "hail":
+        return "hail"
     if word in ("none", "off", "clear"):
         return None
     return f"{path}: stow flag {words[0][:20]!r} is not snow, hail or none; ignored"

@@ -23,6 +23,7 @@ Nothing here imports ``canopen``: the EDS is plain INI text (CiA 306).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from .cia402 import (  # noqa: F401 - part of this module's vocabulary
@@ -178,7 +179,7 @@ def _var(
 def _record(
     index: int,
     name: str,
-    subs: list[tuple[str, int, str, int | str]],
+    subs: Sequence[tuple[str, int, str, int | str]],
     object_type: int = RECORD,
     highest_access: str = "ro",
 ) -> OdObject:

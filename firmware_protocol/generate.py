@@ -62,7 +62,7 @@ def markdown() -> str:
     for name, enum in ENUMS.items():
         lines += [f"## {name}", "", "| value | name |", "|---:|---|"]
         for member in enum:
-            value = f"0x{int(member):04X}" if name == "Status" else str(int(member))
+            value = f"0x{member.value:04X}" if name == "Status" else str(member.value)
             lines.append(f"| {value} | {member.name} |")
         lines.append("")
     lines += [
@@ -130,7 +130,7 @@ def c_header() -> str:
         out += ["", f"/* {name} */"]
         prefix = f"HT_{name.upper()}_"
         for member in enum:
-            value = f"0x{int(member):04X}u" if name == "Status" else f"{int(member)}u"
+            value = f"0x{member.value:04X}u" if name == "Status" else f"{member.value}u"
             out.append(f"#define {prefix}{member.name} {value}")
     out += ["", "#endif /* HELIOTRACK_DRIVE_H */", ""]
     return "\n".join(out)

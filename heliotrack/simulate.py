@@ -13,6 +13,7 @@ the emulated drives, the sun from pvlib SPA), scored by :mod:`heliotrack.scoring
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 from contextlib import ExitStack
@@ -26,6 +27,7 @@ from tqdm import tqdm
 from controller.clock import SimClock
 from controller.config import Config, TrackerConfig
 from controller.loop import Controller, CycleRecord
+from controller.store import open_store_or_none
 from controller.sun.camera import CallableFrameSource, CameraSunSensor
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
@@ -40,6 +42,8 @@ from .scoring import DEFINITIONS, TruthGrid, TruthTally, energy, panel, stats
 from .sun_sources import build_sun_source
 from .weather_truth import WeatherTruth
 from .world import build_world
+
+log = logging.getLogger("heliotrack.simulate")
 
 __all__ = ["ScenarioRun", "day_start", "run_simulation", "summary_table", "write_outputs"]
 
@@ -166,6 +170,13 @@ class ScenarioRun:
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
+            store = (
+                open_store_or_none(self.config.store.path, log.warning)
+                if self.config.store.path is not None
+                else None
+            )
+            if store is not None:
+                stack.callback(store.close)
             controller = Controller(
                 self.config,
                 open_drives(self.config, world.links),
@@ -174,6 +185,7 @@ class ScenarioRun:
                 sensor=sensor,
                 pyranometer=open_pyranometer(self.config, world.links),
                 anemometer=open_anemometer(self.config, world.links),
+                store=store,
             )
             try:
                 await controller.start()

@@ -52,6 +52,12 @@ from .camera import CameraCal
 Vec3 = tuple[float, float, float]
 
 
+def vec3(v) -> Vec3:
+    """Three floats from any 3-sequence (numpy arrays included)."""
+    x, y, z = (float(c) for c in v)
+    return x, y, z
+
+
 @dataclass(frozen=True)
 class SurfaceCal:
     """The convex surface in the model frame (metres): an analytic sphere or a point cloud."""

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..timestamps import time_from_name
-from .bundle import AzimuthCal, CalibrationBundle, LevelCal, LobeCal, PoseCal, SurfaceCal, save_bundle
+from .bundle import AzimuthCal, CalibrationBundle, LevelCal, LobeCal, PoseCal, SurfaceCal, save_bundle, vec3
 
 
 def calibrate_folder(
@@ -49,18 +49,25 @@ def calibrate_folder(
         raise InputError(f"{folder}: no globe_scan.ply/.xyz/.npz")
     sf = fit_sphere(scans[0])
     log({"step": "surface", "radius_m": round(sf.radius, 6), "rmse_mm": round(sf.rmse_m * 1000, 4)})
-    extra = {}
+    extra_degree: int | None = None
+    extra_poly: tuple[float, ...] | None = None
     if shape_degree:
         from .surface import fit_radial_poly, read_cloud
 
         pts, _ = read_cloud(scans[0])
         coef, rmse = fit_radial_poly(pts, sf.center, sf.radius, shape_degree)
-        extra = {"radial_poly_degree": shape_degree, "radial_poly": tuple(map(float, coef))}
+        extra_degree, extra_poly = shape_degree, tuple(map(float, coef))
         log({"step": "shape", "degree": shape_degree, "rmse_mm": round(rmse * 1000, 4)})
     b = CalibrationBundle(
         camera=intr.camera,
         surface=SurfaceCal(
-            "sphere", tuple(map(float, sf.center)), sf.radius, min_z=min_z, rmse_m=sf.rmse_m, **extra
+            "sphere",
+            vec3(sf.center),
+            sf.radius,
+            min_z=min_z,
+            rmse_m=sf.rmse_m,
+            radial_poly_degree=extra_degree,
+            radial_poly=extra_poly,
         ),
     )
     img, why = load_grey(folder / "marker_view.png")
@@ -69,9 +76,7 @@ def calibrate_folder(
     mp, ip = detect_markers(img, read_marker_survey(folder / "markers_survey.csv"))
     pr = solve_pose(mp, ip, b.camera)
     log({"step": "pose", "points": pr.n_points, "rms_px": round(pr.rms_px, 4)})
-    b = replace(
-        b, pose=PoseCal(rvec=tuple(map(float, pr.rvec)), tvec=tuple(map(float, pr.tvec)), rms_px=pr.rms_px)
-    )
+    b = replace(b, pose=PoseCal(rvec=vec3(pr.rvec), tvec=vec3(pr.tvec), rms_px=pr.rms_px))
     img, why = load_grey(folder / "plumb_view.png")
     if img is None:
         raise InputError(f"{folder / 'plumb_view.png'}: {why}")
@@ -80,7 +85,7 @@ def calibrate_folder(
         raise InputError(f"{folder / 'plumb_view.png'}: {len(lines)} plumb lines found, need >= 2")
     zr = zenith_from_lines(lines, b.camera, pr.rvec, undistorted=True)
     log({"step": "level", "lines": zr.n_lines, "rms_line_deg": round(zr.rms_line_deg, 4)})
-    b = replace(b, level=LevelCal(zenith_model=tuple(map(float, zr.zenith_model))))
+    b = replace(b, level=LevelCal(zenith_model=vec3(zr.zenith_model)))
     # a day of frames, levelled but not yet aligned in azimuth
     est = HotspotEstimator(b)
     az, el, ts, sm, vb = [], [], [], [], []
@@ -106,7 +111,7 @@ def calibrate_folder(
         log({"step": "lobe", "coeff_deg": round(kappa, 4)})
         b = replace(
             b,
-            level=LevelCal(zenith_model=tuple(map(float, zen))),
+            level=LevelCal(zenith_model=vec3(zen)),
             notes={**b.notes, "plumb_zenith_model": [float(x) for x in zr.zenith_model]},
         )
         log({"step": "azimuth+level", "method": method, "observations": len(sm), "offset_deg": round(off, 4)})

@@ -61,6 +61,7 @@ def calibrate_intrinsics(
             f"intrinsics need >= 3 checkerboard views with all {pattern[0]}x{pattern[1]} "
             f"inner corners found; found {len(objp)} (rejected: {', '.join(rejected) or '-'})"
         )
+    assert size is not None  # at least three views were read
     rms, K, dist, _, _ = cv2.calibrateCamera(objp, imgp, size, None, None)
     d = dist.ravel()[:5]
     cam = CameraCal(

@@ -22,6 +22,7 @@ class ZenithResult:
 
 def _normalise(pts_px: np.ndarray, cam: CameraCal, undistorted: bool) -> np.ndarray:
     pts = np.asarray(pts_px, np.float64).reshape(-1, 1, 2)
+    xy: np.ndarray
     if undistorted:
         xy = (pts.reshape(-1, 2) - [cam.cx, cam.cy]) / [cam.fx, cam.fy]
     else:

@@ -17,7 +17,9 @@ def _read_ply(path: Path) -> np.ndarray:
     with open(path, "rb") as f:
         if f.readline().strip() != b"ply":
             raise InputError(f"{path}: not a PLY file")
-        props, n, fmt = [], None, None
+        props: list[str] = []
+        n: int | None = None
+        fmt: str | None = None
         in_vertex = False
         while True:
             line = f.readline()
@@ -36,6 +38,8 @@ def _read_ply(path: Path) -> np.ndarray:
                 props.append(tok[-1])
             elif tok[0] == "end_header":
                 break
+        if n is None:
+            raise InputError(f"{path}: PLY header without a vertex element")
         if fmt == "ascii":
             data = np.loadtxt(f, max_rows=n, ndmin=2)
         elif fmt == "binary_little_endian":

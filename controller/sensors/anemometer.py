@@ -7,10 +7,9 @@ from typing import Any
 from firmware_protocol import decode
 from firmware_protocol.anemometer import ANE, ANE_STATUS_BAD
 
-from ..drives.base import DriveCommError, LinkStats
-from ..drives.links import LinkConfig
-from ..drives.modbus.client import checked, endpoint, modbus_client, retry_policy
+from ..drives.base import DriveCommError
 from ..weather import WindSample
+from .modbus_sensor import ModbusSensor
 
 #: Above this the reading is out of any anemometer's range (and of any storm): a fault.
 MAX_PLAUSIBLE_M_S = 75.0
@@ -18,8 +17,8 @@ _FIRST = ANE["ANE_SPEED"].offset
 _LAST = ANE["ANE_STATUS"].offset
 
 
-class ModbusAnemometer:
-    """An anemometer on a pymodbus asyncio client (shared with the drives of an RS-485 line).
+class ModbusAnemometer(ModbusSensor):
+    """An anemometer.
 
     :meth:`read` raises :class:`DriveCommError` on a link error, a fault or out-of-range
     status, an implausible value, or a frozen sensor (the sample counter did not move
@@ -27,37 +26,15 @@ class ModbusAnemometer:
     monitor counts it as silence.
     """
 
-    def __init__(self, client: Any, device_id: int, label: str = "", retries: int = 0):
-        self.client = client
-        self.device_id = device_id
-        self.label = label or f"anemometer id {device_id}"
-        self.policy = retry_policy(retries)
-        self.stats = LinkStats()
-        self._last_count: tuple[float, int] | None = None
-        self._closed = False
+    kind = "anemometer"
 
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusAnemometer:
-        return cls(
-            modbus_client(link),
-            device_id,
-            label=f"anemometer {endpoint(link)} id {device_id}",
-            retries=link.retries,
-        )
+    def __init__(self, client: Any, device_id: int, label: str = "", retries: int = 0):
+        super().__init__(client, device_id, label, retries)
+        self._last_count: tuple[float, int] | None = None
 
     async def read(self, t: float) -> WindSample:
         """The wind now, stamped ``t`` (POSIX s, the controller's clock)."""
-        if not self.client.connected and not await self.client.connect():
-            raise DriveCommError(f"{self.label}: cannot open the link")
-        rr = await self.policy.run(
-            lambda: checked(
-                self.client.read_input_registers, _FIRST, count=_LAST - _FIRST + 1, device_id=self.device_id
-            ),
-            what="wind read",
-            label=self.label,
-            stats=self.stats,
-        )
-        words = rr.registers
+        words = await self.read_block(_FIRST, _LAST - _FIRST + 1, "wind read")
 
         def value(name: str) -> float:
             reg = ANE[name]
@@ -78,8 +55,3 @@ class ModbusAnemometer:
         if last is not None and count == last[1] and t - last[0] > 1.0:
             raise DriveCommError(f"{self.label}: frozen (sample counter stuck at {count})")
         return WindSample(t, speed, gust, mean)
-
-    async def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            self.client.close()

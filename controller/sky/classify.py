@@ -417,7 +417,7 @@ def classify_window(
     if daylight - missing < min_daylight_s:
         cls = 0
     elif method == "seed":
-        cls = int(classify_seed(d, kt, *config.d_thresholds, config.kt_threshold))
+        cls = int(classify_seed(np.array([d]), np.array([kt]), *config.d_thresholds, config.kt_threshold)[0])
     else:
         cls = int(classify_default(np.array([sf]), config)[0])
     return WindowClass(cls, d, kt, sf, daylight, missing, int(ok.sum()), method)

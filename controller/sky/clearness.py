@@ -49,4 +49,4 @@ def clearness_index_rows(
         H0 = np.asarray(h0, float) if h0 is not None else step_s * e0 * g0_all
         kt = H / H0
     kt = np.where(g0_all > 0, kt, np.nan)
-    return {"K_T": kt, "H": H, "H0": H0, "coverage": coverage}
+    return {"K_T": np.asarray(kt), "H": np.asarray(H), "H0": np.asarray(H0), "coverage": np.asarray(coverage)}

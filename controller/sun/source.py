@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 import pvlib
 
 from ..schema import setting
+
+if TYPE_CHECKING:
+    from ..store import Store
 from .types import EstimateSource, SunEstimate, SunObservation
 
 
@@ -87,6 +90,10 @@ class SunSource(abc.ABC):
         """Take a sensor's observation; True when it was used.  Sources that learn nothing
         from observations (the ephemeris) ignore it."""
         return False
+
+    def use_store(self, store: Store, now: float) -> None:  # noqa: B027 - stateless: nothing
+        """Keep learned state in ``store`` from now on (loaded from it when it holds one);
+        stateless sources ignore it."""
 
     def save(self) -> None:  # noqa: B027 - a no-op by design for stateless sources
         """Persist what the source has learned (atomically); a no-op for stateless sources."""

@@ -20,12 +20,14 @@ noisy measurement.
 from __future__ import annotations
 
 import logging
+import sqlite3
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..store import Store, StoreError
 from ..sun.source import EphemerisSource, Site, SunSource
 from ..sun.types import EstimateSource, SunEstimate, SunObservation, azel_to_enu, enu_to_azel
 from .ephemeris import wrap180
@@ -188,6 +190,10 @@ class SunPathSource(SunSource):
         learned).  A file that cannot be read, or of another version, is left where it is
         and the learned state is not persisted this run.
     kalman_config, policy_config : optional tuning.
+    store : Store, optional
+        Persist in this SQLite store (entry ``sunpath``) instead of a file; a stored state
+        that cannot be used is kept under ``sunpath.invalid-<UTC time>`` and the filter
+        starts afresh, as for a file.
     now : float, optional
         The present, POSIX s, to judge the state file's time by (a state saved more than a
         day in the future is refused); default: the wall clock.  A caller on a simulated
@@ -203,11 +209,13 @@ class SunPathSource(SunSource):
         kalman_config: KalmanConfig | None = None,
         policy_config: PolicyConfig | None = None,
         now: float | None = None,
+        store: Store | None = None,
     ):
         self.site = site
         self.state_path = Path(state_path) if state_path is not None else None
+        self.store = store
         self.policy = policy_config or PolicyConfig()
-        self.persist = self.state_path is not None
+        self.persist = self.state_path is not None or store is not None
         self.state_note: str | None = None  # why the state file was not used, if it was not
         loaded = self._load(time.time() if now is None else float(now))
         self.kf: SunPathKalman = loaded if loaded is not None else SunPathKalman(kalman_config, site)
@@ -218,6 +226,8 @@ class SunPathSource(SunSource):
         """The learned state, or None after one warning line (see the class docstring)."""
         from .state import StateError, load_state
 
+        if self.store is not None:
+            return self._load_stored(now)
         if self.state_path is None:
             return None
         path = self.state_path
@@ -253,6 +263,42 @@ class SunPathSource(SunSource):
                         f"{exc}; could not move it aside ({err.strerror}); "
                         f"{start}; the learned state will not be saved"
                     )
+            log.warning(self.state_note)
+            return None
+
+    def use_store(self, store: Store, now: float) -> None:
+        """Persist in ``store`` from now on; the state it holds (if any, and usable)
+        replaces what was loaded from a file."""
+        self.store, self.persist = store, True
+        loaded = self._load_stored(now)
+        if loaded is not None:
+            self.kf = loaded
+
+    def _load_stored(self, now: float) -> SunPathKalman | None:
+        """:meth:`_load` from the store: a bad entry is copied aside, never lost."""
+        from .state import STORE_KEY, StateError, load_from_store
+
+        assert self.store is not None
+        try:
+            kf = load_from_store(self.store, now=now)
+            if kf is not None and self.site is not None:
+                self._check_site(Path(f"{self.store.path}: state {STORE_KEY!r}"), kf)
+                kf.site = kf.site or self.site
+            return kf
+        except StateError as exc:
+            start = "from the ephemeris at the configured site" if self.site else "without a learned state"
+            if exc.reason == "version":
+                self.persist = False
+                self.state_note = f"{exc}; starting {start}; the learned state will not be saved"
+            else:
+                aside = f"{STORE_KEY}.invalid-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
+                try:
+                    rec = self.store.get_state(STORE_KEY)
+                    self.store.put_state(aside, rec.body if rec is not None else None)
+                    self.state_note = f"{exc}; kept it as {aside!r}; starting {start}"
+                except Exception as err:  # noqa: BLE001 - a store that cannot even copy: do not touch it
+                    self.persist = False
+                    self.state_note = f"{exc}; could not keep a copy ({err}); starting {start}; not saving"
             log.warning(self.state_note)
             return None
 
@@ -365,11 +411,16 @@ class SunPathSource(SunSource):
         Never raises: a failure (disk full, a file put in the way) is one warning line, and
         the file on disk is left as it was.
         """
-        from .state import StateError, save_state
+        from .state import StateError, save_state, save_to_store
 
-        if self.state_path is None or not self.persist:
+        if not self.persist:
             return
         try:
-            save_state(self.state_path, self.kf)
-        except (StateError, OSError) as exc:
-            log.warning(f"{self.state_path}: sun-path state not saved: {exc}")
+            if self.store is not None:
+                save_to_store(self.store, self.kf)
+            elif self.state_path is not None:
+                save_state(self.state_path, self.kf)
+        except (StateError, StoreError, OSError, ValueError, sqlite3.Error) as exc:
+            log.warning(
+                f"{self.store.path if self.store else self.state_path}: sun-path state not saved: {exc}"
+            )

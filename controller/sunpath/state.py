@@ -15,11 +15,14 @@ from pathlib import Path
 
 from ..atomic import atomic_write
 from ..errors import InputError
+from ..store import Store, StoreError
 from .kalman import SunPathKalman
 from .persistence import SnapshotError, kalman_from_dict
 
 FORMAT = "heliotrack.sunpath.state"
 VERSION = 1
+#: The entry of the learned state in a :class:`~controller.store.Store`.
+STORE_KEY = "sunpath"
 
 
 class StateError(InputError):
@@ -54,13 +57,23 @@ def _read(path: Path) -> dict:
             f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
             f"column {exc.colno}: {exc.msg}); fix or remove the file"
         ) from None
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise StateError(f"{path}: not a sun-path state file (expected format {FORMAT!r})")
-    if doc.get("version") != VERSION:
-        raise StateError(
-            f"{path}: sun-path state version {doc.get('version')!r}, expected {VERSION}", "version"
-        )
     return doc
+
+
+def load_from_store(store: Store, now: float | None = None) -> SunPathKalman | None:
+    """The filter saved in ``store`` (None when never saved); StateError when it cannot be
+    used (the entry is left as it is)."""
+    where = f"{store.path}: state {STORE_KEY!r}"
+    try:
+        rec = store.get_state(STORE_KEY)
+    except StoreError as exc:
+        raise StateError(str(exc)) from None
+    return None if rec is None else filter_from_doc(rec.body, where, now)
+
+
+def save_to_store(store: Store, kf: SunPathKalman) -> int:
+    """Save ``kf`` in ``store`` (one transaction); returns the entry's new version."""
+    return store.put_state(STORE_KEY, state_doc(kf, f"{store.path}: state {STORE_KEY!r}"))
 
 
 def load_state(path: str | Path, now: float | None = None) -> SunPathKalman | None:
@@ -82,21 +95,45 @@ def load_state(path: str | Path, now: float | None = None) -> SunPathKalman | No
     path = Path(path)
     if not path.exists():
         return None
-    doc = _read(path)
+    return filter_from_doc(_read(path), str(path), now)
+
+
+def filter_from_doc(doc: dict, where: str, now: float | None = None) -> SunPathKalman:
+    """The filter of a state document (a file's JSON, or the store's ``sunpath`` entry),
+    validated; ``where`` starts every message (StateError)."""
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise StateError(f"{where}: not a sun-path state (expected format {FORMAT!r})")
+    if doc.get("version") != VERSION:
+        raise StateError(
+            f"{where}: sun-path state version {doc.get('version')!r}, expected {VERSION}", "version"
+        )
     if not isinstance(doc.get("filter"), dict):
-        raise StateError(f"{path}: corrupt sun-path state: field 'filter' is missing; fix or remove the file")
+        raise StateError(f"{where}: corrupt sun-path state: field 'filter' is missing; fix or remove it")
     try:
         return kalman_from_dict(doc["filter"], SunPathKalman, now=now)
     except SnapshotError as exc:
         raise StateError(
-            f"{path}: invalid sun-path state: field 'filter.{exc.field}': {exc.why}; fix or remove the file",
+            f"{where}: invalid sun-path state: field 'filter.{exc.field}': {exc.why}; fix or remove it",
             "invalid",
         ) from None
     except (KeyError, TypeError, ValueError) as exc:
         raise StateError(
-            f"{path}: corrupt sun-path state: field 'filter' is invalid ({exc}); fix or remove the file",
+            f"{where}: corrupt sun-path state: field 'filter' is invalid ({exc}); fix or remove it",
             "invalid",
         ) from None
+
+
+def state_doc(kf: SunPathKalman, where: str) -> dict:
+    """The state document of ``kf``, checked to load again (StateError otherwise)."""
+    snapshot = kf.to_dict()
+    try:  # what is written must load again: never replace a state with a broken one
+        kalman_from_dict(snapshot, SunPathKalman)
+    except SnapshotError as exc:
+        raise StateError(
+            f"{where}: not saving an invalid sun-path state (field 'filter.{exc.field}': {exc.why})",
+            "invalid",
+        ) from None
+    return {"format": FORMAT, "version": VERSION, "filter": snapshot}
 
 
 def save_state(path: str | Path, kf: SunPathKalman, overwrite_corrupt: bool = False) -> None:
@@ -117,12 +154,5 @@ def save_state(path: str | Path, kf: SunPathKalman, overwrite_corrupt: bool = Fa
     path = Path(path)
     if path.exists() and not overwrite_corrupt:
         load_state(path)  # raises StateError on a file that is not a usable state
-    snapshot = kf.to_dict()
-    try:  # what is written must load again: never replace a state with a broken one
-        kalman_from_dict(snapshot, SunPathKalman)
-    except SnapshotError as exc:
-        raise StateError(
-            f"{path}: not saving an invalid sun-path state (field 'filter.{exc.field}': {exc.why})", "invalid"
-        ) from None
-    doc = {"format": FORMAT, "version": VERSION, "filter": snapshot}
+    doc = state_doc(kf, str(path))
     atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")

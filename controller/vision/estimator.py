@@ -94,7 +94,7 @@ class HotspotEstimator:
                 reason=reason,
                 time=t,
                 frame="enu" if self._has_enu else "model",
-                quality=(reason,),
+                quality=(reason or "unreadable",),
             )
         res = self.estimate_image(img, t)
         res.image = str(path)
@@ -115,7 +115,7 @@ class HotspotEstimator:
         seg = seg_fn(image, self.mask, end_rule=self.end_rule)
         if not seg.found:
             out.reason = seg.reason
-            out.quality = (seg.reason,)
+            out.quality = (seg.reason or "not found",)
             out.extra["i_max"] = seg.i_max
             return out
         out.area_px = seg.area
@@ -135,10 +135,11 @@ class HotspotEstimator:
             out.reason = distinct
             out.quality = tuple(flags + [distinct])
             return out
+        assert seg.roi is not None and seg.roi_mask is not None  # a found segmentation has them
         r0, r1, c0, c1 = seg.roi
         hm = seg.roi_mask
         # at the mask's edge: the grown hotspot leaves the mask
-        grown = cv2.dilate(hm, np.ones((3, 3), np.uint8))
+        grown = np.asarray(cv2.dilate(hm, np.ones((3, 3), np.uint8)), np.uint8)
         if np.any(grown & (1 - self.mask[r0:r1, c0:c1])):
             flags.append("at_mask_edge")
             out.reason = "at_mask_edge"
@@ -161,8 +162,8 @@ class HotspotEstimator:
         if self.R_level is not None:
             sl = self.R_level @ s
             az_l, el_l = enu_to_azel(sl)
-            out.extra["levelled_el_deg"] = rounded(el_l)
-            out.extra["levelled_az_deg"] = rounded(az_l)
+            out.extra["levelled_el_deg"] = rounded(float(el_l))
+            out.extra["levelled_az_deg"] = rounded(float(az_l))
             if el_l < -2.0:
                 out.reason = "below_horizon"
                 out.quality = tuple(flags + ["below_horizon"])

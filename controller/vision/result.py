@@ -30,7 +30,13 @@ class HotspotResult:
     extra: dict = field(default_factory=dict)
 
     def observation(self) -> SunObservation | None:
-        if not self.found or self.time is None:
+        if (
+            not self.found
+            or self.time is None
+            or self.az_deg is None
+            or self.el_deg is None
+            or self.sigma_deg is None
+        ):
             return None
         return SunObservation(
             time=float(self.time),

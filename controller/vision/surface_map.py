@@ -43,6 +43,8 @@ class SurfaceMap:
         cam = b.camera
         H, W = self.shape
         srf = b.surface
+        assert srf is not None  # the estimator requires [surface]
+        box: tuple[int, int, int, int]
         if srf.kind == "sphere":
             c = np.asarray(srf.center, float)
             r = float(srf.radius)
@@ -70,7 +72,7 @@ class SurfaceMap:
                 from ..calibration.surface import radial_poly_eval
 
                 u = np.nan_to_num((p - c) / np.linalg.norm(p - c, axis=1, keepdims=True))
-                hh, gg = radial_poly_eval(u, poly, srf.radial_poly_degree)
+                hh, gg = radial_poly_eval(u, poly, int(srf.radial_poly_degree or 0))
                 rho = r + hh
             valid = (disc > 0) & (t > 0) & (p[:, 2] >= min_z)
             n = (p - c) / r
@@ -91,6 +93,7 @@ class SurfaceMap:
         else:
             from ..calibration.surface import load_cloud
 
+            assert srf.cloud is not None  # the schema requires it for a cloud
             pts, nrm = load_cloud(srf.cloud)
             if srf.min_z is not None:
                 keep = pts[:, 2] >= srf.min_z
@@ -98,12 +101,12 @@ class SurfaceMap:
             toward = self.C - pts
             front = np.sum(nrm * toward, 1) > 0
             pts, nrm = pts[front], nrm[front]
-            uv, _ = cv2.projectPoints(
+            projected, _ = cv2.projectPoints(
                 pts.reshape(-1, 1, 3), cv2.Rodrigues(self.R)[0], self.tvec, cam.K, cam.dist_array
             )
-            uv = uv.reshape(-1, 2)
-            iu = np.rint(uv[:, 0]).astype(int)
-            iv = np.rint(uv[:, 1]).astype(int)
+            uvc = np.asarray(projected).reshape(-1, 2)
+            iu = np.rint(uvc[:, 0]).astype(int)
+            iv = np.rint(uvc[:, 1]).astype(int)
             ok = (iu >= 0) & (iu < W) & (iv >= 0) & (iv < H)
             iu, iv, pts, nrm = iu[ok], iv[ok], pts[ok], nrm[ok]
             r0, r1, c0, c1 = iv.min(), iv.max() + 1, iu.min(), iu.max() + 1
@@ -132,10 +135,10 @@ class SurfaceMap:
             user = cv2.imread(str(b.mask), cv2.IMREAD_GRAYSCALE)
             if user is None or user.shape != (H, W):
                 raise ConfigError(b.path, "mask", f"a readable {W}x{H} mask image", str(b.mask))
-            M &= (user > 0).astype(np.uint8)
+            M = M & (user > 0).astype(np.uint8)
         if edge_px > 0:
             k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * edge_px + 1, 2 * edge_px + 1))
-            M = cv2.erode(M, k, borderType=cv2.BORDER_CONSTANT, borderValue=0)
+            M = np.asarray(cv2.erode(M, k, borderType=cv2.BORDER_CONSTANT, borderValue=0), np.uint8)
         self.mask = M
         self.mask_area = int(M.sum())
         # angular scale: sun-direction degrees per pixel near the globe's centre of view

@@ -121,14 +121,14 @@ def _intrinsics(args) -> int:
 
 
 def _surface(args) -> int:
-    from controller.calibration.bundle import SurfaceCal, update_bundle
+    from controller.calibration.bundle import SurfaceCal, update_bundle, vec3
     from controller.calibration.surface import fit_sphere
 
     if args.fit_sphere:
         f = fit_sphere(args.cloud)
         srf = SurfaceCal(
             kind="sphere",
-            center=tuple(map(float, f.center)),
+            center=vec3(f.center),
             radius=f.radius,
             min_z=args.min_z,
             rmse_m=f.rmse_m,
@@ -151,7 +151,7 @@ def _surface(args) -> int:
 
 
 def _pose(args) -> int:
-    from controller.calibration.bundle import PoseCal, load_bundle, update_bundle
+    from controller.calibration.bundle import PoseCal, load_bundle, update_bundle, vec3
     from controller.calibration.pose import detect_markers, read_marker_survey, read_picked, solve_pose
 
     b = load_bundle(args.bundle)
@@ -164,7 +164,7 @@ def _pose(args) -> int:
     res = solve_pose(mp, ip, b.camera)
     update_bundle(
         args.bundle,
-        pose=PoseCal(rvec=tuple(map(float, res.rvec)), tvec=tuple(map(float, res.tvec)), rms_px=res.rms_px),
+        pose=PoseCal(rvec=vec3(res.rvec), tvec=vec3(res.tvec), rms_px=res.rms_px),
     )
     print(
         json.dumps(
@@ -180,7 +180,7 @@ def _pose(args) -> int:
 
 
 def _level(args) -> int:
-    from controller.calibration.bundle import LevelCal, load_bundle, update_bundle
+    from controller.calibration.bundle import LevelCal, load_bundle, update_bundle, vec3
     from controller.calibration.level import detect_plumb_lines, zenith_from_lines
 
     b = load_bundle(args.bundle)
@@ -201,7 +201,7 @@ def _level(args) -> int:
         res = zenith_from_lines(lines, b.camera, rvec, undistorted=True)
     else:
         raise InputError("level: give --image or --lines")
-    update_bundle(args.bundle, level=LevelCal(zenith_model=tuple(map(float, res.zenith_model))))
+    update_bundle(args.bundle, level=LevelCal(zenith_model=vec3(res.zenith_model)))
     print(
         json.dumps(
             {

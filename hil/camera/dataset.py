@@ -58,10 +58,11 @@ def write_dataset(
         for mid, k, x, y, z in scn.base.marker_table():
             e = rng.normal(0, 0.0003, 3)
             f.write(f"{mid},{k},{x + e[0]:.6f},{y + e[1]:.6f},{z + e[2]:.6f}\n")
-    t_mid = datetime(*day, 6, 30, tzinfo=UTC).timestamp()
+    y, mo, d = day
+    t_mid = datetime(y, mo, d, 6, 30, tzinfo=UTC).timestamp()
     cv2.imwrite(str(out / "marker_view.png"), render_marker_view(scn, t_mid, rng).image)
     cv2.imwrite(str(out / "plumb_view.png"), render_plumb_view(scn, t_mid, rng=rng).image)
-    t0 = datetime(*day, tzinfo=UTC).timestamp()
+    t0 = datetime(y, mo, d, tzinfo=UTC).timestamp()
     ts = t0 + np.arange(0, 86400, step_min * 60)
     sun = scn.sun(ts)
     frames = []

@@ -98,7 +98,7 @@ def expose(
     dn = np.clip(np.rint(frac * 255.0), 0, 255).astype(np.uint8)
     if sen.noise and sen.jpeg_quality:
         ok, buf = cv2.imencode(".jpg", dn, [cv2.IMWRITE_JPEG_QUALITY, int(sen.jpeg_quality)])
-        dn = cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+        dn = np.asarray(cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE), np.uint8)
     return dn
 
 

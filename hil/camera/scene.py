@@ -131,7 +131,12 @@ class Base:
 
     def marker_table(self) -> list[tuple[int, int, float, float, float]]:
         """Survey of the markers: (id, corner 0..3, x, y, z) in the model frame."""
-        return [(m.id, k, *map(float, m.corners[k])) for m in self.markers for k in range(4)]
+        out: list[tuple[int, int, float, float, float]] = []
+        for m in self.markers:
+            for k in range(4):
+                x, y, z = (float(v) for v in m.corners[k])
+                out.append((m.id, k, x, y, z))
+        return out
 
 
 @dataclass(frozen=True)

@@ -69,7 +69,7 @@ def checkerboard_poses(
     """Varied board poses that keep the whole board in view (for intrinsics)."""
     nx, ny = pattern
     w, h = (nx + 1) * square, (ny + 1) * square
-    poses = []
+    poses: list[tuple[np.ndarray, np.ndarray]] = []
     tries = 0
     while len(poses) < n and tries < 50 * n:
         tries += 1

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Awaitable, Callable, Sequence
-from typing import Any
+from typing import Any, Self
 
 from firmware_protocol import (
     AXIS_STRIDE,
@@ -249,41 +249,28 @@ class ModbusDrive(DriveLink):
         )
         return decode(reg, rr.registers)
 
+    @classmethod
+    def from_config(cls, link: LinkConfig, device_id: int) -> Self:
+        """Slave (or unit) ``device_id`` on ``link``: an RTU line's shared client, or a TCP
+        connection of its own (see :func:`~controller.drives.modbus.client.modbus_client`)."""
+        if not isinstance(link, cls.config_type):
+            raise TypeError(f"{cls.__name__} needs a {cls.config_type.__name__}, got {type(link).__name__}")
+        return cls(
+            modbus_client(link),
+            device_id,
+            link.retries,
+            label=f"{endpoint(link)} id {device_id}",
+            reopen=lambda: modbus_client(link),
+        )
+
 
 class ModbusRtuDrive(ModbusDrive):
     """A drive on a Modbus RTU line (link kind ``modbus-rtu``)."""
 
     config_type = ModbusRtuLink
 
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusRtuDrive:
-        """Slave ``device_id`` on the line's shared client (see
-        :func:`~controller.drives.modbus.client.modbus_client`)."""
-        if not isinstance(link, ModbusRtuLink):
-            raise TypeError(f"{cls.__name__} needs a ModbusRtuLink, got {type(link).__name__}")
-        return cls(
-            modbus_client(link),
-            device_id,
-            link.retries,
-            label=f"{endpoint(link)} id {device_id}",
-            reopen=lambda: modbus_client(link),
-        )
-
 
 class ModbusTcpDrive(ModbusDrive):
     """A drive behind Modbus TCP (link kind ``modbus-tcp``)."""
 
     config_type = ModbusTcpLink
-
-    @classmethod
-    def from_config(cls, link: LinkConfig, device_id: int) -> ModbusTcpDrive:
-        """Unit ``device_id`` behind the link's endpoint, on a connection of its own."""
-        if not isinstance(link, ModbusTcpLink):
-            raise TypeError(f"{cls.__name__} needs a ModbusTcpLink, got {type(link).__name__}")
-        return cls(
-            modbus_client(link),
-            device_id,
-            link.retries,
-            label=f"{endpoint(link)} id {device_id}",
-            reopen=lambda: modbus_client(link),
-        )
