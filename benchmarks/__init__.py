@@ -28,6 +28,7 @@ BENCHMARKS: tuple[str, ...] = (
     "diffuse",
     "hotspot",
     "persistence",
+    "fisheye",
     "soak",
 )
 

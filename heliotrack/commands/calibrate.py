@@ -80,6 +80,9 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     )
     al.add_argument("--bundle", type=Path, required=True)
     al.set_defaults(func=_all)
+    from . import calibrate_fisheye
+
+    calibrate_fisheye.add_parser(sp)
 
 
 def _grey(path):

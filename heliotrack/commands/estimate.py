@@ -17,9 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("estimate", help="estimate the sun's direction from sensor images (JSON lines)")
     p.add_argument(
         "--sensor",
-        choices=("hotspot",),
+        choices=("hotspot", "fisheye"),
         default="hotspot",
-        help="sensor type (the convex-surface hotspot sensor)",
+        help="sensor type: the convex-surface hotspot sensor, or the fisheye sky camera",
     )
     p.add_argument("--calib", required=True, type=Path, help="calibration bundle (TOML)")
     p.add_argument("--time", default=None, help="ISO time of the image(s), UTC unless an offset is given")
@@ -27,7 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--algorithm",
         choices=("default", "seed"),
         default="default",
-        help="hotspot segmentation: fast default or the paper's Algorithm 1 literally",
+        help="default pipeline, or the paper's (hotspot: Algorithm 1 literally; "
+        "fisheye: HSI weights, longitude correction and three rules)",
     )
     p.add_argument(
         "--method",
@@ -40,6 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.sensor == "fisheye":
+        from . import estimate_fisheye
+
+        return estimate_fisheye.run(args)
     from controller.calibration.bundle import load_bundle
     from controller.timestamps import parse_timestamp, time_from_name, to_iso
     from controller.vision import HotspotEstimator

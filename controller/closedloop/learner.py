@@ -1,0 +1,129 @@
+"""Learning a row's misalignment (mounting or encoder offset) from the panel-mounted camera.
+
+Each frame in which the camera sees the sun measures the offset directly, independently of
+how the drive got where it is:
+
+    z = position + error - reference
+
+``position``: the drive's reported axis angle (its encoder); ``error``: the camera's angular
+offset of the sun from the boresight along that axis; ``reference``: the angle an aligned
+row would have for the ephemeris sun.  For a row whose panel sits ``delta`` off its encoder,
+``z = -delta`` (plus the ephemeris's own error, which the estimate absorbs as well): the
+setpoint correction that points it at the sun.
+
+The estimate is a scalar Kalman filter with a random walk (offsets drift slowly: thermal,
+settling), so it converges in tens of frames, keeps its value through cloud gaps, and
+follows a slow change.  Measurements more than ``gate_sigma`` sigmas off are refused
+(a false detection); a long run of refusals means the offset itself moved (maintenance,
+a slipped coupling) and the filter restarts from the next measurement.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from ..atomic import atomic_write
+
+
+@dataclass
+class OffsetLearner:
+    """Per-axis offset estimate (deg).
+
+    meas_sigma_deg : one-sigma noise of one measurement ``z``.
+    drift_deg_per_sqrt_h : random-walk rate of the true offset.
+    initial_sigma_deg : prior uncertainty (the offset is unknown at first).
+    gate_sigma : refusal threshold; ``restart_after`` consecutive refusals restart it.
+    """
+
+    meas_sigma_deg: float = 0.05
+    drift_deg_per_sqrt_h: float = 0.02
+    initial_sigma_deg: float = 3.0
+    gate_sigma: float = 5.0
+    restart_after: int = 20
+    estimate_deg: float = 0.0
+    variance: float = 9.0
+    last_t: float | None = None
+    accepted: int = 0
+    refused: int = 0
+    refused_run: int = 0
+
+    def __post_init__(self) -> None:
+        if self.last_t is None and self.accepted == 0:
+            self.variance = self.initial_sigma_deg**2
+
+    @property
+    def sigma_deg(self) -> float:
+        return math.sqrt(self.variance)
+
+    @property
+    def learned(self) -> bool:
+        """True once the estimate is better than a fifth of a degree."""
+        return self.accepted > 0 and self.sigma_deg < 0.2
+
+    def predict(self, t: float) -> None:
+        if self.last_t is not None and t > self.last_t:
+            self.variance += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
+        self.last_t = t if self.last_t is None else max(self.last_t, t)
+
+    def update(self, t: float, z_deg: float) -> bool:
+        """Add one measurement ``z`` (deg) at POSIX ``t``; False when it was refused."""
+        if not math.isfinite(z_deg):
+            return False
+        self.predict(t)
+        r = self.meas_sigma_deg**2
+        innov = z_deg - self.estimate_deg
+        if self.accepted > 0 and innov**2 > self.gate_sigma**2 * (self.variance + r):
+            self.refused += 1
+            self.refused_run += 1
+            if self.refused_run >= self.restart_after:
+                self.estimate_deg, self.variance = z_deg, self.initial_sigma_deg**2
+                self.refused_run = 0
+            return False
+        k = self.variance / (self.variance + r)
+        self.estimate_deg += k * innov
+        self.variance *= 1.0 - k
+        self.accepted += 1
+        self.refused_run = 0
+        return True
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> OffsetLearner:
+        return cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
+
+
+class MisalignmentStore:
+    """The learned offsets of every row and axis, persisted atomically as JSON.
+
+    ``store.learner("row-7", "rotation")`` returns (and creates) that axis's learner.
+    """
+
+    def __init__(self, path: str | Path | None = None):
+        self.path = Path(path) if path is not None else None
+        self.learners: dict[str, dict[str, OffsetLearner]] = {}
+        if self.path is not None and self.path.exists():
+            data = json.loads(self.path.read_text())
+            for row, axes in data.get("rows", {}).items():
+                self.learners[row] = {ax: OffsetLearner.from_dict(d) for ax, d in axes.items()}
+
+    def learner(self, row: str, axis: str) -> OffsetLearner:
+        return self.learners.setdefault(row, {}).setdefault(axis, OffsetLearner())
+
+    def offsets(self) -> dict[str, dict[str, float]]:
+        return {row: {ax: lr.estimate_deg for ax, lr in axes.items()} for row, axes in self.learners.items()}
+
+    def save(self, path: str | Path | None = None) -> Path:
+        p = Path(path) if path is not None else self.path
+        if p is None:
+            raise ValueError("MisalignmentStore.save: no path")
+        data = {
+            "rows": {
+                row: {ax: lr.to_dict() for ax, lr in axes.items()} for row, axes in self.learners.items()
+            }
+        }
+        return atomic_write(p, json.dumps(data, indent=1) + "\n")

@@ -1,0 +1,376 @@
+"""The default fisheye pipeline: calibrated directions from the glare's rim, judged in angle.
+
+Per frame (docs/fisheye.md has the reasoning and the measured figures):
+
+1. on the mean of each pixel's two darkest channels (:func:`glare_channel`), grey levels
+   within ``sat_margin`` of the frame's peak form blobs; each blob's inscribed-disk centres
+   are candidates (:mod:`.glare`);
+2. each candidate's rim is measured to a fraction of a pixel and fitted, through the
+   calibrated lens, by a small circle on the sphere (:func:`.glare.fit_glare`);
+3. **visibility**: a candidate is the sun only if its glare is round on the sphere (rim RMS),
+   complete (inliers all round it), of a plausible angular size, stands out from the sky,
+   has a full core, and (orientation known) is above the horizon; an occluded or
+   cloud-mangled sun therefore yields no observation, with the reason;
+4. **gates** (:mod:`.gates`): the previous accepted detection of the sequence (the paper's
+   rule 3, in angle), a caller's prior (the loop's sun-path filter), the ephemeris (bundle
+   ``[site]``); among several sun-like candidates with no gate to tell them apart, the
+   clearly largest glare is the sun, otherwise the frame is ``ambiguous_candidates``.
+
+The output is a :class:`~.result.FisheyeResult` with a one-sigma uncertainty and quality
+flags; ``observation()`` gives the :class:`~controller.sun.types.SunObservation`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ...calibration.fisheye_bundle import FisheyeBundle
+from ...errors import ConfigError
+from ...sun.source import Site
+from ...sun.types import enu_to_azel
+from .frames import as_bgr8, load_frame
+from .gates import Ephemeris, Gate, GateOptions, prior_direction
+from .glare import GlareFit, GlareOptions, find_blobs, fit_glare
+from .history import GlareHistory
+from .lens import FisheyeLens
+from .result import FisheyeResult, not_found
+
+#: Order in which a refused frame's reason is reported when candidates failed differently.
+REASON_ORDER = (
+    "static_glare",
+    "glare_shrunk",
+    "below_horizon",
+    "irregular_glare",
+    "incomplete_glare",
+    "low_contrast",
+    "glare_too_small",
+    "glare_too_large",
+    "no_rim",
+)
+
+
+@dataclass(frozen=True)
+class FisheyeOptions:
+    """Decision thresholds of the default pipeline (angles in degrees).
+
+    All are physical or geometric (angular sizes, fractions of the rim), none in pixels of
+    one particular camera except ``max_rms_px``, the rim's roughness relative to the pixel
+    (a cloud-mangled sun's rim is rough by a few per cent of its radius, a saturated cloud
+    patch by tens of per cent).
+    """
+
+    glare: GlareOptions = field(default_factory=GlareOptions)
+    gates: GateOptions = field(default_factory=GateOptions)
+    min_peak: float = 200.0  # grey level: below it nothing is saturated
+    sat_margin: float = 4.0  # grey levels under the peak that count as saturated
+    min_radius_deg: float = 0.8  # the sun's disk is 0.27 deg; smaller: a point source, or too dim
+    max_radius_deg: float = 20.0
+    min_inlier_fraction: float = 0.35
+    max_gap_deg: float = 150.0  # largest arc of the rim without an inlier
+    max_rms_px: float = 0.6  # rim residual RMS: this many pixels at the glare ...
+    max_rms_rel: float = 0.08  # ... plus this fraction of its radius
+    min_core_fill: float = 0.9
+    min_contrast: float = 0.12  # (peak - sky) / peak
+    horizon_margin_deg: float = 1.0
+    ambiguity_ratio: float = 1.25  # the sun's glare must be this much larger
+    max_blobs: int = 6
+    sigma_floor_deg: float = 0.015
+    near_horizon_deg: float = 12.0
+
+
+@dataclass
+class Candidate:
+    fit: GlareFit
+    d_cam: np.ndarray
+    d_enu: np.ndarray | None
+    el_deg: float | None
+    reason: str | None
+
+
+class FisheyeEstimator:
+    """The default pipeline for one camera (one bundle); it remembers the last accepted
+    detection of the current sequence (call :meth:`reset_sequence` between sequences)."""
+
+    algorithm = "default"
+
+    def __init__(self, bundle: FisheyeBundle, options: FisheyeOptions | None = None):
+        self.bundle = bundle
+        self.options = options or FisheyeOptions()
+        cam = bundle.camera
+        self.lens = FisheyeLens.from_camera(cam)
+        self.shape = (cam.height, cam.width)
+        self.R = bundle.enu_from_camera
+        self.up_cam = None if self.R is None else self.R[2].copy()
+        self.frame = "enu" if self.R is not None else "model"
+        self.mask = _load_mask(bundle, self.shape)
+        self.ephemeris = None
+        if bundle.site is not None and self.R is not None and self.options.gates.ephemeris:
+            s = bundle.site
+            self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
+        self._last: tuple[float, np.ndarray] | None = None
+        self.history = GlareHistory()
+        dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
+        lens_sig = 0.5 * (cam.rms_px or 0.0) * dpp0
+        o = bundle.orientation
+        ori_sig = 0.0
+        if o is not None and o.residual_deg is not None:
+            ori_sig = o.residual_deg / math.sqrt(max(o.frames or 1, 1))
+        self.sigma_cal = math.hypot(lens_sig, ori_sig)
+
+    # -- sequence --------------------------------------------------------------------------
+    def reset_sequence(self) -> None:
+        """Forget the last accepted detection and the glares seen (a new sequence starts)."""
+        self._last = None
+        self.history.clear()
+
+    # -- entry points ------------------------------------------------------------------------
+    def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
+        img, reason = load_frame(path)
+        if img is None:
+            return not_found(str(path), reason or "unreadable_file", t, self.frame, self.algorithm)
+        res = self.estimate_image(img, t, prior)
+        res.image = str(path)
+        return res
+
+    def estimate_image(self, image, t: float | None = None, prior=None) -> FisheyeResult:
+        """Measure the sun in one frame (BGR or grey, 8 or 16 bit) taken at POSIX time ``t``.
+
+        ``prior``: an expected sun direction (``az_deg``, ``el_deg``, ``sigma_deg`` in ENU,
+        e.g. the sun-path filter's prediction) that the detection must agree with.
+        """
+        o = self.options
+        img, reason = as_bgr8(image)
+        if img is None:
+            return not_found(None, reason or "no_image", t, self.frame, self.algorithm)
+        if img.shape[:2] != self.shape:
+            return not_found(
+                None,
+                "size_mismatch",
+                t,
+                self.frame,
+                self.algorithm,
+                expected_shape=list(self.shape),
+                got_shape=list(img.shape[:2]),
+            )
+        grey = glare_channel(img)
+        _, peak, _, _ = cv2.minMaxLoc(grey, self.mask)
+        if peak < o.min_peak:
+            return not_found(None, "no_sun_glare", t, self.frame, self.algorithm, peak=int(peak))
+        blobs = find_blobs(grey, peak - o.sat_margin, self.mask, max_blobs=o.max_blobs)
+        if sum(b.area_px for b in blobs) > 0.5 * grey.size:
+            return not_found(None, "overexposed", t, self.frame, self.algorithm)
+        cands: list[Candidate] = []
+        low = 0
+        for blob in blobs:
+            for x, y, r in blob.centres:
+                if any(
+                    math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
+                    for c in cands
+                ):
+                    continue  # another centre of a glare already measured
+                if self._below_horizon(x, y, r):
+                    low += 1
+                    continue
+                fit = fit_glare(grey, self.lens, x, y, r, float(peak), o.glare, up_cam=self.up_cam)
+                if fit is not None:
+                    cands.append(self._judge(fit))
+        sun_like = [c for c in cands if c.reason is None]
+        if t is not None and sun_like:
+            sun_like = self._motion_vetoes(t, sun_like, prior)
+        if not sun_like:
+            reasons = Counter(c.reason for c in cands)
+            reasons["below_horizon"] += low
+            why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
+            return not_found(None, why, t, self.frame, self.algorithm, candidates=len(cands) + low)
+        gates = self._gates(t, prior)
+        passing = [
+            c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in gates)
+        ]
+        if gates and not passing:
+            near = min(
+                max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
+            )
+            return not_found(
+                None,
+                "gate_rejected",
+                t,
+                self.frame,
+                self.algorithm,
+                gates=[g.name for g in gates],
+                beyond_gate_deg=round(near, 3),
+            )
+        passing.sort(key=lambda c: -c.fit.radius_deg)
+        flags = ["several_candidates"] if len(sun_like) > 1 else []
+        best = passing[0]
+        if len(passing) > 1 and passing[1].fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg:
+            close = [c for c in passing if c.fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg]
+            movers = [c for c in close if t is not None and self.history.moves_like_the_sun(t, self._gd(c))]
+            if gates:
+                g = gates[0]
+                best = min(passing, key=lambda c: g.distance_deg(self._in(c, g.frame)))
+            elif len(movers) == 1:
+                best = movers[0]
+                flags.append("chosen_by_motion")
+            else:
+                return not_found(
+                    None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
+                )
+        res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
+        if t is not None:
+            self._last = (float(t), self._gd(best))
+            self.history.accepted(float(t), best.fit.radius_deg)
+        return res
+
+    # -- internals ---------------------------------------------------------------------------
+    def _judge(self, fit: GlareFit) -> Candidate:
+        o = self.options
+        d_cam = fit.axis
+        d_enu = self.R @ d_cam if self.R is not None else None
+        el = float(math.degrees(math.asin(np.clip(d_enu[2], -1, 1)))) if d_enu is not None else None
+        reason = None
+        if (
+            fit.rms_deg > o.max_rms_px * fit.deg_per_px + o.max_rms_rel * fit.radius_deg
+            or fit.core_fill < o.min_core_fill
+        ):
+            reason = "irregular_glare"
+        elif fit.inlier_fraction < o.min_inlier_fraction or fit.max_gap_deg > o.max_gap_deg:
+            reason = "incomplete_glare"
+        elif fit.contrast < o.min_contrast:
+            reason = "low_contrast"
+        elif fit.radius_deg < o.min_radius_deg:
+            reason = "glare_too_small"
+        elif fit.radius_deg > o.max_radius_deg:
+            reason = "glare_too_large"
+        elif el is not None and el < -o.horizon_margin_deg:
+            reason = "below_horizon"
+        return Candidate(fit, d_cam, d_enu, el, reason)
+
+    def _gd(self, c: Candidate) -> np.ndarray:
+        """The candidate's direction in the frame the sequence is judged in."""
+        return c.d_enu if c.d_enu is not None else c.d_cam
+
+    def _motion_vetoes(self, t: float, sun_like: list[Candidate], prior) -> list[Candidate]:
+        """Record the sun-like glares; without the ephemeris or a prior to go by, drop those
+        that stand still or are much smaller than the sun recently seen (:mod:`.history`)."""
+        self.history.add(float(t), [(self._gd(c), c.fit.radius_deg) for c in sun_like])
+        if self.ephemeris is not None or prior is not None:
+            return sun_like
+        kept = []
+        for c in sun_like:
+            if self.history.is_static(float(t), self._gd(c)):
+                c.reason = "static_glare"
+            elif self.history.is_shrunk(float(t), c.fit.radius_deg):
+                c.reason = "glare_shrunk"
+            else:
+                kept.append(c)
+        return kept
+
+    def _below_horizon(self, x: float, y: float, r_px: float) -> bool:
+        """The whole blob lies below the horizon (orientation known): not worth a fit."""
+        if self.R is None:
+            return False
+        d, ok = self.lens.rays([[x, y]])
+        if not ok[0]:
+            return False
+        el = math.degrees(math.asin(float(np.clip((self.R @ d[0])[2], -1, 1))))
+        return el + r_px * self.lens.deg_per_px(x, y) < -self.options.horizon_margin_deg
+
+    def _in(self, c: Candidate, frame: str) -> np.ndarray:
+        return c.d_enu if frame == "enu" and c.d_enu is not None else c.d_cam
+
+    def _gates(self, t: float | None, prior) -> list[Gate]:
+        g = self.options.gates
+        out: list[Gate] = []
+        pd = prior_direction(prior) if self.R is not None else None
+        if pd is not None:
+            out.append(
+                Gate("prior", pd[0], max(g.prior_min_deg, g.prior_k_sigma * pd[1] + g.base_deg), "enu")
+            )
+        if self.ephemeris is not None and t is not None:
+            o = self.bundle.orientation
+            slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
+            out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg + slack, "enu"))
+        if self._last is not None and t is not None:
+            dt = float(t) - self._last[0]
+            if 0.0 <= dt <= g.max_gap_s:
+                out.append(
+                    Gate(
+                        "sequence",
+                        self._last[1],
+                        g.base_deg + g.rate_deg_per_min * dt / 60.0,
+                        self.frame if self.R is not None else "camera",
+                    )
+                )
+        return out
+
+    def _result(self, c: Candidate, t: float | None, flags: list[str]) -> FisheyeResult:
+        o = self.options
+        f = c.fit
+        v = c.d_enu if c.d_enu is not None else c.d_cam
+        az, el = enu_to_azel(v)
+        sig_fit = f.rms_deg * math.sqrt(2.0 / max(f.n_inliers, 3))
+        # a rim bent by a cloud nearby, or partly lost to one, moves the centre by a share of
+        # the bending and of the radius: systematic, not averaged down by the rays
+        sig_rim = 0.5 * f.rms_deg
+        sig_partial = 0.5 * f.radius_deg * (1.0 - f.inlier_fraction) ** 2
+        sigma = math.sqrt(sig_fit**2 + sig_rim**2 + o.sigma_floor_deg**2 + self.sigma_cal**2 + sig_partial**2)
+        if f.inlier_fraction < 0.9:
+            flags.append("outliers_rejected")
+        if f.smear:
+            flags.append(f.smear)
+        flags += f.flags
+        if c.el_deg is not None and c.el_deg < o.near_horizon_deg:
+            flags.append("near_horizon")
+            sigma += 0.01 * (o.near_horizon_deg - c.el_deg)
+        x, y, z = (float(a) for a in c.d_cam)
+        W, H = self.shape[1], self.shape[0]
+        return FisheyeResult(
+            image=None,
+            found=True,
+            time=t,
+            frame=self.frame,
+            algorithm=self.algorithm,
+            az_deg=float(az),
+            el_deg=float(el),
+            sigma_deg=sigma,
+            d_cam=c.d_cam,
+            centre_uv=f.centre_uv,
+            offset_px=(f.centre_uv[0] - W / 2, f.centre_uv[1] - H / 2),
+            offset_deg=(math.degrees(math.atan2(x, z)), math.degrees(math.atan2(y, z))),
+            radius_deg=f.radius_deg,
+            quality=tuple(flags),
+            extra={"rim_rms_deg": round(f.rms_deg, 5), "rim_inliers": f.n_inliers, "rim_rays": f.n_rays},
+        )
+
+
+def glare_channel(img: np.ndarray) -> np.ndarray:
+    """The mean of each pixel's two darkest channels (uint8).
+
+    The glare is white, so its core saturates every channel; the sky around it is coloured,
+    and its brightest channel (blue, in a clear sky) clips first, which bends the rim's
+    profile differently on each side.  Dropping the brightest channel keeps the rim clear of
+    that; keeping two channels (rather than the darkest alone) halves the noise of JPEG's
+    sub-sampled colour.
+    """
+    b, g, r = cv2.split(img)
+    hi = cv2.max(cv2.max(b, g), r)
+    total = cv2.add(cv2.add(b, g, dtype=cv2.CV_16U), r, dtype=cv2.CV_16U)
+    rest = cv2.subtract(total, hi, dtype=cv2.CV_16U)
+    return cv2.convertScaleAbs(rest, alpha=0.5)
+
+
+def _load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | None:
+    if bundle.mask is None:
+        return None
+    m = cv2.imread(str(bundle.mask), cv2.IMREAD_GRAYSCALE)
+    if m is None or m.shape != shape:
+        raise ConfigError(
+            bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
+        )
+    return np.where(m > 0, 255, 0).astype(np.uint8)

@@ -1,0 +1,51 @@
+"""Reading and checking sky-camera frames: a bad file is a reason, never an exception.
+
+Frames are colour (the seed pipeline needs hue and saturation); 8-bit BGR as OpenCV reads
+them.  16-bit images are scaled to 8 bits, grey images are accepted as three equal
+channels, an alpha channel is dropped.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..imageio import read_image
+
+
+def load_frame(path: str | Path) -> tuple[np.ndarray | None, str | None]:
+    """(BGR uint8 image, None) or (None, reason).
+
+    The file is read by :func:`controller.vision.imageio.read_image` (reasons
+    ``file_not_found``, ``unreadable_file``, ``empty_file``, ``truncated_file``,
+    ``image_too_large``, ``undecodable_image``), then normalised by :func:`as_bgr8`.
+    """
+    img, reason = read_image(path)
+    if img is None:
+        return None, reason
+    return as_bgr8(img)
+
+
+def as_bgr8(img: np.ndarray | None) -> tuple[np.ndarray | None, str | None]:
+    """Normalise an in-memory image to contiguous BGR uint8, or (None, reason)."""
+    if img is None or not isinstance(img, np.ndarray) or img.size == 0:
+        return None, "no_image"
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype in (np.float32, np.float64):
+        if not np.all(np.isfinite(img)):
+            return None, "non_finite_pixels"
+        img = np.clip(np.rint(img * (255.0 if img.max() <= 1.0 else 1.0)), 0, 255).astype(np.uint8)
+    if img.dtype != np.uint8:
+        return None, "unsupported_image_format"
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = cv2.cvtColor(img[:, :, 0], cv2.COLOR_GRAY2BGR)
+    if img.ndim != 3 or img.shape[2] != 3:
+        return None, "unsupported_image_format"
+    return np.ascontiguousarray(img), None

@@ -1,0 +1,88 @@
+"""Where the sun can be: gates a candidate must pass before it is reported.
+
+* **Sequence gate** (the paper's rule 3, judged in angle): within ``max_gap_s`` of the last
+  accepted detection of the same sequence the sun is at most ``base_deg + rate_deg_per_min
+  * minutes`` from it (the sun crosses the sky at <= 0.25 deg/min).
+* **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
+  ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
+* **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
+  the sun is within ``ephemeris_deg`` (plus five times the orientation fit's residual) of
+  pvlib's position.  The ephemeris is evaluated on a
+  10-minute grid and interpolated (error < 0.001 deg), so the gate costs nothing per frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...sun.source import Site, solar_position
+from ...sun.types import azel_to_enu
+
+
+@dataclass(frozen=True)
+class GateOptions:
+    base_deg: float = 1.0
+    rate_deg_per_min: float = 0.3
+    max_gap_s: float = 1800.0
+    prior_min_deg: float = 1.0
+    prior_k_sigma: float = 3.0
+    ephemeris: bool = True
+    ephemeris_deg: float = 1.0
+
+
+@dataclass(frozen=True)
+class Gate:
+    """A cone: unit ``centre`` (in ``frame``: ``"enu"`` or ``"camera"``) and ``radius_deg``."""
+
+    name: str
+    centre: np.ndarray
+    radius_deg: float
+    frame: str
+
+    def distance_deg(self, d: np.ndarray) -> float:
+        c = float(np.clip(np.dot(self.centre, d), -1.0, 1.0))
+        return math.degrees(math.acos(c))
+
+
+class Ephemeris:
+    """pvlib SPA sun directions (ENU) at a site, on a cached grid, linearly interpolated."""
+
+    def __init__(self, site: Site, grid_s: float = 600.0):
+        self.site = site
+        self.grid_s = float(grid_s)
+        self._cache: dict[int, np.ndarray] = {}
+
+    def _at(self, k: int) -> np.ndarray:
+        v = self._cache.get(k)
+        if v is None:
+            if len(self._cache) > 4096:
+                self._cache.clear()
+            sp = solar_position(self.site, [k * self.grid_s])
+            v = azel_to_enu(float(sp["azimuth"].iloc[0]), float(sp["apparent_elevation"].iloc[0]))
+            self._cache[k] = v
+        return v
+
+    def direction(self, t: float) -> np.ndarray:
+        """Unit ENU vector of the sun at POSIX time ``t``."""
+        k = math.floor(t / self.grid_s)
+        w = t / self.grid_s - k
+        v = (1.0 - w) * self._at(k) + w * self._at(k + 1)
+        return v / np.linalg.norm(v)
+
+
+def prior_direction(prior) -> tuple[np.ndarray, float] | None:
+    """(unit ENU vector, sigma deg) from an object with ``az_deg``, ``el_deg`` and
+    ``sigma_deg`` (a SunObservation or SunEstimate) or a tuple (az, el, sigma)."""
+    if prior is None:
+        return None
+    if isinstance(prior, (tuple, list)):
+        az, el, sig = (float(x) for x in prior)
+    else:
+        az, el = float(prior.az_deg), float(prior.el_deg)
+        sig = float(getattr(prior, "sigma_deg", 1.0))
+    if not all(math.isfinite(x) for x in (az, el, sig)):
+        return None
+    return azel_to_enu(az, el), sig

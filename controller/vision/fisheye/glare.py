@@ -1,0 +1,420 @@
+"""The sun's saturated glare: coarse candidates, sub-pixel rim, and a small circle on the sphere.
+
+Method (see docs/fisheye.md):
+
+1. **Candidates.**  Pixels within a few grey levels of the frame's peak form connected
+   blobs.  Each blob's centres are the maxima of its distance transform (the centres of
+   its largest inscribed disks), which a thin smear column or a cloud edge joined to the
+   glare barely moves.
+2. **Rim.**  From a centre, rays sample the grey image bilinearly every half pixel; the rim
+   point of a ray is where it first falls below a level between the peak and the local
+   sky (linear interpolation between samples).  A plane fitted to the sky around the glare
+   removes the background's gradient first (a sky brighter on one side would shift the rim).
+   An unsaturated column smear (a CCD's frame-transfer streak) adds the same level above
+   and below the glare and leaves its centre in place; a saturated streak (bloom) costs
+   the near-vertical rays, whose rims it hides.
+3. **Cone.**  Rim points become unit vectors through the calibrated lens.  Points on a
+   small circle of the sphere lie on a plane, ``a . v = cos(rho)``: the axis ``a`` is the
+   sun's direction, ``rho`` the glare's angular radius.  The plane is fitted by weighted
+   total least squares, then points whose angular residual is an outlier (median / MAD)
+   are dropped and the fit repeated, so arcs pushed out by a saturated cloud edge or
+   pulled in by a cloud over part of the glare do not move the centre.  Working on the
+   sphere makes the fit indifferent to the fisheye squeezing a round glare near the edge.
+4. The fit is redone once with rays re-centred on the fitted axis.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from .lens import FisheyeLens
+from .skybg import sky_by_elevation, sky_dipole
+from .sphere import fit_cone, refine_cone, sample_sphere, tangent_basis
+
+
+@dataclass(frozen=True)
+class GlareOptions:
+    """Tuning of the rim measurement (dimensionless unless stated).
+
+    level : where between the local sky (0) and the peak (1) a ray's rim is taken.
+    step_px : sampling step along the rays (px).
+    outlier_k : residuals beyond ``outlier_k`` robust sigmas are outliers.
+    min_rays, max_rays : number of rays around a candidate.
+    """
+
+    level: float = 0.85
+    step_px: float = 0.5
+    outlier_k: float = 3.0
+    min_rays: int = 48
+    max_rays: int = 120
+    noise_floor_px: float = 0.06
+
+
+@dataclass
+class Blob:
+    """A connected region of (near-)saturated pixels and its inscribed-disk centres."""
+
+    area_px: int
+    bbox: tuple[int, int, int, int]  # x, y, w, h
+    centres: list[tuple[float, float, float]]  # (x, y, inscribed radius px)
+
+
+@dataclass
+class GlareFit:
+    """Result of fitting the rim of one glare candidate (angles in degrees)."""
+
+    axis: np.ndarray  # unit sun direction, camera frame
+    radius_deg: float
+    rms_deg: float
+    n_rays: int
+    n_valid: int
+    n_inliers: int
+    max_gap_deg: float  # largest angular gap between inlier rays around the centre
+    centre_uv: tuple[float, float]
+    radius_px: float
+    peak: float
+    background: float
+    core_fill: float  # fraction of the disk's inner part at or above the level
+    deg_per_px: float
+    smear: str | None = None
+    flags: list[str] = field(default_factory=list)
+    image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
+
+    @property
+    def inlier_fraction(self) -> float:
+        return self.n_inliers / max(self.n_rays, 1)
+
+    @property
+    def contrast(self) -> float:
+        return (self.peak - self.background) / max(self.peak, 1.0)
+
+
+_SIN_RIM_MIN = math.sin(math.radians(2.5))
+
+
+def find_blobs(
+    grey: np.ndarray, threshold: float, valid: np.ndarray | None, *, max_blobs: int = 6, min_area_px: int = 3
+) -> list[Blob]:
+    """Blobs of ``grey >= threshold`` inside ``valid``, largest first.
+
+    The blobs are labelled on a block-reduced mask (any saturated pixel marks its block),
+    then measured at full resolution inside their boxes: a coarse search, then small ROIs.
+    """
+    _, binary = cv2.threshold(grey, threshold - 0.5, 255, cv2.THRESH_BINARY)
+    if valid is not None:
+        binary &= valid
+    H, W = binary.shape
+    f = max(1, min(H, W) // 120)
+    small = cv2.resize(binary, (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
+    n, _, stats, _ = cv2.connectedComponentsWithStats((small > 0).astype(np.uint8), connectivity=8)
+    if n <= 1:
+        return []
+    sx, sy = W / small.shape[1], H / small.shape[0]
+    out = []
+    for lab in range(1, n):
+        x, y, w, h = (int(v) for v in stats[lab, :4])
+        x0, y0 = max(int(x * sx) - 2, 0), max(int(y * sy) - 2, 0)
+        x1, y1 = min(math.ceil((x + w) * sx) + 2, W), min(math.ceil((y + h) * sy) + 2, H)
+        sub = binary[y0:y1, x0:x1]
+        area = int(cv2.countNonZero(sub))
+        if area < min_area_px:
+            continue
+        dt = cv2.distanceTransform((sub > 0).astype(np.uint8), cv2.DIST_L2, 5)
+        out.append(Blob(area, (x0, y0, x1 - x0, y1 - y0), _dt_centres(dt, x0, y0)))
+    out.sort(key=lambda b: -b.area_px)
+    return out[:max_blobs]
+
+
+def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[float, float, float]]:
+    """Up to ``k`` well-separated maxima of a distance transform: (x, y, radius) px."""
+    top = float(dt.max())
+    if top <= 0:
+        return []
+    size = max(3, int(2 * top) | 1)
+    peaks = (dt >= cv2.dilate(dt, np.ones((size, size), np.uint8))) & (dt >= max(1.0, 0.5 * top))
+    ys, xs = np.nonzero(peaks)
+    vals = dt[ys, xs]
+    order = np.argsort(-vals)
+    chosen: list[tuple[float, float, float]] = []
+    for i in order:
+        x, y, r = float(xs[i] + x0), float(ys[i] + y0), float(vals[i])
+        if all(math.hypot(x - cx, y - cy) > max(r, cr) for cx, cy, cr in chosen):
+            chosen.append((x, y, r))
+        if len(chosen) >= k:
+            break
+    return chosen
+
+
+# ------------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------------------------
+def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float) -> bool:
+    """True when a saturated vertical streak (bloom, or a strong CCD smear) leaves the glare:
+    1.6 to 2.6 radii above and below its centre (where the image holds both), the columns
+    through it are saturated and those 1.5 to 2.5 radii aside are not (a streak, not a
+    saturated cloud)."""
+    H, W = grey.shape
+    x0, x1 = max(int(xc - 0.6 * r), 0), min(int(xc + 0.6 * r) + 1, W)
+    sides = []
+    for lo, hi in ((yc - 2.6 * r, yc - 1.6 * r), (yc + 1.6 * r, yc + 2.6 * r)):
+        r0, r1 = max(int(lo), 0), min(int(hi) + 1, H)
+        if r1 - r0 < 2 or x1 <= x0:
+            continue
+        inner = float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level
+        aside = [
+            grey[r0:r1, max(int(a), 0) : min(int(b) + 1, W)]
+            for a, b in ((xc - 2.5 * r, xc - 1.5 * r), (xc + 1.5 * r, xc + 2.5 * r))
+        ]
+        clear = all(float(np.mean(a >= sat_level)) < 0.2 for a in aside if a.size)
+        sides.append(inner and clear)
+    return bool(sides) and all(sides)
+
+
+def _crossings(vals: np.ndarray, radii: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First fall of each row of ``vals`` below its ``level`` after an unbroken run at or above
+    it from the first sample; (radius by linear interpolation, found)."""
+    n = vals.shape[0]
+    above = vals >= level[:, None]
+    below = ~above
+    below[:, 0] = False
+    j = np.argmax(below, axis=1)
+    has = below[np.arange(n), j] & above[:, 0]
+    jj = np.clip(j, 1, len(radii) - 1)
+    v1 = vals[np.arange(n), jj - 1]
+    v2 = vals[np.arange(n), jj]
+    has &= np.isfinite(v1) & np.isfinite(v2)
+    frac = np.clip((v1 - level) / np.maximum(v1 - v2, 1e-6), 0.0, 1.0)
+    return radii[jj - 1] + frac * (radii[jj] - radii[jj - 1]), has
+
+
+def fit_glare(
+    grey: np.ndarray,
+    lens: FisheyeLens,
+    x0: float,
+    y0: float,
+    r_px: float,
+    peak: float,
+    opts: GlareOptions = GlareOptions(),
+    *,
+    up_cam: np.ndarray | None = None,
+) -> GlareFit | None:
+    """Measure the glare around (x0, y0) (px; a point inside it, ``r_px`` its rough radius).
+
+    Rays are cast on the sphere around the current axis (equal angular steps, projected
+    through the lens), starting from the ray through (x0, y0); the sky's asymmetry near the
+    rim is removed and the cone refitted, until the axis stops moving (at most 4 times).  ``up_cam``: the zenith in the camera frame
+    when the orientation is known (samples below 1 deg elevation are not sky); otherwise
+    samples beyond 88 deg off the optical axis are not trusted.
+    """
+    H, W = grey.shape
+    xc, yc, r = float(x0), float(y0), max(float(r_px), 1.5)
+    # a saturated streak (bloom) costs the near-vertical rays; an unsaturated column smear
+    # is symmetric about the glare's row and leaves the centre where it is
+    smear_kind = "bloom" if _saturated_streak(grey, xc, yc, r, peak - 3) else None
+    dpp = lens.deg_per_px(xc, yc)
+    n_rays = int(np.clip(round(2 * math.pi * r / 0.8), opts.min_rays, opts.max_rays))
+    phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    vertical_ok = np.ones(n_rays, bool)
+
+    # -- start: the ray through the inscribed disk's centre, the disk's angular radius ----
+    d0, ok0 = lens.rays([[xc, yc]])
+    if not ok0[0]:
+        return None
+    a = d0[0]
+    rho = math.radians(r * dpp)
+    floor = math.radians(opts.noise_floor_px * dpp)
+    if smear_kind == "bloom":  # near-vertical rays run into the saturated streak
+        vertical_ok = np.abs(np.sin(phi)) < math.sin(math.radians(50))
+    idx = np.zeros(0, int)
+    has = np.zeros(n_rays, bool)
+    rms = float("inf")
+    dipole = np.zeros(2)
+    by_el: np.ndarray | None = None
+    bg = 0.0
+
+    # -- pass 2: rays on the sphere around the axis ---------------------------------------
+    step = math.radians(max(opts.step_px, 0.04 * r) * dpp)  # ~25 samples across a radius
+    ring_sel = np.arange(0, n_rays, max(1, n_rays // 36))
+    lo_f, hi_f = 0.5, 1.7
+    for it in range(4):
+        e1, e2 = tangent_basis(a)
+        rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
+        grids = [(phi, rim_chi)]
+        if it < 2:  # the sky's dipole, measured twice; the model absorbs the axis's error
+            ring_chi = np.arange(1.15 * rho, 3.2 * rho + 4 * step, 3 * step)
+            grids.append((phi[ring_sel], ring_chi))
+        samples = sample_sphere(grey, lens, a, e1, e2, up_cam, grids)
+        vals = np.where(samples[0][1], samples[0][0], np.nan)  # no rim below the horizon
+        if it < 2:
+            rvals, rsky = samples[1]
+            outer = rvals[:, -3:][rsky[:, -3:]]
+            if outer.size < 8:
+                return None
+            bg = float(np.median(outer))
+            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], peak - bg, rsky)
+            by_el = None
+            if up_cam is not None and not rsky.all():
+                # rings cut by the horizon: model the sky by elevation instead of a dipole
+                el0 = math.asin(float(np.clip(a @ up_cam, -1, 1)))
+                t_r = np.cos(phi[ring_sel])[:, None] * e1 + np.sin(phi[ring_sel])[:, None] * e2
+                sin_el = (
+                    np.cos(ring_chi)[None, :] * float(a @ up_cam)
+                    + np.sin(ring_chi)[None, :] * (t_r @ up_cam)[:, None]
+                )
+                xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
+                by_el = sky_by_elevation(
+                    rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], rsky, xr, peak - bg
+                )
+        if by_el is not None:
+            t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+            sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)
+            xk = (np.arcsin(np.clip(sin_k, -1, 1)) - math.asin(float(np.clip(a @ up_cam, -1, 1)))) / rho
+            shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
+        else:
+            shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
+        level = bg + opts.level * (peak - bg) + shift
+        chi_c, has = _crossings(vals, rim_chi, level)
+        has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
+        if up_cam is not None:  # the last degrees above the horizon change too fast to model
+            t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+            sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (t_k @ up_cam)
+            has &= sin_rim > _SIN_RIM_MIN
+        if has.sum() < 8:
+            return None
+        dirs_t = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
+        pts = np.cos(chi_c)[:, None] * a + np.sin(chi_c)[:, None] * dirs_t
+        a_new, rho, inl, rms, ell = fit_cone(pts[has], k=opts.outlier_k, floor_rad=floor)
+        idx = np.flatnonzero(has)[inl]
+        moved = math.acos(min(1.0, float(a_new @ a)))
+        a = a_new
+        lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
+        if it >= 1 and moved < 0.5 * floor:
+            break
+    # how much the rim's ellipticity is that of a disk round in the image (lens veiling glare)
+    # rather than on the sky: ``g`` (0..1).  Measured, it is not used to shift the cone's
+    # axis (that made every mixed glare worse); it only admits the image-circle reading below
+    g = 0.0
+    if float(np.hypot(*ell)) > 0.01 * rho:  # a round rim is round on the sky
+        _, ell_pix = _pixel_round_bias(lens, a, rho)
+        n2 = float(ell_pix @ ell_pix)
+        if n2 > (0.01 * rho) ** 2:
+            g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))
+    flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
+    # the same rim, read as a circle in the image: a glare made by the optics (round on the
+    # sensor) fits it better than any cone near the edge of the field
+    uv_rim, ok_rim = lens.project(pts[has])
+    circ = _fit_circle_px(uv_rim[ok_rim], opts.outlier_k, opts.noise_floor_px) if ok_rim.sum() >= 8 else None
+    if circ is not None:
+        (pcx, pcy), p_inl, p_rms = circ
+        n_a, rms_a_px = len(idx), math.degrees(rms) / dpp
+        n_p = int(p_inl.sum())
+        # only a clearly better, nearly complete circle: a rim bent by a cloud edge fits
+        # neither model, and the cone is the default
+        # and only when the cone's rim is elliptical the way the lens makes a round image
+        # (g), which a rim bent by clouds is not
+        if (
+            g >= 0.5
+            and n_p >= 0.8 * len(uv_rim)
+            and (n_p >= 1.25 * n_a + 2 or (n_p >= n_a and p_rms < 0.5 * rms_a_px))
+        ):
+            d_c, ok_c = lens.rays([[pcx, pcy]])
+            if ok_c[0]:
+                a = d_c[0]
+                idx = np.flatnonzero(has)[np.flatnonzero(ok_rim)[p_inl]]
+                rho = float(np.mean(np.arccos(np.clip(pts[has][ok_rim][p_inl] @ a, -1.0, 1.0))))
+                rms = math.radians(p_rms * dpp)
+                g = 1.0
+                flags.append("round_in_image")
+    uv, okp = lens.project(a[None, :])
+    if not okp[0]:
+        return None
+    xc, yc = float(uv[0, 0]), float(uv[0, 1])
+    if not (0 <= xc < W and 0 <= yc < H):
+        return None
+    r_fit = max(math.degrees(rho) / dpp, 1.0)
+    return GlareFit(
+        axis=a,
+        radius_deg=math.degrees(rho),
+        rms_deg=math.degrees(rms),
+        n_rays=n_rays,
+        n_valid=int(has.sum()),
+        n_inliers=len(idx),
+        max_gap_deg=_max_gap(idx, n_rays),
+        centre_uv=(xc, yc),
+        radius_px=r_fit,
+        peak=peak,
+        background=bg,
+        core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
+        deg_per_px=dpp,
+        smear=smear_kind,
+        flags=flags,
+        image_share=g,
+    )
+
+
+def _fit_circle_px(uv: np.ndarray, k: float, floor_px: float):
+    """Robust algebraic circle through image points (N, 2): (centre, inlier mask, rms px)."""
+    inl = np.ones(len(uv), bool)
+    centre = uv.mean(axis=0)
+    res = np.zeros(len(uv))
+    for _ in range(5):
+        x, y = uv[inl, 0], uv[inl, 1]
+        A = np.stack([x, y, np.ones_like(x)], 1)
+        sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
+        centre = np.array([-sol[0] / 2.0, -sol[1] / 2.0])
+        r = math.sqrt(max(float(centre @ centre - sol[2]), 0.0))
+        res = np.hypot(uv[:, 0] - centre[0], uv[:, 1] - centre[1]) - r
+        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
+        new = np.abs(res - np.median(res[inl])) <= k * max(mad, floor_px)
+        if new.sum() < 6 or np.array_equal(new, inl):
+            break
+        inl = new
+    rms = float(np.sqrt(np.mean((res[inl] - res[inl].mean()) ** 2))) if inl.any() else float("inf")
+    return (float(centre[0]), float(centre[1])), inl, rms
+
+
+def _pixel_round_bias(
+    lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72
+) -> tuple[np.ndarray, np.ndarray]:
+    """For a disk round in the image, centred on the image of ``a`` and ``rho`` wide on the
+    sphere: (the offset of its fitted cone's axis from ``a``, its ellipticity (c2, s2))."""
+    uv, ok = lens.project(a[None, :])
+    if not ok[0]:
+        return np.zeros(3), np.zeros(2)
+    c = uv[0]
+    ang = np.arange(n) * (2 * math.pi / n)
+    r = math.degrees(rho) / lens.deg_per_px(float(c[0]), float(c[1]))
+    for _ in range(2):
+        d, okd = lens.rays(c + r * np.stack([np.cos(ang), np.sin(ang)], 1))
+        if not okd.all():
+            return np.zeros(3), np.zeros(2)
+        r *= rho / float(np.mean(np.arccos(np.clip(d @ a, -1.0, 1.0))))
+    # all the points, no robust selection: the disk is exact, only its shape matters
+    a_pix, _, _, _, ell = refine_cone(d, np.ones(len(d), bool), 3.0, 1e-5, 0)
+    return a_pix - a, ell
+
+
+def _max_gap(idx: np.ndarray, n: int) -> float:
+    """Largest run of rays (deg) between consecutive inlier rays, around the circle."""
+    if idx.size == 0:
+        return 360.0
+    s = np.sort(idx)
+    gaps = np.diff(np.concatenate([s, [s[0] + n]]))
+    return float((gaps.max() - 1) * 360.0 / n)
+
+
+def _core_fill(grey: np.ndarray, c: tuple[float, float], r: float, level: float) -> float:
+    """Fraction of the pixels within 0.7 r of the centre that are at or above ``level``."""
+    rr = max(0.7 * r, 1.0)
+    x0, x1 = max(int(c[0] - rr), 0), min(int(c[0] + rr) + 2, grey.shape[1])
+    y0, y1 = max(int(c[1] - rr), 0), min(int(c[1] + rr) + 2, grey.shape[0])
+    if x1 <= x0 or y1 <= y0:
+        return 0.0
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    inside = (xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= rr * rr
+    if not inside.any():
+        return 0.0
+    return float(np.mean(grey[y0:y1, x0:x1][inside] >= level))

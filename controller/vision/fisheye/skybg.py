@@ -1,0 +1,169 @@
+"""The sky behind the glare: its asymmetry across the rim, measured in rings outside it.
+
+A sky brighter on one side of the glare shifts that side's rim outwards (by the sky's
+excess over the rim's slope), which would move the fitted centre by tenths of a degree; so
+the rim's level is raised, ray by ray, by the sky's asymmetric part, estimated here.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+
+def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Robust fit m = m0 + c cos(phi) + s sin(phi) + quadrupole; returns (c, s)."""
+    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    finite = np.isfinite(m)
+    keep = finite
+    coef = np.zeros(5)
+    for _ in range(3):
+        if keep.sum() < 12:
+            return np.zeros(2)
+        coef, *_ = np.linalg.lstsq(A[keep], m[keep], rcond=None)
+        res = m - A @ coef
+        mad = 1.4826 * float(np.median(np.abs(res[keep]))) + 0.5
+        new = finite & (np.abs(res) <= 3.0 * mad)
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    return coef[1:3]
+
+
+def harmonics(phi: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """:func:`harmonic` for each row of ``M``; rows without gaps or outliers take one
+    matrix product."""
+    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    out = np.zeros((M.shape[0], 2))
+    clean = np.isfinite(M).all(axis=1)
+    if clean.any():
+        coef = M[clean] @ np.linalg.pinv(A).T
+        res = M[clean] - coef @ A.T
+        mad = 1.4826 * np.median(np.abs(res), axis=1) + 0.5
+        ok = (np.abs(res) <= 3.0 * mad[:, None]).all(axis=1)
+        rows = np.flatnonzero(clean)
+        out[rows[ok]] = coef[ok, 1:3]
+        clean[rows[~ok]] = False
+    for i in np.flatnonzero(~clean):
+        out[i] = harmonic(phi, M[i])
+    return out
+
+
+def sky_dipole(
+    vals: np.ndarray,
+    chi: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    rays_ok: np.ndarray,
+    contrast: float,
+    sky: np.ndarray | None = None,
+) -> np.ndarray:
+    """The sky's dipole (grey levels along cos, sin of the ray angle) at the rim's radius.
+
+    In rings outside the rim, the measured dipole is the sky's, ``k1 chi + k2 chi^2``, plus
+    the glare's own profile shifted by the axis's error ``eps``: ``-P'(chi) eps``, with
+    ``P'`` the radial derivative of the mean profile.  Solving for (eps, k1, k2) per
+    component separates the two; only the sky's part at ``rho`` is returned (capped at a
+    quarter of the glare's contrast).  ``sky`` (same shape as ``vals``) marks the samples that
+    look at the sky (not the ground, not beyond the image circle); a ray's ring counts only
+    when all its samples do.
+    """
+    if sky is None:
+        sky = np.ones(vals.shape, bool)
+    good = sky & rays_ok[:, None]
+    if good.sum() < 12:
+        return np.zeros(2)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
+    prof = np.nan_to_num(prof, nan=float(np.nanmean(prof)) if np.isfinite(prof).any() else 0.0)
+    dprof = np.gradient(prof, chi)
+    rows, means = [], []
+    for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2)):
+        sel = (chi >= lo * rho) & (chi < hi * rho)
+        if sel.sum() < 2:
+            continue
+        m = vals[:, sel].mean(axis=1)
+        m[~rays_ok | ~sky[:, sel].all(axis=1)] = np.nan
+        if np.isfinite(m).mean() < 0.75:  # a ring cut by the horizon: its dipole is unreliable
+            continue
+        c = float(chi[sel].mean())
+        rows.append([-float(dprof[sel].mean()), c / rho, (c / rho) ** 2])
+        means.append(m)
+    rhs = harmonics(phi, np.asarray(means)) if means else np.zeros((0, 2))
+    if len(rows) < 4:
+        return np.zeros(2)
+    A = np.asarray(rows)
+    sol, *_ = np.linalg.lstsq(A, np.asarray(rhs), rcond=None)  # (3, 2): eps, k1, k2 per axis
+    dip = sol[1] + sol[2]
+    cap = 0.25 * contrast
+    nrm = float(np.linalg.norm(dip))
+    return dip * (cap / nrm) if nrm > cap else dip
+
+
+def sky_by_elevation(
+    vals: np.ndarray,
+    chi: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    rays_ok: np.ndarray,
+    sky: np.ndarray,
+    x: np.ndarray,
+    contrast: float,
+) -> np.ndarray | None:
+    """The sky's asymmetry as a function of elevation, for a glare near the horizon.
+
+    ``x``: each ring sample's elevation minus the axis's, over ``rho``.  Model of the ring
+    means: a free level per ring, the glare's profile shifted by the axis's error
+    (``-P'(chi) eps``), and ``c1 x + c2 x^2 + c3 x^3 + c4 x (chi / rho - 1)`` (the horizon's
+    brightening, stronger towards the sun).  Works on the rings' sky part alone, so a ring
+    cut by the horizon still counts.  Returns (c1, c2, c3) (the polynomial at the rim,
+    grey levels) or None when there is too little sky.
+    """
+    good = sky & rays_ok[:, None] & np.isfinite(vals)
+    if good.sum() < 30:
+        return None
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
+    if not np.isfinite(prof).all():
+        return None
+    dprof = np.gradient(prof, chi)
+    rings = [(lo, hi) for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))]
+    rows, rhs = [], []
+    n_rings = 0
+    for j, (lo, hi) in enumerate(rings):
+        sel = (chi >= lo * rho) & (chi < hi * rho)
+        if sel.sum() < 2:
+            continue
+        ok = good[:, sel].all(axis=1)
+        if ok.sum() < 6:
+            continue
+        n_rings += 1
+        m = vals[ok][:, sel].mean(axis=1)
+        xx = x[ok][:, sel].mean(axis=1)
+        dp = float(dprof[sel].mean())
+        sj = float(chi[sel].mean()) / rho - 1.0
+        one = np.zeros((ok.sum(), len(rings)))
+        one[:, j] = 1.0
+        cols = np.column_stack([one, -dp * np.cos(phi[ok]), -dp * np.sin(phi[ok]), xx, xx**2, xx**3, xx * sj])
+        rows.append(cols)
+        rhs.append(m)
+    if n_rings < 3:
+        return None
+    A = np.concatenate(rows)
+    b = np.concatenate(rhs)
+    used = np.flatnonzero(np.abs(A[:, : len(rings)]).sum(0) > 0)
+    A = np.concatenate([A[:, used], A[:, len(rings) :]], axis=1)
+    keep = np.ones(len(b), bool)
+    sol = np.zeros(A.shape[1])
+    for _ in range(2):
+        sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        res = b - A @ sol
+        mad = 1.4826 * float(np.median(np.abs(res[keep]))) + 0.5
+        keep = np.abs(res) <= 3.0 * mad
+    c = sol[-4:-1]
+    worst = float(np.abs(np.polyval([c[2], c[1], c[0], 0.0], np.linspace(-1, 1, 9))).max())
+    cap = 0.25 * contrast
+    return c * (cap / worst) if worst > cap else c

@@ -1,0 +1,181 @@
+"""Geometry on the unit sphere for the glare's rim: cones, tangent frames, sampling.
+
+Directions are unit vectors in the camera frame (OpenCV axes).
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from .lens import FisheyeLens
+
+SIN_1DEG = math.sin(math.radians(1.0))
+COS_88DEG = math.cos(math.radians(88.0))
+
+
+def plane_fit(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
+    """Weighted plane a . v = c through unit vectors (total least squares); a . mean > 0."""
+    sw = w.sum()
+    m = (w[:, None] * v).sum(0) / sw
+    q = v - m
+    C = (w[:, None] * q).T @ q
+    _, vecs = np.linalg.eigh(C)
+    a = vecs[:, 0]
+    if a @ m < 0:
+        a = -a
+    return a, float(a @ m)
+
+
+def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
+    """Iterate plane fit / harmonic residuals / MAD selection from the inlier set ``inl``;
+    returns (axis, cos radius, inliers, residuals rad, (c2, s2) rad)."""
+    a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
+    ell = np.zeros(2)
+    res = np.zeros(len(v))
+    for i in range(iters + 1):
+        e1, e2 = tangent_basis(a)
+        ang = np.arccos(np.clip(v @ a, -1.0, 1.0))
+        psi = np.arctan2(v @ e2, v @ e1)
+        A = np.stack(
+            [np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi), np.cos(3 * psi), np.sin(3 * psi)], 1
+        )
+        coef, *_ = np.linalg.lstsq(A[inl], ang[inl], rcond=None)
+        ell = coef[1:3]
+        res = ang - A @ coef
+        if i == iters:
+            break
+        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
+        new = np.abs(res) <= k * max(mad, floor_rad)
+        if new.sum() < 6 or np.array_equal(new, inl):
+            break
+        inl = new
+        a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
+    return a, c, inl, res, ell
+
+
+def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 32) -> np.ndarray:
+    """Inliers of the best circle through 3 of the points, the triples spread a third of the
+    rim apart (deterministic): a start that a contiguous arc of outliers (a saturated cloud
+    edge) cannot drag, since some triples miss it."""
+    n = len(v)
+    k = np.unique(np.linspace(0, n - 1, min(n_hyp, n)).astype(int))
+    idx = np.stack([k, (k + n // 3) % n, (k + (2 * n) // 3) % n], 1)
+    jitter = (np.arange(len(k)) * 7) % max(n // 6, 1)  # vary the spacing a little
+    idx[:, 2] = (idx[:, 2] + jitter) % n
+    p1, p2, p3 = v[idx[:, 0]], v[idx[:, 1]], v[idx[:, 2]]
+    nrm = np.cross(p2 - p1, p3 - p1)
+    ln = np.linalg.norm(nrm, axis=1)
+    ok = ln > 1e-12
+    nrm = nrm[ok] / ln[ok, None]
+    c = np.sum(nrm * p1[ok], axis=1)
+    flip = c < 0
+    nrm[flip], c[flip] = -nrm[flip], -c[flip]
+    rho = np.arccos(np.clip(c, -1.0, 1.0))
+    tol = np.maximum(4.0 * floor_rad, 0.02 * rho) * np.sin(np.maximum(rho, 1e-6))
+    count = (np.abs(v @ nrm.T - c) <= tol).sum(axis=0)
+    best = int(np.argmax(count))
+    return np.abs(v @ nrm[best] - c[best]) <= tol[best]
+
+
+def fit_cone(
+    v: np.ndarray, *, k: float = 3.0, floor_rad: float = 1e-5, iters: int = 4
+) -> tuple[np.ndarray, float, np.ndarray, float, np.ndarray]:
+    """Robust small circle (or ellipse) through unit vectors ``v`` (N, 3).
+
+    The plane fit gives the axis (an ellipse's centre too, by its symmetry); the angular
+    residuals are modelled as ``rho + c2 cos(2 psi) + s2 sin(2 psi) + c3 cos(3 psi) + s3
+    sin(3 psi)`` (``psi``: the point's angle about the axis), so a glare that the lens or
+    the optics made elliptical, or egg-shaped (round in the image near its edge), is not
+    mistaken for outliers.  Two starts are refined by median / MAD rejection, all points and
+    a RANSAC circle; the one that keeps more points within five noise floors wins (else the
+    lower truncated squared residual).
+
+    Returns (axis, mean angular radius rad, inlier mask, rms of the inliers' residuals
+    about the ellipse rad, (c2, s2) rad).
+    """
+    # the start that keeps the most points within a few noise floors wins; a partial arc
+    # always fits well, so a fit of all the points that also fits is preferred
+    tol = 5.0 * floor_rad
+    sols = [refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
+    first_inl, first_res = sols[0][2], sols[0][3]
+    clean = first_inl.mean() >= 0.9 and float(np.sqrt(np.mean(first_res[first_inl] ** 2))) <= tol
+    if len(v) >= 12 and not clean:
+        start = _ransac_circle(v, floor_rad)
+        if start.sum() >= 6:
+            sols.append(refine_cone(v, start, k, floor_rad, iters))
+    rms_of = [float(np.sqrt(np.mean(r[i] ** 2))) if i.any() else np.inf for _, _, i, r, _ in sols]
+    good = [j for j, r in enumerate(rms_of) if r <= tol]
+    if good:
+        best = max(good, key=lambda j: int(sols[j][2].sum()))
+    else:
+        best = int(np.argmin([float(np.minimum(r**2, tol * tol).sum()) for _, _, _, r, _ in sols]))
+    a, c, inl, res, ell = sols[best]
+    rho = float(np.arccos(np.clip(c, -1.0, 1.0)))
+    rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
+    return a, rho, inl, rms, ell
+
+
+def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors completing ``a`` to a right-handed frame (e1 near the camera's x)."""
+    ref = (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)
+    d = ref[0] * a[0] + ref[1] * a[1] + ref[2] * a[2]
+    e1 = np.array([ref[0] - d * a[0], ref[1] - d * a[1], ref[2] - d * a[2]])
+    e1 /= math.sqrt(float(e1 @ e1))
+    e2 = np.array([a[1] * e1[2] - a[2] * e1[1], a[2] * e1[0] - a[0] * e1[2], a[0] * e1[1] - a[1] * e1[0]])
+    return e1, e2
+
+
+def sample_sphere(
+    grey: np.ndarray,
+    lens: FisheyeLens,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    up_cam: np.ndarray | None,
+    grids: list[tuple[np.ndarray, np.ndarray]],
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Bilinear samples of ``grey`` at directions ``cos(chi) a + sin(chi) (cos(phi) e1 +
+    sin(phi) e2)`` for each (phi, chi) grid, with one projection through the lens.
+
+    Returns per grid (values (n_phi, n_chi) with NaN behind the lens, ``sky`` mask: the
+    sample looks at the sky, inside the frame).
+    """
+    H, W = grey.shape
+    blocks = []
+    for phi, chi in grids:
+        t = np.cos(phi)[:, None, None] * e1 + np.sin(phi)[:, None, None] * e2
+        blocks.append(np.cos(chi)[None, :, None] * a + np.sin(chi)[None, :, None] * t)
+    dirs = np.concatenate([b.reshape(-1, 3) for b in blocks])
+    uv, okp = lens.project(dirs)
+    if not okp.any():
+        return [(np.full(b.shape[:2], np.nan), np.zeros(b.shape[:2], bool)) for b in blocks]
+    uv[~okp] = uv[okp][0]
+    if up_cam is not None:
+        sky = dirs @ up_cam > SIN_1DEG
+    else:
+        sky = dirs[:, 2] > COS_88DEG
+    sky &= okp & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+    # a float window of the frame that holds every sample
+    m = 1
+    x0 = int(np.clip(np.floor(uv[:, 0].min()) - m, 0, W - 1))
+    y0 = int(np.clip(np.floor(uv[:, 1].min()) - m, 0, H - 1))
+    x1 = int(np.clip(np.ceil(uv[:, 0].max()) + m + 1, x0 + 1, W))
+    y1 = int(np.clip(np.ceil(uv[:, 1].max()) + m + 1, y0 + 1, H))
+    win = grey[y0:y1, x0:x1].astype(np.float32)
+    mx = (uv[:, 0] - x0).astype(np.float32).reshape(1, -1)
+    my = (uv[:, 1] - y0).astype(np.float32).reshape(1, -1)
+    vals = np.empty(dirs.shape[0], np.float32)
+    for i in range(0, dirs.shape[0], 30000):  # remap maps are limited to 32767 per side
+        vals[i : i + 30000] = cv2.remap(
+            win, mx[:, i : i + 30000], my[:, i : i + 30000], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
+        ).ravel()
+    vals[~okp] = np.nan
+    out, k = [], 0
+    for b in blocks:
+        n = b.shape[0] * b.shape[1]
+        out.append((vals[k : k + n].reshape(b.shape[:2]), sky[k : k + n].reshape(b.shape[:2])))
+        k += n
+    return out

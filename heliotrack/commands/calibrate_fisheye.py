@@ -1,0 +1,218 @@
+"""``heliotrack calibrate fisheye lens|orientation|level``: the sky camera's bundle from images.
+
+* ``lens``: ``cv2.fisheye.calibrate`` on checkerboard views -> ``[camera]``.
+* ``orientation``: a day of sky frames (file names with timestamps) and the site -> the
+  rotation to ENU from the camera's own sun detections (Kabsch, then refined on pixels
+  together with the lens's focal lengths, principal point and k1, k2, held to their
+  checkerboard values by priors; ``--refine rotation`` keeps the lens) -> ``[orientation]``,
+  ``[site]`` and the refined ``[camera]``.
+  ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
+* ``level``: the zenith from the horizon in one clear frame; prints the tilt and residual,
+  and the disagreement with the bundle's orientation when it has one.
+
+Each prints one JSON line per step; errors in the input are one plain line, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from controller.errors import InputError
+
+
+def add_parser(sp: argparse._SubParsersAction) -> None:
+    """Add ``fisheye`` (with its steps) to ``heliotrack calibrate``'s sub-parsers."""
+    f = sp.add_parser("fisheye", help="the fisheye sky camera: lens, orientation, level")
+    f.set_defaults(func=lambda a: (f.print_help(), 2)[1])
+    steps = f.add_subparsers(dest="fisheye_step", metavar="STEP")
+    a = steps.add_parser("lens", help="lens (cv2.fisheye K, D) from checkerboard images")
+    a.add_argument("--pattern", default="9x6", help="inner corners per row x per column (9x6)")
+    a.add_argument("--square", type=float, required=True, help="square size, metres")
+    a.add_argument("--bundle", type=Path, required=True)
+    a.add_argument("images", nargs="+", type=Path)
+    a.set_defaults(func=_lens)
+    o = steps.add_parser(
+        "orientation",
+        help="rotation to ENU from a day of the camera's sun detections (site and frame times known)",
+    )
+    o.add_argument("--lat", type=float, help="site latitude, deg north (else the bundle's [site])")
+    o.add_argument("--lon", type=float, help="site longitude, deg east")
+    o.add_argument("--alt", type=float, default=0.0, help="site altitude, m")
+    o.add_argument(
+        "--refine",
+        choices=("none", "rotation", "lens"),
+        default="lens",
+        help="refine on pixels: the rotation and the lens (default; the lens held to "
+        "its checkerboard values by priors), the rotation only, or not",
+    )
+    o.add_argument("--horizon", type=Path, help="a clear frame whose horizon constrains the zenith")
+    o.add_argument("--bundle", type=Path, required=True)
+    o.add_argument("images", nargs="+", type=Path, help="sky frames named with their UTC time")
+    o.set_defaults(func=_orientation)
+    lv = steps.add_parser("level", help="zenith from the horizon in one frame (prints; no write)")
+    lv.add_argument("--bundle", type=Path, required=True)
+    lv.add_argument("image", type=Path)
+    lv.set_defaults(func=_level)
+
+
+def _pattern(text: str) -> tuple[int, int]:
+    try:
+        nx, ny = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"--pattern: expected like 9x6, got {text!r}") from None
+    return nx, ny
+
+
+def _grey(path: Path) -> np.ndarray:
+    from controller.vision.imageio import load_grey
+
+    img, reason = load_grey(path)
+    if img is None:
+        raise InputError(f"{path}: {reason}")
+    return img
+
+
+def _lens(args) -> int:
+    from controller.calibration.fisheye_bundle import update_fisheye_bundle
+    from controller.calibration.fisheye_lens import calibrate_fisheye
+
+    views = [(str(p), _grey(p)) for p in args.images]
+    h, w = views[0][1].shape[:2]
+    res = calibrate_fisheye(views, (w, h), _pattern(args.pattern), args.square)
+    update_fisheye_bundle(args.bundle, camera=res.camera)
+    print(
+        json.dumps(
+            {
+                "step": "fisheye lens",
+                "rms_px": round(res.rms_px, 4),
+                "views": len(res.used),
+                "rejected": res.rejected,
+                "fx": round(res.camera.fx, 3),
+                "cx": round(res.camera.cx, 3),
+                "cy": round(res.camera.cy, 3),
+                "dist": [round(x, 6) for x in res.camera.dist],
+                "bundle": str(args.bundle),
+            }
+        )
+    )
+    return 0
+
+
+def _site(args, bundle):
+    from controller.calibration.fisheye_bundle import SiteCal
+
+    if args.lat is not None and args.lon is not None:
+        return SiteCal(latitude=args.lat, longitude=args.lon, altitude=args.alt)
+    if bundle.site is not None:
+        return bundle.site
+    raise InputError("orientation: give --lat and --lon (or a [site] in the bundle)")
+
+
+def _orientation(args) -> int:
+    from dataclasses import replace
+
+    from controller.calibration.fisheye_bundle import (
+        OrientationCal,
+        as_mat3,
+        load_fisheye_bundle,
+        save_fisheye_bundle,
+    )
+    from controller.calibration.fisheye_orientation import fit_orientation, level_from_horizon
+    from controller.sun.source import Site
+    from controller.vision.fisheye import FisheyeEstimator, load_frame
+
+    from .estimate_fisheye import frame_times
+
+    bundle = load_fisheye_bundle(args.bundle)
+    site = _site(args, bundle)
+    est = FisheyeEstimator(replace(bundle, orientation=None))  # camera frame: no gate by ENU
+    times, dirs, uvs, missing = [], [], [], 0
+    for t, path in frame_times(list(args.images), None):
+        if t is None:
+            raise InputError(f"{path}: no timestamp in the file name (e.g. 2026-03-20T10-15-00Z.png)")
+        r = est.estimate_file(path, t)
+        if r.found and r.d_cam is not None and r.centre_uv is not None:
+            times.append(t)
+            dirs.append(r.d_cam)
+            uvs.append(r.centre_uv)
+        else:
+            missing += 1
+    zen = None
+    if args.horizon is not None:
+        img, reason = load_frame(args.horizon)
+        if img is None:
+            raise InputError(f"{args.horizon}: {reason}")
+        zen = level_from_horizon(img, bundle.camera).zenith_cam
+    fit = fit_orientation(
+        times,
+        np.asarray(dirs).reshape(-1, 3),
+        Site(latitude=site.latitude, longitude=site.longitude, altitude=site.altitude),
+        uv=np.asarray(uvs).reshape(-1, 2),
+        camera=bundle.camera,
+        refine=None if args.refine == "none" else args.refine,
+        horizon_zenith_cam=zen,
+    )
+    method = "sun" + ("+horizon" if zen is not None else "") + ("+lens" if fit.camera else "")
+    new = replace(
+        bundle,
+        orientation=OrientationCal(
+            enu_from_camera=as_mat3(fit.enu_from_camera),
+            residual_deg=round(fit.residual_deg, 5),
+            method=method,
+            frames=fit.used,
+        ),
+        site=site,
+    )
+    if fit.camera is not None:
+        new = replace(new, camera=fit.camera)
+    save_fisheye_bundle(new, args.bundle)
+    out = {
+        "step": "fisheye orientation",
+        "method": method,
+        "frames": len(args.images),
+        "detections": len(times),
+        "not_found": missing,
+        "used": fit.used,
+        "rejected": fit.rejected,
+        "residual_deg": round(fit.residual_deg, 4),
+        "tilt_deg": round(fit.tilt_deg, 4),
+        "bundle": str(args.bundle),
+    }
+    if fit.residual_px is not None:
+        out["residual_px"] = round(fit.residual_px, 4)
+    if fit.horizon_disagreement_deg is not None:
+        out["horizon_disagreement_deg"] = round(fit.horizon_disagreement_deg, 4)
+    print(json.dumps(out))
+    return 0
+
+
+def _level(args) -> int:
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+    from controller.calibration.fisheye_orientation import level_from_horizon
+    from controller.vision.fisheye import load_frame
+
+    bundle = load_fisheye_bundle(args.bundle)
+    img, reason = load_frame(args.image)
+    if img is None:
+        raise InputError(f"{args.image}: {reason}")
+    lv = level_from_horizon(img, bundle.camera)
+    out = {
+        "step": "fisheye level",
+        "zenith_cam": [round(float(x), 7) for x in lv.zenith_cam],
+        "tilt_deg": round(lv.tilt_deg, 4),
+        "residual_deg": round(lv.residual_deg, 4),
+        "points": lv.points,
+        "rejected": lv.rejected,
+    }
+    if bundle.enu_from_camera is not None:
+        z = bundle.enu_from_camera.T @ np.array([0.0, 0.0, 1.0])
+        out["disagreement_with_orientation_deg"] = round(
+            math.degrees(math.acos(float(np.clip(z @ lv.zenith_cam, -1, 1)))), 4
+        )
+    print(json.dumps(out))
+    return 0

@@ -1,0 +1,165 @@
+"""The fisheye bundle, the lens calibration, the orientation from the sun and the horizon."""
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.calibration.fisheye_bundle import (
+    FisheyeBundle,
+    fisheye_bundle_from_dict,
+    load_fisheye_bundle,
+    save_fisheye_bundle,
+)
+from controller.calibration.fisheye_lens import calibrate_fisheye
+from controller.calibration.fisheye_orientation import (
+    fit_orientation,
+    kabsch,
+    level_from_horizon,
+    sun_vectors,
+)
+from controller.errors import ConfigError, InputError
+from controller.sun.source import Site
+from hil.skycam import render_sky, seed_lens
+from hil.skycam.checkerboard import checkerboard_poses, render_checkerboard
+from tests.controller.vision.fisheye.helpers import small_scene, truth_bundle, utc
+
+DOC = {
+    "camera": {
+        "model": "fisheye",
+        "width": 640,
+        "height": 480,
+        "fx": 166.0,
+        "fy": 166.0,
+        "cx": 319.5,
+        "cy": 239.5,
+        "dist": [-0.042, 0.001, -0.0005, 0.0],
+    },
+    "orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]},
+    "site": {"latitude": 32.5, "longitude": 48.3},
+}
+
+
+def rot_deg(A, B) -> float:
+    return math.degrees(math.acos(np.clip((np.trace(A @ B.T) - 1) / 2, -1, 1)))
+
+
+def test_bundle_round_trip(tmp_path):
+    b = fisheye_bundle_from_dict(DOC)
+    p = save_fisheye_bundle(b, tmp_path / "sky.toml")
+    again = load_fisheye_bundle(p)
+    assert again.camera == b.camera and again.site == b.site
+    np.testing.assert_allclose(again.enu_from_camera, np.eye(3))
+    assert 'model = "fisheye"' in p.read_text()
+
+
+@pytest.mark.parametrize(
+    "patch, key",
+    [
+        ({"camera": {**DOC["camera"], "model": "pinhole", "dist": [0, 0, 0, 0, 0]}}, "camera.model"),
+        ({"camera": {**DOC["camera"], "dist": [0.1, 0.2]}}, "camera.dist"),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}},
+            "orientation.enu_from_camera",
+        ),
+        (
+            {"orientation": {"enu_from_camera": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}},
+            "orientation.enu_from_camera",
+        ),
+        ({"site": {"latitude": 123.0, "longitude": 0.0}}, "site.latitude"),
+        ({"extra": 1}, "extra"),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "typo": 3}},
+            "orientation.typo",
+        ),
+    ],
+)
+def test_bundle_errors_name_the_key(patch, key):
+    with pytest.raises(ConfigError) as exc:
+        fisheye_bundle_from_dict({**DOC, **patch})
+    assert exc.value.key == key
+
+
+def test_a_nearly_orthonormal_matrix_is_tidied():
+    R = np.eye(3) + 1e-5 * np.arange(9).reshape(3, 3)
+    b = fisheye_bundle_from_dict({**DOC, "orientation": {"enu_from_camera": R.tolist()}})
+    M = b.enu_from_camera
+    np.testing.assert_allclose(M.T @ M, np.eye(3), atol=1e-12)
+
+
+def test_lens_calibration_from_rendered_boards():
+    lens = seed_lens()
+    rng = np.random.default_rng(7)
+    views = [
+        (f"b{i}", render_checkerboard(lens, rv, tv, rng=rng))
+        for i, (rv, tv) in enumerate(checkerboard_poses(lens, 20, rng, max_theta_deg=75))
+    ]
+    views.append(("blank", np.zeros((480, 640), np.uint8)))
+    res = calibrate_fisheye(views, (640, 480))
+    assert res.rms_px < 0.15 and "blank" in res.rejected
+    cam = res.camera
+    assert cam.model == "fisheye"
+    assert cam.fx == pytest.approx(166.0, abs=0.8) and cam.cx == pytest.approx(319.5, abs=0.5)
+    with pytest.raises(InputError):
+        calibrate_fisheye(views[:3], (640, 480))
+
+
+def test_kabsch_recovers_a_rotation():
+    rng = np.random.default_rng(0)
+    R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    R *= np.sign(np.linalg.det(R))
+    d = rng.normal(size=(20, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    np.testing.assert_allclose(kabsch(d, d @ R.T), R, atol=1e-12)
+
+
+def test_orientation_from_a_day_of_sun_vectors_rejects_a_distractor():
+    scn = small_scene()
+    site = Site(latitude=scn.site.latitude, longitude=scn.site.longitude, altitude=scn.site.altitude)
+    ts = utc(2025, 3, 20, 4, 0) + np.arange(0, 9 * 3600, 900.0)
+    s = sun_vectors(site, ts)
+    R_true = scn.R_enu_from_cam
+    rng = np.random.default_rng(1)
+    d = s @ R_true + rng.normal(0, np.radians(0.02), s.shape)  # camera frame, 0.02 deg noise
+    d[5] = np.array([0.3, 0.1, 0.95])  # a reflection taken for the sun
+    fit = fit_orientation(ts, d, site, refine=None)
+    assert fit.rejected >= 1 and fit.residual_deg < 0.05
+    assert rot_deg(fit.enu_from_camera, R_true) < 0.02
+    assert fit.tilt_deg == pytest.approx(0.8, abs=0.02)
+
+
+def test_orientation_refined_on_pixels_from_rendered_frames():
+    scn = small_scene()
+    b = truth_bundle(scn, orientation=False, site=False)
+    from controller.vision.fisheye import FisheyeEstimator
+
+    est = FisheyeEstimator(b)
+    ts, dirs, uvs = [], [], []
+    for t in utc(2025, 6, 21, 3, 0) + np.arange(0, 10 * 3600, 1800.0):
+        r = est.estimate_image(render_sky(scn, t).image, t)
+        if r.found:
+            ts.append(t)
+            dirs.append(r.d_cam)
+            uvs.append(r.centre_uv)
+    site = Site(latitude=scn.site.latitude, longitude=scn.site.longitude, altitude=scn.site.altitude)
+    fit = fit_orientation(ts, np.array(dirs), site, uv=np.array(uvs), camera=b.camera, refine="rotation")
+    assert len(ts) >= 15 and fit.residual_px < 0.3
+    assert rot_deg(fit.enu_from_camera, scn.R_enu_from_cam) < 0.05
+
+
+def test_level_from_the_horizon():
+    scn = small_scene()
+    fr = render_sky(scn, utc(2025, 3, 20, 8, 0))
+    lv = level_from_horizon(fr.image, truth_bundle(scn).camera)
+    z_true = scn.R_enu_from_cam.T @ np.array([0.0, 0.0, 1.0])
+    assert math.degrees(math.acos(float(lv.zenith_cam @ z_true))) < 0.2
+    assert lv.points > 100 and lv.tilt_deg == pytest.approx(0.8, abs=0.2)
+    with pytest.raises(InputError):
+        level_from_horizon(np.zeros_like(fr.image), truth_bundle(scn).camera)
+
+
+def test_an_untouched_bundle_type_is_frozen():
+    b = fisheye_bundle_from_dict(DOC)
+    assert isinstance(b, FisheyeBundle)
+    with pytest.raises(AttributeError):
+        b.site = None  # type: ignore[misc]

@@ -1,0 +1,136 @@
+"""The panel-mounted closed loop against a simple simulated axis with a mounting offset."""
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.closedloop import (
+    ClosedLoopAxis,
+    FuzzyPID,
+    MisalignmentStore,
+    OffsetLearner,
+    dual_axis_enu_from_camera,
+    dual_axis_errors,
+    single_axis_error,
+)
+from controller.closedloop.fuzzy import DKI, DKP, infer, memberships
+from controller.sun.types import azel_to_enu
+
+PERIOD = 10.0
+DAY = 12 * 3600.0
+
+
+def sun_angle(t: float) -> float:
+    """The axis angle that points at the sun: -60 .. +60 deg over 12 hours."""
+    return 60.0 * math.sin(math.pi * (t / DAY - 0.5))
+
+
+def simulate(
+    mode: str, delta: float, *, gap=(6 * 3600.0, 8 * 3600.0), noise=0.02, speed=1.0, eph_error=0.0, seed=0
+):
+    """A position servo (``speed`` deg/s) whose panel sits ``delta`` off its encoder; the camera
+    sees the sun except during ``gap``.  Returns (times, pointing errors, seen) and the axis."""
+    rng = np.random.default_rng(seed)
+    ax = ClosedLoopAxis(mode=mode)
+    pos = 0.0
+    rows = []
+    for t in np.arange(0.0, DAY, PERIOD):
+        seen = not gap[0] <= t < gap[1]
+        err = sun_angle(t) - (pos + delta) + rng.normal(0, noise) if seen else None
+        ref = sun_angle(t + PERIOD / 2) + eph_error if mode == "assisted" else None
+        cmd = ax.update(t, err, pos, ref)
+        pos += float(np.clip(cmd.setpoint_deg - pos, -speed * PERIOD, speed * PERIOD))
+        rows.append((t, abs(sun_angle(t + PERIOD / 2) - (pos + delta)), seen))
+    r = np.array(rows, float)
+    return r[:, 0], r[:, 1], r[:, 2] > 0, ax
+
+
+def test_memberships_fire_two_neighbouring_terms():
+    np.testing.assert_allclose(memberships(0.0), [0, 0, 0, 1, 0, 0, 0])
+    np.testing.assert_allclose(memberships(1.25), [0, 0, 0, 0, 0.75, 0.25, 0])
+    np.testing.assert_allclose(memberships(99), [0, 0, 0, 0, 0, 0, 1])
+
+
+def test_rule_tables_are_antisymmetric_where_the_textbook_is():
+    assert infer(DKP, 0.0, 0.0) == 0.0 and infer(DKI, 0.0, 0.0) == 0.0
+    assert infer(DKP, 3, 0) == -infer(DKP, -3, 0)
+    assert infer(DKI, 3, 3) > 0 > infer(DKI, -3, -3)
+
+
+def test_fuzzy_pid_steps_towards_the_error_and_is_bounded():
+    pid = FuzzyPID()
+    assert pid.step(0.0) == 0.0
+    pid.reset()
+    assert pid.step(0.5) > 0
+    pid.reset()
+    assert pid.step(-0.5) < 0
+    pid.reset()
+    assert abs(pid.step(50.0)) <= pid.gains.max_step_deg
+
+
+def test_paper_mode_tracks_while_it_sees_and_holds_in_a_gap():
+    t, e, seen, _ = simulate("paper", 0.0)
+    settled = t > 3600
+    assert np.percentile(e[settled & seen], 95) <= 0.2
+    assert e[~seen].max() > 10.0  # with nothing but the camera, a 2-hour gap is lost
+
+
+@pytest.mark.parametrize("delta", [0.0, 1.5])
+def test_assisted_mode_learns_the_offset_and_keeps_it_through_a_gap(delta):
+    t, e, seen, ax = simulate("assisted", delta)
+    learned = t > 3600
+    assert np.percentile(e[learned & seen], 95) <= 0.2
+    assert e[~seen].max() <= 0.3
+    assert ax.learner.estimate_deg == pytest.approx(-delta, abs=0.05)
+
+
+def test_open_loop_with_the_offset_misses_by_the_offset():
+    # the reference alone (no camera ever): the row sits 1.5 deg off
+    _t, e, _, ax = simulate("assisted", 1.5, gap=(0.0, DAY))
+    assert np.median(e) == pytest.approx(1.5, abs=0.05)
+    assert ax.learner.accepted == 0
+
+
+def test_learner_refuses_a_false_detection_and_persists(tmp_path):
+    lr = OffsetLearner()
+    for k in range(30):
+        lr.update(10.0 * k, -1.5 + 0.01 * math.sin(k))
+    assert lr.learned and lr.estimate_deg == pytest.approx(-1.5, abs=0.02)
+    assert not lr.update(400.0, 8.0)  # a reflection 9 deg off
+    store = MisalignmentStore(tmp_path / "offsets.json")
+    store.learners["row-1"] = {"rotation": lr}
+    store.save()
+    again = MisalignmentStore(tmp_path / "offsets.json")
+    assert again.learner("row-1", "rotation").estimate_deg == pytest.approx(lr.estimate_deg)
+    assert again.learner("row-1", "rotation").variance == pytest.approx(lr.variance)
+
+
+def test_learner_restarts_when_the_offset_really_moved():
+    lr = OffsetLearner(restart_after=5)
+    for k in range(20):
+        lr.update(10.0 * k, -1.0)
+    for k in range(20, 40):
+        lr.update(10.0 * k, 2.0)
+    assert lr.estimate_deg == pytest.approx(2.0, abs=0.05)
+
+
+def test_dual_axis_errors_are_exact():
+    az0, el0 = 150.0, 40.0
+    s = azel_to_enu(153.0, 38.5)
+    d_cam = dual_axis_enu_from_camera(az0, el0).T @ s
+    e_az, e_el = dual_axis_errors(d_cam, az0, el0)
+    assert e_az == pytest.approx(3.0, abs=1e-9) and e_el == pytest.approx(-1.5, abs=1e-9)
+    # image y runs down the panel: the sun below the boresight has y > 0
+    assert d_cam[1] > 0 and d_cam[0] > 0
+
+
+def test_single_axis_error_ignores_the_position_along_the_row():
+    for along in (-0.5, 0.0, 0.7):
+        d = np.array([math.sin(math.radians(2.0)), along, math.cos(math.radians(2.0))])
+        assert single_axis_error(d / np.linalg.norm(d)) == pytest.approx(2.0, abs=1e-9)
+
+
+def test_unknown_mode_is_refused():
+    with pytest.raises(ValueError):
+        ClosedLoopAxis(mode="magic")

@@ -1,0 +1,167 @@
+"""The default fisheye pipeline on frames of the HIL sky camera (half-size, fast)."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from controller.sun.types import angle_between_deg, azel_to_enu
+from controller.vision.fisheye import FisheyeEstimator
+from hil.skycam import CloudField, SpecularReflection, render_sky
+
+from .helpers import small_scene, truth_bundle, utc
+
+T = utc(2025, 3, 20, 6, 0)
+
+
+def err_deg(res, truth) -> float:
+    return float(angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), truth["sun_enu"]))
+
+
+@pytest.fixture(scope="module")
+def scn():
+    return small_scene(noise=True)
+
+
+@pytest.mark.parametrize("t", [utc(2025, 3, 20, 4, 0), utc(2025, 6, 21, 8, 0), utc(2025, 12, 21, 11, 0)])
+def test_clear_sky_direction_in_enu(scn, t):
+    fr = render_sky(scn, t)
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, t)
+    assert res.found, res.reason
+    assert res.frame == "enu"
+    assert err_deg(res, fr.truth) < 0.08  # 0.7 deg per pixel at this size
+    assert abs(res.centre_uv[0] - fr.truth["sun_uv"][0]) < 0.3
+    obs = res.observation()
+    assert obs.sensor == "fisheye" and obs.frame == "enu" and 0 < obs.sigma_deg < 0.5
+
+
+def test_without_orientation_the_direction_is_in_the_camera_frame(scn):
+    fr = render_sky(scn, T)
+    res = FisheyeEstimator(truth_bundle(scn, orientation=False)).estimate_image(fr.image, T)
+    assert res.found and res.frame == "model"
+    d = azel_to_enu(res.az_deg, res.el_deg)  # camera axes read as (E, N, U)
+    assert float(angle_between_deg(d, fr.truth["sun_cam"])) < 0.08
+
+
+def test_a_hidden_sun_gives_no_observation(scn):
+    fr = render_sky(scn, T, sun_transmittance=0.0)
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, T)
+    assert not res.found and res.reason == "no_sun_glare"
+    assert res.observation() is None
+    assert json.loads(json.dumps(res.to_json()))["reason"] == "no_sun_glare"
+
+
+def test_a_thick_cloud_edge_over_the_sun_is_refused_not_mismeasured():
+    scn = small_scene(clouds=CloudField(coverage=0.55, seed=12))
+    est = FisheyeEstimator(truth_bundle(scn))
+    wrong = 0
+    for k in range(24):
+        t = T + 45 * k
+        fr = render_sky(scn, t)
+        res = est.estimate_image(fr.image, t)
+        if res.found:
+            wrong += err_deg(res, fr.truth) > 1.0 or fr.truth["visibility"] == "hidden"
+    assert wrong == 0
+
+
+def test_the_ephemeris_gate_ignores_a_sun_sized_reflection(scn):
+    refl = SpecularReflection(az_deg=250.0, el_deg=35.0, strength=1.0)
+    fr = render_sky(scn.with_(distractors=(refl,)), T)
+    with_site = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, T)
+    assert with_site.found and err_deg(with_site, fr.truth) < 0.1
+    no_site = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, T)
+    assert not no_site.found and no_site.reason == "ambiguous_candidates"
+    hidden = render_sky(scn.with_(distractors=(refl,)), T, sun_transmittance=0.0)
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(hidden.image, T)
+    assert not res.found and res.reason == "gate_rejected"
+
+
+def test_a_reflection_below_the_horizon_is_not_the_sun(scn):
+    refl = SpecularReflection(az_deg=250.0, el_deg=-4.0, strength=1.0)
+    fr = render_sky(
+        scn.with_(distractors=(refl,), sky=replace(scn.sky, terrain_deg=0.0)), T, sun_transmittance=0.0
+    )
+    res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, T)
+    assert not res.found and res.reason == "below_horizon"
+
+
+def test_the_previous_detection_gates_the_sequence(scn):
+    est = FisheyeEstimator(truth_bundle(scn, site=False))
+    assert est.estimate_image(render_sky(scn, T).image, T).found
+    refl = SpecularReflection(az_deg=250.0, el_deg=35.0, strength=1.0)
+    later = render_sky(scn.with_(distractors=(refl,)), T + 60, sun_transmittance=0.0)
+    res = est.estimate_image(later.image, T + 60)
+    assert not res.found and res.reason == "gate_rejected"
+    est.reset_sequence()
+    assert est.estimate_image(later.image, T + 60).found  # alone, it looks like a sun
+
+
+def test_a_prior_far_from_the_glare_rejects_it(scn):
+    fr = render_sky(scn, T)
+    est = FisheyeEstimator(truth_bundle(scn, site=False))
+    az, el = fr.truth["az_deg"], fr.truth["el_deg"]
+    assert est.estimate_image(fr.image, T, prior=(az + 0.3, el, 0.2)).found
+    est.reset_sequence()
+    res = est.estimate_image(fr.image, T, prior=(az + 20.0, el, 0.2))
+    assert not res.found and res.reason == "gate_rejected"
+
+
+def test_bloom_does_not_pull_the_centre():
+    scn = small_scene(noise=True)
+    scn = scn.with_(glare=replace(scn.glare, smear="bloom", smear_level=2.5))
+    fr = render_sky(scn, T)
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, T)
+    assert res.found and "bloom" in res.quality
+    assert err_deg(res, fr.truth) < 0.12
+
+
+@pytest.mark.parametrize(
+    "image, reason",
+    [
+        (np.zeros((10, 10, 3), np.uint8), "size_mismatch"),
+        (np.full((240, 320), np.nan, np.float32), "non_finite_pixels"),
+        (np.zeros((240, 320, 3), np.int64), "unsupported_image_format"),
+        (None, "no_image"),
+    ],
+)
+def test_bad_images_are_reasons_not_tracebacks(scn, image, reason):
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(image, T)
+    assert not res.found and res.reason == reason
+
+
+def test_bad_files_are_reasons_not_tracebacks(scn, tmp_path):
+    import cv2
+
+    good = tmp_path / "good.png"
+    cv2.imwrite(str(good), render_sky(scn, T).image)
+    data = good.read_bytes()
+    (tmp_path / "trunc.png").write_bytes(data[: len(data) // 2])
+    (tmp_path / "empty.png").write_bytes(b"")
+    (tmp_path / "text.png").write_text("not an image")
+    cv2.imwrite(str(tmp_path / "wrong.png"), np.zeros((100, 120, 3), np.uint8))
+    est = FisheyeEstimator(truth_bundle(scn))
+    got = {
+        p: est.estimate_file(tmp_path / p, T).reason
+        for p in ("trunc.png", "empty.png", "text.png", "wrong.png", "missing.png")
+    }
+    assert got == {
+        "trunc.png": "truncated_file",
+        "empty.png": "empty_file",
+        "text.png": "undecodable_image",
+        "wrong.png": "size_mismatch",
+        "missing.png": "file_not_found",
+    }
+    assert est.estimate_file(good, T).found
+
+
+def test_a_mask_hides_what_it_covers(scn, tmp_path):
+    import cv2
+
+    fr = render_sky(scn, T)
+    u, v = (round(x) for x in fr.truth["sun_uv"])
+    m = np.full((scn.lens.height, scn.lens.width), 255, np.uint8)
+    cv2.circle(m, (u, v), 20, 0, -1)
+    cv2.imwrite(str(tmp_path / "mask.png"), m)
+    est = FisheyeEstimator(truth_bundle(scn, mask=tmp_path / "mask.png"))
+    assert not est.estimate_image(fr.image, T).found
