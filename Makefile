@@ -5,7 +5,7 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test wheel-test bench install clean
+.PHONY: demo test lint wheel-test bench install clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,8 +18,14 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/heliotrack simulate --days 1 --out out/demo
 
-test: $(STAMP) wheel-test
+test: $(STAMP) lint wheel-test
 	$(BIN)/python -m pytest -q
+
+# Lint, format and types first: they take seconds and fail fast.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy
 
 # A plain (not editable) install must run: build the wheel from the tracked files (as from
 # a fresh clone; nothing is written into the tree), install it into a throwaway venv and
