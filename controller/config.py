@@ -22,7 +22,7 @@ from .sun.source import Site
 from .sunspec.config import SunSpecConfig
 from .weather import StowConfig, WindConfig
 
-SunSourceKind = Literal["ephemeris", "hotspot"]
+SunSourceKind = Literal["ephemeris", "hotspot", "fisheye", "fused"]
 C = TypeVar("C", bound="Config")
 
 
@@ -59,8 +59,9 @@ class ControlConfig:
     sun_source: SunSourceKind = setting(
         "ephemeris",
         doc="Where the sun's direction comes "
-        "from: the ephemeris at the configured site, or the "
-        "hotspot camera through the sun-path filter.",
+        "from: the ephemeris at the configured site, the "
+        "hotspot camera or the fisheye sky camera through the sun-path filter, or "
+        '"fused": both cameras into the one filter (each observation with its own sigma).',
     )
 
     def __schema_check__(self, at: Where) -> ControlConfig:
@@ -212,6 +213,16 @@ class HotspotConfig:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FisheyeConfig(HotspotConfig):
+    """The fisheye sky-camera sensor (docs/fisheye.md); its keys are those of `[hotspot]`."""
+
+    calibration: Path = setting(doc="Fisheye calibration bundle (TOML, see docs/fisheye.md).", path="file")
+    algorithm: Literal["default", "seed"] = setting(
+        "default", doc="The default pipeline (rim on the sphere, gates), or the paper's (HSI, three rules)."
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class SunPathSettings:
     """The sun-path filter behind camera sensors."""
 
@@ -268,6 +279,7 @@ class Config:
     pyranometer: PyranometerConfig | None = setting(None, doc="Pyranometer (enables DIFFUSE).")
     diffuse: DiffuseConfig = setting(default_factory=DiffuseConfig, doc="DIFFUSE mode.")
     hotspot: HotspotConfig | None = setting(None, doc="Hotspot camera sensor.")
+    fisheye: FisheyeConfig | None = setting(None, doc="Fisheye sky-camera sensor.")
     sunpath: SunPathSettings = setting(default_factory=SunPathSettings, doc="Sun-path filter.")
     sunspec: SunSpecConfig = setting(default_factory=SunSpecConfig, doc="SunSpec server.")
     wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
@@ -352,8 +364,10 @@ class Config:
             )
         if self.wind is not None:
             self._check_wind(at.child("wind"), links, used)
-        if self.control.sun_source == "hotspot" and self.hotspot is None:
-            raise at.child("hotspot").error('a [hotspot] table when control.sun_source = "hotspot"')
+        source = self.control.sun_source
+        for table in ("hotspot", "fisheye"):
+            if source in (table, "fused") and getattr(self, table) is None:
+                raise at.child(table).error(f"a [{table}] table when control.sun_source = {source!r}")
         return c
 
     def _check_wind(self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[str, int], str]) -> None:
@@ -404,6 +418,7 @@ __all__ = [
     "ConfigError",
     "ControlConfig",
     "DualAxisTracker",
+    "FisheyeConfig",
     "HotspotConfig",
     "PyranometerConfig",
     "SingleAxisTracker",

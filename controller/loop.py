@@ -86,7 +86,6 @@ class Controller(WindPolling):
             sun.use_store(store, clock.now())
         self._saved_day: int | None = None
         self._last_el_deg = math.inf
-        self._last_frame_t = -math.inf
         self._next_wind_poll = -math.inf
         self.diffuse = DiffuseSwitch(config.site, config.diffuse)
         self.sensor_errors = 0
@@ -269,22 +268,19 @@ class Controller(WindPolling):
         )
 
     async def _observe(self, t: float) -> None:
-        """Feed the sun-path filter from the camera (in a thread: frames take time).
+        """Feed the sun-path filter from the camera(s) (in a thread: frames take time).
 
-        One frame per ``[hotspot] interval_s`` (every cycle when 0); skipped while the last
-        estimate put the sun well below the horizon.
+        Each camera looks once per its ``interval_s`` (every cycle when 0), and every
+        observation goes to the filter with its own sigma; skipped while the last estimate
+        put the sun well below the horizon.
         """
-        if self.sensor is None:
+        if self.sensor is None or self._last_el_deg < -5.0:
             return
-        interval = self.config.hotspot.interval_s if self.config.hotspot is not None else 0.0
-        if self._last_el_deg >= -5.0 and t - self._last_frame_t >= interval - 1e-6:
-            self._last_frame_t = t
-            obs = await asyncio.to_thread(self.sensor.observe, t)
-            if obs is not None:
-                accepted = self.sun.observe(obs)
-                if self.history is not None:
-                    self.history.add_observation(obs, accepted)
-                self._check_sun_site()
+        for obs in await asyncio.to_thread(self.sensor.observations, t):
+            accepted = self.sun.observe(obs)
+            if self.history is not None:
+                self.history.add_observation(obs, accepted)
+            self._check_sun_site()
 
     def _daily(self, t: float) -> None:
         """Once a day: save what the sun source learned (atomically), rotate the history."""

@@ -95,14 +95,16 @@ def refuse_hil(config: Config, command: str = "run") -> None:
                 "heliotrack simulate provides)",
                 getattr(link, key, link.kind),
             )
-    if config.hotspot is not None and config.hotspot.frames == "hil":
-        raise ConfigError(
-            config.file,
-            "hotspot.frames",
-            f"a camera for heliotrack {command}: device:N, a stream URL, a video file or a folder "
-            '("hil" is the renderer only heliotrack simulate provides)',
-            "hil",
-        )
+    for name in ("hotspot", "fisheye"):
+        table = getattr(config, name)
+        if table is not None and table.frames == "hil":
+            raise ConfigError(
+                config.file,
+                f"{name}.frames",
+                f"a camera for heliotrack {command}: device:N, a stream URL, a video file or a folder "
+                '("hil" is the renderer only heliotrack simulate provides)',
+                "hil",
+            )
 
 
 def require_hil(config: Config) -> None:

@@ -357,15 +357,43 @@ class CameraSunSensor:
     slower than the loop's looks must not count one measurement twice).  ``outcomes``
     counts what each look gave: ``found``, ``no frame`` (the source had none, or none
     recent), ``same frame``, or the reason the frame was refused.
+
+    ``interval_s``: :meth:`observations` looks once per interval (0: at every call).
+    ``colour``: hand the estimator the frame in colour (BGR; the fisheye's pipelines) rather
+    than grey.  ``prior(t)``: the expected sun at ``t`` (an object with ``az_deg``,
+    ``el_deg``, ``sigma_deg``, e.g. the sun-path filter's prediction, or None), passed to
+    the estimator as its ``prior``.
     """
 
-    def __init__(self, frames: FrameSource, estimator, name: str = "hotspot"):
+    def __init__(
+        self,
+        frames: FrameSource,
+        estimator,
+        name: str = "hotspot",
+        *,
+        interval_s: float = 0.0,
+        colour: bool = False,
+        prior: Callable[[float], Any] | None = None,
+    ):
         self.frames = frames
         self.estimator = estimator
         self.name = name
+        self.interval_s = float(interval_s)
+        self.colour = colour
+        self.prior = prior
         self.outcomes: Counter[str] = Counter()
         self.last_outcome = ""
         self._last_frame: tuple[float, str] | None = None
+        self._last_look = -math.inf
+
+    def observations(self, t: float) -> list[SunObservation]:
+        """The observation of the look at ``t`` when one is due (``interval_s`` since the
+        last look), as a list: empty when not due or nothing was found."""
+        if t - self._last_look < self.interval_s - 1e-6:
+            return []
+        self._last_look = t
+        obs = self.observe(t)
+        return [obs] if obs is not None else []
 
     def observe(self, t: float) -> SunObservation | None:
         frame = self.frames.grab(t)
@@ -384,7 +412,12 @@ class CameraSunSensor:
         if bad:
             self._outcome(bad)
             return None
-        result = self.estimator.estimate_image(image, frame.time)
+        if self.colour and frame.image.ndim == 3 and frame.image.dtype == np.uint8:
+            image = frame.image
+        if self.prior is not None:
+            result = self.estimator.estimate_image(image, frame.time, prior=self.prior(frame.time))
+        else:
+            result = self.estimator.estimate_image(image, frame.time)
         obs = result.observation()
         self._outcome("found" if obs is not None else getattr(result, "reason", "") or "not found")
         return obs

@@ -92,8 +92,11 @@ async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | 
     if config.wind is not None:
         w = config.wind
         emit(await _guarded("anemometer", _where(links[w.link], w.device_id), _anemometer(config, clock)))
-    if config.hotspot is not None and config.control.sun_source == "hotspot":
-        emit(await _guarded("camera", config.hotspot.frames, asyncio.to_thread(_camera, config, clock)))
+    cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
+    for name in cameras.get(config.control.sun_source, ()):
+        frames = getattr(config, name).frames
+        label = "camera" if name == "hotspot" else name
+        emit(await _guarded(label, frames, asyncio.to_thread(_camera, config, clock, name)))
     return rows
 
 
@@ -196,16 +199,19 @@ async def _anemometer(config: Config, clock: Clock) -> tuple[bool, str]:
     )
 
 
-def _camera(config: Config, clock: Clock) -> tuple[bool, str]:
-    """A frame from the camera, and its size against the calibration bundle's."""
+def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, str]:
+    """A frame from camera ``name`` (``hotspot``, ``fisheye``), and its size against its
+    calibration bundle's."""
     from controller.calibration.bundle import load_bundle
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
     from controller.sun.camera import grey8, judge_frame
     from heliotrack.sun_sources import open_frame_source
 
-    hs = config.hotspot
+    hs = getattr(config, name)
     assert hs is not None
-    cam = load_bundle(hs.calibration).camera
-    source = open_frame_source(hs.frames, clock)
+    bundle = load_fisheye_bundle(hs.calibration) if name == "fisheye" else load_bundle(hs.calibration)
+    width, height = bundle.camera.width, bundle.camera.height
+    source = open_frame_source(hs.frames, clock, f"{name}.frames")
     try:
         frame = source.first_frame(clock.now(), CAMERA_TIMEOUT_S)
     finally:
@@ -214,8 +220,8 @@ def _camera(config: Config, clock: Clock) -> tuple[bool, str]:
         return False, f"no frame from {hs.frames} within {CAMERA_TIMEOUT_S:g} s"
     h, w = frame.image.shape[:2]
     text = f"frame {w}x{h}" + (f" ({frame.name})" if frame.name else "")
-    if (w, h) != (cam.width, cam.height):
-        return False, f"{text}, the calibration bundle expects {cam.width}x{cam.height}"
+    if (w, h) != (width, height):
+        return False, f"{text}, the calibration bundle expects {width}x{height}"
     grey = grey8(frame.image)
     judged = judge_frame(grey) if grey is not None else "unsupported_image_format"
     return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")

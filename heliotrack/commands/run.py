@@ -268,11 +268,12 @@ class Service:
             return ""
         self.tally["camera looks"] = total
         outcome = sensor.last_outcome
-        if outcome == "no frame" and not self.camera_down:
+        down = outcome.endswith("no frame")  # fused cameras: "<camera>: no frame"
+        if down and not self.camera_down:
             self.camera_down = True
-            hs = self.config.hotspot
+            hs = self.config.hotspot or self.config.fisheye
             log.warning("camera %s: no frame (none, or none recent)", hs.frames if hs else "")
-        elif outcome != "no frame" and self.camera_down:
+        elif not down and self.camera_down:
             self.camera_down = False
             log.info("camera: frames again")
         return outcome
