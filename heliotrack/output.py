@@ -228,11 +228,16 @@ def _camera_lines(summary: dict) -> list[str]:
     """Camera frames found (of those looked at) and the site the sun-path filter learned."""
     lines = []
     frames = summary.get("camera_frames")
-    if frames is not None:
-        total = sum(frames.values())
-        found = frames.get("found", 0)
-        others = ", ".join(f"{k} {v}" for k, v in sorted(frames.items()) if k != "found")
-        lines.append(f"camera frames: {found} of {total} found" + (f" ({others})" if others else ""))
+    cameras: dict[str, dict[str, int]] = {}
+    for key, n in (frames or {}).items():  # fused cameras: "<camera>: <outcome>"
+        cam, _, what = key.rpartition(": ")
+        cameras.setdefault(cam, {})[what] = n
+    for cam, outcomes in sorted(cameras.items()):
+        total = sum(outcomes.values())
+        found = outcomes.get("found", 0)
+        others = ", ".join(f"{k} {v}" for k, v in sorted(outcomes.items()) if k != "found")
+        label = f"camera frames ({cam})" if cam else "camera frames"
+        lines.append(f"{label}: {found} of {total} found" + (f" ({others})" if others else ""))
     sp = summary.get("sun_path")
     if sp and "lat_deg" in sp:
         lines.append(

@@ -38,8 +38,56 @@ def _hotspot(config: ScenarioConfig, transmittance: Transmittance) -> Render:
     return render
 
 
+def _fisheye(config: ScenarioConfig, transmittance: Transmittance) -> Render:
+    """The sky camera (``hil/skycam``) at the scenario's site, with a procedural cloud layer
+    on cloudy days whose sun is dimmed by the scenario's own beam transmittance (so a cloud
+    that hides the sun from the world hides it from every camera)."""
+    from hil.camera import Site as CameraSite
+    from hil.skycam import CloudField, orientation, render_sky, sky_profile
+
+    site, cam, kinds = config.site, config.hil.skycam, set(config.hil.skies)
+    clouds = None
+    if cam.clouds and kinds != {"clear"}:  # a deck when every day is overcast, else cumulus
+        clouds = (
+            CloudField(coverage=1.0, tau_max=20.0) if kinds == {"overcast"} else CloudField(coverage=0.45)
+        )
+    scn = sky_profile(
+        cam.profile,
+        noise=cam.noise,
+        site=CameraSite(site.latitude, site.longitude, site.altitude),
+        enu_from_camera=orientation(
+            yaw_deg=cam.yaw_deg, tilt_deg=cam.tilt_deg, tilt_azimuth_deg=cam.tilt_azimuth_deg
+        ),
+        clouds=clouds,
+    )
+
+    def render(t: float) -> np.ndarray:
+        beam = min(max(transmittance(t), 0.0), 1.0)
+        return render_sky(scn, t, sun_transmittance=beam).image
+
+    return render
+
+
 #: ``control.sun_source`` of a camera sensor -> the world's renderer of its frames.
 RENDERERS: dict[str, Callable[[ScenarioConfig, Transmittance], Render]] = {"hotspot": _hotspot}
+RENDERERS["fisheye"] = _fisheye
+#: ``control.sun_source`` of several cameras fused -> their sensors (each in RENDERERS).
+FUSED: dict[str, tuple[str, ...]] = {"fused": ("hotspot", "fisheye")}
+
+
+def camera_sensors(config: Config) -> tuple[str, ...]:
+    """Every camera sensor the controller looks through (both when fused), in order."""
+    source = config.control.sun_source
+    return FUSED.get(source, (source,) if source in RENDERERS else ())
+
+
+def world_renderers(config: ScenarioConfig, transmittance: Transmittance) -> dict[str, Render]:
+    """The world's renderer of every configured camera whose ``frames = "hil"``, by name."""
+    out: dict[str, Render] = {}
+    for name in camera_sensors(config):
+        if getattr(getattr(config, name, None), "frames", None) == "hil":
+            out[name] = RENDERERS[name](config, transmittance)
+    return out
 
 
 def camera_sensor(config: Config) -> str | None:

@@ -111,6 +111,30 @@ class HilCamera:
 
 
 @dataclass(frozen=True, kw_only=True)
+class HilSkyCamera:
+    """The world's fisheye sky camera (``control.sun_source = "fisheye"`` or ``"fused"``),
+    rendered by ``hil/skycam``; the defaults are the installation the shipped bundle
+    ``config/calibration/fisheye-seed.toml`` was calibrated on."""
+
+    profile: Literal["seed", "hd"] = setting(
+        "seed",
+        doc="Camera: the paper's 640 x 480 USB camera (JPEG q90), or a 1280 x 960 one "
+        "(which needs a calibration bundle of its own).",
+    )
+    noise: bool = setting(True, doc="Shot and read noise (and JPEG for the seed camera).")
+    yaw_deg: float = setting(17.0, doc="Heading: turned about its optical axis.", unit="deg", ge=-360, le=360)
+    tilt_deg: float = setting(0.8, doc="Base not level by this much.", unit="deg", ge=0, le=10)
+    tilt_azimuth_deg: float = setting(
+        120.0, doc="Towards this azimuth (clockwise from north).", unit="deg", ge=0, le=360
+    )
+    clouds: bool = setting(
+        True,
+        doc="Draw a procedural cloud layer on cloudy days (the sun's own visibility always "
+        "follows the scenario's sky, as for the hotspot camera).",
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilStorm:
     """A storm in the scenario: the mean wind ramps up, holds its peak, ramps down."""
 
@@ -275,6 +299,7 @@ class HilConfig:
     )
     drive: HilDrive = setting(default_factory=HilDrive, doc="Drive mechanics.")
     camera: HilCamera = setting(default_factory=HilCamera, doc="Hotspot camera.")
+    skycam: HilSkyCamera = setting(default_factory=HilSkyCamera, doc="Fisheye sky camera.")
     wind: HilWind = setting(default_factory=HilWind, doc="Wind.")
     faults: HilFaults = setting(default_factory=HilFaults, doc="Fault injection.")
 
@@ -317,7 +342,7 @@ def fault_targets(config: Config) -> dict[str, tuple[str, ...]]:
     sensors = (("pyranometer",) if config.pyranometer is not None else ()) + (
         ("anemometer",) if config.wind is not None else ()
     )
-    camera = ("camera",) if config.control.sun_source == "hotspot" and config.hotspot is not None else ()
+    camera = ("camera",) if config.control.sun_source != "ephemeris" else ()  # fused: the hotspot's
     out: dict[str, tuple[str, ...]] = {}
     for k in ("drive_stall", "limit_switch", "encoder_glitch", "emulator_restart"):
         out[k] = trackers
@@ -376,6 +401,7 @@ __all__ = [
     "HilFaultEvent",
     "HilFaultRate",
     "HilFaults",
+    "HilSkyCamera",
     "HilWireRates",
     "ScenarioConfig",
     "as_scenario",

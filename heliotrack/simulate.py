@@ -34,6 +34,7 @@ from controller.config import Config, TrackerConfig
 from controller.loop import Controller, CycleRecord
 from controller.store import open_store_or_none
 from controller.sun.camera import CallableFrameSource, CameraSunSensor, FrameSource
+from controller.sun.cameras import CameraGroup
 from controller.sun.source import SunSource
 from controller.sunpath.ephemeris import wrap180
 from hil.drive import DriveFirmware
@@ -41,7 +42,7 @@ from hil.drive import DriveFirmware
 from .devices import open_anemometer, open_drives, open_pyranometer
 from .faults import FaultScheduler, FaultyFrameSource
 from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
-from .renderers import frames_setting, world_renderer
+from .renderers import world_renderers
 from .scenario import ScenarioConfig, as_scenario
 from .scoring import (
     DEFINITIONS,
@@ -150,7 +151,7 @@ class ScenarioRun:
         self.faults: FaultScheduler | None = None
         self._faulty_frames: FaultyFrameSource | None = None
         self._sun: SunSource | None = None
-        self._sensor: CameraSunSensor | None = None
+        self._sensor: CameraSunSensor | CameraGroup | None = None
         wind = self.config.wind
         self.wind = self.hil.wind.script(self.t0) if wind is not None else None
         self.weather = (
@@ -201,19 +202,20 @@ class ScenarioRun:
         assert self.grid is not None
         return float(np.interp(t, self.grid.t, self.grid.sky.ghi))
 
-    def _camera_frames(self) -> FrameSource | None:
-        """The controller's camera: the replayed frames, or the world's renderer."""
+    def _camera_frames(self) -> FrameSource | dict[str, FrameSource] | None:
+        """The controller's camera(s): the replayed frames, or the world's renderer of each
+        camera whose ``frames = "hil"`` (faults hit the first: the hotspot when fused)."""
         if self._frames is not None:
             return self._frames
-        if frames_setting(self.config) != "hil":
-            return None
-        render = world_renderer(self.config, self.transmittance_at)
-        if render is None:
-            return None
-        if not self.hil.faults.enabled:
-            return CallableFrameSource(render)
-        self._faulty_frames = FaultyFrameSource(CallableFrameSource(render), self.hil.faults.seed)
-        return self._faulty_frames
+        sources: dict[str, FrameSource] = {
+            name: CallableFrameSource(render)
+            for name, render in world_renderers(self.config, self.transmittance_at).items()
+        }
+        if sources and self.hil.faults.enabled:
+            first = next(iter(sources))
+            self._faulty_frames = FaultyFrameSource(sources[first], self.hil.faults.seed)
+            sources[first] = self._faulty_frames
+        return sources or None
 
     # -- running -----------------------------------------------------------------------
     def execute(self, out_dir: Path | None = None) -> dict:
