@@ -23,6 +23,9 @@ class TruthSensor:
         sp = solar_position(self.site, [t]).iloc[0]
         return SunObservation(t, float(sp["azimuth"]), float(sp["apparent_elevation"]), 0.05, sensor="truth")
 
+    def observations(self, t):
+        return [self.observe(t)]
+
 
 def test_the_loop_keeps_setpoints_observations_and_the_learned_state(default_plant, tmp_path):
     run, ctl, fws, clock, cfg = default_plant
