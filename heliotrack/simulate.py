@@ -136,6 +136,7 @@ class ScenarioRun:
         self.grid: TruthGrid | None = None
         self.cycle_sun = np.zeros((0, 2))
         self.day = -1
+        self._day_open = False
         self.clock = SimClock(self.t0)
         self.tally = {tr.name: TruthTally() for tr in self.config.trackers}
         self.row_errors = {tr.name: 0 for tr in self.config.trackers}
@@ -167,11 +168,16 @@ class ScenarioRun:
         sun = self.truth.sun(cycles)
         self.cycle_sun = np.column_stack([sun.azimuth, sun.elevation])
         self.day = day
+        self._day_open = True
 
     def _leave_day(self) -> None:
-        """Fold the day's panel normals into the energy sums; note what the filter learned."""
-        if self.grid is None:
+        """Fold the day's panel normals into the energy sums; note what the filter learned.
+
+        The day's truth stays in place until the next day's replaces it: the emulated
+        sensors read it from their server threads, up to the world's closing."""
+        if self.grid is None or not self._day_open:
             return
+        self._day_open = False
         for tr in self.config.trackers:
             self.tally[tr.name].flush(tr, self.grid, self.period / self.sub / 3600.0)
         learned = self._sun.summary() if self._sensor is not None and self._sun is not None else {}
@@ -189,7 +195,6 @@ class ScenarioRun:
                     "accepted": learned.get("accepted", 0),
                 }
             )
-        self.grid = None
 
     def transmittance_at(self, t: float) -> float:
         """The clouds' beam transmittance over the sun at ``t`` (what the camera sees)."""
