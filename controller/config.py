@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Literal, TypeVar
 
+from .closedloop.settings import ClosedLoopConfig
 from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .drives.registry import link_config_types
@@ -273,6 +274,9 @@ class Config:
     wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
     stow: StowConfig = setting(default_factory=StowConfig, doc="Snow and hail stow.")
     store: StoreConfig = setting(default_factory=StoreConfig, doc="State and history store.")
+    closedloop: ClosedLoopConfig | None = setting(
+        None, doc="Panel-mounted closed loop (a camera on each panel; docs/fisheye.md)."
+    )
     file: str = internal("<config>")
 
     @property
@@ -354,6 +358,9 @@ class Config:
             self._check_wind(at.child("wind"), links, used)
         if self.control.sun_source == "hotspot" and self.hotspot is None:
             raise at.child("hotspot").error('a [hotspot] table when control.sun_source = "hotspot"')
+        for i, name in enumerate(self.closedloop.trackers if self.closedloop is not None else ()):
+            if name not in names:
+                raise at.child("closedloop").child("trackers").item(i).error("a tracker name", name)
         return c
 
     def _check_wind(self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[str, int], str]) -> None:

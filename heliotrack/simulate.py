@@ -41,6 +41,7 @@ from hil.drive import DriveFirmware
 from .devices import open_anemometer, open_drives, open_pyranometer
 from .faults import FaultScheduler, FaultyFrameSource
 from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
+from .panel_loop import CLOSEDLOOP_DEFINITIONS, closedloop_summary, make_controller
 from .renderers import frames_setting, world_renderer
 from .scenario import ScenarioConfig, as_scenario
 from .scoring import (
@@ -199,6 +200,8 @@ class ScenarioRun:
     def transmittance_at(self, t: float) -> float:
         """The clouds' beam transmittance over the sun at ``t`` (what the camera sees)."""
         assert self.grid is not None
+        if self.hil.sun_hidden(t):  # [[hil.sun_gaps]]: clouds hide the sun from the cameras
+            return 0.0
         return float(np.interp(t, self.grid.t, self.grid.sky.beam_transmittance))
 
     def ghi_at(self, t: float) -> float:
@@ -253,8 +256,10 @@ class ScenarioRun:
             )
             if store is not None:
                 stack.callback(store.close)
-            controller = Controller(
+            controller = make_controller(
                 self.config,
+                world,
+                self.transmittance_at,
                 open_drives(self.config, world.links),
                 sun,
                 self.clock,
@@ -354,7 +359,7 @@ class ScenarioRun:
             if grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
-                n, e = panel(tr, firmwares[tr.name].true_angles(), grid.sun_vecs[k])
+                n, e = panel(tr, firmwares[tr.name].panel_angles(), grid.sun_vecs[k])
                 tally = self.tally[tr.name]
                 tally.samples.append(k)
                 tally.normals.append(n)
@@ -459,6 +464,7 @@ class ScenarioRun:
             **self._sun_path_summary(),
             **({"faults": self.faults.summary()} if self.faults is not None else {}),
             **self._weather_summary(controller),
+            **closedloop_summary(controller, self.config),
             "trackers": {
                 tr.name: {
                     "type": tr.type,
@@ -476,5 +482,6 @@ class ScenarioRun:
                 "modbus": "transactions, errors and retries of every drive link (Modbus and "
                 "CANopen; the key is historical) and pyranometer read errors",
                 "errors": "per tracker: control cycles whose exchange with the drive failed",
+                **(CLOSEDLOOP_DEFINITIONS if self.config.closedloop is not None else {}),
             },
         }
