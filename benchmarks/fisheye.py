@@ -18,6 +18,9 @@ calibration chain, robustness to other looks of the world, and frames per second
   the site (the sequence's own history only).
 * ``variations``: one clear day of the seed camera under other lenses, glare profiles,
   smear, sky brightness and compression, known calibration.
+* ``panel_loop``: the panel-mounted closed loop in ``heliotrack simulate`` (clear day, and
+  1.5 deg row offsets with a 2-hour gap; assisted, paper and sky-fixed modes):
+  :mod:`benchmarks.fisheye_loop` (``python -m benchmarks.fisheye_loop`` runs it alone).
 * ``fps``: one core (``cv2.setNumThreads(1)``), best of 5 passes over 30 clear frames, at
   640 x 480 and 1920 x 1080, both pipelines; it waits up to 15 min for the machine to be
   quiet (1-minute load under 1.2) and records the wait and the load average.
@@ -30,6 +33,7 @@ import time
 
 import numpy as np
 
+from . import fisheye_loop
 from .fisheye_suites import (
     DEFINITIONS,
     SeedThroughLens,
@@ -247,6 +251,7 @@ def run(quick: bool = False) -> dict:
     sets = suites(quick)
     rob = robustness(quick)
     speed = fps(quick)
+    loop = fisheye_loop.run(quick)
     pooled = {
         p: {
             k: {"all_el_ge_5": _pool(d, k, "all_el_ge_5"), "el_ge_10": _pool(d, k, "el_ge_10")}
@@ -265,6 +270,7 @@ def run(quick: bool = False) -> dict:
         <= 0.05,
         "fps_640x480_ge_200": speed["640x480"]["default"]["fps"] >= 200,
         "fps_1920x1080_ge_50": speed["1920x1080"]["default"]["fps"] >= 50,
+        **{f"panel_loop_{k}": v for k, v in loop["acceptance"].items()},
     }
     return {
         "definitions": DEFINITIONS,
@@ -275,6 +281,7 @@ def run(quick: bool = False) -> dict:
         "distractors": sets["distractors"],
         "variations_seed_profile": rob,
         "fps": speed,
+        "panel_loop": loop,
         "acceptance": acceptance,
         "seconds": round(time.perf_counter() - t0, 1),
     }

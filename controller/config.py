@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Literal, TypeVar
 
+from .closedloop.settings import ClosedLoopConfig
 from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .drives.registry import link_config_types
@@ -285,6 +286,9 @@ class Config:
     wind: WindConfig | None = setting(None, doc="Wind stow from an anemometer.")
     stow: StowConfig = setting(default_factory=StowConfig, doc="Snow and hail stow.")
     store: StoreConfig = setting(default_factory=StoreConfig, doc="State and history store.")
+    closedloop: ClosedLoopConfig | None = setting(
+        None, doc="Panel-mounted closed loop (a camera on each panel; docs/fisheye.md)."
+    )
     file: str = internal("<config>")
 
     @property
@@ -368,6 +372,9 @@ class Config:
         for table in ("hotspot", "fisheye"):
             if source in (table, "fused") and getattr(self, table) is None:
                 raise at.child(table).error(f"a [{table}] table when control.sun_source = {source!r}")
+        for i, name in enumerate(self.closedloop.trackers if self.closedloop is not None else ()):
+            if name not in names:
+                raise at.child("closedloop").child("trackers").item(i).error("a tracker name", name)
         return c
 
     def _check_wind(self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[str, int], str]) -> None:

@@ -206,6 +206,7 @@ def summary_table(summary: dict) -> str:
     if sources:
         lines.append(f"sun sources (tracker-cycles): {sources}")
     lines += _camera_lines(summary)
+    lines += closedloop_lines(summary)
     lines.append(
         f"modbus: {m['transactions']} transactions, {m['errors']} errors, {m['sensor_errors']} sensor errors"
     )
@@ -248,4 +249,22 @@ def _camera_lines(summary: dict) -> list[str]:
         )
     elif sp:
         lines.append(f"learned site: none yet ({sp.get('accepted', 0)} observations accepted)")
+    return lines
+
+
+def closedloop_lines(summary: dict) -> list[str]:
+    """The panel-mounted closed loop's rows: learned offsets (and the world's), setpoints, frames."""
+    cl = summary.get("closedloop")
+    if not cl:
+        return []
+    lines = [f"closed loop ({cl['mode']}):"]
+    for name, row in cl["rows"].items():
+        learned = ", ".join(f"{k} {v:+.3f}" for k, v in row["learned_offset_deg"].items())
+        truth = ", ".join(f"{k} {v:+.3f}" for k, v in row.get("mount_offset_deg", {}).items())
+        setpoints = ", ".join(f"{k} {v}" for k, v in sorted(row["setpoints"].items()))
+        frames = ", ".join(f"{k} {v}" for k, v in sorted(row["frames"].items()))
+        lines.append(
+            f"  {name}: learned offset (deg) {learned}; mounting offset {truth}; "
+            f"setpoints: {setpoints}; frames: {frames}"
+        )
     return lines

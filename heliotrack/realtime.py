@@ -17,12 +17,12 @@ import numpy as np
 
 from controller.clock import RealClock
 from controller.config import Config
-from controller.loop import Controller
 from controller.northbound import Northbound
 from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
 from .devices import open_drives, open_pyranometer
+from .panel_loop import make_controller
 from .scenario import as_scenario
 from .sun_sources import build_sun_source
 from .world import build_world
@@ -58,8 +58,10 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
     with ExitStack() as stack:
         world = build_world(config, hil, clock, stack, ghi_at)
         sun, sensor = build_sun_source(config)
-        controller = Controller(
-            config,
+        controller = make_controller(
+            as_scenario(config),
+            world,
+            lambda t: float(np.interp(t, grid, sky.beam_transmittance)),
             open_drives(config, world.links),
             sun,
             clock,

@@ -285,6 +285,53 @@ class HilFaults:
 
 
 @dataclass(frozen=True, kw_only=True)
+class HilMountOffset:
+    """A row whose panel sits off its drive's encoder (a mounting or encoder offset): the
+    drive reports and holds its shaft, the panel (and its camera, and the pointing error's
+    truth) is this much further along each axis."""
+
+    tracker: str = setting(doc="The tracker's name.", nonempty=True)
+    offset_deg: tuple[float, ...] = setting(
+        doc="Per axis (dual-axis: [azimuth, elevation]; single-axis: [rotation]), panel minus shaft.",
+        unit="deg",
+        ge=-10,
+        le=10,
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilSunGap:
+    """A stretch when clouds hide the sun from every camera (beam transmittance 0)."""
+
+    start: str = setting(doc="When it starts (a time with a zone).", example="2024-03-20T10:00:00Z")
+    duration_s: float = setting(7200.0, doc="How long it lasts.", unit="s", ge=0, le=864000)
+
+    def __schema_check__(self, at: Where) -> HilSunGap:
+        from controller.errors import InputError
+
+        try:
+            parse_timestamp(self.start, "start", require_zone=True)
+        except InputError as exc:
+            raise at.child("start").error(
+                "a time with a zone, e.g. 2024-03-20T10:00:00Z", self.start
+            ) from exc
+        return self
+
+    def covers(self, t: float) -> bool:
+        t0 = parse_timestamp(self.start, "start", require_zone=True)
+        return t0 <= t < t0 + self.duration_s
+
+
+@dataclass(frozen=True, kw_only=True)
+class HilPanelCamera:
+    """The cameras on the panels (``[closedloop]``): the paper's fisheye, looking along the
+    panel's normal, rendered at a fraction of its 640 x 480 pixels."""
+
+    scale: float = setting(0.5, doc="Pixels per side relative to 640 x 480 (0.5: 320 x 240).", gt=0.1, le=2)
+    noise: bool = setting(True, doc="Shot and read noise, and JPEG q90.")
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilConfig:
     """The emulated world.  Each day runs from local mean midnight (UTC - longitude/15 h)."""
 
@@ -302,11 +349,25 @@ class HilConfig:
     skycam: HilSkyCamera = setting(default_factory=HilSkyCamera, doc="Fisheye sky camera.")
     wind: HilWind = setting(default_factory=HilWind, doc="Wind.")
     faults: HilFaults = setting(default_factory=HilFaults, doc="Fault injection.")
+    mount_offsets: tuple[HilMountOffset, ...] = setting((), doc="Rows whose panel sits off its encoder.")
+    sun_gaps: tuple[HilSunGap, ...] = setting((), doc="Stretches when clouds hide the sun from the cameras.")
+    panel_camera: HilPanelCamera = setting(default_factory=HilPanelCamera, doc="Cameras on the panels.")
 
     @property
     def skies(self) -> tuple[str, ...]:
         """The sky regime of each day of the cycle."""
         return (self.sky,) if isinstance(self.sky, str) else self.sky
+
+    def sun_hidden(self, t: float) -> bool:
+        """A ``sun_gaps`` entry hides the sun at POSIX ``t``."""
+        return any(g.covers(t) for g in self.sun_gaps)
+
+    def mount_offset(self, tracker: str, axes: int) -> list[float]:
+        """The tracker's mounting offset per axis (deg; zeros when none)."""
+        for m in self.mount_offsets:
+            if m.tracker == tracker:
+                return [float(x) for x in m.offset_deg]
+        return [0.0] * axes
 
     def __schema_check__(self, at: Where) -> HilConfig:
         if not isinstance(self.sky, str) and not self.sky:
@@ -329,6 +390,15 @@ class ScenarioConfig(Config):
                 here = at.child("hil").child("faults").child("events").item(i).child("target")
                 known = ", ".join(targets.get(ev.type, ())) or "nothing in this plant"
                 raise here.error(f"something a {ev.type} fault can hit ({known})", ev.target)
+        axes = {tr.name: tr.axes for tr in c.trackers}
+        for i, m in enumerate(c.hil.mount_offsets):
+            here = at.child("hil").child("mount_offsets").item(i)
+            if m.tracker not in axes:
+                raise here.child("tracker").error(f"a tracker name ({', '.join(axes)})", m.tracker)
+            if len(m.offset_deg) != axes[m.tracker]:
+                raise here.child("offset_deg").error(
+                    f"{axes[m.tracker]} value(s), one per axis", list(m.offset_deg)
+                )
         return c
 
 
@@ -401,7 +471,10 @@ __all__ = [
     "HilFaultEvent",
     "HilFaultRate",
     "HilFaults",
+    "HilMountOffset",
+    "HilPanelCamera",
     "HilSkyCamera",
+    "HilSunGap",
     "HilWireRates",
     "ScenarioConfig",
     "as_scenario",

@@ -42,6 +42,7 @@ from hil.drive import DriveFirmware
 from .devices import open_anemometer, open_drives, open_pyranometer
 from .faults import FaultScheduler, FaultyFrameSource
 from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
+from .panel_loop import CLOSEDLOOP_DEFINITIONS, closedloop_summary, make_controller
 from .renderers import world_renderers
 from .scenario import ScenarioConfig, as_scenario
 from .scoring import (
@@ -137,6 +138,7 @@ class ScenarioRun:
         self.grid: TruthGrid | None = None
         self.cycle_sun = np.zeros((0, 2))
         self.day = -1
+        self._day_open = False
         self.clock = SimClock(self.t0)
         self.tally = {tr.name: TruthTally() for tr in self.config.trackers}
         self.row_errors = {tr.name: 0 for tr in self.config.trackers}
@@ -168,11 +170,16 @@ class ScenarioRun:
         sun = self.truth.sun(cycles)
         self.cycle_sun = np.column_stack([sun.azimuth, sun.elevation])
         self.day = day
+        self._day_open = True
 
     def _leave_day(self) -> None:
-        """Fold the day's panel normals into the energy sums; note what the filter learned."""
-        if self.grid is None:
+        """Fold the day's panel normals into the energy sums; note what the filter learned.
+
+        The day's truth stays in place until the next day's replaces it: the emulated
+        sensors read it from their server threads, up to the world's closing."""
+        if self.grid is None or not self._day_open:
             return
+        self._day_open = False
         for tr in self.config.trackers:
             self.tally[tr.name].flush(tr, self.grid, self.period / self.sub / 3600.0)
         learned = self._sun.summary() if self._sensor is not None and self._sun is not None else {}
@@ -190,11 +197,12 @@ class ScenarioRun:
                     "accepted": learned.get("accepted", 0),
                 }
             )
-        self.grid = None
 
     def transmittance_at(self, t: float) -> float:
         """The clouds' beam transmittance over the sun at ``t`` (what the camera sees)."""
         assert self.grid is not None
+        if self.hil.sun_hidden(t):  # [[hil.sun_gaps]]: clouds hide the sun from the cameras
+            return 0.0
         return float(np.interp(t, self.grid.t, self.grid.sky.beam_transmittance))
 
     def ghi_at(self, t: float) -> float:
@@ -250,8 +258,10 @@ class ScenarioRun:
             )
             if store is not None:
                 stack.callback(store.close)
-            controller = Controller(
+            controller = make_controller(
                 self.config,
+                world,
+                self.transmittance_at,
                 open_drives(self.config, world.links),
                 sun,
                 self.clock,
@@ -351,7 +361,7 @@ class ScenarioRun:
             if grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
-                n, e = panel(tr, firmwares[tr.name].true_angles(), grid.sun_vecs[k])
+                n, e = panel(tr, firmwares[tr.name].panel_angles(), grid.sun_vecs[k])
                 tally = self.tally[tr.name]
                 tally.samples.append(k)
                 tally.normals.append(n)
@@ -456,6 +466,7 @@ class ScenarioRun:
             **self._sun_path_summary(),
             **({"faults": self.faults.summary()} if self.faults is not None else {}),
             **self._weather_summary(controller),
+            **closedloop_summary(controller, self.config),
             "trackers": {
                 tr.name: {
                     "type": tr.type,
@@ -473,5 +484,6 @@ class ScenarioRun:
                 "modbus": "transactions, errors and retries of every drive link (Modbus and "
                 "CANopen; the key is historical) and pyranometer read errors",
                 "errors": "per tracker: control cycles whose exchange with the drive failed",
+                **(CLOSEDLOOP_DEFINITIONS if self.config.closedloop is not None else {}),
             },
         }

@@ -243,9 +243,11 @@ def _firmware_factory(
         axes = [axis_params(hil, soft, stow) for soft, stow in zip(tr.soft_limits, tr.stow_angles)]
         if angles is not None:
             axes = [replace(a, initial_angle=x) for a, x in zip(axes, angles)]
-        return DriveFirmware(
+        fw = DriveFirmware(
             axes, clock.monotonic, heartbeat_timeout=heartbeat_timeout, audit_limits=tr.soft_limits
         )
+        fw.mount_offsets = hil.mount_offset(tr.name, len(axes))
+        return fw
 
     return make
 

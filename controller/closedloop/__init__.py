@@ -3,7 +3,9 @@
 The camera rides on the panel; its sun offset drives each axis through the paper's fuzzy
 PID (:mod:`.fuzzy`), and each row's mounting or encoder offset is learned and kept through
 cloud gaps (:mod:`.learner`, :mod:`.axis`).  :mod:`.geometry` turns the camera's sun
-direction into per-axis errors.  Not wired into the control loop yet.
+direction into per-axis errors.  :mod:`.panel` wires them into the control loop
+(``[closedloop]``, :mod:`.settings`); it is imported from there, not here (it needs the
+loop).
 """
 
 from .axis import MODES, AxisCommand, ClosedLoopAxis

@@ -62,13 +62,20 @@ class ClosedLoopAxis:
         self._t: float | None = None
 
     def update(
-        self, t: float, error_deg: float | None, position_deg: float, reference_deg: float | None = None
+        self,
+        t: float,
+        error_deg: float | None,
+        position_deg: float,
+        reference_deg: float | None = None,
+        frame_reference_deg: float | None = None,
     ) -> AxisCommand:
         """One cycle at POSIX ``t``.
 
         ``error_deg``: the camera's offset of the sun along this axis (None: no sun seen);
         ``position_deg``: the drive's reported angle; ``reference_deg``: the open-loop angle
-        for an aligned row (required in the assisted mode).
+        for an aligned row (required in the assisted mode); ``frame_reference_deg``: that
+        angle at the frame's time when the setpoint aims later (the loop's lead), for the
+        offset's measurement (default: ``reference_deg``).
         """
         seen = error_deg is not None and math.isfinite(error_deg) and abs(error_deg) <= self.max_error_deg
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
@@ -85,7 +92,8 @@ class ClosedLoopAxis:
         before = self.learner.estimate_deg
         if seen:
             assert error_deg is not None
-            self.learner.update(t, position_deg + error_deg - reference_deg)
+            at_frame = reference_deg if frame_reference_deg is None else frame_reference_deg
+            self.learner.update(t, position_deg + error_deg - at_frame)
             # bumpless: what the learner took over leaves the correction
             self.correction += self.pid.step(error_deg) - (self.learner.estimate_deg - before)
             source = "camera"

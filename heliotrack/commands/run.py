@@ -111,6 +111,9 @@ class Service:
         from heliotrack.runtime import resume_last_shutdown
         from heliotrack.sun_sources import build_sun_source
 
+        if self.config.closedloop is not None and self.config.closedloop.enabled:
+            log.error('[closedloop] frames = "hil": the panel cameras exist only in `heliotrack simulate`')
+            return 2
         loop = asyncio.get_running_loop()
         self.stop = asyncio.Event()
         for sig in (signal.SIGTERM, signal.SIGINT):

@@ -124,6 +124,10 @@ class DriveFirmware:
         self.out_of_limit_writes = 0
         #: The last target written to each axis (deg), whatever the mode did with it.
         self.last_target_written: list[float | None] = [None for _ in axes]
+        #: The panel sits this far off each axis's output shaft (deg, a mounting or
+        #: encoder offset of the row): the encoder and the position loop see the shaft,
+        #: the sun sees the panel (:meth:`panel_angles`).
+        self.mount_offsets: list[float] = [0.0 for _ in axes]
 
     # -- time ---------------------------------------------------------------------
     def update(self) -> None:
@@ -417,3 +421,7 @@ class DriveFirmware:
         with self._lock:
             self.update()
             return [ax.output for ax in self.axes]
+
+    def panel_angles(self) -> list[float]:
+        """Where the panel really points (deg): the output angles plus the mounting offsets."""
+        return [a + d for a, d in zip(self.true_angles(), self.mount_offsets)]

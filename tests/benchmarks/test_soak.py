@@ -11,6 +11,7 @@ from benchmarks.soak import DEFINITIONS, TARGETS, random_storms, result, soak_co
 from benchmarks.soak_run import SoakRun
 from benchmarks.summary import headlines
 from controller.timestamps import parse_timestamp
+from heliotrack.span import simulation_span
 
 REQUIRED = (
     "days",
@@ -61,7 +62,7 @@ class CrashOnce(SoakRun):
 def test_a_short_soak_goes_on_through_a_crash_and_reports_every_metric(tmp_path):
     cfg = soak_config(1, tmp_path)
     start = datetime(2024, 3, 20, 8, 0, tzinfo=UTC)
-    soak = CrashOnce(cfg, 1, start, False, 0.5)
+    soak = CrashOnce(cfg, simulation_span(cfg, 1, start, hours=0.5), progress=False)
     summary = asyncio.run(soak.run())
     r = result(soak, summary, 1)
     assert r["crashes"] == 1 and r["crashes_by_kind"] == {"cycle: ZeroDivisionError": 1}

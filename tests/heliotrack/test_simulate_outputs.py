@@ -165,3 +165,19 @@ def test_a_progress_bar_when_stderr_is_a_terminal(tmp_path):
         os.close(master)
     assert proc.returncode == 0
     assert b"simulate:" in seen and b"cycle" in seen
+
+
+def test_the_sensors_read_the_truth_up_to_the_worlds_closing(tmp_path):
+    """The emulated pyranometer reads the day's truth from its server thread, also while a
+    run ends (an interrupt left it reading nothing: an assertion inside pymodbus's request
+    handler, logged with a traceback)."""
+    cfg = load_scenario(short_config(tmp_path))
+    run = ScenarioRun(cfg, simulation_span(cfg))
+    run._enter_day(0)
+    t = run.t0 + 12 * 3600.0
+    ghi = run.ghi_at(t)
+    run._leave_day()
+    assert run.ghi_at(t) == ghi and 0.0 <= run.transmittance_at(t) <= 1.0
+    energy = run.tally["dual-1"].energy()
+    run._leave_day()  # once only: the day's energy is not counted twice
+    assert run.tally["dual-1"].energy() == energy

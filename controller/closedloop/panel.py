@@ -1,0 +1,264 @@
+"""The panel-mounted closed loop in the control loop: a :class:`Controller` whose trackers
+listed in ``[closedloop]`` are steered by the camera on their panel.
+
+Each cycle at time ``t``, before the setpoints (:meth:`ClosedLoopController._observe`):
+
+1. the drive's position is read (its encoder, at the frame's time);
+2. the row's camera frame is measured by the default fisheye pipeline (the lens of the
+   ``[closedloop] calibration`` bundle, no orientation: the camera moves with the panel,
+   so every frame stands alone: no sequence gate, no motion vetoes), and the sun's
+   camera-frame direction becomes per-axis errors (:mod:`.geometry`);
+3. the sun source's reference at ``t`` is kept for the offset's measurement.
+
+Then (:meth:`ClosedLoopController.targets`), only in TRACK mode and with no stow order,
+each axis's :class:`~.axis.ClosedLoopAxis` replaces the open-loop target: ``paper``, the
+setpoint moves by the fuzzy PID's step; ``assisted``, reference + learned offset + the
+PID's correction.  Everything else is the plain controller's: a weather stow, night stow,
+DIFFUSE and an operator's manual setpoint outrank the loop, and every target is clamped to
+the axis's limits on its way to the wire.  While a row backtracks, or its reference is at
+an axis limit (the camera's error then is not a pointing error), it follows the reference
+(plus the learned offset in the assisted mode) and the paper's loop restarts afterwards.
+
+The learned offsets persist in ``[closedloop] state`` (:class:`~.learner.MisalignmentStore`,
+saved every simulated hour and at close).  Angles in degrees; errors are sun minus
+boresight.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from collections import Counter
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from .. import setpoints as sp
+from ..calibration.fisheye_bundle import load_fisheye_bundle
+from ..config import Config, DualAxisTracker, TrackerConfig
+from ..drives.base import DriveCommError
+from ..loop import Controller
+from ..modes import ControlMode, ModeDecision
+from ..records import TrackerRuntime
+from ..safety import StowOrder, clamp_targets
+from ..sun.camera import FrameSource
+from ..sun.types import SunEstimate
+from ..vision.fisheye import FisheyeEstimator
+from .axis import ClosedLoopAxis
+from .geometry import dual_axis_errors, single_axis_error
+from .learner import MisalignmentStore
+
+log = logging.getLogger("heliotrack.closedloop")
+
+#: A reference this close to an axis limit (deg) is not a pointing target for the camera.
+LIMIT_MARGIN_DEG = 0.5
+#: How often the learned offsets are saved (s of the controller's clock).
+SAVE_EVERY_S = 3600.0
+
+
+def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
+    """The names of a tracker's axes in the misalignment store."""
+    return ("azimuth", "elevation") if isinstance(cfg, DualAxisTracker) else ("rotation",)
+
+
+def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list[float]:
+    """Per-axis errors (deg, sun minus boresight) of the sun's camera-frame direction."""
+    if isinstance(cfg, DualAxisTracker):
+        return list(dual_axis_errors(d_cam, position[0], position[1]))
+    return [single_axis_error(d_cam)]
+
+
+@dataclass
+class Measurement:
+    """What one cycle measured of a row: at the frame's time ``t``."""
+
+    t: float
+    position: list[float]  # the drive's reported axis angles (deg)
+    errors: list[float] | None  # the camera's per-axis errors (None: no sun seen)
+    frame_reference: list[float] | None  # the sun source's reference at t
+
+
+@dataclass
+class RowLoop:
+    """One tracker's camera, estimator and axes."""
+
+    runtime: TrackerRuntime
+    frames: FrameSource
+    estimator: FisheyeEstimator
+    axes: list[ClosedLoopAxis]
+    measured: Measurement | None = None
+    active: bool = False  # steered by the loop in the previous cycle
+    sources: Counter = field(default_factory=Counter)
+    frames_seen: Counter = field(default_factory=Counter)
+
+    def restart(self) -> None:
+        """Out of closed loop: the PID forgets its history, the paper's setpoint its value."""
+        for ax in self.axes:
+            ax.pid.reset()
+            if ax.mode == "paper":
+                ax.setpoint = None
+        self.active = False
+
+
+class ClosedLoopController(Controller):
+    """:class:`controller.loop.Controller` with the panel-mounted closed loop.
+
+    ``panel_frames``: tracker name -> its panel camera's frames (the simulator's renderer).
+    The other arguments are the :class:`Controller`'s.
+    """
+
+    def __init__(
+        self,
+        config: Config,
+        *args: Any,
+        panel_frames: Mapping[str, FrameSource],
+        **kwargs: Any,
+    ):
+        super().__init__(config, *args, **kwargs)
+        cl = config.closedloop
+        if cl is None:
+            raise ValueError("ClosedLoopController needs a [closedloop] table")
+        self.closedloop = cl
+        bundle = load_fisheye_bundle(cl.calibration)
+        self.misalignment = MisalignmentStore(cl.state)
+        names = set(cl.trackers) if cl.trackers else {tr.cfg.name for tr in self.trackers}
+        max_err = cl.max_error_deg if cl.mode == "assisted" else 90.0
+        self.rows: list[RowLoop] = []
+        for tr in self.trackers:
+            if tr.cfg.name not in names:
+                continue
+            if tr.cfg.name not in panel_frames:
+                raise ValueError(f"{tr.cfg.name}: no panel camera frames")
+            axes = [
+                ClosedLoopAxis(
+                    mode=cl.mode,
+                    learner=self.misalignment.learner(tr.cfg.name, name),
+                    max_error_deg=max_err,
+                )
+                for name in axis_names(tr.cfg)
+            ]
+            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], FisheyeEstimator(bundle), axes))
+        self._t = math.nan
+        self._saved_at = -math.inf
+
+    # -- measuring ------------------------------------------------------------------------
+    async def _observe(self, t: float) -> None:
+        await super()._observe(t)
+        self._t = t
+        est = self.sun.estimate(t, now=t)
+        daylight = est is not None and est.el_deg > self.config.control.min_elevation_deg - 2.0
+        for row in self.rows:
+            row.measured = await self._measure(row, t, est) if daylight else None
+
+    async def _measure(self, row: RowLoop, t: float, est: SunEstimate | None) -> Measurement | None:
+        tr = row.runtime
+        if not tr.configured:
+            return None
+        try:
+            state = await asyncio.wait_for(tr.drive.read_state(), self._deadline())
+        except (TimeoutError, DriveCommError) as exc:
+            row.frames_seen["no position"] += 1
+            log.debug("%s: position not read: %s", tr.cfg.name, exc)
+            return None
+        position = [a.actual_deg for a in state.axes][: tr.cfg.axes]
+        reference = None
+        if est is not None:
+            reference = sp.tracking(est, [tr.cfg], [state])[0][0]
+        frame = await asyncio.to_thread(row.frames.grab, t)
+        if frame is None:
+            row.frames_seen["no frame"] += 1
+            return Measurement(t, position, None, reference)
+        res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None)
+        if not res.found or res.d_cam is None:
+            row.frames_seen[res.reason or "not found"] += 1
+            return Measurement(t, position, None, reference)
+        row.frames_seen["found"] += 1
+        return Measurement(t, position, camera_errors(tr.cfg, res.d_cam, position), reference)
+
+    # -- steering -------------------------------------------------------------------------
+    def targets(
+        self, est: SunEstimate | None, decision: ModeDecision, order: StowOrder | None
+    ) -> list[sp.Setpoint]:
+        out = super().targets(est, decision, order)
+        tracking = order is None and decision.mode == ControlMode.TRACK
+        for row in self.rows:
+            i = row.runtime.index
+            if not tracking:
+                row.restart()
+                continue
+            out[i] = self._steer(row, out[i])
+        if math.isfinite(self._t) and self._t - self._saved_at >= SAVE_EVERY_S:
+            self._save()
+        return out
+
+    def _steer(self, row: RowLoop, base: sp.Setpoint) -> sp.Setpoint:
+        cfg = row.runtime.cfg
+        reference, backtracking = base
+        m = row.measured
+        near_limit = any(
+            min(abs(r - lo), abs(hi - r)) < LIMIT_MARGIN_DEG
+            for r, (lo, hi) in zip(reference, cfg.soft_limits)
+        )
+        assisted = self.closedloop.mode == "assisted"
+        if m is None or backtracking or near_limit:
+            # no position, or a reference the camera cannot judge: follow the reference
+            row.restart()
+            if assisted:
+                for ax in row.axes:
+                    ax.learner.predict(self._t)
+                row.sources["learned"] += 1
+                return [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)], backtracking
+            row.sources["reference"] += 1
+            return reference, backtracking
+        if not row.active:
+            for ax, p in zip(row.axes, m.position):
+                if ax.mode == "paper":
+                    ax.setpoint = p
+        targets = []
+        source = "hold"
+        for k, ax in enumerate(row.axes):
+            err = m.errors[k] if m.errors is not None else None
+            if assisted:
+                fref = m.frame_reference[k] if m.frame_reference is not None else None
+                cmd = ax.update(m.t, err, m.position[k], reference[k], fref)
+            else:
+                cmd = ax.update(m.t, err, m.position[k])
+            source = cmd.source
+            targets.append(cmd.setpoint_deg)
+        clamped = clamp_targets(cfg, targets)
+        for ax, c in zip(row.axes, clamped):
+            if ax.mode == "paper":
+                ax.setpoint = c  # no wind-up beyond the limits
+        row.active = True
+        row.sources[source] += 1
+        return clamped, backtracking
+
+    # -- persistence and figures ------------------------------------------------------------
+    def _save(self) -> None:
+        self._saved_at = self._t
+        if self.misalignment.path is None:
+            return
+        try:
+            self.misalignment.save()
+        except OSError as exc:
+            log.warning("closed loop: learned offsets not saved: %s", exc)
+
+    def closedloop_summary(self) -> dict[str, Any]:
+        """The loop's mode, and per row: learned offsets, sources of its setpoints, frames."""
+        rows = {}
+        for row in self.rows:
+            names = axis_names(row.runtime.cfg)
+            rows[row.runtime.cfg.name] = {
+                "learned_offset_deg": {
+                    n: round(ax.learner.estimate_deg, 5) for n, ax in zip(names, row.axes)
+                },
+                "learned_sigma_deg": {n: round(ax.learner.sigma_deg, 5) for n, ax in zip(names, row.axes)},
+                "setpoints": dict(row.sources),
+                "frames": dict(row.frames_seen),
+            }
+        return {"mode": self.closedloop.mode, "rows": rows}
+
+    async def close(self) -> None:
+        self._save()
+        await super().close()

@@ -1,0 +1,47 @@
+"""The ``[closedloop]`` table: the panel-mounted closed loop (docs/fisheye.md).
+
+Each tracker listed carries a camera on its panel, looking along the normal (the mounting
+convention of :mod:`.geometry`); every control cycle its frame gives the sun's offset from
+the normal, and a fuzzy PID per axis moves the setpoint (:mod:`.axis`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+from ..schema import setting
+
+ClosedLoopMode = Literal["assisted", "paper"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class ClosedLoopConfig:
+    """The panel-mounted closed loop (the sun's offset in a camera on each panel)."""
+
+    enabled: bool = setting(True, doc="Drive the listed trackers in closed loop.")
+    mode: ClosedLoopMode = setting(
+        "assisted",
+        doc='"paper": the camera alone (the setpoint holds when the sun is not seen); '
+        "\"assisted\": the sun source's reference plus the row's learned offset plus the "
+        "fuzzy PID's correction (the offset is kept through cloud gaps).",
+    )
+    calibration: Path = setting(
+        doc="The panel cameras' lens bundle (fisheye TOML without [orientation]; docs/fisheye.md).",
+        path="file",
+    )
+    frames: Literal["hil"] = setting(
+        "hil", doc='Where the panel cameras\' frames come from: "hil" (rendered by the simulator).'
+    )
+    trackers: tuple[str, ...] = setting((), doc="Trackers with a panel camera (empty: every tracker).")
+    state: Path | None = setting(
+        None, doc="File where the learned row offsets persist (none: not persisted).", path="new"
+    )
+    max_error_deg: float = setting(
+        60.0,
+        doc="A camera error larger than this (deg, per axis) is not trusted (assisted mode).",
+        unit="deg",
+        gt=0,
+        le=90,
+    )

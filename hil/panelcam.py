@@ -1,0 +1,108 @@
+"""The camera on a tracker's panel (paper 003's use of the sky camera): the world's side.
+
+The camera rides on the panel and looks along its normal.  Its orientation follows the
+drive's true output angles plus the row's mounting offset
+(:meth:`hil.drive.DriveFirmware.panel_angles`), and :func:`hil.skycam.render_sky` draws
+what it sees at the simulated time with the scenario's clouds.  Written without the
+controller: the mounting convention below is a mechanical fact the controller is told
+about (``controller.closedloop.geometry``), computed here from the world's own geometry
+(:mod:`hil.truth`) so that a sign error on either side shows up as pointing error.
+
+Mounting (camera frame: OpenCV, x right, y down, z along the optical axis):
+
+* dual-axis (azimuth over elevation) panel at (``az``, ``el``): z is the normal, image x
+  runs towards increasing azimuth (horizontal), ``y = z x x`` (down the panel);
+* single-axis row at rotation ``rot``: z is the normal, image x runs across the row
+  towards increasing rotation (the normal's derivative with the rotation), ``y = z x x``.
+
+Angles in degrees, azimuth clockwise from north; ENU vectors (x East, y North, z Up).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import truth
+from .camera.scene import Site
+from .skycam import render_sky, seed_lens, sky_profile
+from .skycam.scene import Matrix3
+
+
+def _frame(z: np.ndarray, dz: np.ndarray) -> np.ndarray:
+    """``enu_from_camera`` with optical axis ``z`` and image x along ``dz`` (made normal)."""
+    z = z / np.linalg.norm(z)
+    x = dz - np.dot(dz, z) * z
+    x = x / np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z], axis=1)
+
+
+def dual_axis_camera(az_deg: float, el_deg: float) -> np.ndarray:
+    """``enu_from_camera`` (3 x 3, columns: camera x, y, z in ENU) of the camera on a
+    dual-axis panel whose normal points at (``az_deg``, ``el_deg``)."""
+    h = 1e-3
+    z = truth.unit_from_azel(az_deg, el_deg)
+    dz = truth.unit_from_azel(az_deg + h, el_deg) - truth.unit_from_azel(az_deg - h, el_deg)
+    if np.linalg.norm(dz) < 1e-9:  # the normal at the zenith: x towards the azimuth's east
+        a = np.radians(az_deg)
+        dz = np.array([np.cos(a), -np.sin(a), 0.0])
+    return _frame(z, dz)
+
+
+def row_camera(rotation_deg: float, axis_azimuth: float, axis_tilt: float) -> np.ndarray:
+    """``enu_from_camera`` of the camera on a single-axis row at ``rotation_deg``."""
+    h = 1e-3
+    z = truth.row_normal(rotation_deg, axis_azimuth, axis_tilt)
+    dz = truth.row_normal(rotation_deg + h, axis_azimuth, axis_tilt) - truth.row_normal(
+        rotation_deg - h, axis_azimuth, axis_tilt
+    )
+    return _frame(np.asarray(z, float), np.asarray(dz, float))
+
+
+def panel_lens(scale: float = 0.5):
+    """The panel camera's lens: the paper's 190-deg fisheye (640 x 480) at ``scale`` times
+    its pixels per side (0.5: 320 x 240, ~1.45 px/deg at the centre, the sun's saturated
+    glare ~4.6 px in radius)."""
+    return seed_lens().scaled(scale, name=f"panel-seed-x{scale:g}")
+
+
+@dataclass
+class PanelCamera:
+    """One panel's camera: ``render(t, angles, transmittance)`` -> BGR uint8 image.
+
+    ``kind``: ``"dual-axis"`` or ``"single-axis"``; ``axis_azimuth``/``axis_tilt``: the
+    row's geometry (single-axis); ``angles``: the panel's true angles (deg, with the
+    mounting offset: ``DriveFirmware.panel_angles()``); ``transmittance``: the clouds' beam
+    transmittance over the sun (0: hidden, 1: clear).
+    """
+
+    kind: str
+    site: Site
+    axis_azimuth: float = 180.0
+    axis_tilt: float = 0.0
+    scale: float = 0.5
+    noise: bool = True
+
+    def __post_init__(self) -> None:
+        self.scene = sky_profile("seed", noise=self.noise).with_(lens=panel_lens(self.scale), site=self.site)
+
+    def enu_from_camera(self, angles: list[float]) -> np.ndarray:
+        if self.kind == "dual-axis":
+            return dual_axis_camera(angles[0], angles[1])
+        return row_camera(angles[0], self.axis_azimuth, self.axis_tilt)
+
+    def render(self, t: float, angles: list[float], transmittance: float) -> np.ndarray:
+        R = self.enu_from_camera(angles)
+        m: Matrix3 = tuple(tuple(float(v) for v in row) for row in R)  # type: ignore[assignment]
+        scn = self.scene.with_(enu_from_camera=m)
+        T = float(min(max(transmittance, 0.0), 1.0))
+        return render_sky(scn, t, sun_transmittance=T).image
+
+    def source(
+        self, angles: Callable[[], list[float]], transmittance: Callable[[float], float]
+    ) -> Callable[[float], np.ndarray]:
+        """``render(t)`` for a frame source: the panel's angles and the clouds read at ``t``."""
+        return lambda t: self.render(t, angles(), transmittance(t))

@@ -1,0 +1,85 @@
+"""ClosedLoopController's steering, without drives or cameras: what it does with a cycle's
+measurement, and what outranks it."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime
+from unittest import mock
+
+import pytest
+
+from controller.clock import SimClock
+from controller.closedloop.panel import ClosedLoopController, Measurement
+from controller.loop import Controller
+from controller.modes import ControlMode, ModeDecision
+from controller.safety import StowOrder
+from controller.sun.camera import FrameSource
+from controller.sun.source import EphemerisSource
+from heliotrack.scenario import load_scenario
+from tests.conftest import REPO
+
+T = datetime(2024, 3, 20, 8, 0, tzinfo=UTC).timestamp()
+
+
+def controller(mode: str = "assisted") -> ClosedLoopController:
+    from dataclasses import replace
+
+    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
+    assert cfg.closedloop is not None
+    cfg = replace(cfg, closedloop=replace(cfg.closedloop, mode=mode))
+    frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
+    drives = {tr.name: mock.Mock() for tr in cfg.trackers}
+    ctl = ClosedLoopController(cfg, drives, EphemerisSource(cfg.site), SimClock(T), panel_frames=frames)
+    ctl._t = T
+    return ctl
+
+
+def base_targets(ctl: ClosedLoopController):
+    est = ctl.sun.estimate(T)
+    return est, ctl.targets(est, ModeDecision(ControlMode.TRACK, "sun up"), None)
+
+
+def test_a_stow_order_and_other_modes_are_not_steered():
+    ctl = controller()
+    est = ctl.sun.estimate(T)
+    for row in ctl.rows:
+        row.measured = Measurement(
+            T, [0.0, 0.0][: row.runtime.cfg.axes], [5.0, 5.0][: row.runtime.cfg.axes], None
+        )
+    stow = ctl.targets(est, ModeDecision(ControlMode.STOW, "wind"), StowOrder("wind", "gust"))
+    assert [t for t, _ in stow] == [list(ctl.safety.angles(tr.cfg, "wind")) for tr in ctl.trackers]
+    diffuse = ctl.targets(est, ModeDecision(ControlMode.DIFFUSE, "overcast"), None)
+    assert diffuse[1][0] == [0.0]
+
+
+def test_assisted_adds_the_learned_offset_and_the_correction_to_the_reference():
+    ctl = controller()
+    est = ctl.sun.estimate(T)
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[1][0][0]
+    # the panel sits at the reference, and the camera sees the sun 1.5 deg further on
+    row.measured = Measurement(T, [ref], [1.5], [ref])
+    _, out = base_targets(ctl)
+    learned = row.axes[0].learner.estimate_deg
+    assert learned == pytest.approx(1.5, abs=0.01)  # one frame: the prior is wide
+    assert out[1][0][0] == pytest.approx(ref + learned + row.axes[0].correction, abs=1e-9)
+    # bumpless: the learner's jump is not added to the PID's own step towards the sun
+    assert ref + 0.5 < out[1][0][0] <= ref + 1.5
+    # no sun now: reference + learned offset (the correction decays)
+    row.measured = Measurement(T + 10, [ref + 1.5], None, [ref])
+    ctl._t = T + 10
+    _, out = base_targets(ctl)
+    assert out[1][0][0] == pytest.approx(ref + learned + row.axes[0].correction, abs=1e-9)
+    assert row.sources == {"camera": 1, "learned": 1}
+
+
+def test_the_papers_setpoint_is_held_inside_the_limits():
+    ctl = controller("paper")
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    lim = row.runtime.cfg.soft_limits[0][1]
+    for k in range(30):  # the camera keeps asking for more than the row can turn
+        row.measured = Measurement(T + 10 * k, [lim - 0.6], [10.0], None)
+        ctl._t = T + 10 * k
+        _, out = base_targets(ctl)
+    assert out[1][0][0] <= lim
+    assert row.axes[0].setpoint is not None and row.axes[0].setpoint <= lim

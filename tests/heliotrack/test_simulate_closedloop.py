@@ -1,0 +1,100 @@
+"""The panel-mounted closed loop in ``simulate``: short runs through the whole HIL (drives on
+a pty, the world's rendered panel cameras, pvlib truth)."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from datetime import UTC, datetime
+
+import numpy as np
+import pytest
+
+from benchmarks.fisheye_loop import WindowedRun
+from heliotrack.scenario import ScenarioConfig, parse_scenario
+from heliotrack.simulate import ScenarioRun, simulation_span
+from tests.conftest import REPO
+
+OFFSET = REPO / "config" / "hil-closedloop-offset.toml"
+
+
+def scenario(trackers: tuple[str, ...], mode: str = "assisted", enabled: bool = True, gap=None, state=None):
+    data = tomllib.loads(OFFSET.read_text())
+    data["trackers"] = [t for t in data["trackers"] if t["name"] in trackers]
+    data["hil"]["mount_offsets"] = [m for m in data["hil"]["mount_offsets"] if m["tracker"] in trackers]
+    data["closedloop"].update(mode=mode, enabled=enabled)
+    if state is not None:
+        data["closedloop"]["state"] = str(state)
+    data["hil"]["sun_gaps"] = [{"start": gap[0], "duration_s": gap[1]}] if gap is not None else []
+    return parse_scenario(data, OFFSET)
+
+
+def run(cfg: ScenarioConfig, start: str, hours: float, cls=ScenarioRun):
+    r = cls(cfg, simulation_span(cfg, 1, datetime.fromisoformat(start), hours), progress=False)
+    return r, r.execute(None)
+
+
+def test_pointing_truth_includes_the_rows_mounting_offset():
+    """Open loop (ephemeris targets), the panels sit 1.5 deg off: the truth sees it."""
+    cfg = scenario(("row-1", "dual-1"), enabled=False)
+    r, s = run(cfg, "2024-03-20T07:00:00+00:00", 0.15, WindowedRun)
+    assert "closedloop" not in s
+    t0 = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    # dual-axis: 1.5 deg in azimuth (1.5 cos(el) in angle, el ~45 deg) and -1.5 in elevation
+    for name, lo, hi in (("row-1", 1.35, 1.65), ("dual-1", 1.65, 2.0)):
+        samples = np.array(r.samples[name])
+        settled = samples[samples[:, 0] >= t0 + 180, 1]  # after the slew from stow
+        assert settled.size > 50
+        assert lo < np.median(settled) < hi, name
+
+
+def test_assisted_loop_tracks_a_misaligned_row_learns_its_offset_and_keeps_it_through_a_gap(tmp_path):
+    state = tmp_path / "misalignment.json"
+    cfg = scenario(("row-1",), gap=("2024-03-20T07:40:00Z", 1800.0), state=state)
+    r, s = run(cfg, "2024-03-20T07:00:00+00:00", 1.25, WindowedRun)
+    cl = s["closedloop"]["rows"]["row-1"]
+    assert cl["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
+    assert cl["setpoints"]["camera"] > 100 and cl["setpoints"]["learned"] >= 170  # the gap: 180 cycles
+    assert cl["frames"]["no_sun_glare"] >= 170
+    t0 = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    samples = np.array(r.samples["row-1"])
+    learned = samples[(samples[:, 0] >= t0 + 1200) & (samples[:, 0] < t0 + 2400), 1]
+    gap = samples[samples[:, 0] >= t0 + 2400, 1]
+    assert learned.size > 200 and gap.size > 300
+    assert np.percentile(learned, 95) <= 0.2
+    assert np.percentile(gap, 95) <= 0.3
+    saved = json.loads(state.read_text())
+    assert saved["rows"]["row-1"]["rotation"]["estimate_deg"] == pytest.approx(-1.5, abs=0.1)
+
+
+def test_paper_mode_acquires_the_sun_from_stow_with_the_camera_alone():
+    cfg = scenario(("dual-1",), mode="paper")
+    r, s = run(cfg, "2024-03-20T07:00:00+00:00", 0.4, WindowedRun)
+    assert s["closedloop"]["rows"]["dual-1"]["setpoints"].get("camera", 0) >= 140  # 144 cycles
+    samples = np.array(r.samples["dual-1"])
+    t0 = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    assert samples[0, 1] > 30  # starts face up
+    assert np.percentile(samples[samples[:, 0] >= t0 + 600, 1], 95) <= 0.2
+
+
+@pytest.mark.parametrize(
+    "change, where",
+    [
+        (lambda d: d["hil"]["mount_offsets"][0].update(tracker="nope"), "hil.mount_offsets[0].tracker"),
+        (
+            lambda d: d["hil"]["mount_offsets"][0].update(offset_deg=[1.0, 2.0]),
+            "hil.mount_offsets[0].offset_deg",
+        ),
+        (lambda d: d["hil"]["sun_gaps"][0].update(start="10:00"), "hil.sun_gaps[0].start"),
+        (lambda d: d["closedloop"].update(trackers=["row-1", "row-9"]), "closedloop.trackers[1]"),
+        (lambda d: d["closedloop"].update(mode="fuzzy"), "closedloop.mode"),
+    ],
+)
+def test_closed_loop_settings_are_checked(change, where):
+    from controller.errors import ConfigError
+
+    data = tomllib.loads(OFFSET.read_text())
+    change(data)
+    with pytest.raises(ConfigError) as err:
+        parse_scenario(data, OFFSET)
+    assert where in str(err.value)
