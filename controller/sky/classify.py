@@ -387,7 +387,8 @@ def classify_window(
     step_s : int, optional
         Grid spacing, s; inferred if omitted.
     min_daylight_s : float
-        Less daylit data than this gives class 0.
+        Less daylit data than this gives class 0; so do samples too sparse for the
+        classifier's grid (median spacing over 90 s), whatever their span.
 
     Returns
     -------
@@ -404,7 +405,13 @@ def classify_window(
     t, g = t[sel], g[sel]
     if t.size < 2:
         return WindowClass(0, np.nan, np.nan, np.nan, 0.0, 0.0, int(np.isfinite(g).sum()), method)
-    step = int(step_s) if step_s is not None else _window_step(t)
+    if step_s is not None:
+        step = int(step_s)
+    else:
+        try:
+            step = _window_step(t)
+        except ValueError:  # samples too sparse for a 1-min grid (a sensor read seldom): not judged
+            return WindowClass(0, np.nan, np.nan, np.nan, 0.0, 0.0, int(np.isfinite(g).sum()), method)
     n = int(np.floor((t_end - t_start) / step)) + 1
     slot = np.clip(np.rint((t - t_start) / step).astype(np.int64), 0, n - 1)
     ok = np.isfinite(g)

@@ -40,3 +40,17 @@ def test_overcast_day_switches_once_and_stays():
 
 def test_disabled_switch_never_fires():
     assert not any(on for _, on in run_day("overcast", enabled=False))
+
+
+def test_a_sparse_record_is_not_judged_and_does_not_raise():
+    """A pyranometer read only every 15 min (its link backing off after faults) leaves a
+    window too sparse for the classifier's 1-min grid: no decision, never an exception
+    out of the loop (the 30-day soak crashed a cycle on it)."""
+    t = T0 + np.arange(0, 86400, 900.0)
+    sky = sky_series(t, SITE.latitude, SITE.longitude, SITE.altitude, {0: "overcast"}, seed=0)
+    sw = DiffuseSwitch(SITE, DiffuseConfig(window_h=4.0))  # a window of 16 samples
+    states = []
+    for ti, g in zip(t, sky.ghi):
+        sw.add(ti, g)
+        states.append(sw.update(ti))
+    assert not any(states) and sw.last_class == 0

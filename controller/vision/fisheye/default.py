@@ -25,7 +25,6 @@ from __future__ import annotations
 import math
 from collections import Counter
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -34,11 +33,11 @@ from ...calibration.fisheye_bundle import FisheyeBundle
 from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
-from .frames import as_bgr8, load_frame
 from .gates import Ephemeris, Gate, GateOptions, prior_direction
 from .glare import GlareFit, GlareOptions, find_blobs, fit_glare
 from .history import GlareHistory
 from .lens import FisheyeLens
+from .pipeline import FramePipeline
 from .result import FisheyeResult, not_found
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
@@ -93,7 +92,7 @@ class Candidate:
     reason: str | None
 
 
-class FisheyeEstimator:
+class FisheyeEstimator(FramePipeline):
     """The default pipeline for one camera (one bundle); it remembers the last accepted
     detection of the current sequence (call :meth:`reset_sequence` between sequences)."""
 
@@ -130,14 +129,6 @@ class FisheyeEstimator:
         self.history.clear()
 
     # -- entry points ------------------------------------------------------------------------
-    def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
-        img, reason = load_frame(path)
-        if img is None:
-            return not_found(str(path), reason or "unreadable_file", t, self.frame, self.algorithm)
-        res = self.estimate_image(img, t, prior)
-        res.image = str(path)
-        return res
-
     def estimate_image(self, image, t: float | None = None, prior=None) -> FisheyeResult:
         """Measure the sun in one frame (BGR or grey, 8 or 16 bit) taken at POSIX time ``t``.
 
@@ -145,19 +136,10 @@ class FisheyeEstimator:
         e.g. the sun-path filter's prediction) that the detection must agree with.
         """
         o = self.options
-        img, reason = as_bgr8(image)
+        img, refused = self.checked_frame(image, t)
         if img is None:
-            return not_found(None, reason or "no_image", t, self.frame, self.algorithm)
-        if img.shape[:2] != self.shape:
-            return not_found(
-                None,
-                "size_mismatch",
-                t,
-                self.frame,
-                self.algorithm,
-                expected_shape=list(self.shape),
-                got_shape=list(img.shape[:2]),
-            )
+            assert refused is not None
+            return refused
         grey = glare_channel(img)
         _, peak, _, _ = cv2.minMaxLoc(grey, self.mask)
         if peak < o.min_peak:

@@ -32,15 +32,14 @@ are the bundle's principal point and ``R`` the radius of its 90-deg circle.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from ...calibration.fisheye_bundle import FisheyeBundle
 from ...sun.types import enu_to_azel
-from .frames import as_bgr8, load_frame
 from .lens import FisheyeLens
+from .pipeline import FramePipeline
 from .result import FisheyeResult, not_found
 
 K_H, K_S, K_I = 0.15, 0.30, 0.65
@@ -73,7 +72,7 @@ def segment(bgr: np.ndarray, delta: float) -> np.ndarray:
     return np.where(dist <= delta, 255, 0).astype(np.uint8)
 
 
-class SeedEstimator:
+class SeedEstimator(FramePipeline):
     """The paper's pipeline for one camera; remembers the previous sun centroid of the
     sequence (rule 3).  Same interface and result as the default pipeline."""
 
@@ -130,29 +129,12 @@ class SeedEstimator:
             borderValue=0,
         )
 
-    def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
-        img, reason = load_frame(path)
-        if img is None:
-            return not_found(str(path), reason or "unreadable_file", t, self.frame, self.algorithm)
-        res = self.estimate_image(img, t, prior)
-        res.image = str(path)
-        return res
-
     def estimate_image(self, image, t: float | None = None, prior=None) -> FisheyeResult:
         """The paper's steps on one frame (``prior`` is accepted and ignored)."""
-        img, reason = as_bgr8(image)
+        img, refused = self.checked_frame(image, t)
         if img is None:
-            return not_found(None, reason or "no_image", t, self.frame, self.algorithm)
-        if img.shape[:2] != self.shape:
-            return not_found(
-                None,
-                "size_mismatch",
-                t,
-                self.frame,
-                self.algorithm,
-                expected_shape=list(self.shape),
-                got_shape=list(img.shape[:2]),
-            )
+            assert refused is not None
+            return refused
         corrected = self.correct(segment(img, self.delta))
         n, _, stats, cents = cv2.connectedComponentsWithStats(corrected, connectivity=8)
         if n <= 1:
