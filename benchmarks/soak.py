@@ -38,6 +38,8 @@ TARGETS = {
 }
 
 DEFINITIONS = {
+    "out_of_limit_samples": "the first of those targets as the drives noted them: the "
+    "drive's time, axis, value, the limits it broke and the drive's own soft limits then",
     "crashes": "unhandled exceptions: raised out of the controller's cycle or wind poll (the "
     "soak catches them and goes on), or a row's cycle ended by an exception type the loop did "
     "not expect (its record reads '<row>: <Type>: ...')",
@@ -136,6 +138,7 @@ def result(soak: SoakRun, summary: dict, days: int) -> dict:
         "crashes_by_kind": dict(soak.crashes),
         "crash_samples": soak.crash_samples,
         "out_of_limit_commands": ool,
+        "out_of_limit_samples": soak.out_of_limit_samples(),
         "target_writes": writes,
         "faults": {
             k: {"injected": v["injected"], "survived": v["survived"], "open_at_end": v["open_at_end"]}

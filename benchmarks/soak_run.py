@@ -196,6 +196,16 @@ class SoakRun(ScenarioRun):
         r = self.rss_by_day
         return round(100.0 * (r[-1] - r[0]) / r[0], 2) if len(r) >= 2 else None
 
+    def out_of_limit_samples(self) -> list[str]:
+        """What the drives noted of the targets written outside the limits (the first few
+        per drive, any drive that ran in the soak)."""
+        fws = self.world.all_firmwares() if self.world is not None else []
+        return [
+            f"t={t:.0f} axis {k}: {v:.3f} deg outside {lim}, the drive's soft limits then {soft}"
+            for fw in fws
+            for t, k, v, lim, soft in fw.out_of_limit_samples
+        ][:20]
+
     def out_of_limit(self) -> tuple[int, int]:
         """(targets written outside the limits, targets written), over every drive."""
         fws = self.world.all_firmwares() if self.world is not None else []

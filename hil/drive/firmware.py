@@ -122,6 +122,11 @@ class DriveFirmware:
         #: TARGET_ANGLE writes received, and those outside the limits (see audit_limits).
         self.target_writes = 0
         self.out_of_limit_writes = 0
+        #: The first few of them: (firmware time s, axis, value, the limits it broke, the
+        #: firmware's own soft limits then), for a soak to show what went wrong.
+        self.out_of_limit_samples: list[
+            tuple[float, int, float, tuple[float, float], tuple[float, float]]
+        ] = []
         #: The last target written to each axis (deg), whatever the mode did with it.
         self.last_target_written: list[float | None] = [None for _ in axes]
         #: The panel sits this far off each axis's output shaft (deg, a mounting or
@@ -399,6 +404,9 @@ class DriveFirmware:
             lo, hi = max(lo, self.audit_limits[k][0]), min(hi, self.audit_limits[k][1])
         if not lo - tol <= value <= hi + tol:
             self.out_of_limit_writes += 1
+            if len(self.out_of_limit_samples) < 10:
+                p = self.axes[k].p
+                self.out_of_limit_samples.append((self._t, k, value, (lo, hi), (p.soft_min, p.soft_max)))
 
     def _command(self, cmd: Command) -> None:
         for k, ax in enumerate(self.axes):

@@ -62,6 +62,10 @@ def test_the_firmware_counts_targets_outside_the_limits():
     write_target(fw, 70.0)  # outside both (clamped)
     assert fw.target_writes == 3 and fw.out_of_limit_writes == 2
     assert fw.last_target_written[0] == pytest.approx(70.0)
+    # what a soak shows of them: the value, the limits it broke, the drive's own limits
+    (_, k, v, broken, soft), (_, _, v2, _, _) = fw.out_of_limit_samples
+    assert k == 0 and v == pytest.approx(47.0) and v2 == pytest.approx(70.0)
+    assert broken[1] < 47.0 <= soft[1]
 
 
 def test_pyranometer_faults_out_of_range_nan_and_frozen():
