@@ -9,35 +9,15 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+
+from .summary_fisheye import fisheye as _fisheye
+from .summary_rows import Headline, fmt
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
 
 
-@dataclass(frozen=True)
-class Headline:
-    """One figure: ``ok`` is True / False against ``target``, None when only reported."""
-
-    benchmark: str
-    figure: str
-    value: str
-    target: str = ""
-    paper: str = ""
-    ok: bool | None = None
-
-
-def _f(x: Any, nd: int = 3, unit: str = "") -> str:
-    if x is None:
-        return "-"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, int):
-        return f"{x:,}{unit}"
-    if isinstance(x, float):
-        return f"{x:.{nd}g}{unit}" if abs(x) < 1e4 else f"{x:,.0f}{unit}"
-    return str(x)
+_f = fmt
 
 
 def _loop(r: dict) -> list[Headline]:
@@ -326,6 +306,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "hotspot": _hotspot,
     "persistence": _persistence,
     "soak": _soak,
+    "fisheye": _fisheye,
 }
 
 

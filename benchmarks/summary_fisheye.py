@@ -1,0 +1,111 @@
+"""Headline rows of ``heliotrack bench fisheye`` (paper 003), for :mod:`benchmarks.summary`."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .summary_rows import Headline, fmt
+
+
+def fisheye(r: dict) -> list[Headline]:
+    acc = r["acceptance"]
+    clear = r["pooled_clear"]
+    fps = r["fps"]
+
+    def rms(profile: str, pipeline: str = "default_known") -> Any:
+        return clear[profile][pipeline]["all_el_ge_5"]["rms_deg"]
+
+    clouds, distractors = r["clouds"]["default"], r["distractors"]["default"]
+    false = clouds["counts"]["false_detection"] + distractors["counts"]["false_detection"]
+    seed_false = (
+        r["clouds"]["seed"]["counts"]["false_detection"]
+        + r["distractors"]["seed"]["counts"]["false_detection"]
+    )
+    out = [
+        Headline(
+            "fisheye",
+            "clear sky RMS, 640 x 480",
+            fmt(rms("seed"), 3, " deg"),
+            "<= 0.03 deg",
+            f"published 1.86 / 2.4 deg; seed here {rms('seed', 'seed'):.1f} deg",
+            ok=acc.get("clear_640x480_rms_le_0.03"),
+        ),
+        Headline(
+            "fisheye",
+            "clear sky RMS, 1280 x 960",
+            fmt(rms("hd"), 3, " deg"),
+            "<= 0.02 deg",
+            ok=acc.get("clear_1280x960_rms_le_0.02"),
+        ),
+        Headline(
+            "fisheye",
+            "broken cloud RMS where visible",
+            fmt(clouds["error_where_visible"]["rms_deg"], 3, " deg"),
+            "<= 0.2 deg",
+            ok=acc.get("broken_cloud_visible_rms_le_0.2"),
+        ),
+        Headline(
+            "fisheye",
+            "false detections, clouds + distractors",
+            fmt(false),
+            "0",
+            f"seed pipeline: {seed_false}",
+            ok=acc.get("zero_false_detections"),
+        ),
+        Headline(
+            "fisheye",
+            "misses of a visible sun, clouds / distractors",
+            f"{100 * clouds['counts']['miss_rate_of_visible']:.1f} / "
+            f"{100 * distractors['counts']['miss_rate_of_visible']:.1f} %",
+            "<= 5 %",
+            ok=acc.get("misses_le_5pct"),
+        ),
+        Headline(
+            "fisheye",
+            "frames/s, 640 x 480 (one core)",
+            fmt(fps["640x480"]["default"]["fps"], 3),
+            ">= 200",
+            "paper: 5",
+            ok=acc.get("fps_640x480_ge_200"),
+        ),
+        Headline(
+            "fisheye",
+            "frames/s, 1920 x 1080 (one core)",
+            fmt(fps["1920x1080"]["default"]["fps"], 3),
+            ">= 50",
+            ok=acc.get("fps_1920x1080_ge_50"),
+        ),
+    ]
+    loop = r.get("panel_loop")
+    if loop:
+        cases, lacc = loop["cases"], loop["acceptance"]
+
+        def p95(case: str, window: str) -> Any:
+            return cases[case]["pointing_error_deg"]["pooled"][window]["p95"]
+
+        out += [
+            Headline(
+                "fisheye",
+                "panel loop, clear day: pointing p95 (learned)",
+                fmt(p95("clear_assisted", "learned"), 3, " deg"),
+                "<= 0.2 deg",
+                ok=lacc.get("clear_p95_le_0.2"),
+            ),
+            Headline(
+                "fisheye",
+                "panel loop, 1.5 deg row offset: p95 once learned",
+                fmt(p95("offset_assisted", "learned"), 3, " deg"),
+                "<= 0.2 deg",
+                f"sky-fixed: {p95('offset_sky_fixed', 'learned'):.2f} deg",
+                ok=lacc.get("offset_learned_p95_le_0.2"),
+            ),
+            Headline(
+                "fisheye",
+                "panel loop, 1.5 deg row offset: p95 in a 2-h gap",
+                fmt(p95("offset_assisted", "gap"), 3, " deg"),
+                "<= 0.3 deg",
+                f"paper's mode: {p95('offset_paper', 'gap'):.1f} deg",
+                ok=lacc.get("offset_gap_p95_le_0.3"),
+            ),
+        ]
+    return out
