@@ -38,6 +38,8 @@ TARGETS = {
 }
 
 DEFINITIONS = {
+    "recovery_worst_event": "the slowest recovery of a row: the row, the faults it waited "
+    "for, when the last of them cleared and when the row was back in service (POSIX s)",
     "out_of_limit_samples": "the first of those targets as the drives noted them: the "
     "drive's time, axis, value, the limits it broke and the drive's own soft limits then",
     "crashes": "unhandled exceptions: raised out of the controller's cycle or wind poll (the "
@@ -139,6 +141,7 @@ def result(soak: SoakRun, summary: dict, days: int) -> dict:
         "crash_samples": soak.crash_samples,
         "out_of_limit_commands": ool,
         "out_of_limit_samples": soak.out_of_limit_samples(),
+        "recovery_worst_event": ledger.worst_event if ledger is not None else None,
         "target_writes": writes,
         "faults": {
             k: {"injected": v["injected"], "survived": v["survived"], "open_at_end": v["open_at_end"]}

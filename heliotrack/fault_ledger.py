@@ -66,6 +66,9 @@ class FaultLedger:
     recovery_worst_s: dict[str, float] = field(default_factory=dict)
     #: Rows hit by a wire fault since the last cycle's judgement.
     hit: set[str] = field(default_factory=set)
+    #: The slowest recovery of any row: its row, the faults it waited for, when the last
+    #: of them cleared and when the row was back (POSIX s on the simulated clock).
+    worst_event: dict | None = None
 
     def __post_init__(self) -> None:
         self.state = {r: _Row() for r in self.rows}
@@ -127,6 +130,16 @@ class FaultLedger:
         self.hit.clear()
         if not back:
             return
+        for r, dt in back.items():
+            if self.worst_event is None or dt > self.worst_event["seconds"]:
+                kinds = sorted({p.kind for p in self._pending if r in p.rows})
+                self.worst_event = {
+                    "row": r,
+                    "faults": kinds,
+                    "cleared_at": round(t - dt, 3),
+                    "back_at": round(t, 3),
+                    "seconds": round(dt, 3),
+                }
         keep = []
         for p in self._pending:
             for r in p.rows & back.keys():

@@ -93,6 +93,14 @@ def test_a_plant_fault_waits_for_every_row_and_recovery_counts_from_the_last_cle
     assert ledger.recovery_worst_s["crc_error"] == pytest.approx(90.0)
     # row b came back at 180, its last fault (the CRC error) cleared at 90; row a at 120
     assert ledger.worst_periods(plant=True) == pytest.approx(1.5)
+    # which row and which faults, for a soak to say where the slowest recovery was
+    assert ledger.worst_event == {
+        "row": "b",
+        "faults": ["crc_error", "wall_clock_step"],
+        "cleared_at": 90.0,
+        "back_at": 180.0,
+        "seconds": 90.0,
+    }
     summary = ledger.summary(["crc_error", "wall_clock_step", "drive_stall"], t_end=180.0)
     assert summary["injected"] == summary["survived"] == 2
     assert summary["by_type"]["drive_stall"] == {
