@@ -35,7 +35,7 @@ from firmware_protocol.canopen import (
     Statusword,
     entry,
 )
-from firmware_protocol.codec import raw_to_words, words_to_raw
+from firmware_protocol.codec import words_to_raw
 from firmware_protocol.eds import eds
 from firmware_protocol.registers import AXIS_BASE, AXIS_REGISTERS, AXIS_STRIDE
 from hil.drive.firmware import DriveFirmware, FirmwareReject
@@ -213,12 +213,7 @@ class AxisNode:
 
     def _halt(self) -> None:
         """Stop where the axis is (leaving OPERATION ENABLED, quick stop, fault, halt bit)."""
-        actual = self._reg_raw("ACTUAL_ANGLE")
-        reg = register("TARGET_ANGLE")
-        try:
-            self.fw.write(reg.address(self.axis), raw_to_words(reg, actual))
-        except FirmwareReject:  # pragma: no cover - TARGET_ANGLE is always writable
-            pass
+        self.fw.halt(self.axis, self._reg_raw("ACTUAL_ANGLE") * register("ACTUAL_ANGLE").scale)
 
     # -- values --------------------------------------------------------------------------
     def statusword(self, snap: dict[str, int]) -> int:

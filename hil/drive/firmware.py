@@ -395,6 +395,17 @@ class DriveFirmware:
                 if self.modes[k] == Mode.STOW:
                     ax.target = value
 
+    def halt(self, k: int, angle_deg: float) -> None:
+        """The drive stops axis ``k`` at ``angle_deg`` by itself (a CiA 402 halt, quick stop
+        or fault reaction): the target its position loop then holds, within the soft
+        limits.  Not a master's command, so the audit does not count it (an axis a hair
+        past its limit, inside the deadband, is not a controller writing off limits)."""
+        with self._lock:
+            self.update()
+            if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
+                ax = self.axes[k]
+                ax.target = min(max(angle_deg, ax.p.soft_min), ax.p.soft_max)
+
     def _audit_target(self, k: int, value: float) -> None:
         self.target_writes += 1
         self.last_target_written[k] = value

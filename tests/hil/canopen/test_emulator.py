@@ -76,6 +76,19 @@ def test_leaving_operation_enabled_halts_the_axis():
         assert wait_for(lambda: fw.axes[0].velocity == 0.0)
 
 
+def test_a_halt_a_hair_past_the_limit_holds_inside_it_and_is_no_masters_command():
+    """The drive's own halt is not a target from a master: the soak's audit counted one
+    (an axis 0.01 deg under its soft minimum, inside the deadband) as written off limits."""
+    with emulated(axes=one_axis(soft_min=0.0, initial_angle=0.0)) as (fw, _emu, ch), master(ch) as net:
+        node = node402(net, 5)
+        _enable(node)
+        fw.axes[0].encoder_offset = -0.01  # the encoder reads a hair under the limit
+        assert wait_for(lambda: fw.axes[0].encoder < 0.0)
+        node.state = "SWITCHED ON"  # leaving OPERATION ENABLED halts the axis where it is
+        assert fw.axes[0].target == pytest.approx(0.0)  # held inside its limits
+        assert fw.out_of_limit_writes == 0 and fw.target_writes == 0
+
+
 def test_out_of_limit_set_point_is_clamped_and_flagged():
     with emulated() as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)
