@@ -301,7 +301,15 @@ class FisheyeEstimator(FramePipeline):
         # the bending and of the radius: systematic, not averaged down by the rays
         sig_rim = 0.5 * f.rms_deg
         sig_partial = 0.5 * f.radius_deg * (1.0 - f.inlier_fraction) ** 2
-        sigma = math.sqrt(sig_fit**2 + sig_rim**2 + o.sigma_floor_deg**2 + self.sigma_cal**2 + sig_partial**2)
+        # a fit still moving at its last pass has not settled: its step is part of the error
+        sigma = math.sqrt(
+            sig_fit**2
+            + sig_rim**2
+            + o.sigma_floor_deg**2
+            + self.sigma_cal**2
+            + sig_partial**2
+            + f.last_move_deg**2
+        )
         if f.inlier_fraction < 0.9:
             flags.append("outliers_rejected")
         if f.smear:
@@ -327,7 +335,12 @@ class FisheyeEstimator(FramePipeline):
             offset_deg=(math.degrees(math.atan2(x, z)), math.degrees(math.atan2(y, z))),
             radius_deg=f.radius_deg,
             quality=tuple(flags),
-            extra={"rim_rms_deg": round(f.rms_deg, 5), "rim_inliers": f.n_inliers, "rim_rays": f.n_rays},
+            extra={
+                "rim_rms_deg": round(f.rms_deg, 5),
+                "rim_inliers": f.n_inliers,
+                "rim_rays": f.n_rays,
+                "last_move_deg": round(f.last_move_deg, 5),
+            },
         )
 
 

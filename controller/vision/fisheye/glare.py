@@ -14,26 +14,31 @@ Method (see docs/fisheye.md):
    and below the glare and leaves its centre in place; a saturated streak (bloom) costs
    the near-vertical rays, whose rims it hides.
 3. **Cone.**  Rim points become unit vectors through the calibrated lens.  Points on a
-   small circle of the sphere lie on a plane, ``a . v = cos(rho)``: the axis ``a`` is the
-   sun's direction, ``rho`` the glare's angular radius.  The plane is fitted by weighted
-   total least squares, then points whose angular residual is an outlier (median / MAD)
-   are dropped and the fit repeated, so arcs pushed out by a saturated cloud edge or
-   pulled in by a cloud over part of the glare do not move the centre.  Working on the
-   sphere makes the fit indifferent to the fisheye squeezing a round glare near the edge.
-4. The fit is redone once with rays re-centred on the fitted axis.
+   small circle of the sphere lie on a plane, ``a . v = cos(rho)``, fitted robustly
+   (:func:`.sphere.fit_cone`: median / MAD rejection from all points and from a RANSAC
+   circle), so arcs pushed out by a saturated cloud edge or pulled in by a cloud over part
+   of the glare are outliers.  Working on the sphere makes the fit indifferent to the
+   fisheye squeezing a glare round on the sky near the edge of the field.
+4. **Blend.**  Part of a real glare is the lens's own (round on the sensor); the rim is
+   then refitted as a circle in a blend of the sky's and the sensor's metrics
+   (:mod:`.blend`), from the cone's inliers and from all points; the blend ``alpha`` is
+   measured, and the sky's rings are read at equal blended distance in the next pass.
+5. Rays are re-cast around the new axis until it stops moving (at most 4 passes).
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
+from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .lens import FisheyeLens
 from .skybg import sky_by_elevation, sky_dipole
-from .sphere import fit_cone, refine_cone, sample_sphere, tangent_basis
+from .sphere import fit_cone, sample_sphere, tangent_basis
 
 
 @dataclass(frozen=True)
@@ -44,6 +49,9 @@ class GlareOptions:
     step_px : sampling step along the rays (px).
     outlier_k : residuals beyond ``outlier_k`` robust sigmas are outliers.
     min_rays, max_rays : number of rays around a candidate.
+    max_horizon_shift : near the horizon, where the sky behind the rim is modelled by
+        elevation, a ray whose level the sky raises by more than this fraction of the
+        glare's contrast is not used (the model extrapolates there, towards the horizon).
     """
 
     level: float = 0.85
@@ -52,6 +60,7 @@ class GlareOptions:
     min_rays: int = 48
     max_rays: int = 120
     noise_floor_px: float = 0.06
+    max_horizon_shift: float = 0.10
 
 
 @dataclass
@@ -70,7 +79,7 @@ class GlareFit:
     axis: np.ndarray  # unit sun direction, camera frame
     radius_deg: float
     rms_deg: float
-    n_rays: int
+    n_rays: int  # usable rays (those a bloom streak covers are not)
     n_valid: int
     n_inliers: int
     max_gap_deg: float  # largest angular gap between inlier rays around the centre
@@ -83,6 +92,7 @@ class GlareFit:
     smear: str | None = None
     flags: list[str] = field(default_factory=list)
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
+    last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
 
     @property
     def inlier_fraction(self) -> float:
@@ -231,9 +241,11 @@ def fit_glare(
     idx = np.zeros(0, int)
     has = np.zeros(n_rays, bool)
     rms = float("inf")
+    moved = 0.0
     dipole = np.zeros(2)
     by_el: np.ndarray | None = None
     bg = 0.0
+    alpha = 0.0
 
     # -- pass 2: rays on the sphere around the axis ---------------------------------------
     step = math.radians(max(opts.step_px, 0.04 * r) * dpp)  # ~25 samples across a radius
@@ -250,6 +262,13 @@ def fit_glare(
         vals = np.where(samples[0][1], samples[0][0], np.nan)  # no rim below the horizon
         if it < 2:
             rvals, rsky = samples[1]
+            if alpha > 0.0:  # the rings at equal blended distance, to first order
+                with np.errstate(all="ignore"), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    prof = np.nanmean(np.where(rsky, rvals, np.nan), axis=0)
+                if np.isfinite(prof).all():
+                    exc = blended_excess(lens, a, e1, e2, phi[ring_sel], ring_chi, alpha, math.radians(dpp))
+                    rvals = rvals - np.gradient(prof, ring_chi)[None, :] * exc
             outer = rvals[:, -3:][rsky[:, -3:]]
             if outer.size < 8:
                 return None
@@ -278,6 +297,8 @@ def fit_glare(
         level = bg + opts.level * (peak - bg) + shift
         chi_c, has = _crossings(vals, rim_chi, level)
         has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
+        if by_el is not None:  # near the horizon the sky model extrapolates: a large
+            has &= np.abs(shift) <= opts.max_horizon_shift * (peak - bg)  # shift is a guess
         if up_cam is not None:  # the last degrees above the horizon change too fast to model
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (t_k @ up_cam)
@@ -286,48 +307,33 @@ def fit_glare(
             return None
         dirs_t = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
         pts = np.cos(chi_c)[:, None] * a + np.sin(chi_c)[:, None] * dirs_t
-        a_new, rho, inl, rms, ell = fit_cone(pts[has], k=opts.outlier_k, floor_rad=floor)
+        a_new, rho, inl, rms, _ = fit_cone(pts[has], k=opts.outlier_k, floor_rad=floor)
+        # the centre: the rim read as a circle in a blend of the sky's and the sensor's
+        # metrics (:mod:`.blend`), from the cone's inliers and from every rim point
+        uv_rim, ok_rim = lens.project(pts[has])
+        if ok_rim.all():
+            bf = fit_blend(
+                lens,
+                pts[has],
+                uv_rim,
+                a_new,
+                [inl, np.ones(len(inl), bool)],
+                k=opts.outlier_k,
+                floor_rad=floor,
+                alpha0=alpha if it else ALPHA_PRIOR,
+                scale_rad=math.radians(dpp),
+            )
+            if bf is not None:
+                a_new, rho, inl, rms, alpha = bf.axis, bf.rho, bf.inliers, bf.rms, bf.alpha
         idx = np.flatnonzero(has)[inl]
         moved = math.acos(min(1.0, float(a_new @ a)))
         a = a_new
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it >= 1 and moved < 0.5 * floor:
             break
-    # how much the rim's ellipticity is that of a disk round in the image (lens veiling glare)
-    # rather than on the sky: ``g`` (0..1).  Measured, it is not used to shift the cone's
-    # axis (that made every mixed glare worse); it only admits the image-circle reading below
-    g = 0.0
-    if float(np.hypot(*ell)) > 0.01 * rho:  # a round rim is round on the sky
-        _, ell_pix = _pixel_round_bias(lens, a, rho)
-        n2 = float(ell_pix @ ell_pix)
-        if n2 > (0.01 * rho) ** 2:
-            g = float(np.clip((ell @ ell_pix) / n2, 0.0, 1.0))
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
-    # the same rim, read as a circle in the image: a glare made by the optics (round on the
-    # sensor) fits it better than any cone near the edge of the field
-    uv_rim, ok_rim = lens.project(pts[has])
-    circ = _fit_circle_px(uv_rim[ok_rim], opts.outlier_k, opts.noise_floor_px) if ok_rim.sum() >= 8 else None
-    if circ is not None:
-        (pcx, pcy), p_inl, p_rms = circ
-        n_a, rms_a_px = len(idx), math.degrees(rms) / dpp
-        n_p = int(p_inl.sum())
-        # only a clearly better, nearly complete circle: a rim bent by a cloud edge fits
-        # neither model, and the cone is the default
-        # and only when the cone's rim is elliptical the way the lens makes a round image
-        # (g), which a rim bent by clouds is not
-        if (
-            g >= 0.5
-            and n_p >= 0.8 * len(uv_rim)
-            and (n_p >= 1.25 * n_a + 2 or (n_p >= n_a and p_rms < 0.5 * rms_a_px))
-        ):
-            d_c, ok_c = lens.rays([[pcx, pcy]])
-            if ok_c[0]:
-                a = d_c[0]
-                idx = np.flatnonzero(has)[np.flatnonzero(ok_rim)[p_inl]]
-                rho = float(np.mean(np.arccos(np.clip(pts[has][ok_rim][p_inl] @ a, -1.0, 1.0))))
-                rms = math.radians(p_rms * dpp)
-                g = 1.0
-                flags.append("round_in_image")
+    if alpha >= 0.75:
+        flags.append("round_in_image")
     uv, okp = lens.project(a[None, :])
     if not okp[0]:
         return None
@@ -339,10 +345,10 @@ def fit_glare(
         axis=a,
         radius_deg=math.degrees(rho),
         rms_deg=math.degrees(rms),
-        n_rays=n_rays,
+        n_rays=int(vertical_ok.sum()),
         n_valid=int(has.sum()),
         n_inliers=len(idx),
-        max_gap_deg=_max_gap(idx, n_rays),
+        max_gap_deg=_max_gap(idx, vertical_ok),
         centre_uv=(xc, yc),
         radius_px=r_fit,
         peak=peak,
@@ -351,59 +357,23 @@ def fit_glare(
         deg_per_px=dpp,
         smear=smear_kind,
         flags=flags,
-        image_share=g,
+        image_share=alpha,
+        last_move_deg=math.degrees(moved),
     )
 
 
-def _fit_circle_px(uv: np.ndarray, k: float, floor_px: float):
-    """Robust algebraic circle through image points (N, 2): (centre, inlier mask, rms px)."""
-    inl = np.ones(len(uv), bool)
-    centre = uv.mean(axis=0)
-    res = np.zeros(len(uv))
-    for _ in range(5):
-        x, y = uv[inl, 0], uv[inl, 1]
-        A = np.stack([x, y, np.ones_like(x)], 1)
-        sol, *_ = np.linalg.lstsq(A, -(x * x + y * y), rcond=None)
-        centre = np.array([-sol[0] / 2.0, -sol[1] / 2.0])
-        r = math.sqrt(max(float(centre @ centre - sol[2]), 0.0))
-        res = np.hypot(uv[:, 0] - centre[0], uv[:, 1] - centre[1]) - r
-        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
-        new = np.abs(res - np.median(res[inl])) <= k * max(mad, floor_px)
-        if new.sum() < 6 or np.array_equal(new, inl):
-            break
-        inl = new
-    rms = float(np.sqrt(np.mean((res[inl] - res[inl].mean()) ** 2))) if inl.any() else float("inf")
-    return (float(centre[0]), float(centre[1])), inl, rms
-
-
-def _pixel_round_bias(
-    lens: FisheyeLens, a: np.ndarray, rho: float, n: int = 72
-) -> tuple[np.ndarray, np.ndarray]:
-    """For a disk round in the image, centred on the image of ``a`` and ``rho`` wide on the
-    sphere: (the offset of its fitted cone's axis from ``a``, its ellipticity (c2, s2))."""
-    uv, ok = lens.project(a[None, :])
-    if not ok[0]:
-        return np.zeros(3), np.zeros(2)
-    c = uv[0]
-    ang = np.arange(n) * (2 * math.pi / n)
-    r = math.degrees(rho) / lens.deg_per_px(float(c[0]), float(c[1]))
-    for _ in range(2):
-        d, okd = lens.rays(c + r * np.stack([np.cos(ang), np.sin(ang)], 1))
-        if not okd.all():
-            return np.zeros(3), np.zeros(2)
-        r *= rho / float(np.mean(np.arccos(np.clip(d @ a, -1.0, 1.0))))
-    # all the points, no robust selection: the disk is exact, only its shape matters
-    a_pix, _, _, _, ell = refine_cone(d, np.ones(len(d), bool), 3.0, 1e-5, 0)
-    return a_pix - a, ell
-
-
-def _max_gap(idx: np.ndarray, n: int) -> float:
-    """Largest run of rays (deg) between consecutive inlier rays, around the circle."""
-    if idx.size == 0:
+def _max_gap(idx: np.ndarray, usable: np.ndarray) -> float:
+    """Largest run (deg) of usable rays without an inlier, around the circle.  Rays that
+    could not be used by design (those a bloom streak covers) are skipped, not counted:
+    the streak's sectors are known and symmetric, a cloud's are not."""
+    pos = np.cumsum(usable) - 1  # each usable ray's rank among the usable ones
+    m = int(usable.sum())
+    idx = idx[usable[idx]]
+    if idx.size == 0 or m == 0:
         return 360.0
-    s = np.sort(idx)
-    gaps = np.diff(np.concatenate([s, [s[0] + n]]))
-    return float((gaps.max() - 1) * 360.0 / n)
+    s = np.sort(pos[idx])
+    gaps = np.diff(np.concatenate([s, [s[0] + m]]))
+    return float((gaps.max() - 1) * 360.0 / m)
 
 
 def _core_fill(grey: np.ndarray, c: tuple[float, float], r: float, level: float) -> float:
