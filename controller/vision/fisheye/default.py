@@ -75,6 +75,7 @@ class FisheyeOptions:
     max_rms_px: float = 0.6  # rim residual RMS: this many pixels at the glare ...
     max_rms_rel: float = 0.08  # ... plus this fraction of its radius
     min_core_fill: float = 0.9
+    max_last_move_deg: float = 0.1  # a fit still moving this much at its last pass: unsettled
     min_contrast: float = 0.12  # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
     ambiguity_ratio: float = 1.25  # the sun's glare must be this much larger
@@ -219,6 +220,7 @@ class FisheyeEstimator(FramePipeline):
         if (
             fit.rms_deg > o.max_rms_px * fit.deg_per_px + o.max_rms_rel * fit.radius_deg
             or fit.core_fill < o.min_core_fill
+            or fit.last_move_deg > o.max_last_move_deg
         ):
             reason = "irregular_glare"
         elif fit.inlier_fraction < o.min_inlier_fraction or fit.max_gap_deg > o.max_gap_deg:

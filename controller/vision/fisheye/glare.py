@@ -23,7 +23,7 @@ Method (see docs/fisheye.md):
    then refitted as a circle in a blend of the sky's and the sensor's metrics
    (:mod:`.blend`), from the cone's inliers and from all points; the blend ``alpha`` is
    measured, and the sky's rings are read at equal blended distance in the next pass.
-5. Rays are re-cast around the new axis until it stops moving (at most 4 passes).
+5. Rays are re-cast around the new axis until it stops moving (at most 8 passes).
 """
 
 from __future__ import annotations
@@ -49,6 +49,8 @@ class GlareOptions:
     step_px : sampling step along the rays (px).
     outlier_k : residuals beyond ``outlier_k`` robust sigmas are outliers.
     min_rays, max_rays : number of rays around a candidate.
+    max_passes : rays are re-cast around the new axis until it stops moving, at most this
+        many times (a glare cut by the horizon or a bloom streak may take more than a few).
     max_horizon_shift : near the horizon, where the sky behind the rim is modelled by
         elevation, a ray whose level the sky raises by more than this fraction of the
         glare's contrast is not used (the model extrapolates there, towards the horizon).
@@ -61,6 +63,7 @@ class GlareOptions:
     max_rays: int = 120
     noise_floor_px: float = 0.06
     max_horizon_shift: float = 0.10
+    max_passes: int = 8
 
 
 @dataclass
@@ -251,7 +254,7 @@ def fit_glare(
     step = math.radians(max(opts.step_px, 0.04 * r) * dpp)  # ~25 samples across a radius
     ring_sel = np.arange(0, n_rays, max(1, n_rays // 36))
     lo_f, hi_f = 0.5, 1.7
-    for it in range(4):
+    for it in range(opts.max_passes):
         e1, e2 = tangent_basis(a)
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         grids = [(phi, rim_chi)]

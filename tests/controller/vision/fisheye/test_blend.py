@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from benchmarks.fisheye_suites import day_frames
 from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator, FisheyeLens
 from controller.vision.fisheye.blend import fit_blend
@@ -100,3 +101,22 @@ def test_a_glare_round_on_the_sensor_at_low_sun_is_found_and_centred(t):
     assert res.found, res.reason
     assert angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), fr.truth["sun_enu"]) < 0.08
     assert "round_in_image" in res.quality
+
+
+def test_bloom_at_low_sun_is_found_more_often_and_never_far_off():
+    """A bloom streak covers the near-vertical rays; at low sun (10-25 deg) the horizon takes
+    more.  Over 15 such frames and 3 noise draws the pipeline before the blended rim found
+    20 of 45, the worst 0.46 deg off; it finds 31, none over 0.13 deg off."""
+    scn = sky_profile("seed", noise=True)
+    scn = scn.with_(glare=replace(scn.glare, smear="bloom", smear_level=2.0))
+    frames = [f for d in ((2025, 3, 20), (2025, 6, 21)) for f in day_frames(scn, d, 20) if 10 <= f[2] <= 25]
+    errs = []
+    for seed in range(3):
+        for t, az, el in frames:
+            fr = render_sky(scn, t, rng=np.random.default_rng(seed), sun=(az, el))
+            res = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, t)
+            if res.found:
+                errs.append(angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), fr.truth["sun_enu"]))
+    assert len(frames) == 15
+    assert len(errs) >= 27
+    assert max(errs) < 0.2
