@@ -81,6 +81,7 @@ class FisheyeOptions:
     ambiguity_ratio: float = 1.25  # the sun's glare must be this much larger
     max_blobs: int = 6
     sigma_floor_deg: float = 0.015
+    sky_sigma_share: float = 0.5  # the sky's correction of the rim is trusted to half its size
     near_horizon_deg: float = 12.0
 
 
@@ -303,7 +304,9 @@ class FisheyeEstimator(FramePipeline):
         # the bending and of the radius: systematic, not averaged down by the rays
         sig_rim = 0.5 * f.rms_deg
         sig_partial = 0.5 * f.radius_deg * (1.0 - f.inlier_fraction) ** 2
-        # a fit still moving at its last pass has not settled: its step is part of the error
+        # a fit still moving at its last pass has not settled: its step is part of the error;
+        # so is a share of how far the sky's correction moved the centre (a sky that
+        # brightens steeply around a low sun is modelled only in part)
         sigma = math.sqrt(
             sig_fit**2
             + sig_rim**2
@@ -311,6 +314,7 @@ class FisheyeEstimator(FramePipeline):
             + self.sigma_cal**2
             + sig_partial**2
             + f.last_move_deg**2
+            + (o.sky_sigma_share * f.sky_move_deg) ** 2
         )
         if f.inlier_fraction < 0.9:
             flags.append("outliers_rejected")

@@ -96,6 +96,7 @@ class GlareFit:
     flags: list[str] = field(default_factory=list)
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
+    sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
 
     @property
     def inlier_fraction(self) -> float:
@@ -186,9 +187,12 @@ def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_leve
     return bool(sides) and all(sides)
 
 
-def _crossings(vals: np.ndarray, radii: np.ndarray, level: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _crossings(
+    vals: np.ndarray, radii: np.ndarray, level: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """First fall of each row of ``vals`` below its ``level`` after an unbroken run at or above
-    it from the first sample; (radius by linear interpolation, found)."""
+    it from the first sample; (radius by linear interpolation, found, the fall's slope in
+    grey levels per unit of ``radii``)."""
     n = vals.shape[0]
     above = vals >= level[:, None]
     below = ~above
@@ -200,7 +204,8 @@ def _crossings(vals: np.ndarray, radii: np.ndarray, level: np.ndarray) -> tuple[
     v2 = vals[np.arange(n), jj]
     has &= np.isfinite(v1) & np.isfinite(v2)
     frac = np.clip((v1 - level) / np.maximum(v1 - v2, 1e-6), 0.0, 1.0)
-    return radii[jj - 1] + frac * (radii[jj] - radii[jj - 1]), has
+    slope = (v1 - v2) / np.maximum(radii[jj] - radii[jj - 1], 1e-12)
+    return radii[jj - 1] + frac * (radii[jj] - radii[jj - 1]), has, slope
 
 
 def fit_glare(
@@ -298,7 +303,7 @@ def fit_glare(
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
         level = bg + opts.level * (peak - bg) + shift
-        chi_c, has = _crossings(vals, rim_chi, level)
+        chi_c, has, slope = _crossings(vals, rim_chi, level)
         has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
         if by_el is not None:  # near the horizon the sky model extrapolates: a large
             has &= np.abs(shift) <= opts.max_horizon_shift * (peak - bg)  # shift is a guess
@@ -335,6 +340,13 @@ def fit_glare(
         if it >= 1 and moved < 0.5 * floor:
             break
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
+    # how far the sky's correction moved the rim's centre: its error is a share of it
+    sky_move = 0.0
+    if idx.size >= 3:
+        moves = -np.asarray(shift * np.ones(n_rays))[idx] / np.maximum(slope[idx], 1e-9)
+        c1 = 2.0 * float(np.mean(moves * np.cos(phi[idx])))
+        s1 = 2.0 * float(np.mean(moves * np.sin(phi[idx])))
+        sky_move = math.hypot(c1, s1)
     if alpha >= 0.75:
         flags.append("round_in_image")
     uv, okp = lens.project(a[None, :])
@@ -362,6 +374,7 @@ def fit_glare(
         flags=flags,
         image_share=alpha,
         last_move_deg=math.degrees(moved),
+        sky_move_deg=math.degrees(sky_move),
     )
 
 

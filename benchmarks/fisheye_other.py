@@ -1,0 +1,325 @@
+"""A second sky renderer, written apart from ``hil/skycam``, to check the default fisheye
+pipeline on frames the HIL world did not make (issue 14: "a different lens, glare profile,
+smear and cloud model").  It shares no code with ``hil/skycam``; every model differs:
+
+* **lens**: an exact equisolid-angle projection ``r = 2 f sin(theta / 2)`` (not Kannala-
+  Brandt); the pipeline is handed a ``cv2.fisheye`` fit of it, as a calibration would give;
+* **sky**: the CIE standard clear sky (ISO 15469 type 12) luminance distribution, a blue
+  that whitens towards the sun and the horizon, a flat dark ground;
+* **glare**: an exponential aureole plus a power-law wing on the sky, and a Lorentzian
+  veiling glare round on the sensor, mixed 60 / 40;
+* **smear**: bloom that spills *upwards only* (one-sided, as on sensors read one way);
+* **sensor**: vignetting ``1 - 0.25 (r / r_max)^2``, Poisson-Gaussian noise of a 10 000 e-
+  well, the sRGB tone curve, JPEG q85;
+* **clouds**: drifting elliptical Gaussian puffs of optical depth 2-12, sunlit (forward
+  scattering) next to the sun; the sun is visible where the puffs' summed depth along its
+  line of sight is under 0.1, hidden where nothing of it saturates any more (its peak
+  through the cloud under full scale), dimmed in between.
+
+Truth: pvlib's SPA apparent elevation and azimuth, directly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+W, H = 640, 480
+F_EQ = 150.0  # px: r = 2 f sin(theta / 2)
+CX, CY = 321.3, 238.1
+THETA_MAX = math.radians(95.0)
+SITE = (36.75, -4.42, 20.0)  # Malaga: another latitude, west of Greenwich
+
+
+@dataclass
+class OtherLook:
+    """One look of the second renderer (all optional parts off by default)."""
+
+    name: str
+    veil_weight: float = 0.4  # share of the glare round on the sensor
+    sat_radius_deg: float = 3.0  # saturated radius, zenith sun, clear sky
+    bloom: float = 0.0  # upward spill, in saturated radii
+    jpeg: int | None = 85
+    clouds: list = field(default_factory=list)  # [(az, el, sx_deg, sy_deg, tau, (vaz, vel) deg/min)]
+    sun: bool = True  # False: the sky alone (for diagnosis)
+    noise: bool = True
+    sky: str = "cie"  # "flat": a uniform sky (for diagnosis)
+    vignetting: float = 0.25
+    tone: str = "srgb"  # "linear" (for diagnosis)
+
+
+def kb_fit() -> tuple[np.ndarray, np.ndarray]:
+    """``cv2.fisheye`` K and D of the equisolid lens (theta_d = 2 sin(theta / 2))."""
+    th = np.linspace(1e-3, THETA_MAX, 400)
+    td = 2.0 * np.sin(th / 2.0)
+    A = np.stack([th**3, th**5, th**7, th**9], 1)
+    D, *_ = np.linalg.lstsq(A, td - th, rcond=None)
+    K = np.array([[F_EQ, 0, CX], [0, F_EQ, CY], [0, 0, 1.0]])
+    return K, D
+
+
+def rotation(yaw_deg: float = 25.0, tilt_deg: float = 2.0, tilt_az_deg: float = 100.0) -> np.ndarray:
+    """``enu_from_camera`` (columns: camera x, y, z in ENU) of a zenith camera, yawed then tilted."""
+    y = math.radians(yaw_deg)
+    x_c = np.array([math.cos(y), -math.sin(y), 0.0])
+    z_c = np.array([0.0, 0.0, 1.0])
+    R = np.column_stack([x_c, np.cross(z_c, x_c), z_c])
+    a, t = math.radians(tilt_az_deg), math.radians(tilt_deg)
+    k = np.array([math.cos(a), -math.sin(a), 0.0])  # horizontal axis across the tilt
+    Kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    Rt = np.eye(3) + math.sin(-t) * Kx + (1 - math.cos(t)) * Kx @ Kx
+    return Rt @ R
+
+
+def pixel_rays() -> tuple[np.ndarray, np.ndarray]:
+    """Camera-frame unit direction of every pixel (H, W, 3) and the image-circle mask."""
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    r = np.hypot(u - CX, v - CY)
+    s = np.clip(r / (2 * F_EQ), 0, 1)
+    th = 2 * np.arcsin(s)
+    ph = np.arctan2(v - CY, u - CX)
+    d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
+    return d, th <= THETA_MAX
+
+
+def project(d_cam: np.ndarray) -> tuple[float, float]:
+    th = math.acos(max(-1.0, min(1.0, float(d_cam[2]))))
+    ph = math.atan2(float(d_cam[1]), float(d_cam[0]))
+    r = 2 * F_EQ * math.sin(th / 2)
+    return CX + r * math.cos(ph), CY + r * math.sin(ph)
+
+
+def sun_truth(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    import pandas as pd
+    import pvlib
+
+    sp = pvlib.solarposition.get_solarposition(
+        pd.DatetimeIndex(pd.to_datetime(ts, unit="s", utc=True)), SITE[0], SITE[1], altitude=SITE[2]
+    )
+    return sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy()
+
+
+def enu(az_deg, el_deg) -> np.ndarray:
+    az, el = np.radians(az_deg), np.radians(el_deg)
+    return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], -1)
+
+
+def cie_clear(zen: np.ndarray, chi: np.ndarray, zen_sun: float) -> np.ndarray:
+    """CIE standard clear sky (type 12) luminance relative to the zenith's."""
+    a, b, c, d, e = -1.0, -0.32, 10.0, -3.0, 0.45
+
+    def grad(z):
+        return 1 + a * np.exp(b / np.maximum(np.cos(z), 0.01))
+
+    def ind(x):
+        return 1 + c * (np.exp(d * x) - math.exp(d * math.pi / 2)) + e * np.cos(x) ** 2
+
+    return ind(chi) * grad(zen) / (ind(np.array(zen_sun)) * grad(np.array(0.0)))
+
+
+def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
+    d_cam, inside = rays
+    d_enu = d_cam @ R.T
+    az, el = sun_truth(np.array([t]))
+    s_enu = enu(az[0], el[0])
+    s_cam = R.T @ s_enu
+    zen = np.arccos(np.clip(d_enu[..., 2], -1, 1))
+    chi = np.arccos(np.clip(d_enu @ s_enu, -1, 1))
+    zs = math.radians(90 - el[0])
+    sky_l = 0.06 * cie_clear(zen, chi, zs) if look.sky == "cie" else np.full(zen.shape, 0.12)
+    white = np.clip(
+        0.35 * np.exp(-np.degrees(chi) / 12.0) + 0.4 * np.exp(-(90 - np.degrees(zen)) / 8.0), 0, 1
+    )
+    if look.sky != "cie":
+        white[:] = 0.2
+    rgb = sky_l[..., None] * ((1 - white)[..., None] * np.array([0.45, 0.68, 1.0]) + white[..., None])
+    ground = d_enu[..., 2] < 0
+    rgb[ground] = np.array([0.06, 0.05, 0.04])
+    # clouds: optical depth of each puff along each ray, drifting
+    tau = np.zeros(zen.shape)
+    tau_sun = 0.0
+    for caz, cel, sx, sy, tmax, (vaz, vel) in look.clouds:
+        m = (t % 86400) / 60.0
+        c_dir = enu(caz + vaz * m, cel + vel * m)
+        e_ax = np.cross([0, 0, 1.0], c_dir)
+        e_ax /= np.linalg.norm(e_ax)
+        n_ax = np.cross(c_dir, e_ax)
+        x = np.degrees(np.arctan2(d_enu @ e_ax, d_enu @ c_dir))
+        y = np.degrees(np.arctan2(d_enu @ n_ax, d_enu @ c_dir))
+        tau += tmax * np.exp(-0.5 * ((x / sx) ** 2 + (y / sy) ** 2)) * (d_enu @ c_dir > 0)
+        xs = math.degrees(math.atan2(s_enu @ e_ax, s_enu @ c_dir))
+        ys = math.degrees(math.atan2(s_enu @ n_ax, s_enu @ c_dir))
+        tau_sun += tmax * math.exp(-0.5 * ((xs / sx) ** 2 + (ys / sy) ** 2)) * (s_enu @ c_dir > 0)
+    cloud_a = 1 - np.exp(-tau)
+    # forward scattering near the sun: strongest through a cloud of optical depth ~1 (the
+    # silver lining), washed out in a thick one (multiple scattering makes it diffuse)
+    lit = 0.9 + 2.5 * np.exp(-np.degrees(chi) / 6.0) * np.minimum(tau * np.exp(1.0 - tau), 1.0)
+    rgb = rgb * (1 - cloud_a[..., None]) + (cloud_a * 0.3 * lit)[..., None]
+    # glare
+    am = 1 / max(math.sin(math.radians(max(el[0], 0.5))), 0.05)
+    trans = math.exp(-0.12 * (am - 1)) * math.exp(-tau_sun)
+    su, sv = project(s_cam)
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    dpx = np.hypot(u - su, v - sv)
+    px_per_deg = F_EQ * math.pi / 180.0
+
+    def g_ang(c_deg):
+        return np.exp(-c_deg / 0.9) + 0.02 / (1 + (c_deg / 0.5) ** 2)
+
+    def g_pix(d):
+        return 1 / (1 + (d / (0.8 * px_per_deg)) ** 2)
+
+    w = look.veil_weight
+    gain = 1 / ((1 - w) * g_ang(look.sat_radius_deg) + w * g_pix(look.sat_radius_deg * px_per_deg))
+    cloud_aureole = np.exp(-0.5 * tau)  # cloud in front of the aureole dims it
+    glare = gain * trans * ((1 - w) * g_ang(np.degrees(chi)) * cloud_aureole + w * g_pix(dpx))
+    glare = np.where(el[0] > -0.5 and look.sun, glare, 0.0)
+    lin = rgb + glare[..., None]
+    if look.bloom > 0:
+        sat = lin.min(axis=-1) >= 1.0
+        cols = np.flatnonzero(sat.any(axis=0))
+        if cols.size:
+            r_sat = math.sqrt(sat.sum() / math.pi)
+            excess = np.maximum(glare - 1, 0).sum(axis=0)
+            for c in cols:
+                top = int(np.argmax(sat[:, c]))
+                length = int(look.bloom * r_sat * math.sqrt(excess[c] / excess.max()))
+                lin[max(top - length, 0) : top, c, :] += 1.5
+    r_img = np.hypot(u - CX, v - CY) / (2 * F_EQ * math.sin(THETA_MAX / 2))
+    lin = lin * (1 - look.vignetting * r_img**2)[..., None]
+    lin[~inside] = 0.0
+    e = np.minimum(lin, 4.0) * 10000.0
+    if look.noise:
+        e = e + rng.standard_normal(e.shape) * np.sqrt(np.maximum(e, 0) + 64.0)
+    x = np.clip(e / 10000.0, 0, 1)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055) if look.tone == "srgb" else x
+    img = np.ascontiguousarray(np.rint(srgb * 255).astype(np.uint8)[..., ::-1])
+    if look.jpeg and look.noise:
+        img = cv2.imdecode(
+            cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, look.jpeg])[1], cv2.IMREAD_COLOR
+        )
+    # hidden: nothing of the sun saturates (its peak through the cloud is under full scale)
+    peak = gain * trans * ((1 - w) * float(g_ang(0.0)) + w)
+    vis = "visible" if tau_sun < 0.1 else ("hidden" if peak < 1.0 else "dimmed")
+    return img, {"sun_enu": s_enu, "visibility": vis, "el_deg": float(el[0])}
+
+
+def bundle(R: np.ndarray):
+    """The pipeline's bundle: the KB fit of the lens, the true rotation, the site."""
+    from controller.calibration.camera import CameraCal
+    from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
+
+    K, D = kb_fit()
+    cam = CameraCal(
+        width=W, height=H, fx=F_EQ, fy=F_EQ, cx=CX, cy=CY, dist=tuple(float(x) for x in D), model="fisheye"
+    )
+    return FisheyeBundle(
+        camera=cam,
+        orientation=OrientationCal(enu_from_camera=as_mat3(R)),
+        site=SiteCal(latitude=SITE[0], longitude=SITE[1], altitude=SITE[2]),
+    )
+
+
+CLEAR_LOOKS = (
+    OtherLook("other renderer"),
+    OtherLook("other renderer, glare all on the sensor", veil_weight=1.0),
+    OtherLook("other renderer, glare all on the sky", veil_weight=0.0),
+    OtherLook("other renderer, wide glare (5 deg)", sat_radius_deg=5.0),
+    OtherLook("other renderer, upward bloom 2 radii", bloom=2.0),
+)
+
+
+def _utc(y: int, m: int, d: int) -> float:
+    from datetime import UTC, datetime
+
+    return datetime(y, m, d, tzinfo=UTC).timestamp()
+
+
+def clear(quick: bool) -> dict:
+    """Clear days (Mar 20, Jun 21, Dec 21; every 30 min, 60 in quick runs; sun above 5 deg)."""
+    from controller.vision.fisheye import FisheyeEstimator
+
+    from .fisheye_suites import angle_deg, stats
+
+    rays, R = pixel_rays(), rotation()
+    step = 3600 if quick else 1800
+    out = {}
+    for look in CLEAR_LOOKS[:2] if quick else CLEAR_LOOKS:
+        est = FisheyeEstimator(bundle(R))
+        rng = np.random.default_rng(17)
+        errs, missing, n = [], {}, 0
+        for day in ((2025, 3, 20), (2025, 6, 21), (2025, 12, 21)):
+            est.reset_sequence()
+            ts = _utc(*day) + np.arange(0, 86400, step, dtype=float)
+            _, els = sun_truth(ts)
+            for t in ts[els >= 5.0]:
+                img, truth = render(look, float(t), rays, R, rng)
+                n += 1
+                r = est.estimate_image(img, float(t))
+                if r.found:
+                    from controller.sun.types import azel_to_enu
+
+                    errs.append(angle_deg(azel_to_enu(r.az_deg, r.el_deg), truth["sun_enu"]))
+                else:
+                    missing[r.reason] = missing.get(r.reason, 0) + 1
+        out[look.name] = {"frames": n, "found": len(errs), "error": stats(errs), "not_found": missing}
+    return out
+
+
+def cloud_sequences(quick: bool, seed: int = 31) -> list:
+    """Sequences of 30 frames a minute apart, 2-4 puffs drifting across the sun's region."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(3 if quick else 10):
+        day = ((2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21))[k % 4]
+        ts = _utc(*day) + np.arange(0, 86400, 600, dtype=float)
+        azs, els = sun_truth(ts)
+        ok = np.flatnonzero(els >= 15)
+        i = int(rng.choice(ok[: max(len(ok) - 3, 1)]))
+        t0, saz, sel = float(ts[i]), float(azs[i]), float(els[i])
+        m0 = (t0 % 86400) / 60.0
+        puffs = []
+        for _ in range(int(rng.integers(2, 5))):
+            vaz, vel = (float(x) for x in rng.uniform(-0.5, 0.5, 2))
+            off = rng.uniform(-12, 12, 2)
+            # placed so that it crosses near the sun during the sequence
+            caz = saz + off[0] - vaz * (m0 + 15)
+            cel = float(np.clip(sel + off[1] * 0.5 - vel * (m0 + 15), 5, 85))
+            puffs.append(
+                (
+                    caz,
+                    cel,
+                    float(rng.uniform(3, 9)),
+                    float(rng.uniform(2, 6)),
+                    float(rng.uniform(2, 12)),
+                    (vaz, vel),
+                )
+            )
+        out.append(
+            (OtherLook(f"clouds {k}", clouds=puffs), [t0 + 60.0 * j for j in range(10 if quick else 30)])
+        )
+    return out
+
+
+def clouds(quick: bool) -> dict:
+    """Correct detections, misses and false detections under the second renderer's clouds."""
+    from controller.vision.fisheye import FisheyeEstimator
+
+    from .fisheye_suites import Tally
+
+    rays, R = pixel_rays(), rotation()
+    tally = Tally()
+    for look, ts in cloud_sequences(quick):
+        est = FisheyeEstimator(bundle(R))
+        rng = np.random.default_rng(int(ts[0]) & 0xFFFF)
+        for t in ts:
+            img, truth = render(look, t, rays, R, rng)
+            tally.add(est.estimate_image(img, t), truth)
+    return tally.summary()
+
+
+def run(quick: bool = False) -> dict:
+    return {"clear": clear(quick), "clouds": clouds(quick)}

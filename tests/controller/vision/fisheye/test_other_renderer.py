@@ -1,0 +1,47 @@
+"""The default pipeline on frames of the second renderer (benchmarks.fisheye_other): another
+lens model, sky model, glare profile and tone curve than the HIL world's."""
+
+import numpy as np
+
+from benchmarks import fisheye_other as other
+from controller.sun.types import angle_between_deg, azel_to_enu
+from controller.vision.fisheye import FisheyeEstimator
+
+
+def _run(look, days=((2025, 3, 20), (2025, 6, 21)), el_range=(5.0, 90.0)):
+    rays, R = other.pixel_rays(), other.rotation()
+    ts = np.concatenate([other._utc(*d) + np.arange(0, 86400, 1800, dtype=float) for d in days])
+    _, els = other.sun_truth(ts)
+    est = FisheyeEstimator(other.bundle(R))
+    rows = []
+    for t, el in zip(ts, els):
+        if not el_range[0] <= el <= el_range[1]:
+            continue
+        img, truth = other.render(look, float(t), rays, R, np.random.default_rng(1))
+        res = est.estimate_image(img, float(t))
+        if res.found:
+            err = angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), truth["sun_enu"])
+            rows.append((el, err, res.sigma_deg))
+    return np.array(rows)
+
+
+def test_the_renderers_lens_is_handed_over_as_a_close_kannala_brandt_fit():
+    K, D = other.kb_fit()
+    th = np.radians(np.linspace(0.5, 94.0, 200))
+    td = th * (1 + D[0] * th**2 + D[1] * th**4 + D[2] * th**6 + D[3] * th**8)
+    assert np.abs(td - 2 * np.sin(th / 2)).max() * other.F_EQ < 0.05  # px
+
+
+def test_high_sun_is_within_the_clear_sky_target():
+    rows = _run(other.OtherLook("clear"), el_range=(35.0, 90.0))
+    assert len(rows) >= 8
+    assert np.sqrt(np.mean(rows[:, 1] ** 2)) < 0.04
+
+
+def test_sigma_is_honest_at_low_sun_under_a_cie_sky():
+    """A low sun under the CIE clear sky is off by tenths of a degree (the sky's structure
+    around it is modelled only in part); before the sky's share entered sigma, 64 % of the
+    frames were within 2 sigma, one at 5.6 sigma."""
+    rows = _run(other.OtherLook("clear"), el_range=(12.0, 35.0))
+    assert len(rows) >= 8
+    assert np.mean(rows[:, 1] < 2 * rows[:, 2]) >= 0.9
