@@ -18,6 +18,10 @@ calibration chain, robustness to other looks of the world, and frames per second
   the site (the sequence's own history only).
 * ``variations``: one clear day of the seed camera under other lenses, glare profiles,
   smear, sky brightness and compression, known calibration.
+* ``other_renderer``: a second renderer written apart from the HIL's
+  (:mod:`benchmarks.fisheye_other`: equisolid lens, CIE clear sky, another glare profile,
+  upward bloom, sRGB, puff clouds): clear days of five looks and a cloud suite, the
+  pipeline handed a ``cv2.fisheye`` fit of that lens.
 * ``panel_loop``: the panel-mounted closed loop in ``heliotrack simulate`` (clear day, and
   1.5 deg row offsets with a 2-hour gap; assisted, paper and sky-fixed modes):
   :mod:`benchmarks.fisheye_loop` (``python -m benchmarks.fisheye_loop`` runs it alone).
@@ -33,7 +37,7 @@ import time
 
 import numpy as np
 
-from . import fisheye_loop
+from . import fisheye_loop, fisheye_other
 from .fisheye_suites import (
     DEFINITIONS,
     SeedThroughLens,
@@ -250,6 +254,7 @@ def run(quick: bool = False) -> dict:
     hd_clear = clear_days("hd", SITES[:1] if quick else (SITES[0], SITES[2]), step)
     sets = suites(quick)
     rob = robustness(quick)
+    other = fisheye_other.run(quick)
     speed = fps(quick)
     loop = fisheye_loop.run(quick)
     pooled = {
@@ -268,6 +273,14 @@ def run(quick: bool = False) -> dict:
         "zero_false_detections": dflt["counts"]["false_detection"] + dist["counts"]["false_detection"] == 0,
         "misses_le_5pct": max(dflt["counts"]["miss_rate_of_visible"], dist["counts"]["miss_rate_of_visible"])
         <= 0.05,
+        "other_renderer_clear_rms_le_0.03": (other["clear"]["other renderer"]["error"].get("rms_deg") or 9)
+        <= 0.03,
+        "other_renderer_clouds_zero_false_detections": other["clouds"]["counts"]["false_detection"] == 0,
+        "other_renderer_clouds_misses_le_5pct": other["clouds"]["counts"]["miss_rate_of_visible"] <= 0.05,
+        "other_renderer_clouds_visible_rms_le_0.2": (
+            other["clouds"]["error_where_visible"].get("rms_deg") or 9
+        )
+        <= 0.2,
         "fps_640x480_ge_200": speed["640x480"]["default"]["fps"] >= 200,
         "fps_1920x1080_ge_50": speed["1920x1080"]["default"]["fps"] >= 50,
         **{f"panel_loop_{k}": v for k, v in loop["acceptance"].items()},
@@ -280,6 +293,7 @@ def run(quick: bool = False) -> dict:
         "clouds": sets["clouds"],
         "distractors": sets["distractors"],
         "variations_seed_profile": rob,
+        "other_renderer": other,
         "fps": speed,
         "panel_loop": loop,
         "acceptance": acceptance,

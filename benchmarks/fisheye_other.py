@@ -232,7 +232,7 @@ CLEAR_LOOKS = (
 )
 
 
-def _utc(y: int, m: int, d: int) -> float:
+def utc_midnight(y: int, m: int, d: int) -> float:
     from datetime import UTC, datetime
 
     return datetime(y, m, d, tzinfo=UTC).timestamp()
@@ -253,7 +253,7 @@ def clear(quick: bool) -> dict:
         errs, missing, n = [], {}, 0
         for day in ((2025, 3, 20), (2025, 6, 21), (2025, 12, 21)):
             est.reset_sequence()
-            ts = _utc(*day) + np.arange(0, 86400, step, dtype=float)
+            ts = utc_midnight(*day) + np.arange(0, 86400, step, dtype=float)
             _, els = sun_truth(ts)
             for t in ts[els >= 5.0]:
                 img, truth = render(look, float(t), rays, R, rng)
@@ -275,7 +275,7 @@ def cloud_sequences(quick: bool, seed: int = 31) -> list:
     out = []
     for k in range(3 if quick else 10):
         day = ((2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21))[k % 4]
-        ts = _utc(*day) + np.arange(0, 86400, 600, dtype=float)
+        ts = utc_midnight(*day) + np.arange(0, 86400, 600, dtype=float)
         azs, els = sun_truth(ts)
         ok = np.flatnonzero(els >= 15)
         i = int(rng.choice(ok[: max(len(ok) - 3, 1)]))

@@ -76,6 +76,34 @@ def fisheye(r: dict) -> list[Headline]:
             ok=acc.get("fps_1920x1080_ge_50"),
         ),
     ]
+    other = r.get("other_renderer")
+    if other:
+        oc, ocl = other["clear"]["other renderer"], other["clouds"]
+        out += [
+            Headline(
+                "fisheye",
+                "second renderer: clear sky RMS, 640 x 480",
+                fmt(oc["error"].get("rms_deg"), 3, " deg"),
+                "<= 0.03 deg",
+                f"found {oc['found']} of {oc['frames']}",
+                ok=acc.get("other_renderer_clear_rms_le_0.03"),
+            ),
+            Headline(
+                "fisheye",
+                "second renderer: clouds, false / misses / RMS where visible",
+                f"{ocl['counts']['false_detection']} / {100 * ocl['counts']['miss_rate_of_visible']:.1f} % / "
+                f"{fmt(ocl['error_where_visible'].get('rms_deg'), 3, ' deg')}",
+                "0 / <= 5 % / <= 0.2 deg",
+                ok=all(
+                    acc.get(k)
+                    for k in (
+                        "other_renderer_clouds_zero_false_detections",
+                        "other_renderer_clouds_misses_le_5pct",
+                        "other_renderer_clouds_visible_rms_le_0.2",
+                    )
+                ),
+            ),
+        ]
     loop = r.get("panel_loop")
     if loop:
         cases, lacc = loop["cases"], loop["acceptance"]

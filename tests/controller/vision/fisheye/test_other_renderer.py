@@ -10,7 +10,7 @@ from controller.vision.fisheye import FisheyeEstimator
 
 def _run(look, days=((2025, 3, 20), (2025, 6, 21)), el_range=(5.0, 90.0)):
     rays, R = other.pixel_rays(), other.rotation()
-    ts = np.concatenate([other._utc(*d) + np.arange(0, 86400, 1800, dtype=float) for d in days])
+    ts = np.concatenate([other.utc_midnight(*d) + np.arange(0, 86400, 1800, dtype=float) for d in days])
     _, els = other.sun_truth(ts)
     est = FisheyeEstimator(other.bundle(R))
     rows = []
