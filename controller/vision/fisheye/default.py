@@ -42,6 +42,7 @@ from .result import FisheyeResult, not_found
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
 REASON_ORDER = (
+    "lens_ghost",
     "static_glare",
     "glare_shrunk",
     "below_horizon",
@@ -79,6 +80,7 @@ class FisheyeOptions:
     min_contrast: float = 0.12  # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
     ambiguity_ratio: float = 1.25  # the sun's glare must be this much larger
+    ghost_align_deg: float = 2.0  # a smaller glare this close to opposite a larger one: its ghost
     max_blobs: int = 6
     sigma_floor_deg: float = 0.015
     sky_sigma_share: float = 0.5  # the sky's correction of the rim is trusted to half its size
@@ -248,13 +250,29 @@ class FisheyeEstimator(FramePipeline):
             return sun_like
         kept = []
         for c in sun_like:
-            if self.history.is_static(float(t), self._gd(c)):
+            if self._is_ghost(c, sun_like):
+                c.reason = "lens_ghost"
+            elif self.history.is_static(float(t), self._gd(c)):
                 c.reason = "static_glare"
             elif self.history.is_shrunk(float(t), c.fit.radius_deg):
                 c.reason = "glare_shrunk"
             else:
                 kept.append(c)
         return kept
+
+    def _is_ghost(self, c: Candidate, others: list[Candidate]) -> bool:
+        """A lens flare ghost lies on the line from the sun's image through the principal
+        point, on the other side, and is fainter: smaller than the glare it mirrors."""
+        cx, cy = self.lens.cx, self.lens.cy
+        gx, gy = c.fit.centre_uv[0] - cx, c.fit.centre_uv[1] - cy
+        for o in others:
+            if o is c or o.fit.radius_deg <= c.fit.radius_deg:
+                continue
+            sx, sy = o.fit.centre_uv[0] - cx, o.fit.centre_uv[1] - cy
+            norm = math.hypot(gx, gy) * math.hypot(sx, sy)
+            if norm > 0 and (gx * sx + gy * sy) / norm < -math.cos(math.radians(self.options.ghost_align_deg)):
+                return True
+        return False
 
     def _below_horizon(self, x: float, y: float, r_px: float) -> bool:
         """The whole blob lies below the horizon (orientation known): not worth a fit."""

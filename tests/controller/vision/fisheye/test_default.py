@@ -165,3 +165,20 @@ def test_a_mask_hides_what_it_covers(scn, tmp_path):
     cv2.imwrite(str(tmp_path / "mask.png"), m)
     est = FisheyeEstimator(truth_bundle(scn, mask=tmp_path / "mask.png"))
     assert not est.estimate_image(fr.image, T).found
+
+
+def test_without_a_site_a_lens_ghost_opposite_the_sun_is_not_the_sun():
+    """A saturated flare ghost about the sun's size, opposite it through the principal point:
+    with no site to gate by, the pair was ``ambiguous_candidates`` (the blended rim fits the
+    ghost's round-on-the-sensor disk as well as the sun's)."""
+    from hil.skycam import FlareGhost, sky_profile
+
+    scn = sky_profile("seed", noise=True)
+    scn = scn.with_(
+        distractors=(FlareGhost(position=0.96, radius_px=9.8, level=1.65, tint=(0.9, 0.93, 0.79)),)
+    )
+    t = 1766316000.0  # 2025-12-21 11:20 UTC
+    fr = render_sky(scn, t)
+    res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, t)
+    assert res.found, res.reason
+    assert err_deg(res, fr.truth) < 0.05
