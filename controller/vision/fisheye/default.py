@@ -264,13 +264,14 @@ class FisheyeEstimator(FramePipeline):
         """A lens flare ghost lies on the line from the sun's image through the principal
         point, on the other side, and is fainter: smaller than the glare it mirrors."""
         cx, cy = self.lens.cx, self.lens.cy
+        opposite = -math.cos(math.radians(self.options.ghost_align_deg))
         gx, gy = c.fit.centre_uv[0] - cx, c.fit.centre_uv[1] - cy
         for o in others:
             if o is c or o.fit.radius_deg <= c.fit.radius_deg:
                 continue
             sx, sy = o.fit.centre_uv[0] - cx, o.fit.centre_uv[1] - cy
             norm = math.hypot(gx, gy) * math.hypot(sx, sy)
-            if norm > 0 and (gx * sx + gy * sy) / norm < -math.cos(math.radians(self.options.ghost_align_deg)):
+            if norm > 0 and (gx * sx + gy * sy) / norm < opposite:
                 return True
         return False
 
