@@ -110,7 +110,8 @@ class DriveHealth:
         else:
             self.fault_clears = 0
         modes = {a.mode for a in st.axes}
-        comm_lost = any(a.status & Status.COMM_LOST for a in st.axes)
+        # the watchdog's stow: still without heartbeat, or latched by the drive after it
+        comm_lost = any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
         if Mode.MAINTENANCE in modes:
             problems.append("in MAINTENANCE mode (service)")
         if Mode.STOW in modes:

@@ -127,11 +127,12 @@ class Controller(WindPolling):
 
     @staticmethod
     def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState, unheard: bool = False) -> None:
-        """A STOW is the drive's watchdog's (ours to resume) when it says COMM_LOST, or when
-        it went unheard longer than its watchdog allows or rebooted (``unheard``): a heartbeat
-        for another drive on a CAN bus, or after its reboot, may have cleared the flag."""
+        """A STOW is the drive's watchdog's (ours to resume) when it says COMM_LOST or
+        WATCHDOG_STOW, or when it went unheard longer than its watchdog allows or rebooted
+        (``unheard``): a heartbeat, even one for another drive on a CAN bus, clears COMM_LOST
+        at once, and a drive without WATCHDOG_STOW (older firmware) says no more."""
         if any(a.mode == Mode.STOW for a in st.axes) and (
-            unheard or any(a.status & Status.COMM_LOST for a in st.axes)
+            unheard or any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
         ):
             tr.health.watchdog_stow = True
 

@@ -70,8 +70,10 @@ def markdown() -> str:
         "",
         "- The heartbeat watchdog runs while HEARTBEAT_TIMEOUT > 0: if HEARTBEAT keeps the "
         "same value for longer than the timeout, every axis not in MAINTENANCE sets "
-        "COMM_LOST and goes to STOW. A RESUME command (with the heartbeat alive again) "
-        "returns the axes to AUTO.",
+        "COMM_LOST and goes to STOW, and its STATUS says WATCHDOG_STOW until it leaves "
+        "STOW or a master commands STOW (COMM_LOST clears with the next heartbeat, so "
+        "a master that looks later still knows whose stow it is). A RESUME command (with "
+        "the heartbeat alive again) returns the axes to AUTO.",
         "- A TARGET_ANGLE outside [SOFT_LIMIT_MIN, SOFT_LIMIT_MAX] is clamped and "
         "TARGET_CLAMPED is set until the next in-range target.",
         "- A write to a read-only register, or a value outside a register's range, is "

@@ -125,6 +125,8 @@ class Status(IntFlag):
     COMM_LOST = 1 << 7  # the heartbeat watchdog expired
     TARGET_CLAMPED = 1 << 8  # last target was outside the soft limits and was clamped
     HOMED = 1 << 9  # encoder referenced
+    WATCHDOG_STOW = 1 << 10  # in STOW because the heartbeat watchdog fired (latched until the
+    # axis leaves STOW or a master commands STOW: COMM_LOST clears with the next heartbeat)
 
 
 class Fault(IntEnum):

@@ -117,6 +117,7 @@ typedef int16_t ht_stow_angle_t;
 #define HT_STATUS_COMM_LOST 0x0080u
 #define HT_STATUS_TARGET_CLAMPED 0x0100u
 #define HT_STATUS_HOMED 0x0200u
+#define HT_STATUS_WATCHDOG_STOW 0x0400u
 
 /* Fault */
 #define HT_FAULT_NONE 0u

@@ -107,6 +107,8 @@ class DriveFirmware:
         self.modes = [Mode.AUTO for _ in axes]
         self.clamped = [False for _ in axes]
         self.comm_lost = False
+        #: The axis is in STOW because the watchdog fired (STATUS WATCHDOG_STOW).
+        self.watchdog_stowed = [False for _ in axes]
         self.homed = [True for _ in axes]
         self.heartbeat = 0
         self.heartbeat_timeout = heartbeat_timeout
@@ -157,12 +159,14 @@ class DriveFirmware:
     def _enter_comm_lost(self) -> None:
         self.comm_lost = True
         for k in range(len(self.axes)):
-            if self.modes[k] != Mode.MAINTENANCE:
+            if self.modes[k] not in (Mode.MAINTENANCE, Mode.STOW):  # a stow keeps its owner
                 self._set_mode(k, Mode.STOW)
+                self.watchdog_stowed[k] = True
 
     def _set_mode(self, k: int, mode: Mode) -> None:
         ax = self.axes[k]
         self.modes[k] = mode
+        self.watchdog_stowed[k] = False  # the stow's cause is whoever set the mode last
         ax.enabled = mode != Mode.MAINTENANCE
         if mode == Mode.STOW:
             ax.target = ax.p.stow_angle
@@ -187,6 +191,8 @@ class DriveFirmware:
             s |= Status.STOWED
         if self.comm_lost:
             s |= Status.COMM_LOST
+        if self.watchdog_stowed[k] and self.modes[k] == Mode.STOW:
+            s |= Status.WATCHDOG_STOW
         if self.clamped[k]:
             s |= Status.TARGET_CLAMPED
         if self.homed[k]:

@@ -28,6 +28,41 @@ def test_a_stow_by_someone_else_is_not_undone(default_plant):
     assert recs[0].health == "ok" and fws["dual-1"].modes[0] == Mode.AUTO
 
 
+def test_a_watchdog_stow_is_resumed_after_a_heartbeat_cleared_comm_lost(default_plant):
+    """On a CAN bus the master's heartbeat is a frame of its own: frames lost to a bus fault
+    fire a drive's watchdog while the master's SDOs get through, and the next heartbeat
+    clears COMM_LOST before the master looks. The 30-day soak found both CANopen rows left
+    in that STOW for 28 min ("stowed by a local switch or another master"); the drive now
+    latches WATCHDOG_STOW until it leaves STOW."""
+    from firmware_protocol import Status
+
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    fw = fws["row-1"]
+    fw._enter_comm_lost()  # the drive's watchdog fired (heartbeats lost, the rest heard)
+    hb = register("HEARTBEAT")
+    fw.write(hb.address(), encode(hb, (fw.heartbeat + 1) & 0xFFFF))  # the next heartbeat
+    assert fw.modes[0] == Mode.STOW and not fw.comm_lost
+    assert fw.status(0) & Status.WATCHDOG_STOW
+    clock.sleep(cfg.control.period_s)
+    recs = run(ctl.cycle())
+    assert fw.modes[0] == Mode.AUTO, recs[1].health_reason
+    assert not fw.status(0) & Status.WATCHDOG_STOW
+    clock.sleep(cfg.control.period_s)
+    recs = run(ctl.cycle())
+    assert recs[1].health == "ok" and recs[1].mode == "TRACK"
+
+
+def test_a_master_stow_during_a_watchdog_stow_is_the_masters(default_plant):
+    from firmware_protocol import Status
+
+    run, ctl, fws, clock, cfg = default_plant
+    fw = fws["row-1"]
+    fw._enter_comm_lost()
+    command(fw, Command.STOW)  # a local switch stows it again: that stow is not ours
+    assert not fw.status(0) & Status.WATCHDOG_STOW
+
+
 def test_a_drive_fault_is_named_cleared_and_alarmed(default_plant):
     run, ctl, fws, clock, cfg = default_plant
     bridge = Northbound(ctl, "p")

@@ -83,11 +83,14 @@ def test_heartbeat_loss_stows_and_resume_recovers(sim_clock):
                 st = await settle(d, lambda s: s.axes[0].mode == Mode.STOW)
                 assert st.axes[0].mode == Mode.STOW
                 assert st.axes[0].status & Status.COMM_LOST
+                assert st.axes[0].status & Status.WATCHDOG_STOW
                 await d.heartbeat()
-                await asyncio.sleep(0.05)
+                # the heartbeat clears COMM_LOST; whose stow it is stays in the TPDOs
+                st = await settle(d, lambda s: not s.axes[0].status & Status.COMM_LOST)
+                assert st.axes[0].mode == Mode.STOW and st.axes[0].status & Status.WATCHDOG_STOW
                 await d.command(Command.RESUME)
                 st = await settle(d, lambda s: s.axes[0].mode == Mode.AUTO)
-                assert st.axes[0].mode == Mode.AUTO
+                assert st.axes[0].mode == Mode.AUTO and not st.axes[0].status & Status.WATCHDOG_STOW
                 await d.write_targets([5.0])
                 assert fw.axes[0].target == pytest.approx(5.0)
             finally:
