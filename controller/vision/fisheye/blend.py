@@ -65,6 +65,8 @@ def _distances(lens: FisheyeLens, v: np.ndarray, uv: np.ndarray, a: np.ndarray, 
 
 
 def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
+    """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
+    reselection, ``iters`` times; ``s``: the lens's scale (rad per px)."""
     rho = float(np.median(np.arccos(np.clip(v[inl] @ a, -1.0, 1.0))))
     got = _distances(lens, v, uv, a)
     if got is None:
