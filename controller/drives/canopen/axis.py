@@ -68,29 +68,37 @@ class Axis402:
             return True
         return all(self.tpdo_time.get(n, 0.0) > since for n in self.tpdos_mapping(IDX_EFFECTIVE_TARGET))
 
+    def staleness(self, now: float, stale_s: float, producer_heartbeat_ms: int, label: str) -> str | None:
+        """Why the cached state is no longer the drive's, or None: the node's heartbeat
+        stopped (three periods) or one of its TPDOs is older than ``stale_s``."""
+        node = self.node
+        if (
+            self.heartbeat_time is not None
+            and now - self.heartbeat_time > 3 * producer_heartbeat_ms / 1000 > 0
+        ):
+            return f"{label}: heartbeat of node {node.id} lost"
+        for number in self.enabled_tpdos():
+            t = self.tpdo_time.get(number)
+            if t is None or now - t > stale_s:
+                return f"{label}: no TPDO{number} from node {node.id} for {stale_s:g} s"
+        return None
+
     def check_fresh(self, now: float, stale_s: float, producer_heartbeat_ms: int, label: str) -> None:
         """Refuse a state that is no longer the drive's.
 
         Raises
         ------
         DriveCommError
-            The node's heartbeat stopped (three periods), it left OPERATIONAL, or one of
-            its TPDOs is older than ``stale_s``.
+            The node left OPERATIONAL, or its state is stale (:meth:`staleness`).
         """
         node = self.node
-        if (
-            self.heartbeat_time is not None
-            and now - self.heartbeat_time > 3 * producer_heartbeat_ms / 1000 > 0
-        ):
-            raise DriveCommError(f"{label}: heartbeat of node {node.id} lost")
         if node.nmt.state not in ("OPERATIONAL", "INITIALISING") and self.heartbeat_time:
             raise DriveCommError(
                 f"{label}: node {node.id} left OPERATIONAL (NMT {node.nmt.state}); reconnect"
             )
-        for number in self.enabled_tpdos():
-            t = self.tpdo_time.get(number)
-            if t is None or now - t > stale_s:
-                raise DriveCommError(f"{label}: no TPDO{number} from node {node.id} for {stale_s:g} s")
+        why = self.staleness(now, stale_s, producer_heartbeat_ms, label)
+        if why is not None:
+            raise DriveCommError(why)
 
     def axis_state(self, label: str) -> AxisState:
         """The axis as its last TPDOs describe it (degrees, deg/s).

@@ -213,9 +213,11 @@ class CanopenDrive(DriveLink):
 
         return callback
 
-    @staticmethod
-    def _heard(axis: Axis402, _state: int) -> None:  # canopen's receive thread
+    def _heard(self, axis: Axis402, _state: int) -> None:  # canopen's receive thread
         axis.heartbeat_time = time.monotonic()
+        loop, event = self._loop, self._tpdo_event
+        if loop is not None and event is not None and not loop.is_closed():
+            loop.call_soon_threadsafe(event.set)
 
     async def wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` holds, re-checking whenever a TPDO arrives."""
@@ -385,6 +387,7 @@ class CanopenDrive(DriveLink):
             if not fresh:
                 raise DriveCommError(f"{self.label}: no TPDOs since the link failed")
             self._fresh_after = 0.0
+        await self._wait_fresh()
         now = time.monotonic()
         axes = []
         for axis in self.axes:
@@ -394,6 +397,21 @@ class CanopenDrive(DriveLink):
         for a in axes:
             dev |= a.status
         return DriveState(self.axis_count, tuple(axes), dev)
+
+    async def _wait_fresh(self) -> None:
+        """A late heartbeat or TPDO is waited for (``stale_s`` at most) rather than failing the
+        cycle at once: the frames lost while the bus was in trouble leave a stale cache for
+        a moment after it recovers, and the next frames put it right."""
+
+        def fresh() -> bool:
+            now = time.monotonic()
+            return all(
+                a.staleness(now, self.stale_s, self.producer_heartbeat_ms, self.label) is None
+                for a in self.axes
+            )
+
+        if not fresh():
+            await self.wait(fresh, self.stale_s)
 
     # -- targets ------------------------------------------------------------------------
     async def write_targets(self, angles_deg: Sequence[float]) -> None:

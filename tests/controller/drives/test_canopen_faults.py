@@ -12,6 +12,7 @@ import pytest
 
 from controller.drives import DriveCommError, open_drive
 from controller.drives.base import LATENCY_WINDOW, LinkStats
+from controller.drives.canopen import CanopenDrive
 from controller.drives.links import CanopenLink
 from controller.drives.retry import RetryPolicy
 from firmware_protocol import Command, Fault, Mode, Status, register
@@ -159,3 +160,36 @@ def test_a_link_keeps_only_its_recent_latencies():
 
     run(many())
     assert stats.transactions == LATENCY_WINDOW + 10 and len(stats.latencies_s) == LATENCY_WINDOW
+
+
+def test_a_state_stale_from_a_bus_fault_is_waited_for_not_failed(faulty_can):
+    """The frames lost while the bus was off leave the cache stale (heartbeat and TPDOs
+    older than three heartbeat periods); the first read after the bus is back waits for the
+    next frames instead of failing the cycle (the soak lost setpoints to this)."""
+
+    async def scenario():
+        d = CanopenDrive(
+            5,
+            channel=faulty_can.channel,
+            interface="virtual",
+            timeout_s=0.3,
+            producer_heartbeat_ms=500,
+            stale_s=1.5,
+        )
+        await d.connect()
+        try:
+            await d.exchange([10.0])
+            faulty_can.faults.state = "bus_off"
+            await asyncio.sleep(2.0)  # > 3 heartbeat periods and > stale_s of silence
+            faulty_can.faults.state = None
+            st = await d.read_state()  # before: "heartbeat of node 5 lost" at once
+            assert st.axes[0].target_deg == pytest.approx(10.0)
+            faulty_can.faults.state = "bus_off"
+            await asyncio.sleep(2.0)
+            with pytest.raises(DriveCommError, match="heartbeat of node 5 lost|no TPDO"):
+                await d.read_state()  # still off: refused after the wait
+        finally:
+            faulty_can.faults.state = None
+            await d.close()
+
+    run(scenario())
