@@ -143,8 +143,9 @@ class Controller(WindPolling):
             return self.safety.angles(tr.cfg, "wind")
         return tr.cfg.stow_angles
 
-    async def _configure(self, tr: TrackerRuntime, rebooted: bool = False) -> None:
-        await tr.drive.connect()
+    async def _configure(self, tr: TrackerRuntime, rebooted: bool = False, connected: bool = False) -> None:
+        if not connected:
+            await tr.drive.connect()
         if tr.drive.axis_count < tr.cfg.axes:
             raise DriveCommError(
                 f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
@@ -404,12 +405,16 @@ class Controller(WindPolling):
     ) -> DriveState:
         if not tr.configured:
             now = self.clock.monotonic()
-            if not tr.health.may_reconnect(now):
+            if tr.health.may_reconnect(now):
+                await self._configure(tr)
+            elif await tr.drive.probe():
+                log.info("%s: the drive answers again: reconnecting before the backoff ends", tr.cfg.name)
+                await self._configure(tr, connected=True)
+            else:
                 raise LinkDownError(
-                    f"{tr.cfg.name}: link down ({tr.health.reason}); next "
-                    f"attempt in {tr.health.reconnect_at - now:.0f} s"
+                    f"{tr.cfg.name}: link down ({tr.health.reason}); probed, no answer; next "
+                    f"full attempt in {tr.health.reconnect_at - now:.0f} s"
                 )
-            await self._configure(tr)
         elif tr.health.errors_in_row or (
             self.clock.monotonic() - tr.last_heartbeat >= 0.9 * self.config.control.heartbeat_timeout_s
         ):

@@ -119,6 +119,16 @@ class DriveLink(abc.ABC):
     @abc.abstractmethod
     async def close(self) -> None: ...
 
+    async def probe(self) -> bool:
+        """Connect if the drive answers the first time, without retries; True when connected.
+
+        The loop probes a link that waits out its reconnection backoff once a cycle, so that
+        a drive whose fault has cleared is back in the next cycle however long the backoff,
+        while a drive still gone costs its bus one timeout a cycle.  A backend that cannot
+        try cheaply returns False (the default): it waits for the backoff.
+        """
+        return False
+
     @abc.abstractmethod
     async def read_state(self) -> DriveState: ...
 

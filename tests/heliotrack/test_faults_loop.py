@@ -4,6 +4,8 @@ STOW its factory watchdog chose; a link waiting for its reconnection counted eve
 of the wait as a new failure, so the wait doubled each cycle and the drive never came
 back.  Both tests failed before."""
 
+import pytest
+
 from hil.drive import AxisParams
 
 
@@ -44,3 +46,26 @@ def test_a_link_waiting_to_reconnect_does_not_push_its_reconnection_back(default
         clock.sleep(cfg.control.period_s / 2)
         rec = run(ctl.cycle())[1]
     assert not rec.error and tr.configured
+
+
+def test_a_drive_back_after_a_long_outage_is_reconnected_the_next_cycle(default_plant):
+    """The reconnection backoff grows through a long outage (one period, doubling); once the
+    drive answers again, the cycle's probe reconnects it at once instead of waiting out the
+    backoff (the soak: a CANopen row back 225 s after its bus fault cleared)."""
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    fws["row-1"].response_delay_s = 1.0  # answers after the link's 0.3-s timeout: none
+    tr = ctl.trackers[1]
+    for _ in range(12):
+        clock.sleep(cfg.control.period_s)
+        run(ctl.cycle())
+    assert tr.health.state.value == "lost" and tr.health.backoff_s >= 4 * cfg.control.period_s
+    assert tr.health.reconnect_at - clock.monotonic() > 2 * cfg.control.period_s
+    fws["row-1"].response_delay_s = 0.0  # the drive answers again
+    clock.sleep(cfg.control.period_s)
+    rec = run(ctl.cycle())[1]
+    assert not rec.error and tr.configured and rec.health == "ok"
+    clock.sleep(cfg.control.period_s)  # its watchdog's stow was resumed: tracking again
+    rec = run(ctl.cycle())[1]
+    assert not rec.error and rec.axis_modes == ("AUTO",)
+    assert fws["row-1"].axes[0].target == pytest.approx(rec.targets_deg[0], abs=0.01)

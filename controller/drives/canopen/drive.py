@@ -53,7 +53,7 @@ from ..base import (
     LinkStats,
 )
 from ..links import CanopenLink, LinkConfig
-from ..retry import RetryPolicy
+from ..retry import RetryPolicy, single_attempts
 from .axis import Axis402, load_od
 from .axis_control import SetPointNotAcknowledged, reenable, set_point
 from .network import SharedNetwork, send_master_heartbeat
@@ -341,6 +341,14 @@ class CanopenDrive(DriveLink):
                 log.warning("%s: node %d is in FAULT", self.label, node.id)
                 return
             raise
+
+    async def probe(self) -> bool:
+        with single_attempts(self, "sdo_policy"):
+            try:
+                await self.connect()
+            except DriveCommError:
+                return False
+        return True
 
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""
