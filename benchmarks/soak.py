@@ -69,6 +69,9 @@ DEFINITIONS = {
     "state_corruptions": "times the store failed its integrity check, or the sun-path state the "
     "controller saved in it failed to load and validate (controller.sunpath.state."
     "load_from_store), checked after each of the controller's day changes (when it saves)",
+    "memory_by_day": "where the memory was at each rss_mb_by_day sample: threads, objects the "
+    "garbage collector tracks, glibc's heaps (all arenas) obtained by sbrk and by mmap, "
+    "allocated and held free (MB)",
     "rss_growth_pct": "resident set size at the end of the last simulated day against the end "
     "of the first, percent, each measured after a garbage collection and glibc malloc_trim "
     "(memory freed in the threads' allocator arenas is not held)",
@@ -170,6 +173,7 @@ def result(soak: SoakRun, summary: dict, days: int) -> dict:
         "state_corruption_samples": soak.state_corruptions[:10],
         "rss_mb_by_day": [round(b / 2**20, 1) for b in soak.rss_by_day],
         "rss_growth_pct": soak.rss_growth_pct(),
+        "memory_by_day": soak.memory_by_day,
         "event_loop_errors_handled": dict(soak.loop_errors),
         "thread_errors": dict(soak.thread_errors),
         "links": summary.get("links", {}),

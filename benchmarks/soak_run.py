@@ -40,6 +40,46 @@ def rss_bytes(trim: bool = False) -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
+class _MallInfo2(ctypes.Structure):
+    _fields_ = [
+        (name, ctypes.c_size_t)
+        for name in (
+            "arena",
+            "ordblks",
+            "smblks",
+            "hblks",
+            "hblkhd",
+            "usmblks",
+            "fsmblks",
+            "uordblks",
+            "fordblks",
+            "keepcost",
+        )
+    ]
+
+
+def memory_breakdown() -> dict[str, float]:
+    """Where the memory is, to explain a step in RSS: threads, Python objects tracked by the
+    garbage collector, and glibc's heap (MB; all arenas: ``sbrk_mb`` from the main heap and
+    the threads' heaps, ``mmap_mb`` in large blocks, ``in_use_mb`` allocated, ``free_mb``
+    held free).  Empty values where the C library is not glibc 2.33+."""
+    out: dict[str, float] = {"threads": threading.active_count(), "gc_objects": len(gc.get_objects())}
+    try:
+        fn = ctypes.CDLL("libc.so.6").mallinfo2
+    except (OSError, AttributeError):
+        return out
+    fn.restype = _MallInfo2
+    m = fn()
+    mb = 2.0**-20
+    out.update(
+        sbrk_mb=round(m.arena * mb, 1),
+        mmap_mb=round(m.hblkhd * mb, 1),
+        in_use_mb=round((m.uordblks + m.hblkhd) * mb, 1),
+        free_mb=round(m.fordblks * mb, 1),
+    )
+    return out
+
+
 class SoakRun(ScenarioRun):
     """A :class:`~heliotrack.simulate.ScenarioRun` that keeps going through anything and
     counts it.  The learned state it validates after every day: the store of ``[store]
@@ -58,6 +98,7 @@ class SoakRun(ScenarioRun):
         self.state_checks = 0
         self.state_corruptions: list[str] = []
         self.rss_by_day: list[int] = []
+        self.memory_by_day: list[dict[str, float]] = []
         self.wind_alarms: Counter[str] = Counter()
         self.loop_errors: Counter[str] = Counter()
         self.thread_errors: Counter[str] = Counter()
@@ -146,6 +187,7 @@ class SoakRun(ScenarioRun):
         if day != self._day or self.cycles_done == self.n_cycles:
             self._day = day
             self.rss_by_day.append(rss_bytes(trim=True))
+            self.memory_by_day.append(memory_breakdown())
         wall_day = int(self.clock.now() // 86400)
         if self._wall_day is not None and wall_day != self._wall_day:
             self._check_state()  # the controller saves when its (UTC) day changes
