@@ -117,7 +117,10 @@ def soak_config(days: int, state_dir: Path, seed: int = 29):
 
 
 def run(quick: bool = False, days: int | None = None) -> dict:
+    from heliotrack.allocator import bound_heap
     from heliotrack.span import simulation_span
+
+    bound_heap()  # as `heliotrack run` does: the soak stands for a month of it
 
     days = days or (1 if quick else 30)
     with tempfile.TemporaryDirectory(prefix="heliotrack-soak-") as tmp:

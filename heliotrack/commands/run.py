@@ -68,7 +68,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from controller.errors import ConfigError
+    from heliotrack.allocator import bound_heap
     from heliotrack.runtime import load_plant, use_state_folder
+
+    bound_heap()  # months of frames and arrays: no heap that keeps its high-water mark
 
     config = load_plant(args.config, "run")
     if args.duration is not None and not args.duration > 0:
