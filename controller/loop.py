@@ -407,8 +407,7 @@ class Controller(WindPolling):
             now = self.clock.monotonic()
             if tr.health.may_reconnect(now):
                 await self._configure(tr)
-            elif await tr.drive.probe():
-                log.info("%s: the drive answers again: reconnecting before the backoff ends", tr.cfg.name)
+            elif await tr.drive.probe():  # answers again: no need to wait out the backoff
                 await self._configure(tr, connected=True)
             else:
                 raise LinkDownError(

@@ -7,6 +7,7 @@ imported.
 from __future__ import annotations
 
 import abc
+import dataclasses
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -106,6 +107,8 @@ class DriveLink(abc.ABC):
     label: str = ""
     #: The settings dataclass of this backend's ``[[links]]`` table.
     config_type: ClassVar[type[LinkConfig]]
+    #: The attribute holding the ``RetryPolicy`` that :meth:`connect` runs under (None: none).
+    probe_policy: ClassVar[str | None] = None
 
     @classmethod
     def from_config(cls, link: LinkConfig, device_id: int) -> DriveLink:
@@ -124,10 +127,21 @@ class DriveLink(abc.ABC):
 
         The loop probes a link that waits out its reconnection backoff once a cycle, so that
         a drive whose fault has cleared is back in the next cycle however long the backoff,
-        while a drive still gone costs its bus one timeout a cycle.  A backend that cannot
-        try cheaply returns False (the default): it waits for the backoff.
+        while a drive still gone costs its bus one timeout a cycle.  It runs
+        :meth:`connect` with the backend's ``RetryPolicy`` named by ``probe_policy`` cut to
+        one attempt; a backend without one cannot try cheaply and waits for the backoff.
         """
-        return False
+        if self.probe_policy is None:
+            return False
+        saved = getattr(self, self.probe_policy)
+        setattr(self, self.probe_policy, dataclasses.replace(saved, retries=0))
+        try:
+            await self.connect()
+        except DriveCommError:
+            return False
+        finally:
+            setattr(self, self.probe_policy, saved)
+        return True
 
     @abc.abstractmethod
     async def read_state(self) -> DriveState: ...

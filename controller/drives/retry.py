@@ -10,9 +10,8 @@ set are not the link's business (a bug, a cancellation) and pass through unchang
 from __future__ import annotations
 
 import time
-from collections.abc import Awaitable, Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from collections.abc import Awaitable, Callable
+from dataclasses import dataclass
 from typing import TypeVar
 
 from .base import DriveCommError, DriveNoAnswer, LinkStats
@@ -77,16 +76,3 @@ class RetryPolicy:
             stats.latencies_s.append(time.perf_counter() - t0)
             return result
         raise DriveNoAnswer(label, what, self.attempts, last)
-
-
-@contextmanager
-def single_attempts(link: object, attr: str) -> Iterator[None]:
-    """Run the body with the :class:`RetryPolicy` ``link.<attr>`` reduced to one attempt per
-    transaction: a probe of a drive that may still be gone costs one timeout, not
-    ``retries + 1`` of them."""
-    saved: RetryPolicy = getattr(link, attr)
-    setattr(link, attr, replace(saved, retries=0))
-    try:
-        yield
-    finally:
-        setattr(link, attr, saved)

@@ -4,6 +4,8 @@ when they and its heartbeat were last heard."""
 from __future__ import annotations
 
 import io
+import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import canopen
@@ -124,3 +126,9 @@ class Axis402:
             ) from None
         except ValueError as exc:  # an unknown fault or mode code on the wire
             raise DriveCommError(f"{label}: implausible state from node {self.node.id}: {exc}") from None
+
+
+def all_fresh(axes: Sequence[Axis402], stale_s: float, producer_heartbeat_ms: int, label: str) -> bool:
+    """Every axis's heartbeat and TPDOs are recent now (:meth:`Axis402.staleness`)."""
+    now = time.monotonic()
+    return all(a.staleness(now, stale_s, producer_heartbeat_ms, label) is None for a in axes)

@@ -53,8 +53,8 @@ from ..base import (
     LinkStats,
 )
 from ..links import CanopenLink, LinkConfig
-from ..retry import RetryPolicy, single_attempts
-from .axis import Axis402, load_od
+from ..retry import RetryPolicy
+from .axis import Axis402, all_fresh, load_od
 from .axis_control import SetPointNotAcknowledged, reenable, set_point
 from .network import SharedNetwork, send_master_heartbeat
 
@@ -112,6 +112,7 @@ class CanopenDrive(DriveLink):
     """
 
     config_type = CanopenLink
+    probe_policy = "sdo_policy"
 
     @classmethod
     def from_config(cls, link: LinkConfig, device_id: int) -> CanopenDrive:
@@ -342,14 +343,6 @@ class CanopenDrive(DriveLink):
                 return
             raise
 
-    async def probe(self) -> bool:
-        with single_attempts(self, "sdo_policy"):
-            try:
-                await self.connect()
-            except DriveCommError:
-                return False
-        return True
-
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""
         network = self.network
@@ -395,7 +388,9 @@ class CanopenDrive(DriveLink):
             if not fresh:
                 raise DriveCommError(f"{self.label}: no TPDOs since the link failed")
             self._fresh_after = 0.0
-        await self._wait_fresh()
+        recent = partial(all_fresh, self.axes, self.stale_s, self.producer_heartbeat_ms, self.label)
+        if not recent():  # frames lost in a bus fault: the next ones put the cache right
+            await self.wait(recent, self.stale_s)
         now = time.monotonic()
         axes = []
         for axis in self.axes:
@@ -405,21 +400,6 @@ class CanopenDrive(DriveLink):
         for a in axes:
             dev |= a.status
         return DriveState(self.axis_count, tuple(axes), dev)
-
-    async def _wait_fresh(self) -> None:
-        """A late heartbeat or TPDO is waited for (``stale_s`` at most) rather than failing the
-        cycle at once: the frames lost while the bus was in trouble leave a stale cache for
-        a moment after it recovers, and the next frames put it right."""
-
-        def fresh() -> bool:
-            now = time.monotonic()
-            return all(
-                a.staleness(now, self.stale_s, self.producer_heartbeat_ms, self.label) is None
-                for a in self.axes
-            )
-
-        if not fresh():
-            await self.wait(fresh, self.stale_s)
 
     # -- targets ------------------------------------------------------------------------
     async def write_targets(self, angles_deg: Sequence[float]) -> None:

@@ -31,7 +31,6 @@ from ..base import (
     soft_limit_steps,
 )
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
-from ..retry import single_attempts
 from .client import checked, endpoint, modbus_client, retry_policy
 
 _ID_WORDS = 3
@@ -63,6 +62,8 @@ class ModbusDrive(DriveLink):
         Returns the client again after :meth:`close` (a shared line's client is released
         on close; connecting again must take the line's current one, not keep its own).
     """
+
+    probe_policy = "policy"
 
     def __init__(
         self,
@@ -136,14 +137,6 @@ class ModbusDrive(DriveLink):
         if not 1 <= words[2] <= 2:
             raise DriveCommError(f"{self.label}: implausible axis count {words[2]}")
         self.axis_count = words[2]
-
-    async def probe(self) -> bool:
-        with single_attempts(self, "policy"):
-            try:
-                await self.connect()
-            except DriveCommError:
-                return False
-        return True
 
     async def close(self) -> None:
         if not self._closed:  # once: a shared line's client counts its users
