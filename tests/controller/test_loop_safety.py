@@ -82,6 +82,19 @@ def test_a_drive_fault_is_named_cleared_and_alarmed(default_plant):
     assert recs[0].health == "ok"
 
 
+def cycles_until_row_ok(plant, limit: int):
+    """Run cycles a period apart until row-1 is healthy (at most ``limit``): (cycles, records)."""
+    run, ctl, _fws, clock, cfg = plant
+    periods = 0
+    while periods < limit:
+        clock.sleep(cfg.control.period_s)
+        periods += 1
+        recs = run(ctl.cycle())
+        if recs[1].health == "ok":
+            break
+    return periods, recs
+
+
 def test_a_fault_that_survives_the_clears_leaves_the_drive_lost(default_plant):
     run, ctl, fws, clock, cfg = default_plant
     run(ctl.cycle())
@@ -101,13 +114,7 @@ def test_a_fault_that_survives_the_clears_leaves_the_drive_lost(default_plant):
     # within two control periods of the repair however long the fault lasted
     ax.hard_limit = False
     ax.limit_stuck = False
-    periods = 0
-    while periods < 16:
-        clock.sleep(cfg.control.period_s)
-        periods += 1
-        recs = run(ctl.cycle())
-        if recs[1].health == "ok":
-            break
+    periods, recs = cycles_until_row_ok(default_plant, 16)
     assert recs[1].health == "ok" and not ax.hard_limit
     assert periods * cfg.control.period_s <= max(
         2 * cfg.control.period_s, health.policy.service_retry_s + cfg.control.period_s
@@ -127,13 +134,7 @@ def test_a_long_stall_is_back_within_two_periods_once_its_jam_frees(default_plan
         recs = run(ctl.cycle())
     assert recs[1].health == "lost" and "needs service" in recs[1].health_reason
     ax.jammed = False  # the ice melts
-    periods = 0
-    while periods < 4:
-        clock.sleep(cfg.control.period_s)
-        periods += 1
-        recs = run(ctl.cycle())
-        if recs[1].health == "ok":
-            break
+    periods, recs = cycles_until_row_ok(default_plant, 4)
     assert recs[1].health == "ok", recs[1].health_reason
     assert periods * cfg.control.period_s <= 2 * max(cfg.control.period_s, 60.0)
 

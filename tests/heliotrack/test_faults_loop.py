@@ -29,14 +29,20 @@ def test_a_drive_that_rebooted_between_cycles_is_configured_and_resumed(default_
     assert recs[1].health == "ok"  # back within two cycles
 
 
-def test_a_link_waiting_to_reconnect_does_not_push_its_reconnection_back(default_plant):
-    run, ctl, fws, clock, cfg = default_plant
+def silence_row(plant, cycles: int):
+    """row-1 answers after the link's 0.3-s timeout (none) for ``cycles`` periods: its runtime."""
+    run, ctl, fws, clock, cfg = plant
     run(ctl.cycle())
-    fws["row-1"].response_delay_s = 1.0  # answers after the link's 0.3-s timeout: none
-    tr = ctl.trackers[1]
-    for _ in range(3):
+    fws["row-1"].response_delay_s = 1.0
+    for _ in range(cycles):
         clock.sleep(cfg.control.period_s)
         run(ctl.cycle())
+    return ctl.trackers[1]
+
+
+def test_a_link_waiting_to_reconnect_does_not_push_its_reconnection_back(default_plant):
+    run, ctl, fws, clock, cfg = default_plant
+    tr = silence_row(default_plant, 3)
     assert tr.health.state.value == "lost" and not tr.configured
     due = tr.health.reconnect_at
     clock.sleep(cfg.control.period_s / 2)
@@ -55,12 +61,7 @@ def test_a_drive_back_after_a_long_outage_is_reconnected_the_next_cycle(default_
     drive answers again, the cycle's probe reconnects it at once instead of waiting out the
     backoff (the soak: a CANopen row back 225 s after its bus fault cleared)."""
     run, ctl, fws, clock, cfg = default_plant
-    run(ctl.cycle())
-    fws["row-1"].response_delay_s = 1.0  # answers after the link's 0.3-s timeout: none
-    tr = ctl.trackers[1]
-    for _ in range(12):
-        clock.sleep(cfg.control.period_s)
-        run(ctl.cycle())
+    tr = silence_row(default_plant, 12)
     assert tr.health.state.value == "lost" and tr.health.backoff_s >= 4 * cfg.control.period_s
     assert tr.health.reconnect_at - clock.monotonic() > 2 * cfg.control.period_s
     fws["row-1"].response_delay_s = 0.0  # the drive answers again
