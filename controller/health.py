@@ -4,7 +4,8 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
 
 * link: a failed cycle makes the drive ``degraded``; ``lost_after`` failures in a row make
   it ``lost``, and the loop then closes the link and reconnects with exponential backoff
-  (one period, doubling, at most ``max_backoff_s``);
+  (one period, doubling, at most ``max_backoff_s``), probing it once a cycle in between
+  (``DriveLink.probe``) so that a drive that answers again is back at once;
 * faults: a latched fault (stall, limit switch, encoder...) is named, and CLEAR_FAULT is sent
   ``max_fault_clears`` times, ``clear_interval_s`` apart; a fault that survives them leaves
   the drive ``lost`` ("needs service"), and CLEAR_FAULT is still tried every
@@ -12,8 +13,8 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
   released) is back within that time by itself (the count restarts once it clears).  A
   stall's cause cannot be seen from outside: only a clear tells, and it costs the motor
   the drive's stall-detection time (2 s in the HIL) of stall current, about 3 % of a
-  minute; a site that wants it gentler raises ``service_retry_s`` and waits that much
-  longer for the drive to come back;
+  minute.  Gentler retries (a larger ``HealthPolicy.service_retry_s``, not a configuration
+  key yet) would leave a freed drive out of service that much longer;
 * stow: a drive in STOW because its watchdog fired (COMM_LOST) is resumed once the link is
   back; a STOW the controller commanded is resumed when the weather allows; any other
   STOW (a local wind switch, a maintenance panel, another master) is left alone and
