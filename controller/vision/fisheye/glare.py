@@ -54,6 +54,12 @@ class GlareOptions:
     max_horizon_shift : near the horizon, where the sky behind the rim is modelled by
         elevation, a ray whose level the sky raises by more than this fraction of the
         glare's contrast is not used (the model extrapolates there, towards the horizon).
+    max_ray_level, min_level : where the sky raises a ray's level above ``max_ray_level``
+        (a fraction of the contrast), the whole rim's level is lowered until it does not,
+        but not under ``min_level``.  Next to a low sun the sky plus the glare clips on the
+        horizon's side before the glare alone reaches ``level``: there the rim is gone from
+        the frame, and a rim seen only on the other sides turns any error of its radius into
+        one of its centre.
     """
 
     level: float = 0.85
@@ -64,6 +70,8 @@ class GlareOptions:
     noise_floor_px: float = 0.06
     max_horizon_shift: float = 0.10
     max_passes: int = 8
+    max_ray_level: float = 0.90
+    min_level: float = 0.55
 
 
 @dataclass
@@ -302,7 +310,10 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
-        level = bg + opts.level * (peak - bg) + shift
+        # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
+        top = float(np.max(shift)) / max(peak - bg, 1e-6)
+        f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
+        level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
         has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
         if by_el is not None:  # near the horizon the sky model extrapolates: a large
