@@ -54,9 +54,9 @@ class GlareOptions:
     max_horizon_shift : near the horizon, where the sky behind the rim is modelled by
         elevation, a ray whose level the sky raises by more than this fraction of the
         glare's contrast is not used (the model extrapolates there, towards the horizon).
-    max_ray_level, min_level : where the sky raises a ray's level above ``max_ray_level``
-        (a fraction of the contrast), the whole rim's level is lowered until it does not,
-        but not under ``min_level``.  Next to a low sun the sky plus the glare clips on the
+    max_ray_level, min_level : where the sky raises a ray on the horizon's side (within 60
+        deg of it) above ``max_ray_level`` (a fraction of the contrast), the whole rim's
+        level is lowered until it does not, but not under ``min_level``.  Next to a low sun the sky plus the glare clips on the
         horizon's side before the glare alone reaches ``level``: there the rim is gone from
         the frame, and a rim seen only on the other sides turns any error of its radius into
         one of its centre.  The floor keeps the rim in the glare's steep band: lower down, a
@@ -118,6 +118,7 @@ class GlareFit:
 
 
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
+_COS_60DEG = 0.5
 
 
 def find_blobs(
@@ -313,7 +314,7 @@ def fit_glare(
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
-        top = float(np.max(shift)) / max(peak - bg, 1e-6)
+        top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
         f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
         level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
@@ -389,6 +390,25 @@ def fit_glare(
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
     )
+
+
+def horizon_side_excess(
+    shift: np.ndarray, phi: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, up_cam
+) -> float:
+    """The sky's largest raise of a ray's level (grey levels) when that ray points within
+    60 deg of the horizon (down the vertical through the glare), else 0: the clear sky next to
+    a low sun brightens towards the horizon, and that is the side where the rim clips; a
+    raise on another side is a cloud's, which a lower rim would follow into the cloud.
+    Without the orientation the horizon is unknown: 0."""
+    if up_cam is None or shift.size == 0:
+        return 0.0
+    k = int(np.argmax(shift))
+    ray = math.cos(float(phi[k])) * e1 + math.sin(float(phi[k])) * e2
+    down = float(up_cam @ a) * a - up_cam  # the zenith's opposite, in the tangent plane
+    n = float(np.linalg.norm(down))
+    if n < 1e-9 or float(ray @ down) < n * _COS_60DEG:
+        return 0.0
+    return max(float(shift[k]), 0.0)
 
 
 def _max_gap(idx: np.ndarray, usable: np.ndarray) -> float:

@@ -127,3 +127,24 @@ def test_seed_offsets_and_direction_on_a_rendered_frame():
     # the paper's hemisphere is orthographic (r = R sin theta); this lens is near equidistant,
     # which puts the sun ~4 deg too close to the axis here: the paper's model, reproduced
     assert 2.0 < err < 6.0
+
+
+def test_only_a_raise_on_the_horizons_side_lowers_the_rim():
+    """The clear sky next to a low sun brightens towards the horizon, where the rim clips;
+    a raise pointing elsewhere is a cloud's, and the rim's level stays."""
+    from controller.vision.fisheye.glare import horizon_side_excess
+
+    a = np.array([0.0, math.sin(math.radians(60)), math.cos(math.radians(60))])  # 30 deg up
+    up = np.array([0.0, 0.0, 1.0])
+    e1, e2 = tangent_basis(a)
+    phi = np.linspace(0, 2 * math.pi, 72, endpoint=False)
+    down = float(up @ a) * a - up
+    toward = np.cos(phi) * float(e1 @ down) + np.sin(phi) * float(e2 @ down)  # cos of angle to down
+    horizon_side = 20.0 * toward / np.abs(toward).max()
+    assert horizon_side_excess(horizon_side, phi, a, e1, e2, up) == pytest.approx(20.0, rel=1e-3)
+    assert horizon_side_excess(-horizon_side, phi, a, e1, e2, up) == 0.0  # brighter towards the zenith
+    sideways = 20.0 * (
+        np.cos(phi) * float(e1 @ np.cross(a, down)) + np.sin(phi) * float(e2 @ np.cross(a, down))
+    )
+    assert horizon_side_excess(sideways, phi, a, e1, e2, up) == 0.0
+    assert horizon_side_excess(horizon_side, phi, a, e1, e2, None) == 0.0  # horizon unknown
