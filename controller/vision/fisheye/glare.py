@@ -55,13 +55,14 @@ class GlareOptions:
         elevation, a ray whose level the sky raises by more than this fraction of the
         glare's contrast is not used (the model extrapolates there, towards the horizon).
     max_ray_level, min_level : where the sky raises a ray on the horizon's side (within 60
-        deg of it) above ``max_ray_level`` (a fraction of the contrast), the whole rim's
-        level is lowered until it does not, but not under ``min_level``.  Next to a low sun the sky plus the glare clips on the
-        horizon's side before the glare alone reaches ``level``: there the rim is gone from
-        the frame, and a rim seen only on the other sides turns any error of its radius into
-        one of its centre.  The floor keeps the rim in the glare's steep band: lower down, a
-        sunlit cloud edge next to the sun pulls it (broken cloud: 0.21 deg RMS with a floor
-        of 0.55, 0.19 with 0.75).
+        deg of down the vertical through the glare; :func:`horizon_side_excess`) above
+        ``max_ray_level`` (a fraction of the contrast), the whole rim's level is lowered
+        until it does not, but not under ``min_level``.  Next to a low sun the sky plus the
+        glare clips on the horizon's side before the glare alone reaches ``level``: there
+        the rim is gone from the frame, and a rim seen only on the other sides turns any
+        error of its radius into one of its centre.  The floor keeps the rim in the glare's
+        steep band: lower down, a sunlit cloud edge next to the sun pulls it (broken cloud:
+        0.21 deg RMS with a floor of 0.55, 0.19 with 0.75).
     """
 
     level: float = 0.85
@@ -393,13 +394,22 @@ def fit_glare(
 
 
 def horizon_side_excess(
-    shift: np.ndarray, phi: np.ndarray, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, up_cam
+    shift: np.ndarray,
+    phi: np.ndarray,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    up_cam: np.ndarray | None,
 ) -> float:
     """The sky's largest raise of a ray's level (grey levels) when that ray points within
-    60 deg of the horizon (down the vertical through the glare), else 0: the clear sky next to
-    a low sun brightens towards the horizon, and that is the side where the rim clips; a
-    raise on another side is a cloud's, which a lower rim would follow into the cloud.
-    Without the orientation the horizon is unknown: 0."""
+    60 deg of the horizon (down the vertical through the glare), else 0.
+
+    ``shift``: each ray's raise; ``phi``: the rays' angles about the axis ``a`` in the
+    tangent basis (``e1``, ``e2``); ``up_cam``: the zenith in the camera frame.  The clear
+    sky next to a low sun brightens towards the horizon, and that is the side where the rim
+    clips; a raise on another side is a cloud's, which a lower rim would follow into the
+    cloud.  Without the orientation the horizon is unknown: 0.
+    """
     if up_cam is None or shift.size == 0:
         return 0.0
     k = int(np.argmax(shift))
