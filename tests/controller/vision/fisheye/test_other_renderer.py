@@ -51,7 +51,8 @@ def test_a_low_sun_under_a_cie_sky_keeps_its_whole_rim():
     """Next to a low sun the CIE sky plus the glare clips on the horizon's side before the
     glare alone reaches the rim's level; with the rim's level held at 0.85 of the contrast
     those rays were dropped and the half rim left read the sun 0.31 deg RMS off (10 frames,
-    15-30 deg); with the level lowered until every ray's stays under the clip, 0.13 (11)."""
+    15-30 deg); with the level lowered until those on the horizon's side stay under the
+    clip, 0.13 (11)."""
     rows = _run(other.OtherLook("clear"), el_range=(15.0, 30.0))
     assert len(rows) >= 10
     assert np.sqrt(np.mean(rows[:, 1] ** 2)) < 0.18

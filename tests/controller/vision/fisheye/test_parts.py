@@ -139,7 +139,7 @@ def test_only_a_raise_on_the_horizons_side_lowers_the_rim():
     e1, e2 = tangent_basis(a)
     phi = np.linspace(0, 2 * math.pi, 72, endpoint=False)
     down = float(up @ a) * a - up
-    toward = np.cos(phi) * float(e1 @ down) + np.sin(phi) * float(e2 @ down)  # cos of angle to down
+    toward = np.cos(phi) * float(e1 @ down) + np.sin(phi) * float(e2 @ down)  # along down
     horizon_side = 20.0 * toward / np.abs(toward).max()
     assert horizon_side_excess(horizon_side, phi, a, e1, e2, up) == pytest.approx(20.0, rel=1e-3)
     assert horizon_side_excess(-horizon_side, phi, a, e1, e2, up) == 0.0  # brighter towards the zenith
