@@ -182,3 +182,28 @@ def test_without_a_site_a_lens_ghost_opposite_the_sun_is_not_the_sun():
     res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, t)
     assert res.found, res.reason
     assert err_deg(res, fr.truth) < 0.05
+
+
+def test_without_a_site_a_sunlit_cloud_fleck_beside_a_hidden_sun_is_not_the_sun():
+    """The sun behind a thick cumulus (optical depth ~5); its silver lining holds a saturated
+    fleck 2.3 px in radius whose rim fits a circle on 31 of 48 rays.  With no site to gate
+    by and no earlier detection, it was taken for the sun 3.3 deg away (and then gated the
+    real sun out of the next frames).  A glare that small must show its whole rim."""
+    from hil.skycam import sky_profile
+
+    # the bench's broken-cloud sequence 14 (benchmarks/fisheye_suites.py); the clouds drift
+    # with the wind times the time of day, so the values are given in full
+    clouds = CloudField(
+        coverage=0.6,
+        tau_max=10.069987105120791,
+        wind_mps=(-9.845384812906449, -3.55804427038054),
+        scale_m=1373.256917564885,
+        seed=543,
+    )
+    scn = sky_profile("seed", noise=True).with_(clouds=clouds)
+    t = 1742473800.0  # 2025-03-20 12:30 UTC
+    fr = render_sky(scn, t, rng=np.random.default_rng(int(t) & 0xFFFF))  # the bench's noise
+    assert fr.truth["visibility"] == "hidden"
+    res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, t)
+    assert not res.found, f"found {err_deg(res, fr.truth):.2f} deg from a hidden sun"
+    assert res.reason == "incomplete_glare"
