@@ -216,7 +216,8 @@ class FisheyeEstimator(FramePipeline):
                 )
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
         if t is not None:
-            self._last = (float(t), self._gd(best))
+            if best.fit.inlier_fraction >= o.gates.anchor_min_inlier_fraction:
+                self._last = (float(t), self._gd(best))
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 

@@ -2,7 +2,9 @@
 
 * **Sequence gate** (the paper's rule 3, judged in angle): within ``max_gap_s`` of the last
   accepted detection of the same sequence the sun is at most ``base_deg + rate_deg_per_min
-  * minutes`` from it (the sun crosses the sky at <= 0.25 deg/min).
+  * minutes`` from it (the sun crosses the sky at <= 0.25 deg/min).  Only a detection whose
+  rim held on ``anchor_min_inlier_fraction`` of its rays anchors it: a wrong weak one would
+  otherwise shut the sun out of the frames that follow.
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
@@ -31,6 +33,10 @@ class GateOptions:
     prior_k_sigma: float = 3.0
     ephemeris: bool = True
     ephemeris_deg: float = 1.0
+    # the sequence gate anchors on a detection whose rim held on this share of its rays: a
+    # weak one (a sun dimmed and cut by cloud, or a cloud's fleck taken for it) is reported
+    # but does not shut the sun out of the next frames if it was wrong
+    anchor_min_inlier_fraction: float = 0.7
 
 
 @dataclass(frozen=True)
