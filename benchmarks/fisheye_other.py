@@ -10,7 +10,8 @@ smear and cloud model").  It shares no code with ``hil/skycam``; every model dif
   veiling glare round on the sensor, mixed 60 / 40;
 * **smear**: bloom that spills *upwards only* (one-sided, as on sensors read one way);
 * **sensor**: vignetting ``1 - 0.25 (r / r_max)^2``, Poisson-Gaussian noise of a 10 000 e-
-  well, the sRGB tone curve, JPEG q85;
+  well, the sRGB tone curve, JPEG q85; other looks: linear output, gamma 2.2, a filmic
+  S-curve that rolls the highlights off (with a Gaussian aureole);
 * **clouds**: drifting elliptical Gaussian puffs of optical depth 2-12, sunlit (forward
   scattering) next to the sun; the sun is visible where the puffs' summed depth along its
   line of sight is under 0.1, hidden where nothing of it saturates any more (its peak
@@ -48,7 +49,8 @@ class OtherLook:
     noise: bool = True
     sky: str = "cie"  # "flat": a uniform sky (for diagnosis)
     vignetting: float = 0.25
-    tone: str = "srgb"  # "linear" (for diagnosis)
+    tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
+    aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
 
 
 def kb_fit() -> tuple[np.ndarray, np.ndarray]:
@@ -167,6 +169,8 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     px_per_deg = F_EQ * math.pi / 180.0
 
     def g_ang(c_deg):
+        if look.aureole == "gauss":
+            return np.exp(-((c_deg / 1.6) ** 2)) + 0.03 / (1 + (c_deg / 1.0) ** 2) ** 1.5
         return np.exp(-c_deg / 0.9) + 0.02 / (1 + (c_deg / 0.5) ** 2)
 
     def g_pix(d):
@@ -195,8 +199,7 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     if look.noise:
         e = e + rng.standard_normal(e.shape) * np.sqrt(np.maximum(e, 0) + 64.0)
     x = np.clip(e / 10000.0, 0, 1)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055) if look.tone == "srgb" else x
-    img = np.ascontiguousarray(np.rint(srgb * 255).astype(np.uint8)[..., ::-1])
+    img = np.ascontiguousarray(np.rint(tone_curve(x, look.tone) * 255).astype(np.uint8)[..., ::-1])
     if look.jpeg and look.noise:
         img = cv2.imdecode(
             cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, look.jpeg])[1], cv2.IMREAD_COLOR
@@ -205,6 +208,18 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     peak = gain * trans * ((1 - w) * float(g_ang(0.0)) + w)
     vis = "visible" if tau_sun < 0.1 else ("hidden" if peak < 1.0 else "dimmed")
     return img, {"sun_enu": s_enu, "visibility": vis, "el_deg": float(el[0])}
+
+
+def tone_curve(x: np.ndarray, tone: str) -> np.ndarray:
+    """Linear exposure (0-1, clipped) to the output's 0-1."""
+    if tone == "srgb":
+        return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    if tone == "gamma2.2":
+        return x ** (1 / 2.2)
+    if tone == "filmic":  # highlights rolled off: flat at the top, as many cameras' JPEGs
+        y = x ** (1 / 2.2)
+        return 0.5 * y * y * (3 - 2 * y) + 0.5 * y
+    return x
 
 
 def bundle(R: np.ndarray):
@@ -229,6 +244,9 @@ CLEAR_LOOKS = (
     OtherLook("other renderer, glare all on the sky", veil_weight=0.0),
     OtherLook("other renderer, wide glare (5 deg)", sat_radius_deg=5.0),
     OtherLook("other renderer, upward bloom 2 radii", bloom=2.0),
+    OtherLook("other renderer, linear output", tone="linear"),
+    OtherLook("other renderer, gamma 2.2, Gaussian aureole", tone="gamma2.2", aureole="gauss"),
+    OtherLook("other renderer, filmic tone, Gaussian aureole", tone="filmic", aureole="gauss"),
 )
 
 
