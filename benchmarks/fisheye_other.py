@@ -11,7 +11,8 @@ smear and cloud model").  It shares no code with ``hil/skycam``; every model dif
 * **smear**: bloom that spills *upwards only* (one-sided, as on sensors read one way);
 * **sensor**: vignetting ``1 - 0.25 (r / r_max)^2``, Poisson-Gaussian noise of a 10 000 e-
   well, the sRGB tone curve, JPEG q85; other looks: linear output, gamma 2.2, a filmic
-  S-curve that rolls the highlights off (with a Gaussian aureole);
+  S-curve that rolls the highlights off (with a Gaussian aureole), Gaussian noise added
+  to the output (so the saturated plateau is noisy too);
 * **clouds**: drifting elliptical Gaussian puffs of optical depth 2-12, sunlit (forward
   scattering) next to the sun; the sun is visible where the puffs' summed depth along its
   line of sight is under 0.1, hidden where nothing of it saturates any more (its peak
@@ -51,6 +52,7 @@ class OtherLook:
     vignetting: float = 0.25
     tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
     aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
+    post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
 
 
 def kb_fit() -> tuple[np.ndarray, np.ndarray]:
@@ -199,7 +201,10 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     if look.noise:
         e = e + rng.standard_normal(e.shape) * np.sqrt(np.maximum(e, 0) + 64.0)
     x = np.clip(e / 10000.0, 0, 1)
-    img = np.ascontiguousarray(np.rint(tone_curve(x, look.tone) * 255).astype(np.uint8)[..., ::-1])
+    out = tone_curve(x, look.tone) * 255
+    if look.post_noise > 0:  # as a renderer that adds noise to its output would: the
+        out = out + rng.standard_normal(out.shape) * look.post_noise  # plateau is noisy too
+    img = np.ascontiguousarray(np.clip(np.rint(out), 0, 255).astype(np.uint8)[..., ::-1])
     if look.jpeg and look.noise:
         img = cv2.imdecode(
             cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, look.jpeg])[1], cv2.IMREAD_COLOR
@@ -247,6 +252,7 @@ CLEAR_LOOKS = (
     OtherLook("other renderer, linear output", tone="linear"),
     OtherLook("other renderer, gamma 2.2, Gaussian aureole", tone="gamma2.2", aureole="gauss"),
     OtherLook("other renderer, filmic tone, Gaussian aureole", tone="filmic", aureole="gauss"),
+    OtherLook("other renderer, linear, noise after the clip (3 grey levels)", tone="linear", post_noise=3.0),
 )
 
 

@@ -150,9 +150,33 @@ def find_blobs(
         if area < min_area_px:
             continue
         dt = cv2.distanceTransform((sub > 0).astype(np.uint8), cv2.DIST_L2, 5)
-        out.append(Blob(area, (x0, y0, x1 - x0, y1 - y0), _dt_centres(dt, x0, y0)))
+        dt_avg = _averaged_core_dt(grey, valid, (x0, y0, x1, y1), threshold)
+        centres = [
+            (x, y, max(r, float(dt_avg[int(y) - y0, int(x) - x0]))) for x, y, r in _dt_centres(dt, x0, y0)
+        ]
+        out.append(Blob(area, (x0, y0, x1 - x0, y1 - y0), centres))
     out.sort(key=lambda b: -b.area_px)
     return out[:max_blobs]
+
+
+def _averaged_core_dt(
+    grey: np.ndarray, valid: np.ndarray | None, box: tuple[int, int, int, int], threshold: float
+) -> np.ndarray:
+    """Distance transform of the box's near-saturated core after a 3 x 3 average (threshold
+    lowered by what the average took off the box's peak).  Noise added after the clip (by a
+    camera's pipeline or a renderer) takes pixels of a saturated plateau under the
+    threshold; the holes leave the blob's inscribed disk, the rays' first radius, well
+    inside the glare, and the rays end before its rim.  A clean plateau is the same either
+    way, so the larger of the two radii is kept."""
+    x0, y0, x1, y1 = box
+    H, W = grey.shape
+    wx0, wy0, wx1, wy1 = max(x0 - 1, 0), max(y0 - 1, 0), min(x1 + 1, W), min(y1 + 1, H)
+    win = grey[wy0:wy1, wx0:wx1]
+    avg = cv2.blur(win, (3, 3))[y0 - wy0 : y1 - wy0, x0 - wx0 : x1 - wx0]
+    core = avg >= threshold - 0.5 - (float(win.max()) - float(avg.max()))
+    if valid is not None:
+        core &= valid[y0:y1, x0:x1] > 0
+    return np.asarray(cv2.distanceTransform(core.astype(np.uint8), cv2.DIST_L2, 5))
 
 
 def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[float, float, float]]:
