@@ -5,7 +5,8 @@ Method (see docs/fisheye.md):
 1. **Candidates.**  Pixels within a few grey levels of the frame's peak form connected
    blobs.  Each blob's centres are the maxima of its distance transform (the centres of
    its largest inscribed disks), which a thin smear column or a cloud edge joined to the
-   glare barely moves.
+   glare barely moves; a disk's radius is also read after a 3 x 3 average, so that noise
+   added after the clip, which riddles the plateau, does not shrink it.
 2. **Rim.**  From a centre, rays sample the grey image bilinearly every half pixel; the rim
    point of a ray is where it first falls below a level between the peak and the local
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
