@@ -20,8 +20,9 @@ calibration chain, robustness to other looks of the world, and frames per second
   smear, sky brightness and compression, known calibration.
 * ``other_renderer``: a second renderer written apart from the HIL's
   (:mod:`benchmarks.fisheye_other`: equisolid lens, CIE clear sky, another glare profile,
-  upward bloom, sRGB, puff clouds): clear days of five looks and a cloud suite, the
-  pipeline handed a ``cv2.fisheye`` fit of that lens.
+  upward bloom, sRGB, vignetting, puff clouds): clear days of ten looks and a cloud suite,
+  the pipeline handed a ``cv2.fisheye`` fit of that lens and the camera's radiometry
+  (response and vignetting, as a calibration gives them), and once without it.
 * ``panel_loop``: the panel-mounted closed loop in ``heliotrack simulate`` (clear day, and
   1.5 deg row offsets with a 2-hour gap; assisted, paper and sky-fixed modes):
   :mod:`benchmarks.fisheye_loop` (``python -m benchmarks.fisheye_loop`` runs it alone).

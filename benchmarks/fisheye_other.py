@@ -12,7 +12,8 @@ smear and cloud model").  It shares no code with ``hil/skycam``; every model dif
 * **sensor**: vignetting ``1 - 0.25 (r / r_max)^2``, Poisson-Gaussian noise of a 10 000 e-
   well, the sRGB tone curve, JPEG q85; other looks: linear output, gamma 2.2, a filmic
   S-curve that rolls the highlights off (with a Gaussian aureole), Gaussian noise added
-  to the output (so the saturated plateau is noisy too);
+  to the output (so the saturated plateau is noisy too); the pipeline's bundle declares
+  the camera's response and vignetting (:func:`radiometry`) except in one look;
 * **clouds**: drifting elliptical Gaussian puffs of optical depth 2-12, sunlit (forward
   scattering) next to the sun; the sun is visible where the puffs' summed depth along its
   line of sight is under 0.1, hidden where nothing of it saturates any more (its peak
@@ -53,6 +54,7 @@ class OtherLook:
     tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
     aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
     post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
+    declared: bool = True  # the pipeline's bundle declares the camera's radiometry
 
 
 def kb_fit() -> tuple[np.ndarray, np.ndarray]:
@@ -227,8 +229,39 @@ def tone_curve(x: np.ndarray, tone: str) -> np.ndarray:
     return x
 
 
-def bundle(R: np.ndarray):
-    """The pipeline's bundle: the KB fit of the lens, the true rotation, the site."""
+def vignetting_fit(vignetting: float) -> tuple[float, ...]:
+    """The bundle's vignetting coefficients (``1 + c1 t^2 + c2 t^4 + c3 t^6``, t the field
+    angle in rad) of the renderer's law ``1 - v (r / r_max)^2`` through the equisolid lens."""
+    th = np.linspace(0.0, THETA_MAX, 400)
+    v = 1.0 - vignetting * (np.sin(th / 2) / math.sin(THETA_MAX / 2)) ** 2
+    A = np.stack([th**2, th**4, th**6], 1)
+    c, *_ = np.linalg.lstsq(A, v - 1.0, rcond=None)
+    return tuple(float(x) for x in c)
+
+
+def radiometry(look: OtherLook):
+    """The camera's ``[radiometry]`` as its calibration would give it: the tone curve
+    (named when it is a standard one, else its table) and the vignetting's fit; None when
+    the look's bundle does not declare it."""
+    from controller.calibration.fisheye_bundle import RadiometryCal
+
+    if not look.declared:
+        return None
+    vig = vignetting_fit(look.vignetting) if look.vignetting else ()
+    if look.tone == "srgb":
+        return RadiometryCal(response="srgb", vignetting=vig)
+    if look.tone == "gamma2.2":
+        return RadiometryCal(response="gamma", gamma=2.2, vignetting=vig)
+    if look.tone == "linear":
+        return RadiometryCal(response="linear", vignetting=vig)
+    x = np.linspace(0.0, 1.0, 4097)
+    table = np.interp(np.arange(256) / 255.0, tone_curve(x, look.tone), x)
+    return RadiometryCal(response="table", table=tuple(float(v) for v in table), vignetting=vig)
+
+
+def bundle(R: np.ndarray, look: OtherLook | None = None):
+    """The pipeline's bundle: the KB fit of the lens, the true rotation, the site, and the
+    look's camera radiometry (:func:`radiometry`) when given."""
     from controller.calibration.camera import CameraCal
     from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 
@@ -240,11 +273,13 @@ def bundle(R: np.ndarray):
         camera=cam,
         orientation=OrientationCal(enu_from_camera=as_mat3(R)),
         site=SiteCal(latitude=SITE[0], longitude=SITE[1], altitude=SITE[2]),
+        radiometry=None if look is None else radiometry(look),
     )
 
 
 CLEAR_LOOKS = (
     OtherLook("other renderer"),
+    OtherLook("other renderer, radiometry not declared", declared=False),
     OtherLook("other renderer, glare all on the sensor", veil_weight=1.0),
     OtherLook("other renderer, glare all on the sky", veil_weight=0.0),
     OtherLook("other renderer, wide glare (5 deg)", sat_radius_deg=5.0),
@@ -272,7 +307,7 @@ def clear(quick: bool) -> dict:
     step = 3600 if quick else 1800
     out = {}
     for look in CLEAR_LOOKS[:2] if quick else CLEAR_LOOKS:
-        est = FisheyeEstimator(bundle(R))
+        est = FisheyeEstimator(bundle(R, look))
         rng = np.random.default_rng(17)
         errs, missing, n = [], {}, 0
         for day in ((2025, 3, 20), (2025, 6, 21), (2025, 12, 21)):
@@ -337,7 +372,7 @@ def clouds(quick: bool) -> dict:
     rays, R = pixel_rays(), rotation()
     tally = Tally()
     for look, ts in cloud_sequences(quick):
-        est = FisheyeEstimator(bundle(R))
+        est = FisheyeEstimator(bundle(R, look))
         rng = np.random.default_rng(int(ts[0]) & 0xFFFF)
         for t in ts:
             img, truth = render(look, t, rays, R, rng)

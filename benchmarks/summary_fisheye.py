@@ -79,13 +79,17 @@ def fisheye(r: dict) -> list[Headline]:
     other = r.get("other_renderer")
     if other:
         oc, ocl = other["clear"]["other renderer"], other["clouds"]
+        und = other["clear"].get("other renderer, radiometry not declared")
+        note = f"found {oc['found']} of {oc['frames']}"
+        if und:
+            note += f"; radiometry not declared: {fmt(und['error'].get('rms_deg'), 3, ' deg')}"
         out += [
             Headline(
                 "fisheye",
-                "second renderer: clear sky RMS, 640 x 480",
+                "second renderer: clear sky RMS, 640 x 480 (sRGB, vignetting declared)",
                 fmt(oc["error"].get("rms_deg"), 3, " deg"),
                 "<= 0.03 deg",
-                f"found {oc['found']} of {oc['frames']}",
+                note,
                 ok=acc.get("other_renderer_clear_rms_le_0.03"),
             ),
             Headline(

@@ -19,6 +19,11 @@ enu_from_camera = [[..], [..], [..]]   # 3 x 3; columns = camera x, y, z (OpenCV
 residual_deg = 0.02         # optional: RMS residual of the fit that produced it
 method = "sun"              # optional: how it was obtained
 
+[radiometry]                # optional: grey level <-> light (docs/fisheye.md, "Radiometry")
+response = "srgb"           # "linear" (default), "srgb", "gamma" (with gamma = ..) or "table"
+table = [..]                # with response = "table": 256 values, light at each grey level
+vignetting = [c1, c2, c3]   # relative illumination 1 + c1 t^2 + c2 t^4 + c3 t^6 (t: field angle, rad)
+
 [site]                      # optional: enables the ephemeris gate
 latitude = 32.4835          # deg, north positive
 longitude = 48.3364         # deg, east positive
@@ -32,9 +37,10 @@ errors, and every error names the file, the key and what was expected.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -88,6 +94,85 @@ class SiteCal:
     altitude: float = setting(0.0, doc="Altitude above sea level.", unit="m", ge=-500, le=9000)
 
 
+#: Field angles (deg) over which a declared vignetting must stay a plausible illumination.
+VIGNETTING_CHECK_DEG = 100.0
+#: The least relative illumination a declared vignetting may reach there.
+VIGNETTING_MIN = 0.05
+
+
+@dataclass(frozen=True, kw_only=True)
+class RadiometryCal:
+    """How the frame's grey levels relate to the light that made them.
+
+    The sky's brightness next to the glare is measured a few radii out and removed at the
+    rim, where the grey level is far higher; on a camera whose output is not linear in light
+    (sRGB JPEGs) or whose lens darkens towards the edge of the field, that transfer needs
+    the response and the vignetting.  Without this section the frame is taken as linear and
+    evenly lit (as the HIL renders it).
+    """
+
+    response: Literal["linear", "srgb", "gamma", "table"] = setting(
+        "linear",
+        doc='Grey level to light: "linear", "srgb" (IEC 61966-2-1), "gamma" (light = grey^gamma) or '
+        '"table" (measured, e.g. by heliotrack calibrate fisheye response).',
+    )
+    gamma: float | None = setting(None, doc='Exponent of response = "gamma".', gt=1.0, le=4.0)
+    table: tuple[float, ...] | None = setting(
+        None,
+        doc='Light at each grey level 0..255 (256 values, non-decreasing; any scale) for response = "table".',
+    )
+    vignetting: tuple[float, ...] = setting(
+        (),
+        doc="Relative illumination of the lens, 1 + c1 t^2 + c2 t^4 + ... with t the field angle "
+        "in radians: [c1, c2, ...] (at most 4).",
+    )
+    method: str | None = setting(None, doc="How it was obtained (free text).")
+
+    def __schema_check__(self, at: Where) -> RadiometryCal:
+        if self.response == "gamma" and self.gamma is None:
+            raise at.child("gamma").error('a number (response = "gamma" needs its exponent)')
+        if self.response != "gamma" and self.gamma is not None:
+            raise at.child("gamma").error(f'no gamma (response = "{self.response}")', self.gamma)
+        if self.response == "table":
+            t = np.asarray(self.table if self.table is not None else (), float)
+            if (
+                t.shape != (256,)
+                or not np.isfinite(t).all()
+                or t[0] < 0
+                or (np.diff(t) < 0).any()
+                or t[-1] <= t[0]
+            ):
+                raise at.child("table").error(
+                    "256 finite values, non-negative, non-decreasing, the last above the first",
+                    f"{t.size} values" if t.shape != (256,) else "a table that is not",
+                )
+        elif self.table is not None:
+            raise at.child("table").error(f'no table (response = "{self.response}")', "a table")
+        if len(self.vignetting) > 4 or not all(math.isfinite(c) for c in self.vignetting):
+            raise at.child("vignetting").error("at most 4 finite coefficients", list(self.vignetting))
+        th = np.radians(np.linspace(0.0, VIGNETTING_CHECK_DEG, 101))
+        v = relative_illumination(self.vignetting, np.cos(th))
+        if float(v.min()) < VIGNETTING_MIN or float(v.max()) > 1.0 / VIGNETTING_MIN:
+            raise at.child("vignetting").error(
+                f"an illumination between {VIGNETTING_MIN} and {1 / VIGNETTING_MIN:g} of the centre's "
+                f"out to {VIGNETTING_CHECK_DEG:g} deg",
+                list(self.vignetting),
+            )
+        return self
+
+
+def relative_illumination(coeffs: tuple[float, ...], cos_theta: np.ndarray) -> np.ndarray:
+    """The lens's relative illumination ``1 + c1 t^2 + c2 t^4 + ...`` at the field angles
+    whose cosines are ``cos_theta`` (``t`` in radians)."""
+    t2 = np.arccos(np.clip(np.asarray(cos_theta, float), -1.0, 1.0)) ** 2
+    v = np.ones_like(t2)
+    p = np.ones_like(t2)
+    for c in coeffs:
+        p = p * t2
+        v = v + c * p
+    return v
+
+
 @dataclass(frozen=True, kw_only=True)
 class FisheyeBundle:
     """The fisheye sky camera's calibration bundle."""
@@ -95,6 +180,9 @@ class FisheyeBundle:
     camera: CameraCal = setting(doc='Lens intrinsics; model = "fisheye" (cv2.fisheye).')
     orientation: OrientationCal | None = setting(None, doc="Rotation to ENU.")
     site: SiteCal | None = setting(None, doc="Site of the camera.")
+    radiometry: RadiometryCal | None = setting(
+        None, doc="Response and vignetting (without it: linear and evenly lit)."
+    )
     mask: Path | None = setting(None, doc="Mask image of the camera's size (white = use).", path="file")
     notes: dict[str, Any] = setting(
         default_factory=dict, doc="Free-form notes of the calibration run (ignored)."
@@ -189,6 +277,17 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             out.append(f"method = {_fmt(o.method)}")
         if o.frames is not None:
             out.append(f"frames = {int(o.frames)}")
+    r = b.radiometry
+    if r is not None:
+        out += ["", "[radiometry]", f"response = {_fmt(r.response)}"]
+        if r.gamma is not None:
+            out.append(f"gamma = {_fmt(r.gamma)}")
+        if r.table is not None:
+            out.append(f"table = {_fmt(list(r.table))}")
+        if r.vignetting:
+            out.append(f"vignetting = {_fmt(list(r.vignetting))}")
+        if r.method is not None:
+            out.append(f"method = {_fmt(r.method)}")
     if b.site is not None:
         s = b.site
         out += [

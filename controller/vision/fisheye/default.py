@@ -38,6 +38,7 @@ from .glare import GlareFit, GlareOptions, find_blobs, fit_glare
 from .history import GlareHistory
 from .lens import FisheyeLens
 from .pipeline import FramePipeline
+from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
@@ -117,6 +118,7 @@ class FisheyeEstimator(FramePipeline):
         self.shape = (cam.height, cam.width)
         self.R = bundle.enu_from_camera
         self.up_cam = None if self.R is None else self.R[2].copy()
+        self.radiometry = Radiometry.from_cal(bundle.radiometry)
         self.frame = "enu" if self.R is not None else "model"
         self.mask = _load_mask(bundle, self.shape)
         self.ephemeris = None
@@ -170,7 +172,17 @@ class FisheyeEstimator(FramePipeline):
                 if self._below_horizon(x, y, r):
                     low += 1
                     continue
-                fit = fit_glare(grey, self.lens, x, y, r, float(peak), o.glare, up_cam=self.up_cam)
+                fit = fit_glare(
+                    grey,
+                    self.lens,
+                    x,
+                    y,
+                    r,
+                    float(peak),
+                    o.glare,
+                    up_cam=self.up_cam,
+                    radiometry=self.radiometry,
+                )
                 if fit is not None:
                     cands.append(self._judge(fit))
         sun_like = [c for c in cands if c.reason is None]

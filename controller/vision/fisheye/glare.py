@@ -38,6 +38,7 @@ import numpy as np
 
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .lens import FisheyeLens
+from .radiometry import Radiometry
 from .skybg import sky_by_elevation, sky_dipole
 from .sphere import fit_cone, sample_sphere, tangent_basis
 
@@ -255,6 +256,7 @@ def fit_glare(
     opts: GlareOptions = GlareOptions(),
     *,
     up_cam: np.ndarray | None = None,
+    radiometry: Radiometry | None = None,
 ) -> GlareFit | None:
     """Measure the glare around (x0, y0) (px; a point inside it, ``r_px`` its rough radius).
 
@@ -262,7 +264,9 @@ def fit_glare(
     through the lens), starting from the ray through (x0, y0); the sky's asymmetry near the
     rim is removed and the cone refitted, until the axis stops moving (at most 4 times).  ``up_cam``: the zenith in the camera frame
     when the orientation is known (samples below 1 deg elevation are not sky); otherwise
-    samples beyond 88 deg off the optical axis are not trusted.
+    samples beyond 88 deg off the optical axis are not trusted.  ``radiometry``: the camera's
+    response and vignetting; with it the sky is modelled in light, undone of the vignetting,
+    and each ray's rim level turned back into grey (:mod:`.radiometry`).
     """
     H, W = grey.shape
     xc, yc, r = float(x0), float(y0), max(float(r_px), 1.5)
@@ -307,6 +311,10 @@ def fit_glare(
         vals = np.where(samples[0][1], samples[0][0], np.nan)  # no rim below the horizon
         if it < 2:
             rvals, rsky = samples[1]
+            if radiometry is not None:  # the sky in light, as the centre's illumination sees it
+                rvals = radiometry.to_light(rvals) / _illumination(
+                    radiometry, a, e1, e2, phi[ring_sel], ring_chi
+                )
             if alpha > 0.0:  # the rings at equal blended distance, to first order
                 with np.errstate(all="ignore"), warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)
@@ -317,8 +325,9 @@ def fit_glare(
             outer = rvals[:, -3:][rsky[:, -3:]]
             if outer.size < 8:
                 return None
-            bg = float(np.median(outer))
-            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], peak - bg, rsky)
+            bg = float(np.median(outer))  # in the sky model's units (grey, or light)
+            top_s = peak if radiometry is None else float(radiometry.to_light(peak))
+            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], top_s - bg, rsky)
             by_el = None
             if up_cam is not None and not rsky.all():
                 # rings cut by the horizon: model the sky by elevation instead of a dipole
@@ -330,8 +339,11 @@ def fit_glare(
                 )
                 xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
                 by_el = sky_by_elevation(
-                    rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], rsky, xr, peak - bg
+                    rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], rsky, xr, top_s - bg
                 )
+            bg_s = bg
+            if radiometry is not None:
+                bg = float(radiometry.to_grey(bg_s))
         if by_el is not None:
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)
@@ -339,14 +351,18 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
+        shift_s = shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
+        shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
         f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
+        if f_level != opts.level:
+            shift = _rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
         level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
         has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
         if by_el is not None:  # near the horizon the sky model extrapolates: a large
-            has &= np.abs(shift) <= opts.max_horizon_shift * (peak - bg)  # shift is a guess
+            has &= np.abs(shift_s) <= opts.max_horizon_shift * (top_s - bg_s)  # shift is a guess
         if up_cam is not None:  # the last degrees above the horizon change too fast to model
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (t_k @ up_cam)
@@ -416,6 +432,36 @@ def fit_glare(
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
     )
+
+
+def _illumination(
+    radiometry: Radiometry, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, phi: np.ndarray, chi: np.ndarray
+) -> np.ndarray:
+    """The lens's illumination at the samples (``phi``, ``chi``) about ``a`` (n_phi, n_chi),
+    relative to the illumination at ``a``."""
+    tz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
+    z = np.cos(chi)[None, :] * a[2] + np.sin(chi)[None, :] * tz[:, None]
+    return radiometry.illumination(z) / radiometry.illumination(float(a[2]))
+
+
+def _rim_shift(
+    radiometry: Radiometry | None,
+    shift_s: np.ndarray,
+    base: float,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+) -> np.ndarray:
+    """Each ray's raise of the rim's grey level over ``base`` (grey): the sky's asymmetry
+    ``shift_s`` in the sky model's units, added in light to the base level's light and dimmed
+    by the lens's illumination at the rim, then turned back into grey.  Without a
+    radiometry, the frame is linear and evenly lit: the shift itself."""
+    if radiometry is None:
+        return shift_s
+    vig = _illumination(radiometry, a, e1, e2, phi, np.array([rho]))[:, 0]
+    return np.asarray(radiometry.to_grey(vig * (radiometry.to_light(base) + shift_s)), float) - base
 
 
 def horizon_side_excess(

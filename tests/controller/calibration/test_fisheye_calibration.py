@@ -72,12 +72,37 @@ def test_bundle_round_trip(tmp_path):
             {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "typo": 3}},
             "orientation.typo",
         ),
+        ({"radiometry": {"response": "cubic"}}, "radiometry.response"),
+        ({"radiometry": {"response": "gamma"}}, "radiometry.gamma"),
+        ({"radiometry": {"response": "gamma", "gamma": 0.5}}, "radiometry.gamma"),
+        ({"radiometry": {"response": "srgb", "gamma": 2.2}}, "radiometry.gamma"),
+        ({"radiometry": {"response": "table", "table": [0.0, 1.0]}}, "radiometry.table"),
+        (
+            {"radiometry": {"response": "table", "table": [1.0 - i / 255 for i in range(256)]}},
+            "radiometry.table",
+        ),
+        ({"radiometry": {"response": "linear", "table": [i / 255 for i in range(256)]}}, "radiometry.table"),
+        ({"radiometry": {"vignetting": [-1.0]}}, "radiometry.vignetting"),
+        ({"radiometry": {"vignetting": [0.0, 0.0, 0.0, 0.0, 0.1]}}, "radiometry.vignetting"),
     ],
 )
 def test_bundle_errors_name_the_key(patch, key):
     with pytest.raises(ConfigError) as exc:
         fisheye_bundle_from_dict({**DOC, **patch})
     assert exc.value.key == key
+
+
+def test_radiometry_round_trip(tmp_path):
+    table = [(i / 255) ** 2.2 for i in range(256)]
+    for rad in (
+        {"response": "srgb", "vignetting": [-0.115, 0.0095, -0.0003]},
+        {"response": "gamma", "gamma": 2.2},
+        {"response": "table", "table": table, "method": "debevec, 7 frames"},
+    ):
+        b = fisheye_bundle_from_dict({**DOC, "radiometry": rad})
+        again = load_fisheye_bundle(save_fisheye_bundle(b, tmp_path / "sky.toml"))
+        assert again.radiometry == b.radiometry
+    assert fisheye_bundle_from_dict(DOC).radiometry is None
 
 
 def test_a_nearly_orthonormal_matrix_is_tidied():
