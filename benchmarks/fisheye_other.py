@@ -55,6 +55,7 @@ class OtherLook:
     aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
     post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
     declared: bool = True  # the pipeline's bundle declares the camera's radiometry
+    exposure: float = 1.0  # relative exposure (brackets for the response's calibration)
 
 
 def kb_fit() -> tuple[np.ndarray, np.ndarray]:
@@ -197,7 +198,7 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
                 length = int(look.bloom * r_sat * math.sqrt(excess[c] / excess.max()))
                 lin[max(top - length, 0) : top, c, :] += 1.5
     r_img = np.hypot(u - CX, v - CY) / (2 * F_EQ * math.sin(THETA_MAX / 2))
-    lin = lin * (1 - look.vignetting * r_img**2)[..., None]
+    lin = look.exposure * lin * (1 - look.vignetting * r_img**2)[..., None]
     lin[~inside] = 0.0
     e = np.minimum(lin, 4.0) * 10000.0
     if look.noise:
