@@ -1,4 +1,5 @@
-"""``heliotrack calibrate fisheye lens|orientation|level``: the sky camera's bundle from images.
+"""``heliotrack calibrate fisheye lens|orientation|level|response|vignetting``: the sky camera's
+bundle from images.
 
 * ``lens``: ``cv2.fisheye.calibrate`` on checkerboard views -> ``[camera]``.
 * ``orientation``: a day of sky frames (file names with timestamps) and the site -> the
@@ -9,6 +10,10 @@
   ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
 * ``level``: the zenith from the horizon in one clear frame; prints the tilt and residual,
   and the disagreement with the bundle's orientation when it has one.
+* ``response``: brackets of one still scene at several exposures -> ``[radiometry]``'s
+  measured response table (the vignetting kept).
+* ``vignetting``: flat fields through the bundle's lens and response -> ``[radiometry]``'s
+  vignetting (the response kept).  docs/fisheye-radiometry-calibration.md.
 
 Each prints one JSON line per step; errors in the input are one plain line, exit status 2.
 """
@@ -18,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +33,9 @@ from controller.errors import InputError
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """Add ``fisheye`` (with its steps) to ``heliotrack calibrate``'s sub-parsers."""
-    f = sp.add_parser("fisheye", help="the fisheye sky camera: lens, orientation, level")
+    f = sp.add_parser(
+        "fisheye", help="the fisheye sky camera: lens, orientation, level, response, vignetting"
+    )
     f.set_defaults(func=lambda a: (f.print_help(), 2)[1])
     steps = f.add_subparsers(dest="fisheye_step", metavar="STEP")
     a = steps.add_parser("lens", help="lens (cv2.fisheye K, D) from checkerboard images")
@@ -58,6 +66,45 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     lv.add_argument("--bundle", type=Path, required=True)
     lv.add_argument("image", type=Path)
     lv.set_defaults(func=_level)
+    r = steps.add_parser(
+        "response",
+        help="the camera's response (grey -> light) from brackets of one still scene",
+        description="Frames of one still scene (tripod; aperture, gain and white balance fixed) at "
+        "exposures 1 EV apart (at most 2 EV), from one in which the brightest part of the scene is "
+        "below mid-grey to one in which the darkest part is above it.  Writes [radiometry] "
+        'response = "table" (the vignetting kept).  See docs/fisheye-radiometry-calibration.md.',
+    )
+    r.add_argument(
+        "--times",
+        type=float,
+        nargs="+",
+        metavar="T",
+        help="exposure time of each image, seconds, in the images' order (after the images, or "
+        "before them with -- ending the list); without it, each file name gives its time as "
+        "_e<seconds> before the extension, e.g. dome_e0.004.png",
+    )
+    r.add_argument("--bundle", type=Path, required=True)
+    r.add_argument("images", nargs="+", type=Path, help="at least 3 frames, all the same size")
+    r.set_defaults(func=_response)
+    v = steps.add_parser(
+        "vignetting",
+        help="the lens's relative illumination from flat-field frames",
+        description="Frames of a uniformly lit target filling the view (an integrating dome, an "
+        "evenly overcast sky through a diffuser), exposed so that nothing near the axis "
+        "saturates; fitted through the bundle's lens and response.  Writes [radiometry] "
+        "vignetting (the response kept; linear if there is none yet).  See "
+        "docs/fisheye-radiometry-calibration.md.",
+    )
+    v.add_argument(
+        "--order",
+        type=int,
+        choices=(1, 2, 3, 4),
+        default=3,
+        help="coefficients of 1 + c1 t^2 + c2 t^4 + ... (default 3)",
+    )
+    v.add_argument("--bundle", type=Path, required=True)
+    v.add_argument("images", nargs="+", type=Path, help="at least 3 flat-field frames, all the same size")
+    v.set_defaults(func=_vignetting)
 
 
 def _pattern(text: str) -> tuple[int, int]:
@@ -215,4 +262,167 @@ def _level(args) -> int:
             math.degrees(math.acos(float(np.clip(z @ lv.zenith_cam, -1, 1)))), 4
         )
     print(json.dumps(out))
+    return 0
+
+
+#: ``<stem>_e<seconds>.<ext>``: the exposure time in a bracket's file name.
+_EXPOSURE_RE = re.compile(r"_e(\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)$")
+
+
+def _frames(paths: list[Path], step: str) -> list[np.ndarray]:
+    from controller.vision.fisheye import load_frame
+
+    if len(paths) < 3:
+        raise InputError(f"{step}: {len(paths)} image(s), need at least 3")
+    out: list[np.ndarray] = []
+    for p in paths:
+        img, reason = load_frame(p)
+        if img is None:
+            raise InputError(f"{p}: {reason}")
+        if out and img.shape != out[0].shape:
+            h0, w0 = out[0].shape[:2]
+            raise InputError(f"{p}: {img.shape[1]}x{img.shape[0]}, but {paths[0]} is {w0}x{h0}")
+        out.append(img)
+    return out
+
+
+def _exposure_times(args) -> list[float]:
+    if args.times is not None:
+        if len(args.times) != len(args.images):
+            raise InputError(f"--times: {len(args.times)} time(s) for {len(args.images)} image(s)")
+        return list(args.times)
+    times = []
+    for p in args.images:
+        m = _EXPOSURE_RE.search(Path(p).stem)
+        if m is None:
+            raise InputError(
+                f"{p}: no exposure time in the name (e.g. dome_e0.004.png for 0.004 s); or give --times"
+            )
+        times.append(float(m.group(1)))
+    return times
+
+
+def _existing(path: Path):
+    """The bundle at ``path`` (it must hold the lens already)."""
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+    from controller.errors import ConfigError
+
+    if not path.exists():
+        raise ConfigError(path, "camera", "the lens first (heliotrack calibrate fisheye lens ...)")
+    return load_fisheye_bundle(path)
+
+
+def _method_parts(method: str | None) -> tuple[list[str], list[str]]:
+    """A ``[radiometry]`` method split into its response parts and its ``vignetting: ...``
+    parts (the two steps each keep the other's)."""
+    parts = [x.strip() for x in (method or "").split(";") if x.strip()]
+    return (
+        [x for x in parts if not x.startswith("vignetting:")],
+        [x for x in parts if x.startswith("vignetting:")],
+    )
+
+
+def _radiometry(bundle_path: Path, **fields):
+    """A validated ``[radiometry]`` (errors name the bundle and the key)."""
+    from controller.calibration.fisheye_bundle import RadiometryCal
+    from controller.schema import load
+
+    doc = {
+        k: (list(v) if isinstance(v, tuple | np.ndarray) else v) for k, v in fields.items() if v is not None
+    }
+    return load(RadiometryCal, doc, bundle_path, "radiometry")
+
+
+def _response(args) -> int:
+    from controller.calibration.fisheye_bundle import update_fisheye_bundle
+    from controller.calibration.fisheye_radiometry import (
+        linear_response,
+        response_deviation,
+        response_from_brackets,
+        srgb_response,
+    )
+
+    bundle = _existing(args.bundle)
+    times = _exposure_times(args)
+    frames = _frames(list(args.images), "response")
+    table = response_from_brackets(frames, times, names=[str(p) for p in args.images])
+    old = bundle.radiometry
+    _, keep = _method_parts(old.method if old is not None else None)
+    cal = _radiometry(
+        args.bundle,
+        response="table",
+        table=[round(float(x), 7) for x in table],
+        vignetting=old.vignetting if old is not None else (),
+        method="; ".join([f"debevec, {len(frames)} frames", *keep]),
+    )
+    update_fisheye_bundle(args.bundle, radiometry=cal)
+    print(
+        json.dumps(
+            {
+                "step": "fisheye response",
+                "frames": len(frames),
+                "max_dev_srgb": round(response_deviation(table, srgb_response()), 4),
+                "max_dev_linear": round(response_deviation(table, linear_response()), 4),
+                "bundle": str(args.bundle),
+            }
+        )
+    )
+    return 0
+
+
+def _vignetting(args) -> int:
+    from dataclasses import replace
+
+    import cv2
+
+    from controller.calibration.fisheye_bundle import update_fisheye_bundle
+    from controller.calibration.fisheye_radiometry import vignetting_from_flats
+    from controller.errors import ConfigError
+    from controller.vision.fisheye.lens import FisheyeLens
+    from controller.vision.fisheye.radiometry import Radiometry
+
+    bundle = _existing(args.bundle)
+    frames = _frames(list(args.images), "vignetting")
+    mask = None
+    if bundle.mask is not None:
+        mask = cv2.imread(str(bundle.mask), cv2.IMREAD_GRAYSCALE)
+        if mask is None or mask.shape != frames[0].shape[:2]:
+            h, w = frames[0].shape[:2]
+            raise ConfigError(args.bundle, "mask", f"a readable {w}x{h} mask image", str(bundle.mask))
+    old = bundle.radiometry
+    # the response only: the fit measures the vignetting afresh
+    rad = Radiometry.from_cal(replace(old, vignetting=()) if old is not None else None)
+    fit = vignetting_from_flats(
+        frames,
+        FisheyeLens.from_camera(bundle.camera),
+        rad,
+        order=args.order,
+        mask=mask,
+        names=[str(p) for p in args.images],
+    )
+    coeffs = [round(c, 7) for c in fit.coeffs]
+    resp, _ = _method_parts(old.method if old is not None else None)
+    cal = _radiometry(
+        args.bundle,
+        response=old.response if old is not None else "linear",
+        gamma=old.gamma if old is not None else None,
+        table=old.table if old is not None else None,
+        vignetting=coeffs,
+        method="; ".join([*resp, f"vignetting: flat field, {len(frames)} frames"]),
+    )
+    update_fisheye_bundle(args.bundle, radiometry=cal)
+    print(
+        json.dumps(
+            {
+                "step": "fisheye vignetting",
+                "frames": len(frames),
+                "order": args.order,
+                "vignetting": coeffs,
+                "rms": round(fit.rms, 5),
+                "field_deg": [round(fit.theta_min_deg, 2), round(fit.theta_max_deg, 2)],
+                "bins": fit.bins,
+                "bundle": str(args.bundle),
+            }
+        )
+    )
     return 0

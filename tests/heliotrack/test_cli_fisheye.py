@@ -179,3 +179,234 @@ def test_level_prints_the_tilt(installed, capsys):
     assert main(["calibrate", "fisheye", "level", "--bundle", str(bundle), str(out / "horizon.png")]) == 0
     (g,) = lines(capsys)
     assert g["tilt_deg"] == pytest.approx(0.8, abs=0.15) and g["disagreement_with_orientation_deg"] < 0.2
+
+
+# -- response and vignetting (docs/fisheye-radiometry-calibration.md) ------------------------
+def _radiometry_bundle(folder, radiometry=None):
+    """A bundle with the flat-field tests' lens, an orientation, a site and notes."""
+    from controller.calibration.fisheye_bundle import (
+        FisheyeBundle,
+        OrientationCal,
+        SiteCal,
+        save_fisheye_bundle,
+    )
+    from tests.controller.calibration.test_fisheye_radiometry import CAMERA
+
+    path = folder / "sky.toml"
+    save_fisheye_bundle(
+        FisheyeBundle(
+            camera=CAMERA,
+            orientation=OrientationCal(enu_from_camera=((0, 1, 0), (1, 0, 0), (0, 0, -1)), method="survey"),
+            site=SiteCal(latitude=32.5, longitude=48.3, altitude=150.0),
+            radiometry=radiometry,
+            notes={"installer": "test"},
+        ),
+        path,
+    )
+    return path
+
+
+def _write(folder, frames, names):
+    import cv2
+
+    folder.mkdir(exist_ok=True)
+    paths = []
+    for img, name in zip(frames, names, strict=True):
+        cv2.imwrite(str(folder / name), img)
+        paths.append(folder / name)
+    return paths
+
+
+def _brackets(folder, named=True):
+    from tests.controller.calibration.test_fisheye_radiometry import (
+        TIMES_1EV,
+        expose,
+        radiance_scene,
+        srgb_encode,
+    )
+
+    frames = expose(radiance_scene(0), TIMES_1EV, srgb_encode)
+    names = [f"dome_e{t:g}.png" if named else f"dome_{i}.png" for i, t in enumerate(TIMES_1EV)]
+    return _write(folder / "brackets", frames, names), TIMES_1EV
+
+
+def _flats(folder, **kw):
+    from tests.controller.calibration.test_fisheye_radiometry import flat_fields
+
+    return _write(folder / "flats", flat_fields(**kw), ["flat1.png", "flat2.png", "flat3.png"])
+
+
+def test_response_step_writes_a_table_and_keeps_the_rest(tmp_path, capsys):
+    from controller.calibration.fisheye_bundle import RadiometryCal, load_fisheye_bundle
+    from controller.calibration.fisheye_radiometry import srgb_response
+
+    old = RadiometryCal(response="srgb", vignetting=(-0.12, 0.01), method="vignetting: flat field, 3 frames")
+    bundle = _radiometry_bundle(tmp_path, old)
+    before = load_fisheye_bundle(bundle)
+    paths, _ = _brackets(tmp_path)
+    assert main(["calibrate", "fisheye", "response", "--bundle", str(bundle), *map(str, paths)]) == 0
+    (g,) = lines(capsys)
+    assert g["step"] == "fisheye response" and g["frames"] == 8 and g["bundle"] == str(bundle)
+    assert g["max_dev_srgb"] < 0.006 and g["max_dev_linear"] > 0.1
+    b = load_fisheye_bundle(bundle)
+    r = b.radiometry
+    assert r.response == "table" and len(r.table) == 256 and r.table[0] == 0.0 and r.table[255] == 1.0
+    assert float(np.abs(np.asarray(r.table) - srgb_response()).max()) == pytest.approx(
+        g["max_dev_srgb"], abs=1e-4
+    )
+    assert r.vignetting == (-0.12, 0.01) and r.gamma is None
+    assert r.method == "debevec, 8 frames; vignetting: flat field, 3 frames"
+    assert (b.camera, b.orientation, b.site, b.notes) == (
+        before.camera,
+        before.orientation,
+        before.site,
+        before.notes,
+    )
+
+
+@pytest.mark.parametrize("where", ["after", "before"])
+def test_response_step_takes_times_from_the_option(tmp_path, capsys, where):
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+
+    bundle = _radiometry_bundle(tmp_path)
+    paths, times = _brackets(tmp_path, named=False)
+    opt = ["--times", *map(str, times)]
+    files = list(map(str, paths))
+    args = [*files, *opt] if where == "after" else [*opt, "--", *files]
+    assert main(["calibrate", "fisheye", "response", "--bundle", str(bundle), *args]) == 0
+    (g,) = lines(capsys)
+    assert g["max_dev_srgb"] < 0.006
+    r = load_fisheye_bundle(bundle).radiometry
+    assert r.response == "table" and r.vignetting == () and r.method == "debevec, 8 frames"
+
+
+def test_vignetting_step_writes_the_coefficients_and_keeps_the_response(tmp_path, capsys):
+    from controller.calibration.fisheye_bundle import RadiometryCal, load_fisheye_bundle
+    from tests.controller.calibration.test_fisheye_radiometry import true_vignetting
+
+    bundle = _radiometry_bundle(tmp_path, RadiometryCal(response="srgb", method="datasheet"))
+    before = load_fisheye_bundle(bundle)
+    paths = _flats(tmp_path)
+    assert main(["calibrate", "fisheye", "vignetting", "--bundle", str(bundle), *map(str, paths)]) == 0
+    (g,) = lines(capsys)
+    assert g["step"] == "fisheye vignetting" and g["frames"] == 3 and g["order"] == 3
+    assert g["rms"] < 0.0015 and g["field_deg"][0] < 1.0 and g["field_deg"][1] > 88.5
+    b = load_fisheye_bundle(bundle)
+    r = b.radiometry
+    assert r.response == "srgb" and list(r.vignetting) == g["vignetting"] and len(r.vignetting) == 3
+    assert r.method == "datasheet; vignetting: flat field, 3 frames"
+    th = np.radians(np.linspace(0, 90, 91))
+    from controller.calibration.fisheye_bundle import relative_illumination
+
+    assert float(np.abs(relative_illumination(r.vignetting, np.cos(th)) - true_vignetting(th)).max()) < 0.002
+    assert (b.camera, b.orientation, b.site) == (before.camera, before.orientation, before.site)
+
+
+def test_vignetting_step_without_radiometry_takes_the_frames_as_linear(tmp_path, capsys):
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+
+    bundle = _radiometry_bundle(tmp_path)
+    paths = _flats(tmp_path, encode=lambda x: np.clip(x, 0, 1))
+    assert (
+        main(
+            ["calibrate", "fisheye", "vignetting", "--order", "2", "--bundle", str(bundle), *map(str, paths)]
+        )
+        == 0
+    )
+    (g,) = lines(capsys)
+    r = load_fisheye_bundle(bundle).radiometry
+    assert r.response == "linear" and r.table is None and len(r.vignetting) == 2 == len(g["vignetting"])
+    assert r.method == "vignetting: flat field, 3 frames"
+    assert r.vignetting[0] == pytest.approx(-0.115, abs=0.003)  # the law's t^2 term
+
+
+def _bad_inputs(tmp_path):
+    """(step, arguments after the bundle, text the error must contain) for each bad input."""
+    import cv2
+
+    paths, times = _brackets(tmp_path)
+    files = list(map(str, paths))
+    text = tmp_path / "brackets" / "notes_e0.5.png"
+    text.write_text("not an image")
+    small = tmp_path / "brackets" / "small_e0.5.png"
+    cv2.imwrite(str(small), np.zeros((60, 80, 3), np.uint8) + 100)
+    white = tmp_path / "brackets" / "white_e0.5.png"
+    cv2.imwrite(str(white), np.full((120, 160, 3), 255, np.uint8))
+    nameless = tmp_path / "brackets" / "dome.png"
+    nameless.write_bytes(paths[0].read_bytes())
+    twin = tmp_path / "brackets" / "twin_e0.004.png"
+    twin.write_bytes(paths[2].read_bytes())
+    flats = list(map(str, _flats(tmp_path)))
+    hot = list(map(str, _write(tmp_path / "hot", _hot_flats(), ["h1.png", "h2.png", "h3.png"])))
+    return {
+        "two frames": ("response", files[:2], "response: 2 image(s), need at least 3"),
+        "unreadable": ("response", [*files[:3], str(text)], f"{text}: undecodable_image"),
+        "sizes": ("response", [*files[:3], str(small)], f"{small}: 80x60, but {files[0]} is 160x120"),
+        "no time": ("response", [*files[:3], str(nameless)], f"{nameless}: no exposure time in the name"),
+        "twin": ("response", [*files, str(twin)], f"{files[2]} and {twin}: the same exposure"),
+        "times count": (
+            "response",
+            [*files, "--times", *map(str, times[:7])],
+            "--times: 7 time(s) for 8 image(s)",
+        ),
+        "saturated": ("response", [*files, str(white)], f"{white}: nothing usable, saturated (100 %"),
+        "flats two": ("vignetting", flats[:2], "vignetting: 2 image(s), need at least 3"),
+        "flats saturated": (
+            "vignetting",
+            hot,
+            "from the optical axis (need within 10 deg): saturated? expose shorter",
+        ),
+        "flats size": (
+            "vignetting",
+            [files[0], files[1], files[3]],
+            f"{files[0]}: 160x120, but the bundle's camera is 640x480",
+        ),
+    }
+
+
+def _hot_flats():
+    from tests.controller.calibration.test_fisheye_radiometry import flat_fields
+
+    return flat_fields(level=1.2)
+
+
+def test_bad_inputs_are_one_line_errors_and_the_bundle_is_kept(tmp_path, capsys):
+    from controller.calibration.fisheye_bundle import RadiometryCal
+
+    bundle = _radiometry_bundle(tmp_path, RadiometryCal(response="gamma", gamma=2.2, vignetting=(-0.1,)))
+    text = bundle.read_text()
+    for name, (step, args, message) in _bad_inputs(tmp_path).items():
+        capsys.readouterr()
+        assert main(["calibrate", "fisheye", step, "--bundle", str(bundle), *args]) == 2, name
+        out, err = capsys.readouterr()
+        assert out == "" and err.startswith("heliotrack: error: ") and message in err, (name, err)
+        assert err.count("\n") == 1, name
+        assert bundle.read_text() == text, name
+
+
+@pytest.mark.parametrize("step", ["response", "vignetting"])
+def test_a_bundle_without_the_lens_is_a_clear_error(tmp_path, capsys, step):
+    paths, _ = _brackets(tmp_path)
+    missing = tmp_path / "none.toml"
+    assert main(["calibrate", "fisheye", step, "--bundle", str(missing), *map(str, paths)]) == 2
+    err = capsys.readouterr().err
+    assert f"{missing}: camera: expected the lens first" in err and not missing.exists()
+    lensless = tmp_path / "site-only.toml"
+    lensless.write_text("[site]\nlatitude = 32.5\nlongitude = 48.3\n")
+    assert main(["calibrate", "fisheye", step, "--bundle", str(lensless), *map(str, paths)]) == 2
+    err = capsys.readouterr().err
+    assert str(lensless) in err and "camera" in err
+    assert lensless.read_text() == "[site]\nlatitude = 32.5\nlongitude = 48.3\n"
+
+
+def test_response_error_from_the_shell_has_no_traceback(tmp_path):
+    bundle = _radiometry_bundle(tmp_path)
+    paths, _ = _brackets(tmp_path)
+    r = subprocess.run(
+        [*HELIOTRACK, "calibrate", "fisheye", "response", "--bundle", str(bundle), *map(str, paths[::3])],
+        check=False,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "EV apart" in r.stderr and str(paths[0]) in r.stderr
