@@ -25,7 +25,7 @@ Truth: pvlib's SPA apparent elevation and azimuth, directly.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -49,12 +49,12 @@ class OtherLook:
     clouds: list = field(default_factory=list)  # [(az, el, sx_deg, sy_deg, tau, (vaz, vel) deg/min)]
     sun: bool = True  # False: the sky alone (for diagnosis)
     noise: bool = True
-    sky: str = "cie"  # "flat": a uniform sky (for diagnosis)
+    sky: str = "cie"  # "flat": a uniform sky (for diagnosis); "dome": a flat field (all the view)
     vignetting: float = 0.25
     tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
     aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
     post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
-    declared: bool = True  # the pipeline's bundle declares the camera's radiometry
+    radiometry: str = "exact"  # the bundle's [radiometry]: "exact", "calibrated" or "none"
     exposure: float = 1.0  # relative exposure (brackets for the response's calibration)
 
 
@@ -145,6 +145,8 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     rgb = sky_l[..., None] * ((1 - white)[..., None] * np.array([0.45, 0.68, 1.0]) + white[..., None])
     ground = d_enu[..., 2] < 0
     rgb[ground] = np.array([0.06, 0.05, 0.04])
+    if look.sky == "dome":  # an integrating dome over the lens: the same light everywhere
+        rgb[:] = 0.12
     # clouds: optical depth of each puff along each ray, drifting
     tau = np.zeros(zen.shape)
     tau_sun = 0.0
@@ -241,13 +243,17 @@ def vignetting_fit(vignetting: float) -> tuple[float, ...]:
 
 
 def radiometry(look: OtherLook):
-    """The camera's ``[radiometry]`` as its calibration would give it: the tone curve
-    (named when it is a standard one, else its table) and the vignetting's fit; None when
-    the look's bundle does not declare it."""
+    """The look's ``[radiometry]`` (``look.radiometry``): ``"exact"``, the camera's as its
+    maker states it (the tone curve, named when it is a standard one, else its table) with
+    a fit of its vignetting law, as the lens is handed over as a ``cv2.fisheye`` fit;
+    ``"calibrated"``, measured by :func:`calibrated_radiometry` from the renderer's own
+    brackets and flat fields; ``"none"``: not declared (None)."""
     from controller.calibration.fisheye_bundle import RadiometryCal
 
-    if not look.declared:
+    if look.radiometry == "none":
         return None
+    if look.radiometry == "calibrated":
+        return calibrated_radiometry(look.tone, look.vignetting)
     vig = vignetting_fit(look.vignetting) if look.vignetting else ()
     if look.tone == "srgb":
         return RadiometryCal(response="srgb", vignetting=vig)
@@ -258,6 +264,35 @@ def radiometry(look: OtherLook):
     x = np.linspace(0.0, 1.0, 4097)
     table = np.interp(np.arange(256) / 255.0, tone_curve(x, look.tone), x)
     return RadiometryCal(response="table", table=tuple(float(v) for v in table), vignetting=vig)
+
+
+def calibrated_radiometry(tone: str, vignetting: float):
+    """The camera's ``[radiometry]`` as ``heliotrack calibrate fisheye response`` and
+    ``vignetting`` measure it on this renderer's frames: 8 brackets 1 EV apart of the clear
+    sky without the sun (Mar 20, 11 h UTC), then 3 flat fields of an integrating dome read
+    through that response."""
+    from controller.calibration.fisheye_bundle import RadiometryCal
+    from controller.calibration.fisheye_radiometry import response_from_brackets, vignetting_from_flats
+    from controller.vision.fisheye.lens import FisheyeLens
+    from controller.vision.fisheye.radiometry import Radiometry
+
+    rays, R = pixel_rays(), rotation()
+    t = utc_midnight(2025, 3, 20) + 11 * 3600.0
+    base = OtherLook("calibration", tone=tone, vignetting=vignetting, sun=False)
+    rng = np.random.default_rng(5)
+    exposures = [0.25 * 2.0**k for k in range(8)]
+    brackets = [render(replace(base, exposure=e), t, rays, R, rng)[0] for e in exposures]
+    response = RadiometryCal(
+        response="table", table=tuple(float(v) for v in response_from_brackets(brackets, exposures))
+    )
+    flats = [render(replace(base, sky="dome", exposure=5.0), t, rays, R, rng)[0] for _ in range(3)]
+    lens = FisheyeLens.from_camera(bundle(R).camera)
+    vig = vignetting_from_flats(flats, lens, Radiometry.from_cal(response)).coeffs
+    return replace(
+        response,
+        vignetting=tuple(float(c) for c in vig),
+        method="brackets and flat fields of the second renderer",
+    )
 
 
 def bundle(R: np.ndarray, look: OtherLook | None = None):
@@ -280,7 +315,10 @@ def bundle(R: np.ndarray, look: OtherLook | None = None):
 
 CLEAR_LOOKS = (
     OtherLook("other renderer"),
-    OtherLook("other renderer, radiometry not declared", declared=False),
+    OtherLook(
+        "other renderer, radiometry calibrated from its brackets and flat fields", radiometry="calibrated"
+    ),
+    OtherLook("other renderer, radiometry not declared", radiometry="none"),
     OtherLook("other renderer, glare all on the sensor", veil_weight=1.0),
     OtherLook("other renderer, glare all on the sky", veil_weight=0.0),
     OtherLook("other renderer, wide glare (5 deg)", sat_radius_deg=5.0),

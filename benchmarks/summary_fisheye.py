@@ -79,10 +79,16 @@ def fisheye(r: dict) -> list[Headline]:
     other = r.get("other_renderer")
     if other:
         oc, ocl = other["clear"]["other renderer"], other["clouds"]
-        und = other["clear"].get("other renderer, radiometry not declared")
         note = f"found {oc['found']} of {oc['frames']}"
-        if und:
-            note += f"; radiometry not declared: {fmt(und['error'].get('rms_deg'), 3, ' deg')}"
+        for key, what in (
+            (
+                "other renderer, radiometry calibrated from its brackets and flat fields",
+                "calibrated from its frames",
+            ),
+            ("other renderer, radiometry not declared", "not declared"),
+        ):
+            if key in other["clear"]:
+                note += f"; radiometry {what}: {fmt(other['clear'][key]['error'].get('rms_deg'), 3, ' deg')}"
         out += [
             Headline(
                 "fisheye",

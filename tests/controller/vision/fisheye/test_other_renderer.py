@@ -93,3 +93,19 @@ def test_a_declared_srgb_response_and_vignetting_carry_the_sky_to_the_rim():
     )
     assert len(after) >= len(before) - 1
     assert rms[1] < 0.03
+
+
+def test_the_radiometry_calibrated_from_the_renderers_own_frames_serves_as_well():
+    """The same, with the response and the vignetting measured as an installer would
+    (``calibrate fisheye response`` on 8 brackets of the sunless sky, ``vignetting`` on 3
+    flat fields of a dome), not stated."""
+    cal = other.calibrated_radiometry("srgb", 0.25)
+    x = np.linspace(0.0, 1.0, 4097)
+    srgb = np.interp(np.arange(256) / 255.0, other.tone_curve(x, "srgb"), x)
+    assert np.abs(np.asarray(cal.table) - srgb)[20:236].max() < 0.006
+    look = other.OtherLook("clear", radiometry="calibrated")
+    rows = _run(look, el_range=(17.0, 40.0), declared=True)
+    rms = float(np.sqrt(np.mean(rows[:, 1] ** 2)))
+    print(f"17-40 deg, calibrated: {len(rows)} frames, rms {rms:.4f}")
+    assert len(rows) >= 16
+    assert rms < 0.03
