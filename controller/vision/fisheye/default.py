@@ -69,6 +69,13 @@ class FisheyeOptions:
     cloud's saturated fleck (its roughness cannot tell: the pixels shape it).  Measured on
     both renderers' broken-cloud suites: such flecks fit 35-71 % of their rays, the small
     glares of suns dimmed by thin cloud 83-100 % (the second renderer) and 56-92 % (ours).
+    A rim whose largest gap is the sky's (it faces the horizon, its middle within 60 deg of
+    down the vertical through the glare, and most of its rays found no rim: next to a low
+    sun the clear sky brightens towards the horizon until the rays clip or the sky's model
+    is a guess) may miss ``max_horizon_gap_deg`` at most: the arc left carries that model's
+    error on its radius straight into its centre (second renderer, wide glare, 15-19 deg:
+    0.15-0.70 deg off with 100-113 deg gaps; 83-97 deg gaps within 0.05).  A cloud's gap
+    is of rays whose rims it pulled in (outliers), and keeps ``max_gap_deg``.
     """
 
     glare: GlareOptions = field(default_factory=GlareOptions)
@@ -81,6 +88,7 @@ class FisheyeOptions:
     small_glare_px: float = 4.0  # a glare this small (radius) must show nearly all its rim
     small_min_inlier_fraction: float = 0.8
     max_gap_deg: float = 150.0  # largest arc of the rim without an inlier
+    max_horizon_gap_deg: float = 100.0  # ... when that arc faces the horizon
     max_rms_px: float = 0.6  # rim residual RMS: this many pixels at the glare ...
     max_rms_rel: float = 0.08  # ... plus this fraction of its radius
     min_core_fill: float = 0.9
@@ -249,6 +257,7 @@ class FisheyeEstimator(FramePipeline):
         elif (
             fit.inlier_fraction < o.min_inlier_fraction
             or fit.max_gap_deg > o.max_gap_deg
+            or (fit.sky_gap and fit.max_gap_deg > o.max_horizon_gap_deg)
             or (fit.radius_px < o.small_glare_px and fit.inlier_fraction < o.small_min_inlier_fraction)
         ):
             reason = "incomplete_glare"

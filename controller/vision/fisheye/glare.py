@@ -110,6 +110,7 @@ class GlareFit:
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
     sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
+    sky_gap: bool = False  # the largest gap faces the horizon and its rays found no rim
 
     @property
     def inlier_fraction(self) -> float:
@@ -412,6 +413,7 @@ def fit_glare(
     if not (0 <= xc < W and 0 <= yc < H):
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
+    gap_deg, gap_rays = _largest_gap(idx, vertical_ok)
     return GlareFit(
         axis=a,
         radius_deg=math.degrees(rho),
@@ -419,7 +421,10 @@ def fit_glare(
         n_rays=int(vertical_ok.sum()),
         n_valid=int(has.sum()),
         n_inliers=len(idx),
-        max_gap_deg=_max_gap(idx, vertical_ok),
+        max_gap_deg=gap_deg,
+        sky_gap=gap_rays.size > 0
+        and _faces_horizon(float(phi[gap_rays[gap_rays.size // 2]]), a, e1, e2, up_cam)
+        and float(np.mean(has[gap_rays])) < 0.5,
         centre_uv=(xc, yc),
         radius_px=r_fit,
         peak=peak,
@@ -484,26 +489,39 @@ def horizon_side_excess(
     if up_cam is None or shift.size == 0:
         return 0.0
     k = int(np.argmax(shift))
-    ray = math.cos(float(phi[k])) * e1 + math.sin(float(phi[k])) * e2
-    down = float(up_cam @ a) * a - up_cam  # the zenith's opposite, in the tangent plane
-    n = float(np.linalg.norm(down))
-    if n < 1e-9 or float(ray @ down) < n * _COS_60DEG:
+    if not _faces_horizon(float(phi[k]), a, e1, e2, up_cam):
         return 0.0
     return max(float(shift[k]), 0.0)
 
 
-def _max_gap(idx: np.ndarray, usable: np.ndarray) -> float:
-    """Largest run (deg) of usable rays without an inlier, around the circle.  Rays that
-    could not be used by design (those a bloom streak covers) are skipped, not counted:
-    the streak's sectors are known and symmetric, a cloud's are not."""
+def _faces_horizon(
+    phi: float, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, up_cam: np.ndarray | None
+) -> bool:
+    """Whether the ray at angle ``phi`` about the axis ``a`` (tangent basis ``e1``, ``e2``)
+    points within 60 deg of down the vertical through it (False without the orientation)."""
+    if up_cam is None:
+        return False
+    ray = math.cos(phi) * e1 + math.sin(phi) * e2
+    down = float(up_cam @ a) * a - up_cam  # the zenith's opposite, in the tangent plane
+    n = float(np.linalg.norm(down))
+    return n >= 1e-9 and float(ray @ down) >= n * _COS_60DEG
+
+
+def _largest_gap(idx: np.ndarray, usable: np.ndarray) -> tuple[float, np.ndarray]:
+    """Largest run (deg) of usable rays without an inlier, around the circle, and those
+    rays, in order.  Rays that could not be used by design (those a bloom streak covers)
+    are skipped, not counted: the streak's sectors are known and symmetric, a cloud's are
+    not."""
+    rays = np.flatnonzero(usable)  # the usable rays, in order around the circle
+    m = rays.size
     pos = np.cumsum(usable) - 1  # each usable ray's rank among the usable ones
-    m = int(usable.sum())
     idx = idx[usable[idx]]
     if idx.size == 0 or m == 0:
-        return 360.0
+        return 360.0, rays
     s = np.sort(pos[idx])
     gaps = np.diff(np.concatenate([s, [s[0] + m]]))
-    return float((gaps.max() - 1) * 360.0 / m)
+    k = int(np.argmax(gaps))
+    return float((gaps[k] - 1) * 360.0 / m), rays[(s[k] + 1 + np.arange(gaps[k] - 1)) % m]
 
 
 def _core_fill(grey: np.ndarray, c: tuple[float, float], r: float, level: float) -> float:
