@@ -66,13 +66,14 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     lv.add_argument("--bundle", type=Path, required=True)
     lv.add_argument("image", type=Path)
     lv.set_defaults(func=_level)
+    doc = "See docs/fisheye-radiometry-calibration.md."
     r = steps.add_parser(
         "response",
         help="the camera's response (grey -> light) from brackets of one still scene",
         description="Frames of one still scene (tripod; aperture, gain and white balance fixed) at "
         "exposures 1 EV apart (at most 2 EV), from one in which the brightest part of the scene is "
         "below mid-grey to one in which the darkest part is above it.  Writes [radiometry] "
-        'response = "table" (the vignetting kept).  See docs/fisheye-radiometry-calibration.md.',
+        'response = "table" (the vignetting kept).  ' + doc,
     )
     r.add_argument(
         "--times",
@@ -86,14 +87,14 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     r.add_argument("--bundle", type=Path, required=True)
     r.add_argument("images", nargs="+", type=Path, help="at least 3 frames, all the same size")
     r.set_defaults(func=_response)
+    what = (
+        "Frames of a uniformly lit target filling the view (an integrating dome, an evenly "
+        "overcast sky through a diffuser), exposed so that nothing near the axis saturates; "
+        "fitted through the bundle's lens and response.  Writes [radiometry] vignetting (the "
+        "response kept; linear if there is none yet).  "
+    )
     v = steps.add_parser(
-        "vignetting",
-        help="the lens's relative illumination from flat-field frames",
-        description="Frames of a uniformly lit target filling the view (an integrating dome, an "
-        "evenly overcast sky through a diffuser), exposed so that nothing near the axis "
-        "saturates; fitted through the bundle's lens and response.  Writes [radiometry] "
-        "vignetting (the response kept; linear if there is none yet).  See "
-        "docs/fisheye-radiometry-calibration.md.",
+        "vignetting", help="the lens's relative illumination from flat fields", description=what + doc
     )
     v.add_argument(
         "--order",
@@ -334,18 +335,13 @@ def _radiometry(bundle_path: Path, **fields):
 
 
 def _response(args) -> int:
+    from controller.calibration import fisheye_radiometry as fr
     from controller.calibration.fisheye_bundle import update_fisheye_bundle
-    from controller.calibration.fisheye_radiometry import (
-        linear_response,
-        response_deviation,
-        response_from_brackets,
-        srgb_response,
-    )
 
     bundle = _existing(args.bundle)
     times = _exposure_times(args)
     frames = _frames(list(args.images), "response")
-    table = response_from_brackets(frames, times, names=[str(p) for p in args.images])
+    table = fr.response_from_brackets(frames, times, names=[str(p) for p in args.images])
     old = bundle.radiometry
     _, keep = _method_parts(old.method if old is not None else None)
     cal = _radiometry(
@@ -361,8 +357,8 @@ def _response(args) -> int:
             {
                 "step": "fisheye response",
                 "frames": len(frames),
-                "max_dev_srgb": round(response_deviation(table, srgb_response()), 4),
-                "max_dev_linear": round(response_deviation(table, linear_response()), 4),
+                "max_dev_srgb": round(fr.response_deviation(table, fr.srgb_response()), 4),
+                "max_dev_linear": round(fr.response_deviation(table, fr.linear_response()), 4),
                 "bundle": str(args.bundle),
             }
         )
