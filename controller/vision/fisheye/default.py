@@ -33,8 +33,9 @@ from ...calibration.fisheye_bundle import FisheyeBundle
 from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
+from .blobs import find_blobs
 from .gates import Ephemeris, Gate, GateOptions, prior_direction
-from .glare import GlareFit, GlareOptions, find_blobs, fit_glare
+from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
 from .lens import FisheyeLens
 from .pipeline import FramePipeline

@@ -2,11 +2,7 @@
 
 Method (see docs/fisheye.md):
 
-1. **Candidates.**  Pixels within a few grey levels of the frame's peak form connected
-   blobs.  Each blob's centres are the maxima of its distance transform (the centres of
-   its largest inscribed disks), which a thin smear column or a cloud edge joined to the
-   glare barely moves; a disk's radius is also read after a 3 x 3 average, so that noise
-   added after the clip, which riddles the plateau, does not shrink it.
+1. **Candidates** (:mod:`.blobs`): the near-saturated blobs and their inscribed disks.
 2. **Rim.**  From a centre, rays sample the grey image bilinearly every half pixel; the rim
    point of a ray is where it first falls below a level between the peak and the local
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
@@ -33,7 +29,6 @@ import math
 import warnings
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
@@ -80,15 +75,6 @@ class GlareOptions:
 
 
 @dataclass
-class Blob:
-    """A connected region of (near-)saturated pixels and its inscribed-disk centres."""
-
-    area_px: int
-    bbox: tuple[int, int, int, int]  # x, y, w, h
-    centres: list[tuple[float, float, float]]  # (x, y, inscribed radius px)
-
-
-@dataclass
 class GlareFit:
     """Result of fitting the rim of one glare candidate (angles in degrees)."""
 
@@ -125,85 +111,6 @@ _SIN_RIM_MIN = math.sin(math.radians(2.5))
 _COS_60DEG = 0.5
 
 
-def find_blobs(
-    grey: np.ndarray, threshold: float, valid: np.ndarray | None, *, max_blobs: int = 6, min_area_px: int = 3
-) -> list[Blob]:
-    """Blobs of ``grey >= threshold`` inside ``valid``, largest first.
-
-    The blobs are labelled on a block-reduced mask (any saturated pixel marks its block),
-    then measured at full resolution inside their boxes: a coarse search, then small ROIs.
-    """
-    _, binary = cv2.threshold(grey, threshold - 0.5, 255, cv2.THRESH_BINARY)
-    if valid is not None:
-        binary &= valid
-    H, W = binary.shape
-    f = max(1, min(H, W) // 120)
-    small = cv2.resize(binary, (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
-    n, _, stats, _ = cv2.connectedComponentsWithStats((small > 0).astype(np.uint8), connectivity=8)
-    if n <= 1:
-        return []
-    sx, sy = W / small.shape[1], H / small.shape[0]
-    out = []
-    for lab in range(1, n):
-        x, y, w, h = (int(v) for v in stats[lab, :4])
-        x0, y0 = max(int(x * sx) - 2, 0), max(int(y * sy) - 2, 0)
-        x1, y1 = min(math.ceil((x + w) * sx) + 2, W), min(math.ceil((y + h) * sy) + 2, H)
-        sub = binary[y0:y1, x0:x1]
-        area = int(cv2.countNonZero(sub))
-        if area < min_area_px:
-            continue
-        dt = cv2.distanceTransform((sub > 0).astype(np.uint8), cv2.DIST_L2, 5)
-        dt_avg = _averaged_core_dt(grey, valid, (x0, y0, x1, y1), threshold)
-        centres = [
-            (x, y, max(r, float(dt_avg[int(y) - y0, int(x) - x0]))) for x, y, r in _dt_centres(dt, x0, y0)
-        ]
-        out.append(Blob(area, (x0, y0, x1 - x0, y1 - y0), centres))
-    out.sort(key=lambda b: -b.area_px)
-    return out[:max_blobs]
-
-
-def _averaged_core_dt(
-    grey: np.ndarray, valid: np.ndarray | None, box: tuple[int, int, int, int], threshold: float
-) -> np.ndarray:
-    """Distance transform of the box's near-saturated core after a 3 x 3 average (threshold
-    lowered by what the average took off the box's peak).  Noise added after the clip (by a
-    camera's pipeline or a renderer) takes pixels of a saturated plateau under the
-    threshold; the holes leave the blob's inscribed disk, the rays' first radius, well
-    inside the glare, and the rays end before its rim.  A clean plateau is the same either
-    way, so the larger of the two radii is kept."""
-    x0, y0, x1, y1 = box
-    H, W = grey.shape
-    wx0, wy0, wx1, wy1 = max(x0 - 1, 0), max(y0 - 1, 0), min(x1 + 1, W), min(y1 + 1, H)
-    win = grey[wy0:wy1, wx0:wx1]
-    avg = cv2.blur(win, (3, 3))[y0 - wy0 : y1 - wy0, x0 - wx0 : x1 - wx0]
-    core = avg >= threshold - 0.5 - (float(win.max()) - float(avg.max()))
-    if valid is not None:
-        core &= valid[y0:y1, x0:x1] > 0
-    return np.asarray(cv2.distanceTransform(core.astype(np.uint8), cv2.DIST_L2, 5))
-
-
-def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[float, float, float]]:
-    """Up to ``k`` well-separated maxima of a distance transform: (x, y, radius) px."""
-    top = float(dt.max())
-    if top <= 0:
-        return []
-    size = max(3, int(2 * top) | 1)
-    peaks = (dt >= cv2.dilate(dt, np.ones((size, size), np.uint8))) & (dt >= max(1.0, 0.5 * top))
-    ys, xs = np.nonzero(peaks)
-    vals = dt[ys, xs]
-    order = np.argsort(-vals)
-    chosen: list[tuple[float, float, float]] = []
-    for i in order:
-        x, y, r = float(xs[i] + x0), float(ys[i] + y0), float(vals[i])
-        if all(math.hypot(x - cx, y - cy) > max(r, cr) for cx, cy, cr in chosen):
-            chosen.append((x, y, r))
-        if len(chosen) >= k:
-            break
-    return chosen
-
-
-# ------------------------------------------------------------------------------------------
-# ------------------------------------------------------------------------------------------
 def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float) -> bool:
     """True when a saturated vertical streak (bloom, or a strong CCD smear) leaves the glare:
     1.6 to 2.6 radii above and below its centre (where the image holds both), the columns
