@@ -8,8 +8,10 @@ Method (see docs/fisheye.md):
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
    removes the background's gradient first (a sky brighter on one side would shift the rim).
    An unsaturated column smear (a CCD's frame-transfer streak) adds the same level above
-   and below the glare and leaves its centre in place; a saturated streak (bloom) costs
-   the near-vertical rays, whose rims it hides.
+   and below the glare and leaves its centre in place; a saturated streak (bloom,
+   :mod:`.streak`) costs the rays that run into it, whose rims it hides: the near-vertical
+   rays when it leaves both ways, those within 40 deg of its way when it leaves one way
+   (their sky's rings too, and the sky's dipole is fitted on the rest of the circle).
 3. **Cone.**  Rim points become unit vectors through the calibrated lens.  Points on a
    small circle of the sphere lie on a plane, ``a . v = cos(rho)``, fitted robustly
    (:func:`.sphere.fit_cone`: median / MAD rejection from all points and from a RANSAC
@@ -36,6 +38,7 @@ from .lens import FisheyeLens
 from .radiometry import Radiometry
 from .skybg import sky_by_elevation, sky_dipole
 from .sphere import fit_cone, sample_sphere, tangent_basis
+from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
 
 @dataclass(frozen=True)
@@ -109,28 +112,7 @@ class GlareFit:
 
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
 _COS_60DEG = 0.5
-
-
-def _saturated_streak(grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float) -> bool:
-    """True when a saturated vertical streak (bloom, or a strong CCD smear) leaves the glare:
-    1.6 to 2.6 radii above and below its centre (where the image holds both), the columns
-    through it are saturated and those 1.5 to 2.5 radii aside are not (a streak, not a
-    saturated cloud)."""
-    H, W = grey.shape
-    x0, x1 = max(int(xc - 0.6 * r), 0), min(int(xc + 0.6 * r) + 1, W)
-    sides = []
-    for lo, hi in ((yc - 2.6 * r, yc - 1.6 * r), (yc + 1.6 * r, yc + 2.6 * r)):
-        r0, r1 = max(int(lo), 0), min(int(hi) + 1, H)
-        if r1 - r0 < 2 or x1 <= x0:
-            continue
-        inner = float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level
-        aside = [
-            grey[r0:r1, max(int(a), 0) : min(int(b) + 1, W)]
-            for a, b in ((xc - 2.5 * r, xc - 1.5 * r), (xc + 1.5 * r, xc + 2.5 * r))
-        ]
-        clear = all(float(np.mean(a >= sat_level)) < 0.2 for a in aside if a.size)
-        sides.append(inner and clear)
-    return bool(sides) and all(sides)
+_SIN_50DEG = math.sin(math.radians(50))
 
 
 def _crossings(
@@ -178,13 +160,16 @@ def fit_glare(
     """
     H, W = grey.shape
     xc, yc, r = float(x0), float(y0), max(float(r_px), 1.5)
-    # a saturated streak (bloom) costs the near-vertical rays; an unsaturated column smear
-    # is symmetric about the glare's row and leaves the centre where it is
-    smear_kind = "bloom" if _saturated_streak(grey, xc, yc, r, peak - 3) else None
+    # a saturated streak (bloom) costs the rays that run into it; an unsaturated column
+    # smear is symmetric about the glare's row and leaves the centre where it is.  The
+    # candidate's disk is rough (a noisy plateau's inscribed disk is small and off centre):
+    # a streak that leaves one way only is judged around the first pass's rim instead
+    streak = streak_way(streak_sides(grey, xc, yc, r, peak - 3))
+    if streak:
+        streak = None
     dpp = lens.deg_per_px(xc, yc)
     n_rays = int(np.clip(round(2 * math.pi * r / 0.8), opts.min_rays, opts.max_rays))
     phi = np.arange(n_rays) * (2 * math.pi / n_rays)
-    vertical_ok = np.ones(n_rays, bool)
 
     # -- start: the ray through the inscribed disk's centre, the disk's angular radius ----
     d0, ok0 = lens.rays([[xc, yc]])
@@ -193,8 +178,6 @@ def fit_glare(
     a = d0[0]
     rho = math.radians(r * dpp)
     floor = math.radians(opts.noise_floor_px * dpp)
-    if smear_kind == "bloom":  # near-vertical rays run into the saturated streak
-        vertical_ok = np.abs(np.sin(phi)) < math.sin(math.radians(50))
     idx = np.zeros(0, int)
     has = np.zeros(n_rays, bool)
     rms = float("inf")
@@ -210,6 +193,10 @@ def fit_glare(
     lo_f, hi_f = 0.5, 1.7
     for it in range(opts.max_passes):
         e1, e2 = tangent_basis(a)
+        # the streak's rays: both ways, the near-vertical ones (by design: not counted in the
+        # rim's gaps); one way, those towards it (counted: that side of the rim is unseen)
+        vertical_ok = np.abs(np.sin(phi)) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
+        rays_ok = vertical_ok & ~rays_towards(lens, a, e1, e2, phi, rho, streak) if streak else vertical_ok
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         grids = [(phi, rim_chi)]
         if it < 2:  # the sky's dipole, measured twice; the model absorbs the axis's error
@@ -235,7 +222,7 @@ def fit_glare(
                 return None
             bg = float(np.median(outer))  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
-            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], top_s - bg, rsky)
+            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, rsky)
             by_el = None
             if up_cam is not None and not rsky.all():
                 # rings cut by the horizon: model the sky by elevation instead of a dipole
@@ -247,7 +234,7 @@ def fit_glare(
                 )
                 xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
                 by_el = sky_by_elevation(
-                    rvals, ring_chi, phi[ring_sel], rho, vertical_ok[ring_sel], rsky, xr, top_s - bg
+                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, xr, top_s - bg
                 )
             bg_s = bg
             if radiometry is not None:
@@ -268,7 +255,7 @@ def fit_glare(
             shift = _rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
         level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
-        has &= vertical_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
+        has &= rays_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
         if by_el is not None:  # near the horizon the sky model extrapolates: a large
             has &= np.abs(shift_s) <= opts.max_horizon_shift * (top_s - bg_s)  # shift is a guess
         if up_cam is not None:  # the last degrees above the horizon change too fast to model
@@ -301,6 +288,10 @@ def fit_glare(
         moved = math.acos(min(1.0, float(a_new @ a)))
         a = a_new
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
+        if it == 0 and streak is None:
+            uv0, ok0 = lens.project(a[None, :])
+            if ok0[0]:
+                streak = streak_way(streak_sides_at_core(grey, float(uv0[0, 0]), float(uv0[0, 1]), peak - 3))
         if it >= 1 and moved < 0.5 * floor:
             break
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
@@ -321,6 +312,9 @@ def fit_glare(
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
     gap_deg, gap_rays = _largest_gap(idx, vertical_ok)
+    # a one-sided streak's rays are in the gap (its rim is unseen there) but found no rim by
+    # design: the sky's gap is judged on the gap's other rays
+    sky_rays = gap_rays[rays_ok[gap_rays]]
     return GlareFit(
         axis=a,
         radius_deg=math.degrees(rho),
@@ -329,16 +323,16 @@ def fit_glare(
         n_valid=int(has.sum()),
         n_inliers=len(idx),
         max_gap_deg=gap_deg,
-        sky_gap=gap_rays.size > 0
+        sky_gap=sky_rays.size > 0
         and _faces_horizon(float(phi[gap_rays[gap_rays.size // 2]]), a, e1, e2, up_cam)
-        and float(np.mean(has[gap_rays])) < 0.5,
+        and float(np.mean(has[sky_rays])) < 0.5,
         centre_uv=(xc, yc),
         radius_px=r_fit,
         peak=peak,
         background=bg,
         core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
         deg_per_px=dpp,
-        smear=smear_kind,
+        smear=None if streak is None else "bloom",
         flags=flags,
         image_share=alpha,
         last_move_deg=math.degrees(moved),

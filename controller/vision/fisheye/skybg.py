@@ -86,7 +86,10 @@ def sky_dipole(
             continue
         m = vals[:, sel].mean(axis=1)
         m[~rays_ok | ~sky[:, sel].all(axis=1)] = np.nan
-        if np.isfinite(m).mean() < 0.75:  # a ring cut by the horizon: its dipole is unreliable
+        fin = np.isfinite(m)
+        if (
+            fin.mean() < 0.6 or fin[rays_ok].mean() < 0.75
+        ):  # a ring cut by the horizon: its dipole is unreliable
             continue
         c = float(chi[sel].mean())
         rows.append([-float(dprof[sel].mean()), c / rho, (c / rho) ** 2])

@@ -1,0 +1,150 @@
+"""A saturated streak along the sensor's columns (bloom, or a strong CCD smear) leaving the
+glare: where it is, so that the rim's rays that run into it are not used.
+
+A sensor that spills charge both ways along its columns draws a streak above and below the
+glare; one read out one way spills one way only (upwards, say), and hides that side of the
+rim.  Either streak is as wide as the glare's saturated core (charge spills along the
+columns it saturated) and stands on the core's centre column; a sunlit cloud edge next to
+the sun may be saturated too, but is broken, narrow, off to one side or wide.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .lens import FisheyeLens
+
+
+def streak_sides(
+    grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float
+) -> tuple[bool | None, bool | None]:
+    """Whether a saturated vertical streak (bloom, or a strong CCD smear) leaves the glare
+    upwards and downwards in the image: 1.6 to 2.6 radii above (below) its centre, the
+    columns through it are saturated and those 1.5 to 2.5 radii aside are not (a streak,
+    not a saturated cloud).  A side the image does not hold is None."""
+    H, W = grey.shape
+    x0, x1 = max(int(xc - 0.6 * r), 0), min(int(xc + 0.6 * r) + 1, W)
+    sides: list[bool | None] = []
+    for lo, hi in ((yc - 2.6 * r, yc - 1.6 * r), (yc + 1.6 * r, yc + 2.6 * r)):
+        r0, r1 = max(int(lo), 0), min(int(hi) + 1, H)
+        if r1 - r0 < 2 or x1 <= x0:
+            sides.append(None)
+            continue
+        inner = float(np.median(grey[r0:r1, x0:x1].max(axis=1))) >= sat_level
+        sides.append(inner and _clear_aside(grey, r0, r1, xc, 1.5 * r, 2.5 * r, sat_level, 0.2))
+    return sides[0], sides[1]
+
+
+def streak_sides_at_core(
+    grey: np.ndarray, xc: float, yc: float, sat_level: float
+) -> tuple[bool | None, bool | None]:
+    """:func:`streak_sides` around a known centre, with the glare's saturated core measured
+    on its centre row (radius ``rc``): a streak leaves it unbroken from 1 to 2 ``rc`` (in 90 %
+    of the rows, for noise), centred on its column (within ``rc / 4``, in the median row),
+    in its first third at least 0.8 ``rc`` wide (charge spills along the columns the core
+    saturated), with nothing saturated 1.2 to 2.5 ``rc`` aside.  Columns are counted from
+    the core's own centre on that row (the estimated centre may sit a pixel or two off it).
+    A sunlit cloud edge next to the sun is broken, narrow, off to one side or wide: on our
+    broken-cloud suite, the looser test of :func:`streak_sides` (from 1.3 to 2 radii of the
+    first pass's rim) flagged 22 frames as bloomed instead of 10, and missed 14 of the 239
+    visible suns instead of 9."""
+    H, W = grey.shape
+    xc, rc = core_row(grey, xc, yc, sat_level)
+    if rc < 1.5:
+        return None, None
+    x0, x1 = max(int(xc - 0.6 * rc), 0), min(int(xc + 0.6 * rc) + 1, W)
+    c0, c1 = max(int(xc - 1.2 * rc), 0), min(int(xc + 1.2 * rc) + 1, W)
+    cols = np.arange(c0, c1, dtype=float)
+    sides: list[bool | None] = []
+    for lo, hi in ((yc - 2.0 * rc, yc - rc), (yc + rc, yc + 2.0 * rc)):
+        r0, r1 = int(round(lo)), int(round(hi)) + 1
+        if r0 < 0 or r1 > H or r1 - r0 < 3:
+            sides.append(None)
+            continue
+        unbroken = float(np.mean(grey[r0:r1, x0:x1].max(axis=1) >= sat_level)) >= 0.9
+        sat = grey[r0:r1, c0:c1] >= sat_level
+        sat[:, 1:-1] |= sat[:, :-2] | sat[:, 2:]  # bridge single noisy pixels
+        n = np.maximum(sat.sum(axis=1), 1)
+        centred = float(np.median(np.abs((sat * cols).sum(axis=1) / n - xc))) <= 0.25 * rc
+        base = (n if lo > yc else n[::-1])[: max((r1 - r0) // 3, 1)]
+        wide = float(np.median(base)) >= 0.8 * rc
+        sides.append(
+            unbroken
+            and centred
+            and wide
+            and _clear_aside(grey, r0, r1, xc, 1.2 * rc, 2.5 * rc, sat_level, 0.05)
+        )
+    return sides[0], sides[1]
+
+
+def core_row(grey: np.ndarray, xc: float, yc: float, sat_level: float) -> tuple[float, float]:
+    """The saturated run through (``xc``, ``yc``) along its row (single unsaturated pixels
+    bridged): its centre and half its length (px), the core's column and radius, which a
+    vertical streak leaves alone; (``xc``, 0) when the point is not saturated."""
+    H, W = grey.shape
+    y, x = int(round(yc)), int(round(xc))
+    if not (0 <= y < H and 0 <= x < W):
+        return xc, 0.0
+    sat = grey[y] >= sat_level
+    sat[1:-1] |= sat[:-2] & sat[2:]
+    if not sat[x]:
+        return xc, 0.0
+    off = np.flatnonzero(~sat)
+    left = off[off < x]
+    right = off[off > x]
+    a = int(left[-1]) + 1 if left.size else 0
+    b = int(right[0]) if right.size else W
+    return 0.5 * (a + b - 1), 0.5 * (b - a)
+
+
+def _clear_aside(
+    grey: np.ndarray,
+    r0: int,
+    r1: int,
+    xc: float,
+    d_in: float,
+    d_out: float,
+    sat_level: float,
+    max_frac: float,
+) -> bool:
+    """Whether less than ``max_frac`` of rows ``r0:r1`` is saturated from ``d_in`` to
+    ``d_out`` px either side of column ``xc``."""
+    W = grey.shape[1]
+    aside = [
+        grey[r0:r1, max(int(a), 0) : min(int(b) + 1, W)]
+        for a, b in ((xc - d_out, xc - d_in), (xc + d_in, xc + d_out))
+    ]
+    return all(float(np.mean(a >= sat_level)) < max_frac for a in aside if a.size)
+
+
+def streak_way(sides: tuple[bool | None, bool | None]) -> float | None:
+    """The glare's saturated streak from its sides (up, down): None without one; 0.0 when it
+    leaves both ways (or the one way the image holds); -1.0 when it leaves upwards only,
+    +1.0 downwards only (a sensor that spills one way)."""
+    up, down = sides
+    if up and down is False:
+        return -1.0
+    if down and up is False:
+        return 1.0
+    held = [s for s in (up, down) if s is not None]
+    return 0.0 if held and all(held) else None
+
+
+def rays_towards(
+    lens: FisheyeLens,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    dv: float,
+    half_width_deg: float = 40.0,
+) -> np.ndarray:
+    """The rays (angles ``phi`` about ``a``) whose rim lies within ``half_width_deg`` of the
+    image's vertical, up (``dv`` < 0) or down (``dv`` > 0), from the glare's centre."""
+    pts = math.cos(rho) * a + math.sin(rho) * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
+    uv, _ = lens.project(np.vstack([a[None, :], pts]))
+    d = uv[1:] - uv[0]
+    return dv * d[:, 1] > math.cos(math.radians(half_width_deg)) * np.hypot(d[:, 0], d[:, 1])
