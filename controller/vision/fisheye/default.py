@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -181,19 +181,16 @@ class FisheyeEstimator(FramePipeline):
                 if self._below_horizon(x, y, r):
                     low += 1
                     continue
-                fit = fit_glare(
-                    grey,
-                    self.lens,
-                    x,
-                    y,
-                    r,
-                    float(peak),
-                    o.glare,
-                    up_cam=self.up_cam,
-                    radiometry=self.radiometry,
-                )
-                if fit is not None:
-                    cands.append(self._judge(fit))
+                cand = self._measure(grey, x, y, r, float(peak), o.glare)
+                if cand is not None and cand.reason is not None and cand.fit.one_way_streak:
+                    # a saturated cloud below (or above) a dimmed sun may pass for a streak
+                    # that leaves one way; if the rim it leaves is not the sun's, drop it
+                    cand = (
+                        self._measure(grey, x, y, r, float(peak), replace(o.glare, one_way_streaks=False))
+                        or cand
+                    )
+                if cand is not None:
+                    cands.append(cand)
         sun_like = [c for c in cands if c.reason is None]
         if t is not None and sun_like:
             sun_like = self._motion_vetoes(t, sun_like, prior)
@@ -243,6 +240,13 @@ class FisheyeEstimator(FramePipeline):
         return res
 
     # -- internals ---------------------------------------------------------------------------
+    def _measure(
+        self, grey: np.ndarray, x: float, y: float, r: float, peak: float, opts: GlareOptions
+    ) -> Candidate | None:
+        """The glare around (``x``, ``y``) fitted and judged, or None when no rim was found."""
+        fit = fit_glare(grey, self.lens, x, y, r, peak, opts, up_cam=self.up_cam, radiometry=self.radiometry)
+        return None if fit is None else self._judge(fit)
+
     def _judge(self, fit: GlareFit) -> Candidate:
         o = self.options
         d_cam = fit.axis

@@ -75,6 +75,7 @@ class GlareOptions:
     max_passes: int = 8
     max_ray_level: float = 0.90
     min_level: float = 0.75
+    one_way_streaks: bool = True
 
 
 @dataclass
@@ -100,6 +101,7 @@ class GlareFit:
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
     sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
     sky_gap: bool = False  # the largest gap faces the horizon and its rays found no rim
+    one_way_streak: bool = False  # the rays towards a streak that leaves one way were left out
 
     @property
     def inlier_fraction(self) -> float:
@@ -288,7 +290,7 @@ def fit_glare(
         moved = math.acos(min(1.0, float(a_new @ a)))
         a = a_new
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
-        if it == 0 and streak is None:
+        if it == 0 and streak is None and opts.one_way_streaks:
             uv0, ok0 = lens.project(a[None, :])
             if ok0[0]:
                 streak = streak_way(streak_sides_at_core(grey, float(uv0[0, 0]), float(uv0[0, 1]), peak - 3))
@@ -333,6 +335,7 @@ def fit_glare(
         core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
         deg_per_px=dpp,
         smear=None if streak is None else "bloom",
+        one_way_streak=bool(streak),
         flags=flags,
         image_share=alpha,
         last_move_deg=math.degrees(moved),
