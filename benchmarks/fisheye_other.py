@@ -30,10 +30,31 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
-W, H = 640, 480
-F_EQ = 150.0  # px: r = 2 f sin(theta / 2)
-CX, CY = 321.3, 238.1
 THETA_MAX = math.radians(95.0)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """The camera's pixels behind the equisolid lens (``r = 2 f sin(theta / 2)``, px)."""
+
+    width: int = 640
+    height: int = 480
+    f_eq: float = 150.0
+    cx: float = 321.3
+    cy: float = 238.1
+
+    def scaled(self, k: float) -> Sensor:
+        """The same lens and field on pixels ``k`` times finer (1280 x 960 for ``k`` = 2)."""
+        return Sensor(
+            round(self.width * k),
+            round(self.height * k),
+            self.f_eq * k,
+            (self.cx + 0.5) * k - 0.5,
+            (self.cy + 0.5) * k - 0.5,
+        )
+
+
+SENSOR = Sensor()
 SITE = (36.75, -4.42, 20.0)  # Malaga: another latitude, west of Greenwich
 
 
@@ -58,13 +79,13 @@ class OtherLook:
     exposure: float = 1.0  # relative exposure (brackets for the response's calibration)
 
 
-def kb_fit() -> tuple[np.ndarray, np.ndarray]:
+def kb_fit(sensor: Sensor = SENSOR) -> tuple[np.ndarray, np.ndarray]:
     """``cv2.fisheye`` K and D of the equisolid lens (theta_d = 2 sin(theta / 2))."""
     th = np.linspace(1e-3, THETA_MAX, 400)
     td = 2.0 * np.sin(th / 2.0)
     A = np.stack([th**3, th**5, th**7, th**9], 1)
     D, *_ = np.linalg.lstsq(A, td - th, rcond=None)
-    K = np.array([[F_EQ, 0, CX], [0, F_EQ, CY], [0, 0, 1.0]])
+    K = np.array([[sensor.f_eq, 0, sensor.cx], [0, sensor.f_eq, sensor.cy], [0, 0, 1.0]])
     return K, D
 
 
@@ -81,22 +102,22 @@ def rotation(yaw_deg: float = 25.0, tilt_deg: float = 2.0, tilt_az_deg: float = 
     return Rt @ R
 
 
-def pixel_rays() -> tuple[np.ndarray, np.ndarray]:
+def pixel_rays(sensor: Sensor = SENSOR) -> tuple[np.ndarray, np.ndarray]:
     """Camera-frame unit direction of every pixel (H, W, 3) and the image-circle mask."""
-    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
-    r = np.hypot(u - CX, v - CY)
-    s = np.clip(r / (2 * F_EQ), 0, 1)
+    u, v = np.meshgrid(np.arange(sensor.width, dtype=np.float64), np.arange(sensor.height, dtype=np.float64))
+    r = np.hypot(u - sensor.cx, v - sensor.cy)
+    s = np.clip(r / (2 * sensor.f_eq), 0, 1)
     th = 2 * np.arcsin(s)
-    ph = np.arctan2(v - CY, u - CX)
+    ph = np.arctan2(v - sensor.cy, u - sensor.cx)
     d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1)
     return d, th <= THETA_MAX
 
 
-def project(d_cam: np.ndarray) -> tuple[float, float]:
+def project(d_cam: np.ndarray, sensor: Sensor = SENSOR) -> tuple[float, float]:
     th = math.acos(max(-1.0, min(1.0, float(d_cam[2]))))
     ph = math.atan2(float(d_cam[1]), float(d_cam[0]))
-    r = 2 * F_EQ * math.sin(th / 2)
-    return CX + r * math.cos(ph), CY + r * math.sin(ph)
+    r = 2 * sensor.f_eq * math.sin(th / 2)
+    return sensor.cx + r * math.cos(ph), sensor.cy + r * math.sin(ph)
 
 
 def sun_truth(ts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -127,8 +148,12 @@ def cie_clear(zen: np.ndarray, chi: np.ndarray, zen_sun: float) -> np.ndarray:
     return ind(chi) * grad(zen) / (ind(np.array(zen_sun)) * grad(np.array(0.0)))
 
 
-def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
+def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> tuple[np.ndarray, dict]:
     d_cam, inside = rays
+    if d_cam.shape[:2] != (sensor.height, sensor.width):
+        raise ValueError(
+            f"rays of {d_cam.shape[1]} x {d_cam.shape[0]} px for a {sensor.width} x {sensor.height} sensor"
+        )
     d_enu = d_cam @ R.T
     az, el = sun_truth(np.array([t]))
     s_enu = enu(az[0], el[0])
@@ -170,10 +195,10 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
     # glare
     am = 1 / max(math.sin(math.radians(max(el[0], 0.5))), 0.05)
     trans = math.exp(-0.12 * (am - 1)) * math.exp(-tau_sun)
-    su, sv = project(s_cam)
-    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    su, sv = project(s_cam, sensor)
+    u, v = np.meshgrid(np.arange(sensor.width, dtype=np.float64), np.arange(sensor.height, dtype=np.float64))
     dpx = np.hypot(u - su, v - sv)
-    px_per_deg = F_EQ * math.pi / 180.0
+    px_per_deg = sensor.f_eq * math.pi / 180.0
 
     def g_ang(c_deg):
         if look.aureole == "gauss":
@@ -199,7 +224,7 @@ def render(look: OtherLook, t: float, rays, R, rng) -> tuple[np.ndarray, dict]:
                 top = int(np.argmax(sat[:, c]))
                 length = int(look.bloom * r_sat * math.sqrt(excess[c] / excess.max()))
                 lin[max(top - length, 0) : top, c, :] += 1.5
-    r_img = np.hypot(u - CX, v - CY) / (2 * F_EQ * math.sin(THETA_MAX / 2))
+    r_img = np.hypot(u - sensor.cx, v - sensor.cy) / (2 * sensor.f_eq * math.sin(THETA_MAX / 2))
     lin = look.exposure * lin * (1 - look.vignetting * r_img**2)[..., None]
     lin[~inside] = 0.0
     e = np.minimum(lin, 4.0) * 10000.0
@@ -295,15 +320,23 @@ def calibrated_radiometry(tone: str, vignetting: float):
     )
 
 
-def bundle(R: np.ndarray, look: OtherLook | None = None):
+def bundle(R: np.ndarray, look: OtherLook | None = None, sensor: Sensor = SENSOR):
     """The pipeline's bundle: the KB fit of the lens, the true rotation, the site, and the
     look's camera radiometry (:func:`radiometry`) when given."""
     from controller.calibration.camera import CameraCal
     from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 
-    K, D = kb_fit()
+    K, D = kb_fit(sensor)
+    f, cx, cy = sensor.f_eq, sensor.cx, sensor.cy
     cam = CameraCal(
-        width=W, height=H, fx=F_EQ, fy=F_EQ, cx=CX, cy=CY, dist=tuple(float(x) for x in D), model="fisheye"
+        width=sensor.width,
+        height=sensor.height,
+        fx=f,
+        fy=f,
+        cx=cx,
+        cy=cy,
+        dist=tuple(float(x) for x in D),
+        model="fisheye",
     )
     return FisheyeBundle(
         camera=cam,
@@ -336,17 +369,21 @@ def utc_midnight(y: int, m: int, d: int) -> float:
     return datetime(y, m, d, tzinfo=UTC).timestamp()
 
 
-def clear(quick: bool) -> dict:
+# at 1280 x 960: the look as described, and the glare and the smear that differ most
+HD_LOOKS = (CLEAR_LOOKS[0], CLEAR_LOOKS[5], CLEAR_LOOKS[6])
+
+
+def clear(quick: bool, sensor: Sensor = SENSOR, looks: tuple[OtherLook, ...] = CLEAR_LOOKS) -> dict:
     """Clear days (Mar 20, Jun 21, Dec 21; every 30 min, 60 in quick runs; sun above 5 deg)."""
     from controller.vision.fisheye import FisheyeEstimator
 
     from .fisheye_suites import angle_deg, stats
 
-    rays, R = pixel_rays(), rotation()
+    rays, R = pixel_rays(sensor), rotation()
     step = 3600 if quick else 1800
     out = {}
-    for look in CLEAR_LOOKS[:2] if quick else CLEAR_LOOKS:
-        est = FisheyeEstimator(bundle(R, look))
+    for look in looks[:2] if quick else looks:
+        est = FisheyeEstimator(bundle(R, look, sensor))
         rng = np.random.default_rng(17)
         errs, missing, n = [], {}, 0
         for day in ((2025, 3, 20), (2025, 6, 21), (2025, 12, 21)):
@@ -354,7 +391,7 @@ def clear(quick: bool) -> dict:
             ts = utc_midnight(*day) + np.arange(0, 86400, step, dtype=float)
             _, els = sun_truth(ts)
             for t in ts[els >= 5.0]:
-                img, truth = render(look, float(t), rays, R, rng)
+                img, truth = render(look, float(t), rays, R, rng, sensor)
                 n += 1
                 r = est.estimate_image(img, float(t))
                 if r.found:
@@ -420,4 +457,8 @@ def clouds(quick: bool) -> dict:
 
 
 def run(quick: bool = False) -> dict:
-    return {"clear": clear(quick), "clouds": clouds(quick)}
+    return {
+        "clear": clear(quick),
+        "clear_1280x960": clear(quick, SENSOR.scaled(2.0), HD_LOOKS[:1] if quick else HD_LOOKS),
+        "clouds": clouds(quick),
+    }

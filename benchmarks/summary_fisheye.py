@@ -98,6 +98,20 @@ def fisheye(r: dict) -> list[Headline]:
                 note,
                 ok=acc.get("other_renderer_clear_rms_le_0.03"),
             ),
+        ]
+        hd = other.get("clear_1280x960", {}).get("other renderer")
+        if hd:
+            out.append(
+                Headline(
+                    "fisheye",
+                    "second renderer: clear sky RMS, 1280 x 960 (sRGB, vignetting declared)",
+                    fmt(hd["error"].get("rms_deg"), 3, " deg"),
+                    "<= 0.02 deg",
+                    f"found {hd['found']} of {hd['frames']}",
+                    ok=acc.get("other_renderer_clear_1280x960_rms_le_0.02"),
+                )
+            )
+        out += [
             Headline(
                 "fisheye",
                 "second renderer: clouds, false / misses / RMS where visible",

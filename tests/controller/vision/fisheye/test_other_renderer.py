@@ -2,6 +2,7 @@
 lens model, sky model, glare profile and tone curve than the HIL world's."""
 
 import numpy as np
+import pytest
 
 from benchmarks import fisheye_other as other
 from controller.sun.types import angle_between_deg, azel_to_enu
@@ -31,7 +32,23 @@ def test_the_renderers_lens_is_handed_over_as_a_close_kannala_brandt_fit():
     K, D = other.kb_fit()
     th = np.radians(np.linspace(0.5, 94.0, 200))
     td = th * (1 + D[0] * th**2 + D[1] * th**4 + D[2] * th**6 + D[3] * th**8)
-    assert np.abs(td - 2 * np.sin(th / 2)).max() * other.F_EQ < 0.05  # px
+    assert np.abs(td - 2 * np.sin(th / 2)).max() * other.SENSOR.f_eq < 0.05  # px
+
+
+def test_a_finer_sensor_sees_the_same_directions_at_twice_the_pixels():
+    fine = other.SENSOR.scaled(2.0)
+    assert (fine.width, fine.height) == (1280, 960)
+    d = np.array([0.3, -0.2, 0.0])
+    d[2] = np.sqrt(1 - d @ d)
+    u1, v1 = other.project(d)
+    u2, v2 = other.project(d, fine)
+    assert (u2, v2) == pytest.approx(((u1 + 0.5) * 2 - 0.5, (v1 + 0.5) * 2 - 0.5))
+    rays, inside = other.pixel_rays(fine)
+    assert rays.shape == (960, 1280, 3) and inside[480, 640]
+    iu, iv = int(round(u2)), int(round(v2))
+    assert float(rays[iv, iu] @ d) > np.cos(np.radians(0.5))
+    with pytest.raises(ValueError, match="1280 x 960 sensor"):
+        other.render(other.OtherLook("x"), 0.0, other.pixel_rays(), other.rotation(), None, fine)
 
 
 def test_high_sun_is_within_the_clear_sky_target():
