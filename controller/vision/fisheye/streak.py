@@ -41,22 +41,20 @@ def streak_sides_at_core(
     grey: np.ndarray, xc: float, yc: float, sat_level: float
 ) -> tuple[bool | None, bool | None]:
     """:func:`streak_sides` around a known centre, with the glare's saturated core measured
-    on its centre row (radius ``rc``): a streak leaves it unbroken from 1 to 2 ``rc`` (in 90 %
-    of the rows, for noise), centred on its column (within ``rc / 4``, in the median row),
-    in its first third at least 0.8 ``rc`` wide (charge spills along the columns the core
-    saturated), with nothing saturated 1.2 to 2.5 ``rc`` aside.  Columns are counted from
-    the core's own centre on that row (the estimated centre may sit a pixel or two off it).
-    A sunlit cloud edge next to the sun is broken, narrow, off to one side or wide: on our
-    broken-cloud suite, the looser test of :func:`streak_sides` (from 1.3 to 2 radii of the
-    first pass's rim) flagged 22 frames as bloomed instead of 10, and missed 14 of the 239
-    visible suns instead of 9."""
+    on its centre row (radius ``rc``, column ``xc``; the estimated centre may sit a pixel or
+    two off it).  A streak leaves the core unbroken from 1 to 2 ``rc`` (in 90 % of the rows,
+    for noise); or, one way only, it reaches at least 0.4 ``rc`` further along the core's
+    column than the core does the other way (a short one: a sensor's spill is as long as
+    the charge it has to shed).  Beyond the core it stands as a streak would
+    (:func:`_streak_band`).  A sunlit cloud edge next to the sun is broken, narrow, off to
+    one side or wide: on our broken-cloud suite, the looser test of :func:`streak_sides`
+    (from 1.3 to 2 radii of the first pass's rim) flagged 22 frames as bloomed instead of
+    10, and missed 14 of the 239 visible suns instead of 9."""
     H, W = grey.shape
     xc, rc = core_row(grey, xc, yc, sat_level)
     if rc < 1.5:
         return None, None
     x0, x1 = max(int(xc - 0.6 * rc), 0), min(int(xc + 0.6 * rc) + 1, W)
-    c0, c1 = max(int(xc - 1.2 * rc), 0), min(int(xc + 1.2 * rc) + 1, W)
-    cols = np.arange(c0, c1, dtype=float)
     sides: list[bool | None] = []
     for lo, hi in ((yc - 2.0 * rc, yc - rc), (yc + rc, yc + 2.0 * rc)):
         r0, r1 = int(round(lo)), int(round(hi)) + 1
@@ -64,19 +62,54 @@ def streak_sides_at_core(
             sides.append(None)
             continue
         unbroken = float(np.mean(grey[r0:r1, x0:x1].max(axis=1) >= sat_level)) >= 0.9
-        sat = grey[r0:r1, c0:c1] >= sat_level
-        sat[:, 1:-1] |= sat[:, :-2] | sat[:, 2:]  # bridge single noisy pixels
-        n = np.maximum(sat.sum(axis=1), 1)
-        centred = float(np.median(np.abs((sat * cols).sum(axis=1) / n - xc))) <= 0.25 * rc
-        base = (n if lo > yc else n[::-1])[: max((r1 - r0) // 3, 1)]
-        wide = float(np.median(base)) >= 0.8 * rc
-        sides.append(
-            unbroken
-            and centred
-            and wide
-            and _clear_aside(grey, r0, r1, xc, 1.2 * rc, 2.5 * rc, sat_level, 0.05)
-        )
+        sides.append(unbroken and _streak_band(grey, r0, r1, xc, rc, sat_level, away=lo > yc))
+    if any(sides):
+        return sides[0], sides[1]
+    # a short streak one way: the core's column runs on past where it stops the other way
+    y0 = int(round(yc))
+    up, down = (_column_run(grey, x0, x1, y0, step, sat_level) for step in (-1, 1))
+    for k, (far, near) in enumerate(((up, down), (down, up))):
+        reach = max(near, rc)
+        if far - reach < 0.4 * rc:
+            continue
+        r0, r1 = (y0 - far, y0 - int(reach) + 1) if k == 0 else (y0 + int(reach), y0 + far + 1)
+        if r1 - r0 >= 2 and _streak_band(grey, r0, r1, xc, rc, sat_level, away=k == 1):
+            return (True, False) if k == 0 else (False, True)
     return sides[0], sides[1]
+
+
+def _streak_band(
+    grey: np.ndarray, r0: int, r1: int, xc: float, rc: float, sat_level: float, away: bool
+) -> bool:
+    """Whether the saturated pixels of rows ``r0:r1`` (beside the core; ``away``: ordered
+    away from it) stand as a streak from a core of radius ``rc`` on column ``xc`` would:
+    centred on that column (within ``rc / 4``, in the median row), in the third of the band
+    nearest the core at least 0.8 ``rc`` wide (charge spills along the columns the core
+    saturated), and nothing saturated 1.2 to 2.5 ``rc`` aside."""
+    W = grey.shape[1]
+    c0, c1 = max(int(xc - 1.2 * rc), 0), min(int(xc + 1.2 * rc) + 1, W)
+    sat = grey[r0:r1, c0:c1] >= sat_level
+    sat[:, 1:-1] |= sat[:, :-2] | sat[:, 2:]  # bridge single noisy pixels
+    n = np.maximum(sat.sum(axis=1), 1)
+    cols = np.arange(c0, c1, dtype=float)
+    centred = float(np.median(np.abs((sat * cols).sum(axis=1) / n - xc))) <= 0.25 * rc
+    base = (n if away else n[::-1])[: max((r1 - r0) // 3, 1)]
+    wide = float(np.median(base)) >= 0.8 * rc
+    return centred and wide and _clear_aside(grey, r0, r1, xc, 1.2 * rc, 2.5 * rc, sat_level, 0.05)
+
+
+def _column_run(grey: np.ndarray, x0: int, x1: int, y0: int, step: int, sat_level: float) -> int:
+    """How many rows from ``y0``, going ``step`` (-1 up, +1 down), columns ``x0:x1`` stay
+    saturated somewhere (a single unsaturated row is bridged, for noise)."""
+    H = grey.shape[0]
+    y, n, gap = y0, 0, 0
+    while 0 <= y + step < H and gap < 2:
+        y += step
+        if grey[y, x0:x1].max() >= sat_level:
+            n, gap = n + 1 + gap, 0
+        else:
+            gap += 1
+    return n
 
 
 def core_row(grey: np.ndarray, xc: float, yc: float, sat_level: float) -> tuple[float, float]:
