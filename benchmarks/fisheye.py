@@ -20,7 +20,7 @@ calibration chain, robustness to other looks of the world, and frames per second
   smear, sky brightness and compression, known calibration.
 * ``other_renderer``: a second renderer written apart from the HIL's
   (:mod:`benchmarks.fisheye_other`: equisolid lens, CIE clear sky, another glare profile,
-  upward bloom, sRGB, vignetting, puff clouds): clear days of eleven looks at 640 x 480
+  upward bloom, sRGB, vignetting, puff clouds): clear days of thirteen looks at 640 x 480
   and of three (as described, wide glare, upward bloom) at 1280 x 960, and a cloud suite;
   the pipeline handed a ``cv2.fisheye`` fit of that lens and the camera's radiometry
   (response and vignetting, as a calibration gives them), and once without it.

@@ -360,6 +360,8 @@ CLEAR_LOOKS = (
     OtherLook("other renderer, gamma 2.2, Gaussian aureole", tone="gamma2.2", aureole="gauss"),
     OtherLook("other renderer, filmic tone, Gaussian aureole", tone="filmic", aureole="gauss"),
     OtherLook("other renderer, linear, noise after the clip (3 grey levels)", tone="linear", post_noise=3.0),
+    OtherLook("other renderer, upward bloom 1 radius", bloom=1.0),
+    OtherLook("other renderer, upward bloom 4 radii", bloom=4.0),
 )
 
 
