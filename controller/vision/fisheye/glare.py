@@ -113,6 +113,7 @@ class GlareFit:
 
 
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
+_RHO_MAX = math.radians(45.0)  # no glare is this wide (the judge refuses radii over 20 deg)
 _COS_60DEG = 0.5
 _SIN_50DEG = math.sin(math.radians(50))
 
@@ -200,6 +201,8 @@ def fit_glare(
         vertical_ok = np.abs(np.sin(phi)) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
         rays_ok = vertical_ok & ~rays_towards(lens, a, e1, e2, phi, rho, streak) if streak else vertical_ok
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
+        if rim_chi.size < 4:  # a rim narrower than a few samples: nothing to read
+            return None
         grids = [(phi, rim_chi)]
         if it < 2:  # the sky's dipole, measured twice; the model absorbs the axis's error
             ring_chi = np.arange(1.15 * rho, 3.2 * rho + 4 * step, 3 * step)
@@ -286,6 +289,8 @@ def fit_glare(
             )
             if bf is not None:
                 a_new, rho, inl, rms, alpha = bf.axis, bf.rho, bf.inliers, bf.rms, bf.alpha
+        if not (math.isfinite(rho) and 0.0 < rho < _RHO_MAX):
+            return None  # not a small circle: the edge of a flat patch, fitted as a vast or inverted one
         idx = np.flatnonzero(has)[inl]
         moved = math.acos(min(1.0, float(a_new @ a)))
         a = a_new
