@@ -201,7 +201,7 @@ def fit_glare(
         vertical_ok = np.abs(np.sin(phi)) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
         rays_ok = vertical_ok & ~rays_towards(lens, a, e1, e2, phi, rho, streak) if streak else vertical_ok
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
-        if rim_chi.size < 4:  # a rim narrower than a few samples: nothing to read
+        if rim_chi.size < 2:  # a step wider than the rim (a fit shrunk far inside the candidate)
             return None
         grids = [(phi, rim_chi)]
         if it < 2:  # the sky's dipole, measured twice; the model absorbs the axis's error
