@@ -68,7 +68,7 @@ def frame(bg: int, items, sigma: float, seed: int, blur: float, quality: int) ->
     blur=st.sampled_from([0.0, 0.8, 3.0]),
     quality=st.sampled_from([0, 40, 85]),
 )
-# found by this fuzzer: a noisy flat rectangle whose rim a cone fitted 84 deg wide and the
+# found by fuzzing with frames like these: a noisy flat rectangle whose rim a cone fitted 84 deg wide and the
 # blend then inverted (radius -240 deg); the next pass had no samples to read and raised
 @example(
     bg=75, items=[("rect", 155, 101, 57, 42 / 57, (211, 247, 243))], sigma=1.0, seed=0, blur=0.0, quality=0
