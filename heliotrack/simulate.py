@@ -41,6 +41,7 @@ from hil.drive import DriveFirmware
 
 from .devices import open_anemometer, open_drives, open_pyranometer
 from .faults import FaultScheduler, FaultyFrameSource
+from .interrupt import sleep_unless, stop_on_sigint
 from .output import CyclesWriter, check_out_dir, cycle_row, summary_table, write_summary
 from .panel_loop import CLOSEDLOOP_DEFINITIONS, closedloop_summary, make_controller
 from .renderers import world_renderers
@@ -244,7 +245,9 @@ class ScenarioRun:
     async def run(self) -> dict:
         wall0 = time.perf_counter()
         self._enter_day(0)
+        stop = asyncio.Event()
         with ExitStack() as stack:
+            stack.enter_context(stop_on_sigint(stop))
             world = build_world(self.config, self.hil, self.clock, stack, self.ghi_at, self.wind)
             sun, sensor = build_sun_source(self.config, self._camera_frames(), self.clock.now())
             self._sun, self._sensor = sun, sensor
@@ -276,6 +279,9 @@ class ScenarioRun:
             try:
                 await controller.start()
                 for i in range(self.n_cycles):
+                    if stop.is_set():  # Ctrl-C: stop here, keep what was done
+                        self.interrupted = True
+                        break
                     day, j = divmod(i, self.cycles_per_day)
                     if day != self.day:
                         self._leave_day()
@@ -288,8 +294,8 @@ class ScenarioRun:
                     self._log(records, errors, j, controller)
                     self.cycles_done = i + 1
                     bar.update(1)
-                    await self._pace(i, wall0)
-            except asyncio.CancelledError:  # Ctrl-C: stop here, keep what was done
+                    await self._pace(i, wall0, stop)
+            except asyncio.CancelledError:  # cancelled (a second Ctrl-C): keep what was done
                 self.interrupted = True
             finally:
                 bar.close()
@@ -297,12 +303,13 @@ class ScenarioRun:
                 await controller.close()
         return self._summary(controller, time.perf_counter() - wall0)
 
-    async def _pace(self, i: int, wall0: float) -> None:
-        """With ``speed``: hold the simulated clock to ``speed`` times the wall clock."""
+    async def _pace(self, i: int, wall0: float, stop: asyncio.Event) -> None:
+        """With ``speed``: hold the simulated clock to ``speed`` times the wall clock
+        (a Ctrl-C, which sets ``stop``, ends the wait)."""
         if self.speed:
             ahead = (i + 1) * self.period / self.speed - (time.perf_counter() - wall0)
             if ahead > 0:
-                await asyncio.sleep(ahead)
+                await sleep_unless(stop, ahead)
 
     # -- hooks (fault injection; a soak overrides them to count and carry on) -----------------
     def _advance(self, t: float) -> None:
