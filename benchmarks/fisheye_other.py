@@ -5,7 +5,8 @@ smear and cloud model").  It shares no code with ``hil/skycam``; every model dif
 * **lens**: an exact equisolid-angle projection ``r = 2 f sin(theta / 2)`` (not Kannala-
   Brandt); the pipeline is handed a ``cv2.fisheye`` fit of it, as a calibration would give;
 * **sky**: the CIE standard clear sky (ISO 15469 type 12) luminance distribution, a blue
-  that whitens towards the sun and the horizon, a flat dark ground;
+  that whitens towards the sun and the horizon, a flat dark ground; other looks take other
+  CIE general sky types or a power-law aureole (:mod:`benchmarks.fisheye_other_sky`);
 * **glare**: an exponential aureole plus a power-law wing on the sky, and a Lorentzian
   veiling glare round on the sensor, mixed 60 / 40;
 * **smear**: bloom that spills *upwards only* (one-sided, as on sensors read one way);
@@ -29,6 +30,8 @@ from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
+
+from .fisheye_other_sky import SAME_LEVEL, SKIES, cie_clear
 
 THETA_MAX = math.radians(95.0)
 
@@ -71,6 +74,8 @@ class OtherLook:
     sun: bool = True  # False: the sky alone (for diagnosis)
     noise: bool = True
     sky: str = "cie"  # "flat": a uniform sky (for diagnosis); "dome": a flat field (all the view)
+    sky_type: int | str = 12  # a key of CIE_SKY_TYPES, or "power" (see cie_clear)
+    sky_level: float = 1.0  # the sky's luminance, relative to the camera's exposure for type 12
     vignetting: float = 0.25
     tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
     aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
@@ -135,19 +140,6 @@ def enu(az_deg, el_deg) -> np.ndarray:
     return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], -1)
 
 
-def cie_clear(zen: np.ndarray, chi: np.ndarray, zen_sun: float) -> np.ndarray:
-    """CIE standard clear sky (type 12) luminance relative to the zenith's."""
-    a, b, c, d, e = -1.0, -0.32, 10.0, -3.0, 0.45
-
-    def grad(z):
-        return 1 + a * np.exp(b / np.maximum(np.cos(z), 0.01))
-
-    def ind(x):
-        return 1 + c * (np.exp(d * x) - math.exp(d * math.pi / 2)) + e * np.cos(x) ** 2
-
-    return ind(chi) * grad(zen) / (ind(np.array(zen_sun)) * grad(np.array(0.0)))
-
-
 def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> tuple[np.ndarray, dict]:
     d_cam, inside = rays
     if d_cam.shape[:2] != (sensor.height, sensor.width):
@@ -161,7 +153,11 @@ def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> 
     zen = np.arccos(np.clip(d_enu[..., 2], -1, 1))
     chi = np.arccos(np.clip(d_enu @ s_enu, -1, 1))
     zs = math.radians(90 - el[0])
-    sky_l = 0.06 * cie_clear(zen, chi, zs) if look.sky == "cie" else np.full(zen.shape, 0.12)
+    sky_l = (
+        0.06 * look.sky_level * cie_clear(zen, chi, zs, look.sky_type)
+        if look.sky == "cie"
+        else np.full(zen.shape, 0.12)
+    )
     white = np.clip(
         0.35 * np.exp(-np.degrees(chi) / 12.0) + 0.4 * np.exp(-(90 - np.degrees(zen)) / 8.0), 0, 1
     )
@@ -362,6 +358,12 @@ CLEAR_LOOKS = (
     OtherLook("other renderer, linear, noise after the clip (3 grey levels)", tone="linear", post_noise=3.0),
     OtherLook("other renderer, upward bloom 1 radius", bloom=1.0),
     OtherLook("other renderer, upward bloom 4 radii", bloom=4.0),
+    # other sky shapes at type 12's circumsolar level (only the shape differs), then one as exposed
+    *(
+        OtherLook(f"other renderer, {n}, same circumsolar level", sky_type=k, sky_level=SAME_LEVEL[k])
+        for k, n in SKIES
+    ),
+    OtherLook("other renderer, CIE sky type 15, circumsolar sky clipped", sky_type=15),
 )
 
 
