@@ -8,7 +8,8 @@ smear and cloud model").  It shares no code with ``hil/skycam``; every model dif
   that whitens towards the sun and the horizon, a flat dark ground; other looks take other
   CIE general sky types or a power-law aureole (:mod:`benchmarks.fisheye_other_sky`);
 * **glare**: an exponential aureole plus a power-law wing on the sky, and a Lorentzian
-  veiling glare round on the sensor, mixed 60 / 40;
+  veiling glare round on the sensor, mixed 60 / 40; another look draws it as a simple
+  renderer would, a hard-edged saturated disk and an exponential halo;
 * **smear**: bloom that spills *upwards only* (one-sided, as on sensors read one way);
 * **sensor**: vignetting ``1 - 0.25 (r / r_max)^2``, Poisson-Gaussian noise of a 10 000 e-
   well, the sRGB tone curve, JPEG q85; other looks: linear output, gamma 2.2, a filmic
@@ -78,7 +79,9 @@ class OtherLook:
     sky_level: float = 1.0  # the sky's luminance, relative to the camera's exposure for type 12
     vignetting: float = 0.25
     tone: str = "srgb"  # "gamma2.2", "filmic" (an S-curve over gamma 2.2) or "linear"
-    aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing
+    aureole: str = "exp"  # "gauss": a Gaussian core (1.6 deg) and a power-law wing; "disk": a
+    # hard-edged saturated disk of sat_radius_deg and a halo of 0.7 full scale at its edge
+    # falling by e every 1.5 deg (as a simple renderer draws the sun; veil_weight ignored)
     post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
     radiometry: str = "exact"  # the bundle's [radiometry]: "exact", "calibrated" or "none"
     exposure: float = 1.0  # relative exposure (brackets for the response's calibration)
@@ -197,6 +200,9 @@ def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> 
     px_per_deg = sensor.f_eq * math.pi / 180.0
 
     def g_ang(c_deg):
+        if look.aureole == "disk":  # a hard disk three times full scale, an exponential halo
+            r = look.sat_radius_deg
+            return np.where(c_deg <= r, 3.0, 0.7 * np.exp(-np.maximum(c_deg - r, 0.0) / 1.5))
         if look.aureole == "gauss":
             return np.exp(-((c_deg / 1.6) ** 2)) + 0.03 / (1 + (c_deg / 1.0) ** 2) ** 1.5
         return np.exp(-c_deg / 0.9) + 0.02 / (1 + (c_deg / 0.5) ** 2)
@@ -208,6 +214,8 @@ def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> 
     gain = 1 / ((1 - w) * g_ang(look.sat_radius_deg) + w * g_pix(look.sat_radius_deg * px_per_deg))
     cloud_aureole = np.exp(-0.5 * tau)  # cloud in front of the aureole dims it
     glare = gain * trans * ((1 - w) * g_ang(np.degrees(chi)) * cloud_aureole + w * g_pix(dpx))
+    if look.aureole == "disk":  # drawn as it is: the disk's size set by its radius alone
+        glare = trans * g_ang(np.degrees(chi)) * cloud_aureole
     glare = np.where(el[0] > -0.5 and look.sun, glare, 0.0)
     lin = rgb + glare[..., None]
     if look.bloom > 0:
@@ -342,6 +350,15 @@ def bundle(R: np.ndarray, look: OtherLook | None = None, sensor: Sensor = SENSOR
     )
 
 
+#: as a simple renderer draws the sky: a hard disk and a halo, linear output, no vignetting
+#: (so the bundle needs no [radiometry])
+SIMPLE = OtherLook(
+    "other renderer, hard disk and halo, linear, no vignetting",
+    aureole="disk",
+    tone="linear",
+    vignetting=0.0,
+    radiometry="none",
+)
 CLEAR_LOOKS = (
     OtherLook("other renderer"),
     OtherLook(
@@ -364,6 +381,7 @@ CLEAR_LOOKS = (
         for k, n in SKIES
     ),
     OtherLook("other renderer, CIE sky type 15, circumsolar sky clipped", sky_type=15),
+    SIMPLE,
 )
 
 
@@ -373,8 +391,8 @@ def utc_midnight(y: int, m: int, d: int) -> float:
     return datetime(y, m, d, tzinfo=UTC).timestamp()
 
 
-# at 1280 x 960: the look as described, and the glare and the smear that differ most
-HD_LOOKS = (CLEAR_LOOKS[0], CLEAR_LOOKS[5], CLEAR_LOOKS[6])
+# at 1280 x 960: the look as described, the glare and the smear that differ most, the simple look
+HD_LOOKS = (CLEAR_LOOKS[0], CLEAR_LOOKS[5], CLEAR_LOOKS[6], SIMPLE)
 
 
 def clear(quick: bool, sensor: Sensor = SENSOR, looks: tuple[OtherLook, ...] = CLEAR_LOOKS) -> dict:

@@ -8,6 +8,7 @@ the rim's level is raised, ray by ray, by the sky's asymmetric part, estimated h
 from __future__ import annotations
 
 import warnings
+from functools import lru_cache
 
 import numpy as np
 
@@ -31,14 +32,23 @@ def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
     return coef[1:3]
 
 
+@lru_cache(maxsize=16)
+def _design(phi_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """The harmonics' design matrix for the ray angles (as bytes, to be cached: the same
+    few ray sets recur frame after frame) and the transpose of its pseudo-inverse."""
+    phi = np.frombuffer(phi_bytes)
+    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    return A, np.linalg.pinv(A).T
+
+
 def harmonics(phi: np.ndarray, M: np.ndarray) -> np.ndarray:
     """:func:`harmonic` for each row of ``M``; rows without gaps or outliers take one
     matrix product."""
-    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    A, pinv_t = _design(np.ascontiguousarray(phi, dtype=np.float64).tobytes())
     out = np.zeros((M.shape[0], 2))
     clean = np.isfinite(M).all(axis=1)
     if clean.any():
-        coef = M[clean] @ np.linalg.pinv(A).T
+        coef = M[clean] @ pinv_t
         res = M[clean] - coef @ A.T
         mad = 1.4826 * np.median(np.abs(res), axis=1) + 0.5
         ok = (np.abs(res) <= 3.0 * mad[:, None]).all(axis=1)
@@ -73,13 +83,13 @@ def sky_dipole(
     """
     if sky is None:
         sky = np.ones(vals.shape, bool)
-    good = sky & rays_ok[:, None]
+    good = sky & rays_ok[:, None] & np.isfinite(vals)
     if good.sum() < 12:
         return np.zeros(2)
-    with np.errstate(all="ignore"), warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
-    prof = np.nan_to_num(prof, nan=float(np.nanmean(prof)) if np.isfinite(prof).any() else 0.0)
+    n_good = good.sum(axis=0)
+    prof = np.where(good, vals, 0.0).sum(axis=0) / np.maximum(n_good, 1)
+    seen = n_good > 0
+    prof[~seen] = float(prof[seen].mean())  # the mean profile (a ring seen nowhere: its mean)
     dprof = np.gradient(prof, chi)
     rows, means = [], []
     for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2)):

@@ -212,9 +212,10 @@ def test_without_a_site_a_sunlit_cloud_fleck_beside_a_hidden_sun_is_not_the_sun(
 
 
 def test_a_weak_detection_does_not_shut_the_sun_out_of_the_next_frames():
-    """The fleck of the test above, accepted (the small-glare rule switched off): its rim held
-    on 31 of 48 rays, too few to anchor the sequence gate, so the sun seen in the next two
-    frames is found rather than ``gate_rejected`` (3.3 deg from the fleck)."""
+    """The fleck of the test above, accepted (the small-glare rules switched off: its rim's
+    share, and its size, which the sky read again once settled puts under 0.8 deg): its rim
+    held on 31 of 48 rays, too few to anchor the sequence gate, so the sun seen in the next
+    two frames is found rather than ``gate_rejected`` (3.3 deg from the fleck)."""
     from dataclasses import replace
 
     from controller.vision.fisheye.default import FisheyeOptions
@@ -224,7 +225,8 @@ def test_a_weak_detection_does_not_shut_the_sun_out_of_the_next_frames():
     t0 = 1742473800.0
     rng = np.random.default_rng(int(t0) & 0xFFFF)
     est = FisheyeEstimator(
-        truth_bundle(scn, site=False), replace(FisheyeOptions(), small_min_inlier_fraction=0.0)
+        truth_bundle(scn, site=False),
+        replace(FisheyeOptions(), small_min_inlier_fraction=0.0, min_radius_deg=0.0),
     )
     first = render_sky(scn, t0, rng=rng)
     assert est.estimate_image(first.image, t0).found  # the fleck, taken for the sun
@@ -254,3 +256,46 @@ def test_a_saturated_cloud_below_a_dimmed_sun_is_not_a_streak_that_hides_it():
         res = est.estimate_image(fr.image, t)
     assert fr.truth["visibility"] == "dimmed"
     assert res.found and err_deg(res, fr.truth) < 1.0
+
+
+def test_a_centre_the_skys_correction_moved_over_a_degree_is_refused():
+    """Where the sky's correction of the rim moves its centre by more than 1 deg, the centre
+    is the sky model's (good to 5-15 % of that move), not the glare's."""
+    from controller.vision.fisheye.glare import GlareFit
+
+    est = FisheyeEstimator(truth_bundle(small_scene()))
+    up = est.R.T @ np.array([0.0, 0.0, 1.0])  # a sun at the zenith: well above the horizon
+
+    def fit(sky_move_deg):
+        return GlareFit(
+            axis=up,
+            radius_deg=3.0,
+            rms_deg=0.01,
+            n_rays=96,
+            n_valid=96,
+            n_inliers=96,
+            max_gap_deg=4.0,
+            centre_uv=(160.0, 120.0),
+            radius_px=8.0,
+            peak=255.0,
+            background=100.0,
+            core_fill=1.0,
+            deg_per_px=0.7,
+            sky_move_deg=sky_move_deg,
+        )
+
+    assert est._judge(fit(0.9)).reason is None
+    assert est._judge(fit(1.2)).reason == "sky_dominated"
+
+
+def test_a_sun_placed_no_better_than_the_sigma_limit_is_no_observation():
+    from controller.vision.fisheye.default import FisheyeOptions
+
+    scn = small_scene()
+    t = utc(2025, 3, 20, 8, 0)
+    img = render_sky(scn, t).image
+    assert FisheyeEstimator(truth_bundle(scn)).estimate_image(img, t).found
+    strict = FisheyeEstimator(truth_bundle(scn), replace(FisheyeOptions(), max_sigma_deg=0.001))
+    res = strict.estimate_image(img, t)
+    assert not res.found and res.reason == "imprecise_glare"
+    assert res.extra["sigma_deg"] > 0.001

@@ -1,6 +1,8 @@
 """The default pipeline on frames of the second renderer (benchmarks.fisheye_other): another
 lens model, sky model, glare profile and tone curve than the HIL world's."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -71,10 +73,11 @@ def test_a_low_sun_under_a_cie_sky_keeps_its_whole_rim():
     glare alone reaches the rim's level; with the rim's level held at 0.85 of the contrast
     those rays were dropped and the half rim left read the sun 0.31 deg RMS off (10 frames,
     15-30 deg); with the level lowered until those on the horizon's side stay under the
-    clip, 0.13 (11)."""
+    clip, 0.13 (11).  With the sky read again once the axis settled, the two at 17-18 deg
+    (0.12 and 0.15 off, sigma 0.65 and 0.53) are refused (``incomplete_glare``): 0.10 (8)."""
     rows = _run(other.OtherLook("clear"), el_range=(15.0, 30.0))
-    assert len(rows) >= 10
-    assert np.sqrt(np.mean(rows[:, 1] ** 2)) < 0.18
+    assert len(rows) >= 8
+    assert np.sqrt(np.mean(rows[:, 1] ** 2)) < 0.12
 
 
 def test_noise_added_after_the_clip_does_not_hide_the_rim():
@@ -172,3 +175,31 @@ def test_a_bloom_that_spills_upwards_only_costs_only_the_rays_towards_it():
     print(f"upward bloom: {len(rows)} of {n} found, rms {rms:.4f}, max {rows[:, 1].max():.3f}")
     assert len(rows) >= 45
     assert rms < 0.03
+
+
+def test_a_hard_disk_and_halo_in_a_bright_sky_as_a_simple_renderer_draws_it():
+    """A hard-edged saturated disk and an exponential halo, linear output, no vignetting (the
+    bundle needs no radiometry).  With the sky measured on the first two passes only, a
+    halo 0.6 deg off the sun at the second left the sky's model 70 % too strong for the rest
+    of the fit: 0.111 deg RMS (52 of 68 found, one frame 0.66 off).  Read again on the first
+    three passes, and refused where the sky's correction moves the centre over 1 deg (three
+    frames at 18-19 deg, 0.13-0.20 off): 0.026."""
+    rows, n = _bench_days(other.SIMPLE)
+    rms = float(np.sqrt(np.mean(rows[:, 1] ** 2)))
+    print(f"simple look: {len(rows)} of {n} found, rms {rms:.4f}, max {rows[:, 1].max():.3f}")
+    assert len(rows) >= 45
+    assert rms < 0.03
+    assert rows[:, 1].max() < 0.08
+
+
+def test_the_simple_look_draws_a_hard_saturated_disk_and_a_halo_under_full_scale():
+    rays, R = other.pixel_rays(), other.rotation()
+    t = other.utc_midnight(2025, 6, 21) + 12 * 3600.0  # a high sun
+    look = replace(other.SIMPLE, noise=False)  # (and so no JPEG)
+    img, truth = other.render(look, t, rays, R, np.random.default_rng(3))
+    chi = np.degrees(np.arccos(np.clip((rays[0] @ R.T) @ truth["sun_enu"], -1, 1)))
+    grey = img.min(axis=2)
+    assert (grey[chi < 2.7] == 255).all()
+    ring = grey[(chi > 3.4) & (chi < 3.8)]
+    assert ring.size > 10 and ring.max() < 250
+    assert other.bundle(R, other.SIMPLE).radiometry is None  # linear, evenly lit: nothing to declare

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from controller.vision.fisheye import FisheyeLens, SeedEstimator, glare_channel
+from controller.vision.fisheye import FisheyeEstimator, FisheyeLens, SeedEstimator, glare_channel
 from controller.vision.fisheye.seed import K_H, K_I, K_S, segment, weighted_hsi
 from controller.vision.fisheye.sphere import fit_cone, tangent_basis
 from hil.skycam import render_sky, seed_lens
@@ -148,3 +148,30 @@ def test_only_a_raise_on_the_horizons_side_lowers_the_rim():
     )
     assert horizon_side_excess(sideways, phi, a, e1, e2, up) == 0.0
     assert horizon_side_excess(horizon_side, phi, a, e1, e2, None) == 0.0  # horizon unknown
+
+
+def test_the_fit_ends_on_an_axis_the_sky_was_read_around(monkeypatch):
+    """The sky model's term for the axis's error is a linearisation about the axis it is
+    read around: once the axis has settled, the sky's rings are read again around it, and
+    the fit does not end on an axis the sky was not read around (at most three readings)."""
+    import controller.vision.fisheye.glare as glare
+
+    events: list[str] = []
+    tangent, dipole = glare.tangent_basis, glare.sky_dipole
+
+    def counting_tangent(a):
+        events.append("pass")
+        return tangent(a)
+
+    def counting_dipole(*args, **kw):
+        events.append("sky")
+        return dipole(*args, **kw)
+
+    monkeypatch.setattr(glare, "tangent_basis", counting_tangent)
+    monkeypatch.setattr(glare, "sky_dipole", counting_dipole)
+    scn = small_scene(scale=1.0)
+    t = utc(2025, 3, 20, 4, 0)  # a low sun: the axis settles after the first two readings
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(render_sky(scn, t).image, t)
+    assert res.found
+    assert events[-2:] == ["pass", "sky"]
+    assert events.count("sky") == 3
