@@ -323,9 +323,10 @@ def fit_glare(
         a = a_new
         if sky_pass and it >= 2 and moved > unsettled:
             # a reading that moves a settled axis this far is a cloud's, not a correction of
-            # the linearisation: back to the settled fit and its sky, and no more readings
+            # the linearisation: back to the settled fit and its sky, no more readings, and
+            # one more pass to refit the rim there (on the last pass, the fit is left unsettled)
             a, rho, dipole, by_el, bg, bg_s, top_s = kept
-            reads, moved = opts.sky_reads, settled
+            reads = opts.sky_reads
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it == 0 and streak is None and opts.one_way_streaks:
             uv0, ok0 = lens.project(a[None, :])
