@@ -14,7 +14,7 @@ from controller.errors import InputError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("calibrate", help="calibrate the hotspot sensor (writes a bundle TOML)")
+    p = sub.add_parser("calibrate", help="calibrate the hotspot or fisheye sensor (writes a bundle TOML)")
     p.set_defaults(func=lambda a: (p.print_help(), 2)[1])
     add_subcommands(p)
 
