@@ -29,6 +29,7 @@ BENCHMARKS: tuple[str, ...] = (
     "hotspot",
     "persistence",
     "fisheye",
+    "fisheye_third",
     "soak",
 )
 

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .summary_fisheye import fisheye as _fisheye
+from .summary_fisheye import fisheye_third as _fisheye_third
 from .summary_rows import Headline, fmt
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
@@ -307,6 +308,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "persistence": _persistence,
     "soak": _soak,
     "fisheye": _fisheye,
+    "fisheye_third": _fisheye_third,
 }
 
 

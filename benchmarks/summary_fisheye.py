@@ -188,3 +188,59 @@ def other_looks_worst(other: dict) -> Headline:
         f"{n1.removeprefix(short)}; {n2.removeprefix(short)}",
         ok=e1 <= 0.03 and e2 <= 0.02,
     )
+
+
+def fisheye_third(r: dict) -> list[Headline]:
+    """Rows of ``heliotrack bench fisheye_third``: the dark exposure against the clear-sky
+    targets, the as-exposed looks reported only, false detections over every look."""
+    acc, looks = r["acceptance"], r["looks"]
+    name = "fisheye_third"
+
+    def found(look: dict) -> str:
+        return f"found {look['found']} of {look['n_frames']}"
+
+    out = []
+    for key, label, target, flag in (
+        ("third renderer, dark exposure", "640 x 480", "<= 0.03 deg", "dark_exposure_rms_le_0.03"),
+        (
+            "third renderer, dark exposure, 1280 x 960",
+            "1280 x 960",
+            "<= 0.02 deg",
+            "dark_exposure_1280x960_rms_le_0.02",
+        ),
+    ):
+        if key in looks:
+            look = looks[key]
+            out.append(
+                Headline(
+                    name,
+                    f"dark exposure (zenith grey 20): clear-sky RMS, {label}",
+                    f"{fmt(look['error'].get('rms_deg'), 3, ' deg')} ({found(look)})",
+                    target,
+                    ok=acc.get(flag),
+                )
+            )
+    for key, label in (
+        ("third renderer, as exposed", "as exposed (zenith grey 72)"),
+        ("third renderer, as exposed, sRGB", "as exposed, sRGB declared in the bundle"),
+    ):
+        if key in looks:
+            look = looks[key]
+            out.append(
+                Headline(
+                    name,
+                    f"{label}: found, RMS of the found",
+                    f"{look['found']}/{look['n_frames']}, {fmt(look['error'].get('rms_deg'), 3, ' deg')}",
+                )
+            )
+    false = sum(look["false_detections"] for look in looks.values())
+    out.append(
+        Headline(
+            name,
+            f"false detections, all {len(looks)} looks",
+            fmt(false),
+            "0",
+            ok=acc.get("zero_false_detections"),
+        )
+    )
+    return out
