@@ -211,7 +211,10 @@ class FisheyeEstimator(FramePipeline):
             reasons = Counter(c.reason for c in cands)
             reasons["below_horizon"] += low
             why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
-            return not_found(None, why, t, self.frame, self.algorithm, candidates=len(cands) + low)
+            extra: dict[str, float | int] = {"candidates": len(cands) + low}
+            if cands:  # how wide the widest refused glare was: tens of degrees is the sky's
+                extra["glare_radius_deg"] = round(max(c.fit.radius_deg for c in cands), 2)  # patch
+            return not_found(None, why, t, self.frame, self.algorithm, **extra)
         gates = self._gates(t, prior)
         passing = [
             c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in gates)

@@ -52,6 +52,25 @@ def test_a_hidden_sun_gives_no_observation(scn):
     assert json.loads(json.dumps(res.to_json()))["reason"] == "no_sun_glare"
 
 
+def test_a_refused_glare_reports_how_wide_it_was(scn):
+    """A sky that clips tens of degrees around the sun (a long exposure) is refused, and the
+    result says how wide the saturated patch was, so an operator can tell it from a cloud."""
+    fr = render_sky(scn, T)
+    img = fr.image.copy()
+    u, v = fr.truth["sun_uv"]
+    yy, xx = np.mgrid[: img.shape[0], : img.shape[1]]
+    # a lopsided patch: 25 deg around the sun, shifted 8 deg towards the image's edge
+    dpp = FisheyeEstimator(truth_bundle(scn)).lens.deg_per_px(u, v)
+    cx, cy = img.shape[1] / 2, img.shape[0] / 2
+    off = np.array([u - cx, v - cy]) / max(np.hypot(u - cx, v - cy), 1e-9) * 8.0 / dpp
+    img[np.hypot(xx - u - off[0], yy - v - off[1]) <= 25.0 / dpp] = 255
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(img, T)
+    assert not res.found
+    assert res.to_json()["glare_radius_deg"] > 15.0
+    clear = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, T)
+    assert clear.found and clear.radius_deg < 8.0
+
+
 def test_a_thick_cloud_edge_over_the_sun_is_refused_not_mismeasured():
     scn = small_scene(clouds=CloudField(coverage=0.55, seed=12))
     est = FisheyeEstimator(truth_bundle(scn))
