@@ -148,6 +148,7 @@ class FisheyeEstimator(FramePipeline):
             s = bundle.site
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
         self._last: tuple[float, np.ndarray] | None = None
+        self._refused_by_anchor = 0  # frames in a row whose sun-like glare only the anchor refused
         self.history = GlareHistory()
         dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
         lens_sig = 0.5 * (cam.rms_px or 0.0) * dpp0
@@ -161,6 +162,7 @@ class FisheyeEstimator(FramePipeline):
     def reset_sequence(self) -> None:
         """Forget the last accepted detection and the glares seen (a new sequence starts)."""
         self._last = None
+        self._refused_by_anchor = 0
         self.history.clear()
 
     # -- entry points ------------------------------------------------------------------------
@@ -220,6 +222,7 @@ class FisheyeEstimator(FramePipeline):
             c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in gates)
         ]
         if gates and not passing:
+            self._release_a_stale_anchor(t, sun_like, gates)
             near = min(
                 max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
             )
@@ -256,6 +259,7 @@ class FisheyeEstimator(FramePipeline):
         if t is not None:
             if best.fit.inlier_fraction >= o.gates.anchor_min_inlier_fraction:
                 self._last = (float(t), self._gd(best))
+                self._refused_by_anchor = 0
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 
@@ -297,6 +301,23 @@ class FisheyeEstimator(FramePipeline):
         elif el is not None and el < -o.horizon_margin_deg:
             reason = "below_horizon"
         return Candidate(fit, d_cam, d_enu, el, reason)
+
+    def _release_a_stale_anchor(self, t: float | None, sun_like: list[Candidate], gates: list[Gate]) -> None:
+        """Drop the sequence gate's anchor once, frame after frame, it alone has refused a
+        sun-like glare that moves like the sun (:meth:`.GlareHistory.moves_like_the_sun`):
+        the anchor was then a detection off the sun (a cloud's bright edge it drifted onto by
+        steps within the gate), and keeping it would shut the sun out until it expires."""
+        if t is None or not any(g.name == "sequence" for g in gates):
+            return
+        others = [g for g in gates if g.name != "sequence"]
+        if any(
+            all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in others)
+            and self.history.moves_like_the_sun(float(t), self._gd(c))
+            for c in sun_like
+        ):
+            self._refused_by_anchor += 1
+            if self._refused_by_anchor >= self.options.gates.release_after:
+                self._last, self._refused_by_anchor = None, 0
 
     def _gd(self, c: Candidate) -> np.ndarray:
         """The candidate's direction in the frame the sequence is judged in."""

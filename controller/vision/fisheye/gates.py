@@ -4,7 +4,9 @@
   accepted detection of the same sequence the sun is at most ``base_deg + rate_deg_per_min
   * minutes`` from it (the sun crosses the sky at <= 0.25 deg/min).  Only a detection whose
   rim held on ``anchor_min_inlier_fraction`` of its rays anchors it: a wrong weak one would
-  otherwise shut the sun out of the frames that follow.
+  otherwise shut the sun out of the frames that follow.  Nor does one that, ``release_after``
+  times, alone refused a sun-like glare that moves like the sun: it is dropped (it was off
+  the sun, reached by steps within the gate, e.g. onto a cloud's bright edge).
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
@@ -37,6 +39,9 @@ class GateOptions:
     # weak one (a sun dimmed and cut by cloud, or a cloud's fleck taken for it) is reported
     # but does not shut the sun out of the next frames if it was wrong
     anchor_min_inlier_fraction: float = 0.7
+    # the anchor is dropped after this many frames (not necessarily in a row: until the next
+    # anchor) in which it alone refused a sun-like glare that moves like the sun
+    release_after: int = 4
 
 
 @dataclass(frozen=True)

@@ -71,6 +71,36 @@ def test_a_refused_glare_reports_how_wide_it_was(scn):
     assert clear.found and clear.radius_deg < 8.0
 
 
+def test_an_anchor_off_the_sun_is_dropped_once_it_keeps_refusing_a_glare_that_moves_like_it():
+    """Without the site, the sequence gate's anchor can be a detection that drifted off the
+    sun by steps within the gate (a dimmed sun in a thin cloud's bright halo); the sun, back
+    in the clear, must not stay shut out until the anchor expires (30 min)."""
+    from controller.vision.fisheye.default import FisheyeOptions
+    from controller.vision.fisheye.gates import GateOptions
+
+    scn = small_scene(noise=True)
+    times = [T + 30.0 * k for k in range(16)]  # 7.5 min, a frame every 30 s
+    frames = [render_sky(scn, t) for t in times]
+    s0 = frames[0].truth["sun_enu"]
+    off = np.cross(s0, [0.0, 0.0, 1.0])
+    off = np.cos(np.radians(6.0)) * s0 + np.sin(np.radians(6.0)) * off / np.linalg.norm(off)
+
+    def found(release_after):
+        opts = replace(FisheyeOptions(), gates=GateOptions(release_after=release_after))
+        est = FisheyeEstimator(truth_bundle(scn, site=False), opts)
+        est._last = (T - 30.0, off)  # an anchor 6 deg off the sun, half a minute old
+        out = []
+        for t, fr in zip(times, frames):
+            res = est.estimate_image(fr.image, t)
+            out.append(res.found and err_deg(res, fr.truth) < 0.2)
+        return out
+
+    kept = found(10**6)
+    assert not any(kept)  # the stale anchor shuts the sun out (its gate: 1.15-3.3 deg)
+    released = found(4)
+    assert not released[0] and all(released[-4:])  # dropped within the 7.5 min, found after
+
+
 def test_a_thick_cloud_edge_over_the_sun_is_refused_not_mismeasured():
     scn = small_scene(clouds=CloudField(coverage=0.55, seed=12))
     est = FisheyeEstimator(truth_bundle(scn))
