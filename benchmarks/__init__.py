@@ -30,6 +30,7 @@ BENCHMARKS: tuple[str, ...] = (
     "persistence",
     "fisheye",
     "fisheye_third",
+    "fisheye_third_clouds",
     "soak",
 )
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from .summary_fisheye import fisheye as _fisheye
 from .summary_fisheye import fisheye_third as _fisheye_third
+from .summary_fisheye import fisheye_third_clouds as _fisheye_third_clouds
 from .summary_rows import Headline, fmt
 
 RESULTS_DIR = Path(__file__).resolve().parent / "results"
@@ -309,6 +310,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "soak": _soak,
     "fisheye": _fisheye,
     "fisheye_third": _fisheye_third,
+    "fisheye_third_clouds": _fisheye_third_clouds,
 }
 
 

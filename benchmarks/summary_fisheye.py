@@ -244,3 +244,37 @@ def fisheye_third(r: dict) -> list[Headline]:
         )
     )
     return out
+
+
+def fisheye_third_clouds(r: dict) -> list[Headline]:
+    """Rows of ``heliotrack bench fisheye_third_clouds``: false detections, misses of a
+    visible sun and the RMS where it is visible, with the bundle's site and without it."""
+    out = []
+    for key, p in r["passes"].items():
+        c, err, acc = p["total"]["counts"], p["total"]["error_where_visible"], p["acceptance"]
+        rows = (
+            (
+                "false detections",
+                f"{c['false_detection']} ({p['false_detections_on_a_hidden_sun']} within 1 deg of a hidden sun;"
+                f" {c['frames']} frames)",
+                "0",
+                "zero_false_detections",
+            ),
+            (
+                "misses of a visible sun",
+                f"{100 * c['miss_rate_of_visible']:.1f} % ({c['miss']} of {c['visible']})",
+                "<= 5 %",
+                "misses_le_5pct",
+            ),
+            (
+                "RMS where visible",
+                f"{fmt(err.get('rms_deg'), 3, ' deg')} (found {err['n']} of {c['visible']})",
+                "<= 0.2 deg",
+                "visible_rms_le_0.2",
+            ),
+        )
+        out += [
+            Headline("fisheye_third_clouds", f"{what}, {key}", value, target, ok=acc.get(flag))
+            for what, value, target, flag in rows
+        ]
+    return out

@@ -1,0 +1,166 @@
+"""Clouds and distractors on the third renderer (benchmarks.fisheye_third_clouds): a thick
+puff hides the sun, a thin edge next to it saturates, the aircraft glint moves at its rate,
+the scorer's counts, and the default pipeline on one cloudy frame."""
+
+import math
+
+import numpy as np
+import pytest
+
+from benchmarks import fisheye_third_clouds as clouds
+from benchmarks.summary_fisheye import fisheye_third_clouds as summary_rows
+from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
+from controller.vision.fisheye import FisheyeEstimator, FisheyeResult
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return clouds.CloudyScene()
+
+
+def _sun_px(scene, s):
+    u, v = scene.sun_uv(s)
+    return round(v), round(u)
+
+
+def test_a_sun_behind_a_thick_puff_is_hidden_and_its_glare_is_not_saturated(scene):
+    az, el = 300.0, 35.0
+    s = clouds.sun_enu(az, el)
+    gamma = np.degrees(np.arccos(np.clip(scene.d_enu @ s, -1, 1)))
+    near = scene.sky & (gamma < 3.0)
+    scene.set_sequence(None)
+    assert scene.render_linear(s)[near].max() > 1.0  # in the clear, the glare saturates there
+    x, y = clouds.layer_xy(s)
+    scene.set_sequence(clouds.CloudLayer([(x, y, 1500.0, 10.0)], (0.0, 0.0), 0.75, 0.0))
+    truth = scene.truth(0.0, az, el)
+    assert truth["visibility"] == "hidden"
+    assert truth["transmittance"] == pytest.approx(math.exp(-10.0), rel=0.01)
+    assert scene.render_linear(s)[near].max() < 0.5
+    img, _ = scene.frame(0.0, az, el)
+    v, u = _sun_px(scene, s)
+    assert img[v - 5 : v + 6, u - 5 : u + 6].max() < 255
+
+
+def test_a_thin_cloud_edge_2_to_3_deg_from_the_sun_saturates(scene, monkeypatch):
+    """A tau ~ 1 edge 2.5-3 deg from a clear sun (the darkest grey drawn, 0.6; the glare alone
+    saturates out to 2 deg): saturated with the forward scattering, not without it (the sky
+    behind and the glare alone stay under full scale there)."""
+    az, el = 300.0, 55.0
+    s = clouds.sun_enu(az, el)
+    edge = clouds.sun_enu(az + 2.75 / math.cos(math.radians(el)), el)  # 2.75 deg off, level
+    sigma = 200.0
+    p_sun, p_edge = clouds.layer_xy(s), clouds.layer_xy(edge)
+    out = (p_edge - p_sun) / np.linalg.norm(p_edge - p_sun)
+    centre = p_edge + out * sigma * math.sqrt(2 * math.log(15.0))  # tau = 1 at the edge
+    scene.set_sequence(clouds.CloudLayer([(*centre, sigma, 15.0)], (0.0, 0.0), 0.6, 0.0))
+    assert scene.truth(0.0, az, el)["transmittance"] > 0.7
+    tau = scene.tau_px(0.0)
+    gamma = np.degrees(np.arccos(np.clip(scene.d_enu @ s, -1, 1)))
+    ring = scene.sky & (gamma > 2.5) & (gamma < 3.0) & (tau > 0.8) & (tau < 1.25)
+    assert ring.sum() >= 2
+    assert scene.render_linear(s)[ring].min() > 1.0
+    monkeypatch.setattr(clouds, "FORWARD_3DEG", 0.0)
+    assert scene.render_linear(s)[ring].max() < 1.0
+
+
+def test_the_aircraft_glint_moves_half_a_degree_a_second(scene):
+    t0 = 1.77e9
+    glints = clouds.random_glints(t0, t0 + 7200.0, np.random.default_rng(5))
+    assert len(glints) == 4
+    g = glints[0]
+    assert g.direction(g.t_on - 1.0) is None and g.direction(g.t_on + clouds.GLINT_S + 1.0) is None
+    scene.set_sequence(None, (g,), distractors=True)
+    s = clouds.sun_enu(80.0, 20.0)
+    base = scene.distractors(s, 1.0, g.t_on - 10.0)  # reflection and ghost, no glint
+    rays = []
+    for dt in (40.0, 70.0):
+        d = g.direction(g.t_on + dt)
+        assert d[2] > 0
+        spot = scene.distractors(s, 1.0, g.t_on + dt) - base
+        v, u = np.unravel_index(np.argmax(spot[..., 1]), spot.shape[:2])
+        assert spot[v, u, 1] > 1.0  # saturated at its centre
+        assert clouds.angle_deg(scene.d_enu[v, u], d) < 0.6  # drawn where it is
+        rays.append(scene.d_enu[v, u])
+    moved = clouds.angle_deg(g.direction(g.t_on + 40.0), g.direction(g.t_on + 70.0))
+    assert moved == pytest.approx(15.0, abs=1e-6)
+    assert clouds.angle_deg(*rays) == pytest.approx(15.0, abs=1.0)  # between the drawn spots
+
+
+def _truth(label, az=100.0, el=30.0, T=1.0):
+    return {
+        "visibility": label,
+        "sun_enu": clouds.sun_enu(az, el),
+        "transmittance": T,
+        "az_deg": az,
+        "el_deg": el,
+    }
+
+
+def _found(az, el):
+    return FisheyeResult(image=None, found=True, az_deg=az, el_deg=el, sigma_deg=0.1)
+
+
+def _lost(reason="irregular_glare"):
+    return FisheyeResult(image=None, found=False, reason=reason)
+
+
+def test_the_scorer_counts_false_detections_and_misses_and_neither_for_a_dimmed_sun():
+    sc = clouds.Scorer()
+    frames = [
+        (_found(100.0, 30.0), _truth("hidden", T=0.01)),  # found while hidden: false
+        (_lost(), _truth("visible")),  # a miss
+        (_lost("no_rim"), _truth("dimmed", T=0.5)),  # neither
+        (_found(100.0, 30.3), _truth("dimmed", T=0.5)),  # correct, not in the visible RMS
+        (_found(100.0, 31.5), _truth("visible")),  # 1.5 deg off: false
+        (_found(100.0, 30.1), _truth("visible")),  # correct, 0.1 deg
+        (_lost(), _truth("hidden", T=0.0)),  # correct rejection
+    ]
+    for i, (res, truth) in enumerate(frames):
+        sc.add("seq", 1.77e9 + 30 * i, res, truth)
+    r = sc.summary()
+    c = r["total"]["counts"]
+    assert (c["false_detection"], c["miss"], c["dimmed_not_found"]) == (2, 1, 1)
+    assert (c["correct_detection"], c["correct_rejection"], c["visible"]) == (2, 1, 3)
+    assert r["total"]["error_where_visible"]["n"] == 1
+    assert r["total"]["error_where_visible"]["rms_deg"] == pytest.approx(0.1, abs=1e-3)
+    assert r["total"]["miss_reasons"] == {"irregular_glare": 1}
+    assert [(k["kind"], k["label"]) for k in sc.cases] == [
+        ("false_detection", "hidden"),
+        ("miss", "visible"),
+        ("false_detection", "visible"),
+    ]
+    assert sc.cases[1]["reason"] == "irregular_glare"
+    assert sc.cases[2]["error_deg"] == pytest.approx(1.5, abs=1e-3)
+    assert r["false_detections_on_a_hidden_sun"] == 1
+    assert r["acceptance"] == {
+        "zero_false_detections": False,
+        "misses_le_5pct": False,
+        "visible_rms_le_0.2": True,
+    }
+    rows = summary_rows({"passes": {"with site": r}})
+    assert [(h.value, h.ok) for h in rows] == [
+        ("2 (1 within 1 deg of a hidden sun; 7 frames)", False),
+        ("33.3 % (1 of 3)", False),
+        ("0.1 deg (found 1 of 3)", True),
+    ]
+
+
+#: a frame of the 0.3-coverage sequence: the sun visible, broken cloud around it
+CLOUDY_FRAME = 216
+
+
+def test_the_default_pipeline_finds_a_visible_sun_in_a_cloudy_frame(scene):
+    seq = clouds.SEQUENCES[0]
+    frames = clouds.frame_times(seq, 2.0, 30.0)
+    clouds.set_up(scene, seq, frames[0][0], frames[-1][0])
+    t, az, el = frames[CLOUDY_FRAME]
+    img, truth = scene.frame(t, az, el)
+    assert truth["visibility"] == "visible"
+    gamma = np.degrees(np.arccos(np.clip(scene.d_enu @ truth["sun_enu"], -1, 1)))
+    tau = scene.tau_px(t)
+    assert (tau[scene.sky] > clouds.COVER_TAU).mean() > 0.2  # a cloudy sky
+    assert ((tau > clouds.COVER_TAU) & scene.sky & (gamma < 20.0)).any()  # cloud near the sun
+    est = FisheyeEstimator(fisheye_bundle_from_dict(clouds.bundles()["with site"]))
+    res = est.estimate_image(img, t)
+    assert res.found, res.reason
+    assert clouds.angle_deg(clouds.sun_enu(res.az_deg, res.el_deg), truth["sun_enu"]) < 0.2
