@@ -23,7 +23,7 @@ flags; ``observation()`` gives the :class:`~controller.sun.types.SunObservation`
 from __future__ import annotations
 
 import math
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -34,7 +34,7 @@ from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blobs import find_blobs
-from .gates import Ephemeris, Gate, GateOptions, prior_direction
+from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
 from .lens import FisheyeLens
@@ -149,6 +149,7 @@ class FisheyeEstimator(FramePipeline):
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames in a row whose sun-like glare only the anchor refused
+        self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
         self.history = GlareHistory()
         dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
         lens_sig = 0.5 * (cam.rms_px or 0.0) * dpp0
@@ -163,6 +164,7 @@ class FisheyeEstimator(FramePipeline):
         """Forget the last accepted detection and the glares seen (a new sequence starts)."""
         self._last = None
         self._refused_by_anchor = 0
+        self._anchors.clear()
         self.history.clear()
 
     # -- entry points ------------------------------------------------------------------------
@@ -260,6 +262,7 @@ class FisheyeEstimator(FramePipeline):
             if best.fit.inlier_fraction >= o.gates.anchor_min_inlier_fraction:
                 self._last = (float(t), self._gd(best))
                 self._refused_by_anchor = 0
+                self._anchors.append(self._last)
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 
@@ -318,6 +321,7 @@ class FisheyeEstimator(FramePipeline):
             self._refused_by_anchor += 1
             if self._refused_by_anchor >= self.options.gates.release_after:
                 self._last, self._refused_by_anchor = None, 0
+                self._anchors.clear()
 
     def _gd(self, c: Candidate) -> np.ndarray:
         """The candidate's direction in the frame the sequence is judged in."""
@@ -384,14 +388,15 @@ class FisheyeEstimator(FramePipeline):
         if self._last is not None and t is not None:
             dt = float(t) - self._last[0]
             if 0.0 <= dt <= g.max_gap_s:
-                out.append(
-                    Gate(
-                        "sequence",
-                        self._last[1],
-                        g.base_deg + g.rate_deg_per_min * dt / 60.0,
-                        self.frame if self.R is not None else "camera",
-                    )
-                )
+                centre, radius = self._last[1], g.base_deg + g.rate_deg_per_min * dt / 60.0
+                if not out:  # no site, no prior: the sun's own track, where known, is tighter
+                    recent = [a for a in self._anchors if float(t) - a[0] <= g.max_gap_s]
+                    pred = track_prediction(recent, float(t), g.track_min_s)
+                    if pred is not None:
+                        centre = pred[0]
+                        track = g.track_rate_deg_per_min * dt / 60.0 + g.track_anchor_deg * dt / pred[1]
+                        radius = min(radius, g.base_deg + track)
+                out.append(Gate("sequence", centre, radius, self.frame if self.R is not None else "camera"))
         return out
 
     def _result(self, c: Candidate, t: float | None, flags: list[str]) -> FisheyeResult:

@@ -24,6 +24,7 @@ import numpy as np
 
 from ...sun.source import Site, solar_position
 from ...sun.types import azel_to_enu
+from .history import SUN_RATE_DEG_PER_MIN
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,47 @@ class GateOptions:
     # the anchor is dropped after this many frames (not necessarily in a row: until the next
     # anchor) in which it alone refused a sun-like glare that moves like the sun
     release_after: int = 4
+    # without the site or a prior: once two anchors at least ``track_min_s`` apart (and within
+    # ``max_gap_s``) give the sun's track, the sequence gate is centred where the track puts
+    # the sun now and grows by ``track_rate_deg_per_min``, not the sun's whole rate
+    track_min_s: float = 120.0
+    track_rate_deg_per_min: float = 0.05
+    # the anchors' own error, carried along the track: ``track_anchor_deg`` times the time
+    # since the last anchor over the baseline is added to the gate
+    track_anchor_deg: float = 0.5
+
+
+def track_prediction(
+    anchors: list[tuple[float, np.ndarray]], t: float, min_s: float
+) -> tuple[np.ndarray, float] | None:
+    """Where the sun is at ``t`` (POSIX s) on the track of the last anchor and the earliest
+    one at least ``min_s`` before it (the longest baseline): the great circle through them,
+    at their rate clamped to the sun's (:data:`SUN_RATE_DEG_PER_MIN`); and the baseline (s).
+    None without such a pair, or when the pair moved unlike the sun (under half or over 1.5
+    times its rate).
+
+    ``anchors``: (time, unit direction) in time order, any one frame.  Over a gap of
+    minutes the small circle the sun follows departs from that great circle by well under
+    0.01 deg.
+    """
+    if len(anchors) < 2:
+        return None
+    t1, d1 = anchors[-1]
+    earlier = [(t0, d0) for t0, d0 in anchors[:-1] if t1 - t0 >= min_s]
+    if not earlier:
+        return None
+    t0, d0 = earlier[0]
+    ang = math.acos(float(np.clip(np.dot(d0, d1), -1.0, 1.0)))
+    rate = math.degrees(ang) / ((t1 - t0) / 60.0)  # deg/min
+    lo, hi = SUN_RATE_DEG_PER_MIN
+    if not 0.5 * lo <= rate <= 1.5 * hi:
+        return None
+    axis = np.cross(d0, d1)
+    axis /= np.linalg.norm(axis)
+    step = math.radians(min(max(rate, lo), hi) * (t - t1) / 60.0)
+    # Rodrigues: d1 turned by ``step`` about ``axis`` (axis is perpendicular to d1)
+    out = d1 * math.cos(step) + np.cross(axis, d1) * math.sin(step)
+    return np.asarray(out / np.linalg.norm(out)), t1 - t0
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,56 @@
+"""The gates of the default fisheye pipeline: the sun's track without the site."""
+
+import math
+
+import numpy as np
+
+from controller.sun.types import angle_between_deg
+from controller.vision.fisheye import FisheyeEstimator
+from controller.vision.fisheye.gates import track_prediction
+
+from .helpers import small_scene, truth_bundle
+
+POLE = np.array([0.0, math.cos(math.radians(40.0)), math.sin(math.radians(40.0))])  # 40 N
+
+
+def sun_at(minutes: float, dec_deg: float = 10.0) -> np.ndarray:
+    """A sun on its diurnal circle (declination ``dec_deg``) ``minutes`` after some hour:
+    15.04 deg/h about the celestial pole."""
+    e = np.cross(POLE, [0.0, 0.0, 1.0])
+    e /= np.linalg.norm(e)
+    n = np.cross(POLE, e)
+    h = math.radians(15.04 * minutes / 60.0)
+    c, s = math.cos(math.radians(dec_deg)), math.sin(math.radians(dec_deg))
+    return c * (math.cos(h) * n + math.sin(h) * e) + s * POLE
+
+
+def test_the_track_of_two_anchors_puts_the_sun_where_it_is_minutes_later():
+    anchors = [(0.0, sun_at(0.0)), (300.0, sun_at(5.0)), (600.0, sun_at(10.0))]
+    pred, baseline = track_prediction(anchors, 900.0, 120.0)
+    assert baseline == 600.0  # the longest baseline
+    assert float(angle_between_deg(pred, sun_at(15.0))) < 0.01
+
+
+def test_no_track_from_anchors_too_close_or_moving_unlike_the_sun():
+    assert track_prediction([(0.0, sun_at(0.0)), (60.0, sun_at(1.0))], 300.0, 120.0) is None
+    fast = [(0.0, sun_at(0.0)), (300.0, sun_at(50.0))]  # 2.5 deg/min: an aircraft's glint
+    assert track_prediction(fast, 600.0, 120.0) is None
+    assert track_prediction([(0.0, sun_at(0.0))], 600.0, 120.0) is None
+
+
+def test_without_the_site_the_sequence_gate_follows_the_suns_track_and_is_tighter():
+    """After a 6-min gap the gate is 1 deg + 0.3 deg/min around the last anchor (2.8 deg)
+    unless the anchors give the sun's track: then it is centred where the sun is now and
+    1.4 deg wide, so a fix 2 deg off the sun (a dimmed sun's halo) no longer passes."""
+    scn = small_scene()
+    est = FisheyeEstimator(truth_bundle(scn, site=False))
+    t_last, t = 600.0, 960.0
+    est._last = (t_last, sun_at(10.0))
+    (plain,) = [g for g in est._gates(t, None) if g.name == "sequence"]
+    assert math.isclose(plain.radius_deg, 1.0 + 0.3 * 6.0)
+    est._anchors.extend([(0.0, sun_at(0.0)), (t_last, sun_at(10.0))])
+    (track,) = [g for g in est._gates(t, None) if g.name == "sequence"]
+    assert track.distance_deg(sun_at(16.0)) < 0.01
+    assert math.isclose(track.radius_deg, 1.0 + 0.05 * 6.0 + 0.5 * 360.0 / 600.0)
+    off = sun_at(16.0, dec_deg=12.0)  # 2 deg off the sun, across its track
+    assert plain.distance_deg(off) < plain.radius_deg and track.distance_deg(off) > track.radius_deg
