@@ -6,7 +6,10 @@
   rim held on ``anchor_min_inlier_fraction`` of its rays anchors it: a wrong weak one would
   otherwise shut the sun out of the frames that follow.  Nor does one that, ``release_after``
   times, alone refused a sun-like glare that moves like the sun: it is dropped (it was off
-  the sun, reached by steps within the gate, e.g. onto a cloud's bright edge).
+  the sun, reached by steps within the gate, e.g. onto a cloud's bright edge).  Without the
+  site or a prior, once two anchors ``track_min_s`` apart give the sun's track
+  (:func:`track_prediction`), the gate is centred where the track puts the sun and grows by
+  ``track_rate_deg_per_min`` plus the anchors' error carried along, not the sun's whole rate.
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
