@@ -148,7 +148,7 @@ class FisheyeEstimator(FramePipeline):
             s = bundle.site
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
         self._last: tuple[float, np.ndarray] | None = None
-        self._refused_by_anchor = 0  # frames in a row whose sun-like glare only the anchor refused
+        self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
         self.history = GlareHistory()
         dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
@@ -306,8 +306,8 @@ class FisheyeEstimator(FramePipeline):
         return Candidate(fit, d_cam, d_enu, el, reason)
 
     def _release_a_stale_anchor(self, t: float | None, sun_like: list[Candidate], gates: list[Gate]) -> None:
-        """Drop the sequence gate's anchor once, frame after frame, it alone has refused a
-        sun-like glare that moves like the sun (:meth:`.GlareHistory.moves_like_the_sun`):
+        """Drop the sequence gate's anchor once it alone has refused, in ``release_after``
+        frames, a sun-like glare that moves like the sun (:meth:`.GlareHistory.moves_like_the_sun`):
         the anchor was then a detection off the sun (a cloud's bright edge it drifted onto by
         steps within the gate), and keeping it would shut the sun out until it expires."""
         if t is None or not any(g.name == "sequence" for g in gates):

@@ -65,9 +65,10 @@ def track_prediction(
     None without such a pair, or when the pair moved unlike the sun (under half or over 1.5
     times its rate).
 
-    ``anchors``: (time, unit direction) in time order, any one frame.  Over a gap of
-    minutes the small circle the sun follows departs from that great circle by well under
-    0.01 deg.
+    ``anchors``: (time, unit direction) in time order, any one frame.  The sun follows a
+    small circle (its declination's), which bends away from that great circle by
+    ``tan(dec) <= 0.43`` per radian: with the anchors and ``t`` within half an hour (the
+    gate's ``max_gap_s``), by at most about 0.2 deg.
     """
     if len(anchors) < 2:
         return None
