@@ -1,0 +1,41 @@
+"""The sky behind the glare (skybg): the elevation model near the horizon."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.vision.fisheye.skybg import sky_by_elevation
+
+RHO = 0.1  # the rim's radius (rad)
+
+
+def rings(cloud: bool, seed: int) -> tuple[np.ndarray, ...]:
+    """Rings 1.15-3.2 rim radii out around a glare 2 radii above the horizon: the glare's
+    profile, a sky brightening towards the horizon (``-6 x + x^2`` grey levels, ``x`` the
+    elevation offset over the radius), noise; with ``cloud``, a dark band 60 grey levels
+    deep over a 100 deg sector of the rings beyond 2 radii."""
+    rng = np.random.default_rng(seed)
+    phi = np.arange(40) * (2 * math.pi / 40)
+    chi = np.arange(1.15 * RHO, 3.2 * RHO, 0.02 * RHO)
+    x = (chi[None, :] / RHO) * np.cos(phi)[:, None]
+    glare = 80.0 + 90.0 * np.exp(-(chi - RHO) / (0.3 * RHO))
+    vals = glare[None, :] - 6.0 * x + x**2 + rng.normal(0.0, 0.5, x.shape)
+    if cloud:
+        band = (np.abs(np.degrees(phi)[:, None] - 60.0) < 50.0) & (chi[None, :] > 2.0 * RHO)
+        vals = np.where(band, vals - 60.0, vals)
+    return vals, chi, phi, x > -2.0, x
+
+
+@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("cloud", [False, True], ids=["clear", "cloud band in the outer rings"])
+def test_the_horizons_brightening_at_the_rim_is_read_through_a_cloud_in_the_outer_rings(cloud, seed):
+    # with two rounds of clipping the band, still half in the fit, left the rim's model 6-8
+    # grey levels off (the brightening read 0.6 and 3.3 at x = -1 and +1 for 7 and -5)
+    vals, chi, phi, sky, x = rings(cloud, seed)
+    c = sky_by_elevation(vals, chi, phi, RHO, np.ones(phi.size, bool), sky, x, 175.0)
+    assert c is not None
+    at_rim = np.polyval([c[2], c[1], c[0], 0.0], np.array([-1.0, 1.0]))
+    np.testing.assert_allclose(at_rim, [7.0, -5.0], atol=1.0)
