@@ -1,14 +1,17 @@
-"""The calibrated fisheye lens, pixel <-> direction, through OpenCV's ``cv2.fisheye``.
+"""The calibrated fisheye lens, pixel <-> direction, in OpenCV's ``cv2.fisheye`` model.
 
 Camera frame: OpenCV's (x right, y down, z along the optical axis).  Directions are unit
-vectors; the off-axis angle is ``theta = arccos(z)``.
+vectors; the off-axis angle is ``theta = arccos(z)``.  The model (Kannala-Brandt) puts a ray
+at the distorted radius ``theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4
+theta^8)`` (times ``fx``, ``fy``) from the principal point.
 
-OpenCV's fisheye functions go through the pinhole coordinates ``tan(theta) (cos phi, sin
-phi)``, so they fold rays beyond 90 deg: ``projectPoints`` is used only in front of the lens
-(z > 0), and ``undistortPoints`` returns the mirrored point for theta > 90 deg, which
-:meth:`FisheyeLens.rays` detects (the result points away from the pixel's own azimuth about
-the principal point) and unfolds.  The unfolded rays agree with the Kannala-Brandt model to
-about 95 deg, enough for the horizon of a slightly tilted zenith camera.
+Direction -> pixel goes through ``cv2.fisheye.projectPoints``, in front of the lens only
+(z > 0: it works through ``tan(theta)``).  Pixel -> direction inverts the polynomial here, by
+Newton's method from a table, to ``THETA_LIMIT_DEG``: ``cv2.fisheye.undistortPoints`` clamps
+``theta_d`` at pi / 2, so on a lens whose image grows faster than the angle (stereographic,
+common on sky cameras) every ray past about 78 deg came back wrong (6 deg at 85 deg: a low
+sun's glare read 2.5 deg wide instead of 5.6, and no rim found), and it folds rays past 90
+deg on the others.
 """
 
 from __future__ import annotations
@@ -17,8 +20,6 @@ import math
 
 import cv2
 import numpy as np
-
-_CRIT = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-13)
 
 #: Rays beyond this off-axis angle (deg) are not trusted (see the module's docstring).
 THETA_LIMIT_DEG = 95.0
@@ -36,6 +37,13 @@ class FisheyeLens:
         self.fx, self.fy = float(self.K[0, 0]), float(self.K[1, 1])
         self.cx, self.cy = float(self.K[0, 2]), float(self.K[1, 2])
         self._f = math.sqrt(self.fx * self.fy)
+        # theta_d over the field, up to where the polynomial stops rising (beyond, a radius
+        # has no single ray): the inversion's table
+        th = np.linspace(0.0, math.radians(THETA_LIMIT_DEG + 5.0), 2048)
+        td = theta_d(th, self.D.ravel())
+        falls = np.flatnonzero(np.diff(td) <= 0.0)
+        n = int(falls[0]) + 1 if falls.size else th.size
+        self._th_table, self._td_table = th[:n], td[:n]
 
     @classmethod
     def from_camera(cls, cam) -> FisheyeLens:
@@ -55,23 +63,24 @@ class FisheyeLens:
     # -- pixel -> direction --------------------------------------------------------------
     def rays(self, uv) -> tuple[np.ndarray, np.ndarray]:
         """Pixels (N, 2) -> unit camera-frame directions (N, 3) and ``valid`` (N,)."""
-        p = np.ascontiguousarray(np.asarray(uv, np.float64).reshape(-1, 1, 2))
-        n = p.shape[0]
-        if n == 0:
+        p = np.asarray(uv, np.float64).reshape(-1, 2)
+        if p.shape[0] == 0:
             return np.zeros((0, 3)), np.zeros(0, bool)
-        xy = cv2.fisheye.undistortPoints(p, self.K, self.D, criteria=_CRIT).reshape(-1, 2)
-        a = (p[:, 0, 0] - self.cx) / self.fx
-        b = (p[:, 0, 1] - self.cy) / self.fy
-        r_pix = np.hypot(a, b)
-        r_und = np.hypot(xy[:, 0], xy[:, 1])
-        folded = (xy[:, 0] * a + xy[:, 1] * b) < 0
-        theta = np.where(folded, np.pi - np.arctan(r_und), np.arctan(r_und))
+        b = (p[:, 1] - self.cy) / self.fy
+        a = (p[:, 0] - self.cx - self.K[0, 1] * b) / self.fx
+        td = np.hypot(a, b)
+        theta = np.interp(td, self._td_table, self._th_table)
+        k = self.D.ravel()
+        for _ in range(3):  # the table's guess is within 0.05 deg: Newton converges at once
+            theta = theta - (theta_d(theta, k) - td) / dtheta_d(theta, k)
         with np.errstate(invalid="ignore", divide="ignore"):
-            c = np.where(r_pix > 0, a / r_pix, 1.0)
-            s = np.where(r_pix > 0, b / r_pix, 0.0)
+            c = np.where(td > 0, a / td, 1.0)
+            s = np.where(td > 0, b / td, 0.0)
         st = np.sin(theta)
         d = np.stack([st * c, st * s, np.cos(theta)], axis=1)
-        valid = np.isfinite(d).all(axis=1) & (theta <= math.radians(THETA_LIMIT_DEG))
+        valid = (
+            (td <= self._td_table[-1]) & np.isfinite(d).all(axis=1) & (theta <= math.radians(THETA_LIMIT_DEG))
+        )
         return np.where(valid[:, None], d, np.nan), valid
 
     def ray(self, u: float, v: float) -> np.ndarray:
@@ -107,6 +116,19 @@ class FisheyeLens:
         pt = np.array([[[math.tan(th), 0.0]]])
         uv = cv2.fisheye.distortPoints(pt, self.K, self.D).reshape(2)
         return float(uv[0] - self.cx)
+
+
+def theta_d(theta: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """The Kannala-Brandt distorted radius (normalised) of rays ``theta`` (rad) off the axis;
+    ``k`` = (k1, k2, k3, k4)."""
+    t2 = theta * theta
+    return theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
+
+
+def dtheta_d(theta: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """d theta_d / d theta."""
+    t2 = theta * theta
+    return 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])))
 
 
 def rotation_angle_deg(a: np.ndarray, b: np.ndarray) -> float:

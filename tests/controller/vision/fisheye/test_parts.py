@@ -30,6 +30,36 @@ def test_lens_rays_match_the_worlds_lens_to_95_degrees():
     assert ok2.all() and np.abs(uv2 - uv[front]).max() < 1e-6
 
 
+def test_lens_rays_of_a_stereographic_lens_hold_past_where_opencv_clamps_them():
+    # r = 2 f tan(theta / 2) as a cv2.fisheye fit: its distorted radius passes pi / 2 at
+    # 76 deg, where cv2.fisheye.undistortPoints clamps it (rays 6 deg off at 85 deg)
+    f, th = 112.0, np.linspace(0.0, np.radians(95.0), 2000)
+    A = np.stack([th, th**3, th**5, th**7, th**9], 1)
+    c, *_ = np.linalg.lstsq(A, 2 * np.tan(th / 2), rcond=None)
+    K = np.array([[f * c[0], 0, 320.0], [0, f * c[0], 240.0], [0, 0, 1]])
+    D = c[1:] / c[0]
+    lens = FisheyeLens(K, D, 640, 480)
+    rng = np.random.default_rng(1)
+    t = rng.uniform(0, np.radians(94.9), 400)
+    ph = rng.uniform(-np.pi, np.pi, 400)
+    d = np.stack([np.sin(t) * np.cos(ph), np.sin(t) * np.sin(ph), np.cos(t)], 1)
+    td = t * (1 + D[0] * t**2 + D[1] * t**4 + D[2] * t**6 + D[3] * t**8)
+    uv = np.stack([320.0 + K[0, 0] * td * np.cos(ph), 240.0 + K[1, 1] * td * np.sin(ph)], 1)
+    back, ok = lens.rays(uv)
+    assert ok.all()
+    assert np.degrees(np.arccos(np.clip((back * d).sum(1), -1, 1))).max() < 1e-4
+    # beyond the limit, or beyond where the polynomial stops rising, no ray
+    far = np.radians(97.0)
+    r_far = far * (1 + D[0] * far**2 + D[1] * far**4 + D[2] * far**6 + D[3] * far**8)
+    assert not lens.rays([[320.0 + K[0, 0] * r_far, 240.0]])[1][0]
+    # the local scale there is the lens's, not the clamp's (0.26 deg per px at 85 deg)
+    t85 = np.radians(85.0)
+    u85 = 320.0 + K[0, 0] * t85 * (1 + D[0] * t85**2 + D[1] * t85**4 + D[2] * t85**6 + D[3] * t85**8)
+    dr = f * 1.0 / np.cos(t85 / 2) ** 2  # px per rad, radial
+    dt = f * 2 * np.tan(t85 / 2) / np.sin(t85)  # px per rad, tangential
+    assert lens.deg_per_px(u85, 240.0) == pytest.approx(np.degrees(1 / np.sqrt(dr * dt)), rel=0.01)
+
+
 def _circle(axis, rho, n, rng, noise=0.0):
     e1, e2 = tangent_basis(axis)
     ph = np.linspace(0, 2 * np.pi, n, endpoint=False)
