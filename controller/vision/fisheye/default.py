@@ -213,7 +213,8 @@ class FisheyeEstimator(FramePipeline):
             sun_like = self._motion_vetoes(t, sun_like, prior)
         if not sun_like:
             reasons = Counter(c.reason for c in cands)
-            reasons["below_horizon"] += low
+            if not cands:  # blobs below the horizon explain the frame only when alone
+                reasons["below_horizon"] += low
             why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
             extra: dict[str, float | int] = {"candidates": len(cands) + low}
             if cands:  # how wide the widest refused glare was: tens of degrees is the sky's

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from controller.sun.types import angle_between_deg, azel_to_enu
-from controller.vision.fisheye import FisheyeEstimator
+from controller.vision.fisheye import FisheyeEstimator, FisheyeOptions
 from hil.skycam import CloudField, SpecularReflection, render_sky
 
 from .helpers import small_scene, truth_bundle, utc
@@ -133,6 +133,15 @@ def test_a_reflection_below_the_horizon_is_not_the_sun(scn):
     )
     res = FisheyeEstimator(truth_bundle(scn, site=False)).estimate_image(fr.image, T)
     assert not res.found and res.reason == "below_horizon"
+
+
+def test_a_refused_sun_gives_its_own_reason_beside_a_reflection_below_the_horizon(scn):
+    # the reflection is skipped as below the horizon; the frame's reason is the sun's
+    refl = SpecularReflection(az_deg=250.0, el_deg=-4.0, strength=1.0)
+    fr = render_sky(scn.with_(distractors=(refl,), sky=replace(scn.sky, terrain_deg=0.0)), T)
+    opts = FisheyeOptions(min_radius_deg=30.0)  # every glare too small to be the sun
+    res = FisheyeEstimator(truth_bundle(scn), opts).estimate_image(fr.image, T)
+    assert not res.found and res.reason == "glare_too_small"
 
 
 def test_the_previous_detection_gates_the_sequence(scn):
