@@ -16,6 +16,7 @@ deg on the others.
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import cv2
@@ -23,6 +24,7 @@ import numpy as np
 
 #: Rays beyond this off-axis angle (deg) are not trusted (see the module's docstring).
 THETA_LIMIT_DEG = 95.0
+_FEW = 8  # up to this many pixels, rays are computed in floats (numpy's overhead dominates)
 
 
 class FisheyeLens:
@@ -44,6 +46,11 @@ class FisheyeLens:
         falls = np.flatnonzero(np.diff(td) <= 0.0)
         n = int(falls[0]) + 1 if falls.size else th.size
         self._th_table, self._td_table = th[:n], td[:n]
+        self._th_list, self._td_list = self._th_table.tolist(), self._td_table.tolist()
+        self._td_max = float(self._td_table[-1])
+        self._k = tuple(float(x) for x in self.D.ravel())
+        self._skew = float(self.K[0, 1])
+        self._theta_limit = math.radians(THETA_LIMIT_DEG)
 
     @classmethod
     def from_camera(cls, cam) -> FisheyeLens:
@@ -64,24 +71,40 @@ class FisheyeLens:
     def rays(self, uv) -> tuple[np.ndarray, np.ndarray]:
         """Pixels (N, 2) -> unit camera-frame directions (N, 3) and ``valid`` (N,)."""
         p = np.asarray(uv, np.float64).reshape(-1, 2)
-        if p.shape[0] == 0:
-            return np.zeros((0, 3)), np.zeros(0, bool)
+        if p.shape[0] <= _FEW:  # the hot path (a candidate's centre, a local scale): floats
+            out = [self._ray(float(u), float(v)) for u, v in p]
+            return np.array([d for d, _ in out], float).reshape(-1, 3), np.array([ok for _, ok in out], bool)
         b = (p[:, 1] - self.cy) / self.fy
-        a = (p[:, 0] - self.cx - self.K[0, 1] * b) / self.fx
+        a = (p[:, 0] - self.cx - self._skew * b) / self.fx
         td = np.hypot(a, b)
         theta = np.interp(td, self._td_table, self._th_table)
-        k = self.D.ravel()
-        for _ in range(3):  # the table's guess is within 0.05 deg: Newton converges at once
-            theta = theta - (theta_d(theta, k) - td) / dtheta_d(theta, k)
+        for _ in range(2):  # the table's guess is within 0.05 deg: Newton converges at once
+            theta = theta - (theta_d(theta, self._k) - td) / dtheta_d(theta, self._k)
         with np.errstate(invalid="ignore", divide="ignore"):
-            c = np.where(td > 0, a / td, 1.0)
-            s = np.where(td > 0, b / td, 0.0)
-        st = np.sin(theta)
-        d = np.stack([st * c, st * s, np.cos(theta)], axis=1)
-        valid = (
-            (td <= self._td_table[-1]) & np.isfinite(d).all(axis=1) & (theta <= math.radians(THETA_LIMIT_DEG))
-        )
+            scale = np.where(td > 0, np.sin(theta) / td, 0.0)
+        d = np.stack([a * scale, b * scale, np.cos(theta)], axis=1)
+        valid = (td <= self._td_max) & np.isfinite(d).all(axis=1) & (theta <= self._theta_limit)
         return np.where(valid[:, None], d, np.nan), valid
+
+    def _ray(self, u: float, v: float) -> tuple[tuple[float, float, float], bool]:
+        """:meth:`rays` for one pixel, in floats."""
+        b = (v - self.cy) / self.fy
+        a = (u - self.cx - self._skew * b) / self.fx
+        td = math.hypot(a, b)
+        if not td <= self._td_max:
+            return (math.nan, math.nan, math.nan), False
+        tab = self._td_list
+        i = min(max(bisect.bisect_right(tab, td), 1), len(tab) - 1)
+        t0, t1 = tab[i - 1], tab[i]
+        theta = self._th_list[i - 1] + (self._th_list[i] - self._th_list[i - 1]) * (td - t0) / (t1 - t0)
+        for _ in range(2):
+            theta -= (float(theta_d(theta, self._k)) - td) / float(dtheta_d(theta, self._k))
+        if theta > self._theta_limit:
+            return (math.nan, math.nan, math.nan), False
+        if td == 0.0:
+            return (0.0, 0.0, 1.0), True
+        scale = math.sin(theta) / td
+        return (a * scale, b * scale, math.cos(theta)), True
 
     def ray(self, u: float, v: float) -> np.ndarray:
         d, _ = self.rays([[u, v]])
@@ -118,14 +141,14 @@ class FisheyeLens:
         return float(uv[0] - self.cx)
 
 
-def theta_d(theta: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """The Kannala-Brandt distorted radius (normalised) of rays ``theta`` (rad) off the axis;
-    ``k`` = (k1, k2, k3, k4)."""
+def theta_d(theta, k):
+    """The Kannala-Brandt distorted radius (normalised) of rays ``theta`` (rad, float or
+    array) off the axis; ``k`` = (k1, k2, k3, k4)."""
     t2 = theta * theta
     return theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))))
 
 
-def dtheta_d(theta: np.ndarray, k: np.ndarray) -> np.ndarray:
+def dtheta_d(theta, k):
     """d theta_d / d theta."""
     t2 = theta * theta
     return 1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])))
