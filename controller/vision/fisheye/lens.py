@@ -9,7 +9,7 @@ Direction -> pixel goes through ``cv2.fisheye.projectPoints``, in front of the l
 (z > 0: it works through ``tan(theta)``).  Pixel -> direction inverts the polynomial here, by
 Newton's method from a table, to ``THETA_LIMIT_DEG``: ``cv2.fisheye.undistortPoints`` clamps
 ``theta_d`` at pi / 2, so on a lens whose image grows faster than the angle (stereographic,
-common on sky cameras) every ray past about 78 deg came back wrong (6 deg at 85 deg: a low
+common on sky cameras) every ray past 76-78 deg came back wrong (6 deg at 85 deg: a low
 sun's glare read 2.5 deg wide instead of 5.6, and no rim found), and it folds rays past 90
 deg on the others.
 """
@@ -97,8 +97,8 @@ class FisheyeLens:
         i = min(max(bisect.bisect_right(tab, td), 1), len(tab) - 1)
         t0, t1 = tab[i - 1], tab[i]
         theta = self._th_list[i - 1] + (self._th_list[i] - self._th_list[i - 1]) * (td - t0) / (t1 - t0)
-        for _ in range(2):
-            theta -= (float(theta_d(theta, self._k)) - td) / float(dtheta_d(theta, self._k))
+        for _ in range(2):  # the slope is positive where the table rises; kept off zero
+            theta -= (float(theta_d(theta, self._k)) - td) / max(float(dtheta_d(theta, self._k)), 1e-12)
         if theta > self._theta_limit:
             return (math.nan, math.nan, math.nan), False
         if td == 0.0:
