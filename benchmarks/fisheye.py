@@ -242,8 +242,8 @@ def fps(quick: bool) -> dict:
         images = [render_sky(scn, t).image for t in ts]
         b = truth_bundle(scn)
         out[label] = {
-            "default": frames_per_second(lambda b=b: FisheyeEstimator(b), images, ts[0]),
-            "seed": frames_per_second(lambda b=b: SeedEstimator(b), images, ts[0], repeats=3),
+            "default": frames_per_second(lambda b=b: FisheyeEstimator(b), images, ts),
+            "seed": frames_per_second(lambda b=b: SeedEstimator(b), images, ts, repeats=3),
         }
     out["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
     return out

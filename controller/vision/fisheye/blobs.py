@@ -27,14 +27,22 @@ class Blob:
 
 
 def find_blobs(
-    grey: np.ndarray, threshold: float, valid: np.ndarray | None, *, max_blobs: int = 6, min_area_px: int = 3
+    grey: np.ndarray,
+    threshold: float,
+    valid: np.ndarray | None,
+    *,
+    max_blobs: int = 6,
+    min_area_px: int = 3,
+    mask_out: np.ndarray | None = None,
 ) -> list[Blob]:
     """Blobs of ``grey >= threshold`` inside ``valid``, largest first.
 
     The blobs are labelled on a block-reduced mask (any saturated pixel marks its block),
     then measured at full resolution inside their boxes: a coarse search, then small ROIs.
+    ``mask_out``: a uint8 array of ``grey``'s shape to hold the mask (see
+    :class:`.frames.FrameBuffers`); without it, a fresh one.
     """
-    _, binary = cv2.threshold(grey, threshold - 0.5, 255, cv2.THRESH_BINARY)
+    _, binary = cv2.threshold(grey, threshold - 0.5, 255, cv2.THRESH_BINARY, dst=mask_out)
     if valid is not None:
         binary &= valid
     H, W = binary.shape

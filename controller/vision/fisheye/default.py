@@ -34,6 +34,7 @@ from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blobs import find_blobs
+from .frames import FrameBuffers
 from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
@@ -138,6 +139,7 @@ class FisheyeEstimator(FramePipeline):
         cam = bundle.camera
         self.lens = FisheyeLens.from_camera(cam)
         self.shape = (cam.height, cam.width)
+        self.buffers = FrameBuffers()  # frame-sized work arrays, reused frame after frame
         self.R = bundle.enu_from_camera
         self.up_cam = None if self.R is None else self.R[2].copy()
         self.radiometry = Radiometry.from_cal(bundle.radiometry)
@@ -179,11 +181,17 @@ class FisheyeEstimator(FramePipeline):
         if img is None:
             assert refused is not None
             return refused
-        grey = glare_channel(img)
+        grey = glare_channel(img, self.buffers)
         _, peak, _, _ = cv2.minMaxLoc(grey, self.mask)
         if peak < o.min_peak:
             return not_found(None, "no_sun_glare", t, self.frame, self.algorithm, peak=int(peak))
-        blobs = find_blobs(grey, peak - o.sat_margin, self.mask, max_blobs=o.max_blobs)
+        blobs = find_blobs(
+            grey,
+            peak - o.sat_margin,
+            self.mask,
+            max_blobs=o.max_blobs,
+            mask_out=self.buffers.get("binary", grey.shape),
+        )
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
         cands: list[Candidate] = []
@@ -456,20 +464,27 @@ class FisheyeEstimator(FramePipeline):
         )
 
 
-def glare_channel(img: np.ndarray) -> np.ndarray:
-    """The mean of each pixel's two darkest channels (uint8).
+def glare_channel(img: np.ndarray, buffers: FrameBuffers | None = None) -> np.ndarray:
+    """The mean of each pixel's two darkest channels (uint8, rounded half to even).
 
     The glare is white, so its core saturates every channel; the sky around it is coloured,
     and its brightest channel (blue, in a clear sky) clips first, which bends the rim's
     profile differently on each side.  Dropping the brightest channel keeps the rim clear of
     that; keeping two channels (rather than the darkest alone) halves the noise of JPEG's
-    sub-sampled colour.
+    sub-sampled colour.  ``buffers``: the frame-sized arrays to work in (the result is one
+    of them, overwritten by the next call); without them, fresh arrays.
     """
-    b, g, r = cv2.split(img)
-    hi = cv2.max(cv2.max(b, g), r)
-    total = cv2.add(cv2.add(b, g, dtype=cv2.CV_16U), r, dtype=cv2.CV_16U)
-    rest = cv2.subtract(total, hi, dtype=cv2.CV_16U)
-    return cv2.convertScaleAbs(rest, alpha=0.5)
+    shape = img.shape[:2]
+    bufs = buffers or FrameBuffers()
+    b, g, r = (bufs.get(k, shape) for k in ("b", "g", "r"))
+    lo, hi, out = (bufs.get(k, shape) for k in ("lo", "hi", "grey"))
+    cv2.split(img, [b, g, r])
+    cv2.min(b, g, dst=lo)
+    cv2.max(b, g, dst=hi)
+    cv2.min(hi, r, dst=hi)
+    cv2.max(lo, hi, dst=hi)  # the middle channel
+    cv2.min(lo, r, dst=lo)  # the darkest
+    return cv2.addWeighted(lo, 0.5, hi, 0.5, 0.0, dst=out)
 
 
 def _load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | None:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from controller.vision.fisheye import FisheyeEstimator, FisheyeLens, SeedEstimator, glare_channel
+from controller.vision.fisheye.frames import FrameBuffers
 from controller.vision.fisheye.seed import K_H, K_I, K_S, segment, weighted_hsi
 from controller.vision.fisheye.sphere import fit_cone, tangent_basis
 from hil.skycam import render_sky, seed_lens
@@ -96,6 +97,30 @@ def test_cone_fit_accepts_an_ellipse_without_calling_it_outliers():
 def test_glare_channel_drops_each_pixels_brightest_channel():
     img = np.array([[[255, 100, 50], [10, 20, 30], [255, 255, 255]]], np.uint8)
     assert glare_channel(img).tolist() == [[75, 15, 255]]
+
+
+def test_glare_channel_is_the_two_darkest_channels_mean_rounded_half_to_even_in_reused_buffers():
+    rng = np.random.default_rng(3)
+    imgs = [rng.integers(0, 256, (37, 53, 3), dtype=np.uint8) for _ in range(3)]
+    bufs = FrameBuffers()
+    for img in imgs:
+        two = np.sort(img.astype(np.int64), axis=2)[:, :, :2].sum(axis=2)
+        expected = (two // 2 + (two % 2) * ((two // 2) % 2)).astype(np.uint8)  # x.5 to even
+        assert np.array_equal(glare_channel(img, bufs), expected)
+        assert np.array_equal(glare_channel(img), expected)
+
+
+def test_a_frames_result_does_not_depend_on_the_frame_before_it():
+    # the estimator works in frame-sized buffers kept between frames (FrameBuffers)
+    scn = small_scene()
+    a, b = (render_sky(scn, utc(2025, 6, 21, h)).image for h in (8, 12))
+    fresh = FisheyeEstimator(truth_bundle(scn)).estimate_image(b)
+    est = FisheyeEstimator(truth_bundle(scn))
+    est.estimate_image(a)
+    est.estimate_image(np.zeros_like(a))
+    again = est.estimate_image(b)
+    assert fresh.found and again.found
+    assert (again.az_deg, again.el_deg, again.sigma_deg) == (fresh.az_deg, fresh.el_deg, fresh.sigma_deg)
 
 
 def test_hsi_formulas_and_the_papers_weights():
