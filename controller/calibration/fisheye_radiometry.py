@@ -115,7 +115,7 @@ def response_deviation(table: Sequence[float] | np.ndarray, reference: np.ndarra
 
 
 def glare_grey(img: np.ndarray) -> np.ndarray:
-    """The pipeline's grey (:func:`controller.vision.fisheye.default.glare_channel`) in
+    """The pipeline's grey (:func:`controller.vision.fisheye.channel.glare_channel`) in
     float: the mean of each pixel's two darkest channels, grey levels 0..255 (a 2-D image
     is its own grey)."""
     a = np.asarray(img, float)

@@ -12,7 +12,8 @@ Frames of one sequence go through one estimator (the previous accepted detection
 next); ``reset_sequence()`` starts another.  See docs/fisheye.md.
 """
 
-from .default import FisheyeEstimator, FisheyeOptions, glare_channel
+from .channel import glare_channel
+from .default import FisheyeEstimator, FisheyeOptions
 from .frames import as_bgr8, load_frame
 from .glare import GlareOptions
 from .lens import FisheyeLens

@@ -40,7 +40,7 @@ def find_blobs(
     The blobs are labelled on a block-reduced mask (any saturated pixel marks its block),
     then measured at full resolution inside their boxes: a coarse search, then small ROIs.
     ``mask_out``: a uint8 array of ``grey``'s shape to hold the mask (see
-    :class:`.frames.FrameBuffers`); without it, a fresh one.
+    :class:`.channel.FrameBuffers`); without it, a fresh one.
     """
     _, binary = cv2.threshold(grey, threshold - 0.5, 255, cv2.THRESH_BINARY, dst=mask_out)
     if valid is not None:

@@ -2,8 +2,8 @@
 
 Per frame (docs/fisheye.md has the reasoning and the measured figures):
 
-1. on the mean of each pixel's two darkest channels (:func:`glare_channel`), grey levels
-   within ``sat_margin`` of the frame's peak form blobs; each blob's inscribed-disk centres
+1. on the mean of each pixel's two darkest channels (:func:`.channel.glare_channel`), grey
+   levels within ``sat_margin`` of the frame's peak form blobs; each blob's inscribed-disk centres
    are candidates (:mod:`.glare`);
 2. each candidate's rim is measured to a fraction of a pixel and fitted, through the
    calibrated lens, by a small circle on the sphere (:func:`.glare.fit_glare`);
@@ -34,7 +34,7 @@ from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blobs import find_blobs
-from .frames import FrameBuffers
+from .channel import FrameBuffers, glare_channel
 from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
@@ -469,29 +469,6 @@ class FisheyeEstimator(FramePipeline):
                 "last_move_deg": round(f.last_move_deg, 5),
             },
         )
-
-
-def glare_channel(img: np.ndarray, buffers: FrameBuffers | None = None) -> np.ndarray:
-    """The mean of each pixel's two darkest channels (uint8, rounded half to even).
-
-    The glare is white, so its core saturates every channel; the sky around it is coloured,
-    and its brightest channel (blue, in a clear sky) clips first, which bends the rim's
-    profile differently on each side.  Dropping the brightest channel keeps the rim clear of
-    that; keeping two channels (rather than the darkest alone) halves the noise of JPEG's
-    sub-sampled colour.  ``buffers``: the frame-sized arrays to work in (the result is one
-    of them, overwritten by the next call); without them, fresh arrays.
-    """
-    shape = img.shape[:2]
-    bufs = buffers or FrameBuffers()
-    b, g, r = (bufs.get(k, shape) for k in ("b", "g", "r"))
-    lo, hi, out = (bufs.get(k, shape) for k in ("lo", "hi", "grey"))
-    cv2.split(img, [b, g, r])
-    cv2.min(b, g, dst=lo)
-    cv2.max(b, g, dst=hi)
-    cv2.min(hi, r, dst=hi)
-    cv2.max(lo, hi, dst=hi)  # the middle channel
-    cv2.min(lo, r, dst=lo)  # the darkest
-    return cv2.addWeighted(lo, 0.5, hi, 0.5, 0.0, dst=out)
 
 
 def _load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | None:

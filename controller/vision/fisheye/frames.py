@@ -49,25 +49,3 @@ def as_bgr8(img: np.ndarray | None) -> tuple[np.ndarray | None, str | None]:
     if img.ndim != 3 or img.shape[2] != 3:
         return None, "unsupported_image_format"
     return np.ascontiguousarray(img), None
-
-
-class FrameBuffers:
-    """Frame-sized uint8 buffers kept from one frame to the next, by name.
-
-    A frame-sized array allocated afresh each frame costs a page fault for each of its 4 kB
-    pages whenever the allocator has handed that memory back to the system in between
-    (glibc trims its heap once more than twice the largest recent chunk lies free at its
-    top): at 640 x 480, about 650 faults and 1 ms a frame, a fifth of the default
-    pipeline's time (measured on frames read from disk; frames rendered in the same
-    process had raised the trim threshold and hid it).  Not shared between threads.
-    """
-
-    def __init__(self) -> None:
-        self._buffers: dict[str, np.ndarray] = {}
-
-    def get(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
-        """The buffer ``name`` of ``shape`` (its contents are whatever the last frame left)."""
-        buf = self._buffers.get(name)
-        if buf is None or buf.shape != shape:
-            buf = self._buffers[name] = np.empty(shape, np.uint8)
-        return buf

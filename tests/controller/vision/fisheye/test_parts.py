@@ -6,8 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from controller.vision.fisheye import FisheyeEstimator, FisheyeLens, SeedEstimator, glare_channel
-from controller.vision.fisheye.frames import FrameBuffers
+from controller.vision.fisheye import FisheyeEstimator, FisheyeLens, SeedEstimator
 from controller.vision.fisheye.seed import K_H, K_I, K_S, segment, weighted_hsi
 from controller.vision.fisheye.sphere import fit_cone, tangent_basis
 from hil.skycam import render_sky, seed_lens
@@ -92,22 +91,6 @@ def test_cone_fit_accepts_an_ellipse_without_calling_it_outliers():
     axis, _rho, inl, _rms, ell = fit_cone(v)
     assert inl.all() and math.degrees(math.acos(axis[2])) < 1e-6
     assert np.hypot(*ell) == pytest.approx(np.radians(1.2), rel=0.05)
-
-
-def test_glare_channel_drops_each_pixels_brightest_channel():
-    img = np.array([[[255, 100, 50], [10, 20, 30], [255, 255, 255]]], np.uint8)
-    assert glare_channel(img).tolist() == [[75, 15, 255]]
-
-
-def test_glare_channel_is_the_two_darkest_channels_mean_rounded_half_to_even_in_reused_buffers():
-    rng = np.random.default_rng(3)
-    imgs = [rng.integers(0, 256, (37, 53, 3), dtype=np.uint8) for _ in range(3)]
-    bufs = FrameBuffers()
-    for img in imgs:
-        two = np.sort(img.astype(np.int64), axis=2)[:, :, :2].sum(axis=2)
-        expected = (two // 2 + (two % 2) * ((two // 2) % 2)).astype(np.uint8)  # x.5 to even
-        assert np.array_equal(glare_channel(img, bufs), expected)
-        assert np.array_equal(glare_channel(img), expected)
 
 
 def test_a_frames_result_does_not_depend_on_the_frame_before_it():
