@@ -30,11 +30,11 @@ import cv2
 import numpy as np
 
 from ...calibration.fisheye_bundle import FisheyeBundle
-from ...errors import ConfigError
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
+from .frames import load_mask
 from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
@@ -42,6 +42,7 @@ from .lens import FisheyeLens
 from .pipeline import FramePipeline
 from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
+from .selfsite import SiteFit, SiteFromSun
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
 REASON_ORDER = (
@@ -151,11 +152,15 @@ class FisheyeEstimator(FramePipeline):
         self.up_cam = None if self.R is None else self.R[2].copy()
         self.radiometry = Radiometry.from_cal(bundle.radiometry)
         self.frame = "enu" if self.R is not None else "model"
-        self.mask = _load_mask(bundle, self.shape)
+        self.mask = load_mask(bundle, self.shape)
         self.ephemeris = None
         if bundle.site is not None and self.R is not None and self.options.gates.ephemeris:
             s = bundle.site
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
+        # no site but the orientation: the site from the sun's own sights (:mod:`.selfsite`)
+        learn = self.R is not None and self.ephemeris is None and self.options.gates.learn_site
+        self.site_from_sun = SiteFromSun() if learn else None
+        self.learned: tuple[SiteFit, Ephemeris] | None = None
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
@@ -175,6 +180,7 @@ class FisheyeEstimator(FramePipeline):
         self._refused_by_anchor = 0
         self._anchors.clear()
         self.history.clear()
+        # the site learned from the sun stays: it is the camera's, not the sequence's
 
     # -- entry points ------------------------------------------------------------------------
     def estimate_image(self, image, t: float | None = None, prior=None) -> FisheyeResult:
@@ -279,6 +285,7 @@ class FisheyeEstimator(FramePipeline):
                 self._last = (float(t), self._gd(best))
                 self._refused_by_anchor = 0
                 self._anchors.append(self._last)
+                self._learn_site(float(t), best)
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 
@@ -338,6 +345,16 @@ class FisheyeEstimator(FramePipeline):
             if self._refused_by_anchor >= self.options.gates.release_after:
                 self._last, self._refused_by_anchor = None, 0
                 self._anchors.clear()
+
+    def _learn_site(self, t: float, c: Candidate) -> None:
+        """Take an anchoring detection as a sight of the sun; gate by the site they agree on."""
+        if self.site_from_sun is None or c.d_enu is None:
+            return
+        fit = self.site_from_sun.add(t, c.d_enu)
+        if fit is None:
+            self.learned = None
+        elif self.learned is None or self.learned[0] != fit:
+            self.learned = (fit, Ephemeris(fit.site))
 
     def _gd(self, c: Candidate) -> np.ndarray:
         """The candidate's direction in the frame the sequence is judged in."""
@@ -401,6 +418,10 @@ class FisheyeEstimator(FramePipeline):
             o = self.bundle.orientation
             slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
             out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg + slack, "enu"))
+        if self.learned is not None and t is not None:
+            fit, eph = self.learned  # its gate widened by the learned sun's own error
+            slack = 2.0 * fit.rms_deg / math.sqrt(fit.n)
+            out.append(Gate("ephemeris_learned", eph.direction(t), g.ephemeris_deg + slack, "enu"))
         if self._last is not None and t is not None:
             dt = float(t) - self._last[0]
             if 0.0 <= dt <= g.max_gap_s:
@@ -469,14 +490,3 @@ class FisheyeEstimator(FramePipeline):
                 "last_move_deg": round(f.last_move_deg, 5),
             },
         )
-
-
-def _load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | None:
-    if bundle.mask is None:
-        return None
-    m = cv2.imread(str(bundle.mask), cv2.IMREAD_GRAYSCALE)
-    if m is None or m.shape != shape:
-        raise ConfigError(
-            bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
-        )
-    return np.where(m > 0, 255, 0).astype(np.uint8)

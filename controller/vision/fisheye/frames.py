@@ -12,6 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ...calibration.fisheye_bundle import FisheyeBundle
+from ...errors import ConfigError
 from ..imageio import read_image
 
 
@@ -49,3 +51,15 @@ def as_bgr8(img: np.ndarray | None) -> tuple[np.ndarray | None, str | None]:
     if img.ndim != 3 or img.shape[2] != 3:
         return None, "unsupported_image_format"
     return np.ascontiguousarray(img), None
+
+
+def load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | None:
+    """The bundle's mask (255 where the sky is seen), or None; a bad one is a ConfigError."""
+    if bundle.mask is None:
+        return None
+    m = cv2.imread(str(bundle.mask), cv2.IMREAD_GRAYSCALE)
+    if m is None or m.shape != shape:
+        raise ConfigError(
+            bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
+        )
+    return np.where(m > 0, 255, 0).astype(np.uint8)

@@ -54,6 +54,9 @@ class GateOptions:
     # the anchors' own error, carried along the track: ``track_anchor_deg`` times the time
     # since the last anchor over the baseline is added to the gate
     track_anchor_deg: float = 0.5
+    # without the site but with the orientation: learn the site from the detections and gate
+    # by its ephemeris once they agree (:mod:`.selfsite`)
+    learn_site: bool = True
 
 
 def track_prediction(

@@ -1,0 +1,145 @@
+"""The site from the sun itself: a camera that knows where up and north are, but not where it is.
+
+A bundle may give the camera's orientation and no ``[site]`` (the issue's bundle makes the
+site optional).  The sun's direction in ENU at a known time then fixes the site, as a sun
+sight with a known vertical and north fixes a ship's position: the sun's declination and
+Greenwich hour angle depend on the time alone, and latitude and longitude are the two
+unknowns of its azimuth and elevation.  So the estimator takes its own accepted detections
+as sights; once ``min_sights`` of them, over at least ``min_span_s``, agree on one site
+(``max_rms_deg`` about the fit, ``min_share`` of them within ``inlier_deg``), the sun's ephemeris at that site gates the
+frames that follow, as the bundle's site would.  A fix that drifted onto a cloud's bright
+edge is then more than a degree from where the sun must be, whatever came before it.
+
+The fit is a robust least squares on (latitude, longitude) with SPA's geocentric sun
+(:func:`controller.sunpath.ephemeris.geocentric_sun`) and refraction, started from a grid;
+it is refitted every ``refit_every`` sights once adopted.  Sights older than ``keep_s``
+are dropped.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ...sun.source import Site
+from ...sunpath.ephemeris import azel_from_hour_angle, geocentric_sun
+
+
+@dataclass(frozen=True)
+class SiteFit:
+    """A site fitted to sights: degrees; ``rms_deg`` of the sights it kept, ``n`` of them."""
+
+    latitude: float
+    longitude: float
+    rms_deg: float
+    n: int
+
+    @property
+    def site(self) -> Site:
+        return Site(latitude=self.latitude, longitude=self.longitude, altitude=0.0)
+
+
+def _directions(lat: np.ndarray, lon: np.ndarray, gha: np.ndarray, dec: np.ndarray) -> np.ndarray:
+    """ENU unit vectors of the sun (..., 3) at sites (lat, lon) for geocentric (gha, dec)."""
+    h = (gha + lon + 180.0) % 360.0 - 180.0
+    az, el = azel_from_hour_angle(h, dec, lat)
+    a, e = np.radians(az), np.radians(el)
+    return np.stack([np.cos(e) * np.sin(a), np.cos(e) * np.cos(a), np.sin(e)], axis=-1)
+
+
+def fit_site(
+    times: np.ndarray, sights: np.ndarray, start: tuple[float, float] | None = None, inlier_deg: float = 0.5
+) -> tuple[SiteFit, np.ndarray] | None:
+    """The site whose sun, at ``times`` (POSIX s), lies along ``sights`` (unit ENU vectors,
+    (n, 3)); and each sight's angle from it (deg).  ``start``: (lat, lon) to refine from;
+    without it a 2-deg grid is searched first.  None when the fit fails."""
+    geo = geocentric_sun(times)
+    gha = np.asarray(geo.sidereal_deg - geo.ra_deg, float)
+    dec = np.asarray(geo.dec_deg, float)
+    if start is None:
+        lat_g, lon_g = np.meshgrid(np.arange(-88.0, 89.0, 2.0), np.arange(-180.0, 180.0, 2.0), indexing="ij")
+        d = _directions(lat_g[..., None], lon_g[..., None], gha, dec)  # (nlat, nlon, n, 3)
+        cost = np.minimum(np.einsum("...nk,nk->...n", d, sights), 1.0)
+        k = np.unravel_index(int(np.argmax(np.sort(cost, axis=-1)[..., cost.shape[-1] // 2])), cost.shape[:2])
+        start = (float(lat_g[k]), float(lon_g[k]))
+
+    def angles(p: np.ndarray) -> np.ndarray:
+        d = _directions(np.full(len(times), p[0]), np.full(len(times), p[1]), gha, dec)
+        return np.degrees(np.arccos(np.clip(np.einsum("nk,nk->n", d, sights), -1.0, 1.0)))
+
+    def solve(p0: np.ndarray, use: np.ndarray, loss: str) -> np.ndarray:
+        def residual(p: np.ndarray) -> np.ndarray:
+            d = _directions(np.full(int(use.sum()), p[0]), np.full(int(use.sum()), p[1]), gha[use], dec[use])
+            return np.degrees(np.cross(d, sights[use])).ravel()
+
+        bounds = ([-89.9, -540.0], [89.9, 540.0])
+        return least_squares(residual, p0, loss=loss, f_scale=0.2, bounds=bounds).x
+
+    try:  # robust first, then least squares on the sights within ``inlier_deg``
+        p = solve(np.asarray(start, float), np.ones(len(times), bool), "soft_l1")
+        keep = angles(p) <= inlier_deg
+        if keep.sum() >= 3:
+            p = solve(p, keep, "linear")
+    except ValueError:
+        return None
+    lat, lon = float(p[0]), float((p[1] + 180.0) % 360.0 - 180.0)
+    ang = angles(np.array([lat, lon]))
+    keep = ang <= inlier_deg
+    rms = float(np.sqrt(np.mean(ang[keep] ** 2))) if keep.any() else math.inf
+    return SiteFit(lat, lon, rms, int(keep.sum())), ang
+
+
+class SiteFromSun:
+    """Sights of the sun (time, ENU direction) and the site they agree on, once they do."""
+
+    def __init__(
+        self,
+        min_sights: int = 6,
+        max_rms_deg: float = 0.3,
+        min_share: float = 0.7,
+        min_span_s: float = 600.0,
+        inlier_deg: float = 0.5,
+        keep_s: float = 7200.0,
+        refit_every: int = 20,
+    ):
+        self.min_sights, self.max_rms_deg, self.min_share = min_sights, max_rms_deg, min_share
+        self.min_span_s = min_span_s
+        self.inlier_deg, self.keep_s, self.refit_every = inlier_deg, keep_s, refit_every
+        self.sights: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
+        self.fit: SiteFit | None = None
+        self._since_fit = 0
+
+    def clear(self) -> None:
+        self.sights.clear()
+        self.fit, self._since_fit = None, 0
+
+    def add(self, t: float, d_enu: np.ndarray) -> SiteFit | None:
+        """Record a sight; returns the site adopted (or still held), None until one is."""
+        kept = [s for s in self.sights if abs(t - s[0]) <= self.keep_s]  # frames need not be in order
+        self.sights = deque(kept + [(float(t), np.asarray(d_enu, float))], maxlen=self.sights.maxlen)
+        self._since_fit += 1
+        if len(self.sights) < self.min_sights or (
+            self.fit is not None and self._since_fit < self.refit_every
+        ):
+            return self.fit
+        self._since_fit = 0
+        ts = np.array([s[0] for s in self.sights])
+        ds = np.array([s[1] for s in self.sights])
+        got = fit_site(
+            ts, ds, None if self.fit is None else (self.fit.latitude, self.fit.longitude), self.inlier_deg
+        )
+        if got is None:
+            return self.fit
+        fit, _ = got
+        agree = (
+            fit.n >= self.min_sights
+            and fit.n >= self.min_share * len(ts)
+            and fit.rms_deg <= self.max_rms_deg
+            and float(ts.max() - ts.min()) >= self.min_span_s
+        )
+        self.fit = fit if agree else None
+        return self.fit

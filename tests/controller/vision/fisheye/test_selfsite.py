@@ -1,0 +1,74 @@
+"""The site learned from the sun's own sights, for a bundle with an orientation and no site."""
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pvlib
+import pytest
+
+from controller.sun.types import azel_to_enu
+from controller.vision.fisheye import FisheyeEstimator, FisheyeOptions
+from controller.vision.fisheye.gates import GateOptions
+from controller.vision.fisheye.selfsite import SiteFromSun, fit_site
+from hil.skycam import render_sky
+
+from .helpers import small_scene, truth_bundle, utc
+
+SANTIAGO = (-33.45, -70.66)
+
+
+def _sights(times, lat=SANTIAGO[0], lon=SANTIAGO[1]) -> np.ndarray:
+    sp = pvlib.solarposition.get_solarposition(
+        pd.to_datetime(np.asarray(times), unit="s", utc=True), lat, lon
+    )
+    return np.array([azel_to_enu(a, e) for a, e in zip(sp["azimuth"], sp["apparent_elevation"])])
+
+
+def test_sights_of_the_sun_give_the_site_and_a_stray_one_is_left_out():
+    ts = utc(2026, 3, 20, 13, 0) + 120.0 * np.arange(8)
+    d = _sights(ts)
+    d[3] = _sights([ts[3]], SANTIAGO[0] + 1.5, SANTIAGO[1])[0]  # the sun seen from 1.5 deg further north
+    fit, ang = fit_site(ts, d)
+    assert fit.latitude == pytest.approx(SANTIAGO[0], abs=0.05)
+    assert fit.longitude == pytest.approx(SANTIAGO[1], abs=0.05)
+    assert fit.n == 7 and ang[3] > 0.5 and np.delete(ang, 3).max() < 0.05
+
+
+def test_a_site_is_adopted_only_when_enough_sights_over_enough_time_agree():
+    learner = SiteFromSun(min_sights=6, min_span_s=600.0)
+    t0 = utc(2026, 3, 20, 13, 0)
+    ts = t0 + 60.0 * np.arange(12)
+    for k, (t, d) in enumerate(zip(ts, _sights(ts))):
+        got = learner.add(float(t), d)
+        assert (got is not None) == (k >= 10), k  # the tenth minute after the first
+    rng = np.random.default_rng(0)
+    stray = SiteFromSun(min_sights=6, min_span_s=0.0)
+    for t in ts:  # glares anywhere in the sky agree on no site
+        v = rng.normal(size=3)
+        v[2] = abs(v[2])
+        assert stray.add(float(t), v / np.linalg.norm(v)) is None
+
+
+def test_without_a_site_the_camera_learns_it_and_gates_by_it():
+    """Clear frames every 2 min: once the sun has been seen over 10 min, a frame whose sun is
+    where it was 40 minutes earlier (the clock, or a glare that is not the sun) is refused
+    by the learned ephemeris, also in a new sequence; without learning it is taken."""
+    scn = small_scene(noise=True)
+    t0 = utc(2025, 3, 20, 5, 0)
+    bundle = truth_bundle(scn, site=False)
+    est = FisheyeEstimator(bundle)
+    for k in range(7):
+        fr = render_sky(scn, t0 + 120.0 * k)
+        assert est.estimate_image(fr.image, t0 + 120.0 * k).found
+    assert est.learned is not None
+    fit = est.learned[0]
+    assert abs(fit.latitude - scn.site.latitude) < 0.5 and abs(fit.longitude - scn.site.longitude) < 0.5
+    est.reset_sequence()  # the site is the camera's: it stays
+    early = render_sky(scn, t0 + 600.0)
+    late = t0 + 600.0 + 2400.0
+    res = est.estimate_image(early.image, late)
+    assert not res.found and res.reason == "gate_rejected" and "ephemeris_learned" in res.extra["gates"]
+    assert est.estimate_image(render_sky(scn, late).image, late).found
+    plain = FisheyeEstimator(bundle, replace(FisheyeOptions(), gates=GateOptions(learn_site=False)))
+    assert plain.learned is None and plain.estimate_image(early.image, late).found
