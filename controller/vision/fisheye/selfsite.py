@@ -5,14 +5,14 @@ site optional).  The sun's direction in ENU at a known time then fixes the site,
 sight with a known vertical and north fixes a ship's position: the sun's declination and
 Greenwich hour angle depend on the time alone, and latitude and longitude are the two
 unknowns of its azimuth and elevation.  So the estimator takes its own accepted detections
-as sights; once ``min_sights`` of them, over at least ``min_span_s``, agree on one site
-(``max_rms_deg`` about the fit, ``min_share`` of them within ``inlier_deg``), the sun's ephemeris at that site gates the
+as sights; once ``MIN_SIGHTS`` of them, over at least ``MIN_SPAN_S``, agree on one site
+(``MAX_RMS_DEG`` about the fit, ``MIN_SHARE`` of them within ``INLIER_DEG``), the sun's ephemeris at that site gates the
 frames that follow, as the bundle's site would.  A fix that drifted onto a cloud's bright
 edge is then more than a degree from where the sun must be, whatever came before it.
 
 The fit is a robust least squares on (latitude, longitude) with SPA's geocentric sun
 (:func:`controller.sunpath.ephemeris.geocentric_sun`) and refraction, started from a grid;
-it is refitted every ``refit_every`` sights once adopted.  Sights older than ``keep_s``
+it is refitted every ``REFIT_EVERY`` sights once adopted.  Sights older than ``KEEP_S``
 are dropped.
 """
 
@@ -27,6 +27,13 @@ from scipy.optimize import least_squares
 
 from ...sun.source import Site
 from ...sunpath.ephemeris import azel_from_hour_angle, geocentric_sun
+
+#: sights needed, over at least this many seconds, to adopt a site
+MIN_SIGHTS, MIN_SPAN_S = 6, 600.0
+#: they agree when this share of them lie within INLIER_DEG of the fit, at this RMS (deg)
+MIN_SHARE, INLIER_DEG, MAX_RMS_DEG = 0.7, 0.5, 0.3
+#: sights older than this (s) are dropped; an adopted site is refitted every REFIT_EVERY sights
+KEEP_S, REFIT_EVERY = 7200.0, 20
 
 
 @dataclass(frozen=True)
@@ -52,7 +59,10 @@ def _directions(lat: np.ndarray, lon: np.ndarray, gha: np.ndarray, dec: np.ndarr
 
 
 def fit_site(
-    times: np.ndarray, sights: np.ndarray, start: tuple[float, float] | None = None, inlier_deg: float = 0.5
+    times: np.ndarray,
+    sights: np.ndarray,
+    start: tuple[float, float] | None = None,
+    inlier_deg: float = INLIER_DEG,
 ) -> tuple[SiteFit, np.ndarray] | None:
     """The site whose sun, at ``times`` (POSIX s), lies along ``sights`` (unit ENU vectors,
     (n, 3)); and each sight's angle from it (deg).  ``start``: (lat, lon) to refine from;
@@ -96,50 +106,35 @@ def fit_site(
 class SiteFromSun:
     """Sights of the sun (time, ENU direction) and the site they agree on, once they do."""
 
-    def __init__(
-        self,
-        min_sights: int = 6,
-        max_rms_deg: float = 0.3,
-        min_share: float = 0.7,
-        min_span_s: float = 600.0,
-        inlier_deg: float = 0.5,
-        keep_s: float = 7200.0,
-        refit_every: int = 20,
-    ):
-        self.min_sights, self.max_rms_deg, self.min_share = min_sights, max_rms_deg, min_share
-        self.min_span_s = min_span_s
-        self.inlier_deg, self.keep_s, self.refit_every = inlier_deg, keep_s, refit_every
+    def __init__(self) -> None:
         self.sights: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
         self.fit: SiteFit | None = None
         self._since_fit = 0
 
-    def clear(self) -> None:
-        self.sights.clear()
-        self.fit, self._since_fit = None, 0
-
     def add(self, t: float, d_enu: np.ndarray) -> SiteFit | None:
         """Record a sight; returns the site adopted (or still held), None until one is."""
-        kept = [s for s in self.sights if abs(t - s[0]) <= self.keep_s]  # frames need not be in order
+        kept = [s for s in self.sights if abs(t - s[0]) <= KEEP_S]  # frames need not be in order
         self.sights = deque(kept + [(float(t), np.asarray(d_enu, float))], maxlen=self.sights.maxlen)
         self._since_fit += 1
-        if len(self.sights) < self.min_sights or (
-            self.fit is not None and self._since_fit < self.refit_every
-        ):
+        if len(self.sights) < MIN_SIGHTS or (self.fit is not None and self._since_fit < REFIT_EVERY):
             return self.fit
         self._since_fit = 0
         ts = np.array([s[0] for s in self.sights])
         ds = np.array([s[1] for s in self.sights])
         got = fit_site(
-            ts, ds, None if self.fit is None else (self.fit.latitude, self.fit.longitude), self.inlier_deg
+            ts,
+            ds,
+            None if self.fit is None else (self.fit.latitude, self.fit.longitude),
+            INLIER_DEG,
         )
         if got is None:
             return self.fit
         fit, _ = got
         agree = (
-            fit.n >= self.min_sights
-            and fit.n >= self.min_share * len(ts)
-            and fit.rms_deg <= self.max_rms_deg
-            and float(ts.max() - ts.min()) >= self.min_span_s
+            fit.n >= MIN_SIGHTS
+            and fit.n >= MIN_SHARE * len(ts)
+            and fit.rms_deg <= MAX_RMS_DEG
+            and float(ts.max() - ts.min()) >= MIN_SPAN_S
         )
         self.fit = fit if agree else None
         return self.fit

@@ -36,14 +36,14 @@ def test_sights_of_the_sun_give_the_site_and_a_stray_one_is_left_out():
 
 
 def test_a_site_is_adopted_only_when_enough_sights_over_enough_time_agree():
-    learner = SiteFromSun(min_sights=6, min_span_s=600.0)
+    learner = SiteFromSun()
     t0 = utc(2026, 3, 20, 13, 0)
     ts = t0 + 60.0 * np.arange(12)
     for k, (t, d) in enumerate(zip(ts, _sights(ts))):
         got = learner.add(float(t), d)
         assert (got is not None) == (k >= 10), k  # the tenth minute after the first
     rng = np.random.default_rng(0)
-    stray = SiteFromSun(min_sights=6, min_span_s=0.0)
+    stray = SiteFromSun()
     for t in ts:  # glares anywhere in the sky agree on no site
         v = rng.normal(size=3)
         v[2] = abs(v[2])
