@@ -418,6 +418,9 @@ class FisheyeEstimator(FramePipeline):
             o = self.bundle.orientation
             slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
             out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg + slack, "enu"))
+        if self.learned is not None and t is not None and self.site_from_sun is not None:
+            if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew
+                self.site_from_sun, self.learned = SiteFromSun(), None
         if self.learned is not None and t is not None:
             fit, eph = self.learned  # its gate widened by the learned sun's own error
             slack = 2.0 * fit.rms_deg / math.sqrt(fit.n)

@@ -13,7 +13,8 @@ edge is then more than a degree from where the sun must be, whatever came before
 The fit is a robust least squares on (latitude, longitude) with SPA's geocentric sun
 (:func:`controller.sunpath.ephemeris.geocentric_sun`) and refraction, started from a grid;
 it is refitted every ``REFIT_EVERY`` sights once adopted.  Sights older than ``KEEP_S``
-are dropped.
+are dropped, and a site with no sight within ``KEEP_S`` of a frame is forgotten and learned
+anew (a wrong one would otherwise refuse the sun, and so never be corrected by new sights).
 """
 
 from __future__ import annotations
@@ -110,6 +111,11 @@ class SiteFromSun:
         self.sights: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
         self.fit: SiteFit | None = None
         self._since_fit = 0
+
+    def stale(self, t: float) -> bool:
+        """No sight within ``KEEP_S`` of ``t``: a site adopted then may no longer be the
+        camera's (moved, or its clock stepped), and gating by it would shut the sun out."""
+        return not any(abs(t - s[0]) <= KEEP_S for s in self.sights)
 
     def add(self, t: float, d_enu: np.ndarray) -> SiteFit | None:
         """Record a sight; returns the site adopted (or still held), None until one is."""

@@ -72,3 +72,22 @@ def test_without_a_site_the_camera_learns_it_and_gates_by_it():
     assert est.estimate_image(render_sky(scn, late).image, late).found
     plain = FisheyeEstimator(bundle, replace(FisheyeOptions(), gates=GateOptions(learn_site=False)))
     assert plain.learned is None and plain.estimate_image(early.image, late).found
+
+
+def test_a_learned_site_that_no_longer_fits_the_camera_is_forgotten_after_two_hours():
+    """Learned, then the frames' clock is 40 minutes fast: the sun is refused where the
+    learned site says it cannot be; two hours after the last sight the site is forgotten,
+    the sun found again and the site learned anew."""
+    scn = small_scene(noise=True)
+    t0 = utc(2025, 3, 20, 5, 0)
+    est = FisheyeEstimator(truth_bundle(scn, site=False))
+    for k in range(7):
+        assert est.estimate_image(render_sky(scn, t0 + 120.0 * k).image, t0 + 120.0 * k).found
+    assert est.learned is not None
+    last = t0 + 720.0
+    for t in (last + 1200.0, last + 7000.0):  # 40 min fast: the sun of 40 min earlier
+        res = est.estimate_image(render_sky(scn, t - 2400.0).image, t)
+        assert not res.found and res.reason == "gate_rejected", res.reason
+    t = last + 7300.0  # more than 2 h after the last sight
+    res = est.estimate_image(render_sky(scn, t - 2400.0).image, t)
+    assert res.found and est.learned is None
