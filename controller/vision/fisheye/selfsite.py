@@ -5,9 +5,9 @@ site optional).  The sun's direction in ENU at a known time then fixes the site,
 sight with a known vertical and north fixes a ship's position: the sun's declination and
 Greenwich hour angle depend on the time alone, and latitude and longitude are the two
 unknowns of its azimuth and elevation.  So the estimator takes its own accepted detections
-as sights; once ``MIN_SIGHTS`` of them, over at least ``MIN_SPAN_S``, agree on one site
-(``MAX_RMS_DEG`` about the fit, ``MIN_SHARE`` of them within ``INLIER_DEG``), the sun's ephemeris at that site gates the
-frames that follow, as the bundle's site would.  A fix that drifted onto a cloud's bright
+as sights; once ``MIN_SIGHTS`` of them, over at least ``MIN_SPAN_S``, agree on one
+site (``MAX_RMS_DEG`` about the fit, ``MIN_SHARE`` of them within ``INLIER_DEG``), the
+sun's ephemeris at that site gates the frames that follow, as the bundle's site would.  A fix that drifted onto a cloud's bright
 edge is then more than a degree from where the sun must be, whatever came before it.
 
 The fit is a robust least squares on (latitude, longitude) with SPA's geocentric sun
@@ -71,10 +71,11 @@ def fit_site(
     geo = geocentric_sun(times)
     gha = np.asarray(geo.sidereal_deg - geo.ra_deg, float)
     dec = np.asarray(geo.dec_deg, float)
-    if start is None:
+    if start is None:  # a 2-deg grid on at most 8 of the sights, spread over them
         lat_g, lon_g = np.meshgrid(np.arange(-88.0, 89.0, 2.0), np.arange(-180.0, 180.0, 2.0), indexing="ij")
-        d = _directions(lat_g[..., None], lon_g[..., None], gha, dec)  # (nlat, nlon, n, 3)
-        cost = np.minimum(np.einsum("...nk,nk->...n", d, sights), 1.0)
+        sub = np.unique(np.linspace(0, len(times) - 1, min(len(times), 8)).round().astype(int))
+        d = _directions(lat_g[..., None], lon_g[..., None], gha[sub], dec[sub])  # (nlat, nlon, n, 3)
+        cost = np.minimum(np.einsum("...nk,nk->...n", d, sights[sub]), 1.0)
         k = np.unravel_index(int(np.argmax(np.sort(cost, axis=-1)[..., cost.shape[-1] // 2])), cost.shape[:2])
         start = (float(lat_g[k]), float(lon_g[k]))
 
@@ -111,6 +112,7 @@ class SiteFromSun:
         self.sights: deque[tuple[float, np.ndarray]] = deque(maxlen=64)
         self.fit: SiteFit | None = None
         self._since_fit = 0
+        self._start: tuple[float, float] | None = None  # the last fit's site, adopted or not
 
     def stale(self, t: float) -> bool:
         """No sight within ``KEEP_S`` of ``t``: a site adopted then may no longer be the
@@ -127,15 +129,13 @@ class SiteFromSun:
         self._since_fit = 0
         ts = np.array([s[0] for s in self.sights])
         ds = np.array([s[1] for s in self.sights])
-        got = fit_site(
-            ts,
-            ds,
-            None if self.fit is None else (self.fit.latitude, self.fit.longitude),
-            INLIER_DEG,
-        )
+        got = fit_site(ts, ds, self._start, INLIER_DEG)
         if got is None:
+            self._start = None
             return self.fit
         fit, _ = got
+        # the next fit starts here; a grid again if these sights did not agree
+        self._start = (fit.latitude, fit.longitude) if fit.rms_deg <= MAX_RMS_DEG else None
         agree = (
             fit.n >= MIN_SIGHTS
             and fit.n >= MIN_SHARE * len(ts)
