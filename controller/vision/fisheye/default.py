@@ -42,7 +42,7 @@ from .lens import FisheyeLens
 from .pipeline import FramePipeline
 from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
-from .selfsite import SiteFit, SiteFromSun
+from .selfsite import LearnedEphemeris, SiteFit, SiteFromSun
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
 REASON_ORDER = (
@@ -160,7 +160,7 @@ class FisheyeEstimator(FramePipeline):
         # no site but the orientation: the site from the sun's own sights (:mod:`.selfsite`)
         learn = self.R is not None and self.ephemeris is None and self.options.gates.learn_site
         self.site_from_sun = SiteFromSun() if learn else None
-        self.learned: tuple[SiteFit, Ephemeris] | None = None
+        self.learned: tuple[SiteFit, LearnedEphemeris] | None = None
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
@@ -354,7 +354,7 @@ class FisheyeEstimator(FramePipeline):
         if fit is None:
             self.learned = None
         elif self.learned is None or self.learned[0] != fit:
-            self.learned = (fit, Ephemeris(fit.site))
+            self.learned = (fit, LearnedEphemeris(fit))
 
     def _gd(self, c: Candidate) -> np.ndarray:
         """The candidate's direction in the frame the sequence is judged in."""

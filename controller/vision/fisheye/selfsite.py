@@ -144,3 +144,37 @@ class SiteFromSun:
         )
         self.fit = fit if agree else None
         return self.fit
+
+
+#: the geocentric sun on a 10-min grid, shared by every learned site (it does not depend on one)
+_GEO: dict[int, tuple[float, float]] = {}
+GRID_S = 600.0
+
+
+def _geo(k: int) -> tuple[float, float]:
+    """(Greenwich hour angle, declination) of the sun at grid point ``k``, deg (cached)."""
+    v = _GEO.get(k)
+    if v is None:
+        if len(_GEO) > 4096:
+            _GEO.clear()
+        g = geocentric_sun([k * GRID_S])
+        v = (float(g.sidereal_deg[0] - g.ra_deg[0]), float(g.dec_deg[0]))
+        _GEO[k] = v
+    return v
+
+
+class LearnedEphemeris:
+    """The sun's ENU direction at a learned site: the geocentric sun interpolated on
+    :data:`GRID_S` (error < 0.001 deg), then the site's hour angle and latitude."""
+
+    def __init__(self, fit: SiteFit):
+        self.fit = fit
+
+    def direction(self, t: float) -> np.ndarray:
+        k = math.floor(t / GRID_S)
+        w = t / GRID_S - k
+        (h0, d0), (h1, d1) = _geo(k), _geo(k + 1)
+        gha = h0 + w * ((h1 - h0 + 180.0) % 360.0 - 180.0)
+        dec = d0 + w * (d1 - d0)
+        lat, lon = np.array([self.fit.latitude]), np.array([self.fit.longitude])
+        return _directions(lat, lon, np.array([gha]), np.array([dec]))[0]
