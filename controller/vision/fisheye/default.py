@@ -280,8 +280,13 @@ class FisheyeEstimator(FramePipeline):
             return not_found(
                 None, "imprecise_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
             )
+        share = best.fit.inlier_fraction
+        if share < o.gates.unvouched_min_inlier_fraction and not gates:  # a weak rim, unchecked
+            return not_found(
+                None, "unvouched_glare", t, self.frame, self.algorithm, rim_share=round(share, 3)
+            )
         if t is not None:
-            if best.fit.inlier_fraction >= o.gates.anchor_min_inlier_fraction:
+            if share >= o.gates.anchor_min_inlier_fraction:
                 self._last = (float(t), self._gd(best))
                 self._refused_by_anchor = 0
                 self._anchors.append(self._last)
@@ -422,9 +427,9 @@ class FisheyeEstimator(FramePipeline):
             if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew
                 self.site_from_sun, self.learned = SiteFromSun(), None
         if self.learned is not None and t is not None:
-            fit, eph = self.learned  # its gate widened by the learned sun's own error
+            fit, eph = self.learned  # narrowed by the learned sun's own error (see .gates)
             slack = 2.0 * fit.rms_deg / math.sqrt(fit.n)
-            out.append(Gate("ephemeris_learned", eph.direction(t), g.ephemeris_deg + slack, "enu"))
+            out.append(Gate("ephemeris_learned", eph.direction(t), g.ephemeris_deg - slack, "enu"))
         if self._last is not None and t is not None:
             dt = float(t) - self._last[0]
             if 0.0 <= dt <= g.max_gap_s:

@@ -269,25 +269,38 @@ def test_without_a_site_a_sunlit_cloud_fleck_beside_a_hidden_sun_is_not_the_sun(
     assert res.reason == "incomplete_glare"
 
 
-def test_a_weak_detection_does_not_shut_the_sun_out_of_the_next_frames():
-    """The fleck of the test above, accepted (the small-glare rules switched off: its rim's
-    share, and its size, which the sky read again once settled puts under 0.8 deg): its rim
-    held on 31 of 48 rays, too few to anchor the sequence gate, so the sun seen in the next
-    two frames is found rather than ``gate_rejected`` (3.3 deg from the fleck)."""
-    from dataclasses import replace
-
-    from controller.vision.fisheye.default import FisheyeOptions
+def _seq14_fleck(unvouched: float = 0.7):
+    """The fleck of the test above, its small-glare rules switched off (its rim's share, and
+    its size, which the sky read again once settled puts under 0.8 deg); its rim held on 31
+    of 48 rays.  Returns (scene, estimator, t0, rng, the first frame's result)."""
+    from controller.vision.fisheye.gates import GateOptions
     from hil.skycam import sky_profile
 
     scn = sky_profile("seed", noise=True).with_(clouds=_SEQ14_CLOUDS)
     t0 = 1742473800.0
     rng = np.random.default_rng(int(t0) & 0xFFFF)
-    est = FisheyeEstimator(
-        truth_bundle(scn, site=False),
-        replace(FisheyeOptions(), small_min_inlier_fraction=0.0, min_radius_deg=0.0),
-    )
-    first = render_sky(scn, t0, rng=rng)
-    assert est.estimate_image(first.image, t0).found  # the fleck, taken for the sun
+    opts = replace(FisheyeOptions(), small_min_inlier_fraction=0.0, min_radius_deg=0.0)
+    opts = replace(opts, gates=GateOptions(unvouched_min_inlier_fraction=unvouched))
+    est = FisheyeEstimator(truth_bundle(scn, site=False), opts)
+    return scn, est, t0, rng, est.estimate_image(render_sky(scn, t0, rng=rng).image, t0)
+
+
+def test_a_weak_fix_with_nothing_to_vouch_for_it_is_refused():
+    """The fleck is the sequence's first fix, without the site or a prior: its rim held on
+    31 of 48 rays (65 %), under the 70 % asked of a fix no gate checks (``unvouched_glare``)."""
+    *_, res = _seq14_fleck()
+    assert not res.found and res.reason == "unvouched_glare"
+    assert res.extra["rim_share"] == pytest.approx(31 / 48, abs=0.01)
+    *_, res = _seq14_fleck(unvouched=0.0)
+    assert res.found
+
+
+def test_a_weak_detection_does_not_shut_the_sun_out_of_the_next_frames():
+    """The fleck, accepted (a weak fix reported unchecked): too weak to anchor the sequence
+    gate, so the sun seen in the next two frames is found rather than ``gate_rejected``
+    (3.3 deg from the fleck)."""
+    scn, est, t0, rng, first = _seq14_fleck(unvouched=0.0)
+    assert first.found  # the fleck, taken for the sun
     for k in (1, 2):
         fr = render_sky(scn, t0 + 60.0 * k, rng=rng)
         assert fr.truth["visibility"] == "visible"
@@ -301,19 +314,27 @@ def test_a_saturated_cloud_below_a_dimmed_sun_is_not_a_streak_that_hides_it():
     dims the sun and saturates in a column below it, which passes for a streak spilling
     one way.  Leaving those rays out left a rim that was refused, and a sunlit cloud's fleck
     5.8 deg away was taken for the sun; a one-way streak whose rim is refused is dropped
-    and the glare measured again without it (0.52 deg)."""
+    and the glare measured again without it (0.60 deg).  Its rim holds on 58 % of its rays
+    and no gate checks it (the sequence's first fix): by default it is refused as
+    ``unvouched_glare``, and the fleck is not taken either."""
     from benchmarks.fisheye_suites import cloud_sequences
     from benchmarks.fisheye_suites import truth_bundle as bench_bundle
+    from controller.vision.fisheye.gates import GateOptions
     from hil.skycam import sky_profile
 
     seq, frames = cloud_sequences(sky_profile("seed"), quick=False)[11]
-    est = FisheyeEstimator(bench_bundle(seq, site=False))
-    rng = np.random.default_rng(int(frames[0][0]) & 0xFFFF)
-    for t, kw in frames[:4]:
-        fr = render_sky(seq, t, rng=rng, **kw)
-        res = est.estimate_image(fr.image, t)
-    assert fr.truth["visibility"] == "dimmed"
-    assert res.found and err_deg(res, fr.truth) < 1.0
+    for unvouched in (0.0, 0.7):
+        opts = replace(FisheyeOptions(), gates=GateOptions(unvouched_min_inlier_fraction=unvouched))
+        est = FisheyeEstimator(bench_bundle(seq, site=False), opts)
+        rng = np.random.default_rng(int(frames[0][0]) & 0xFFFF)
+        for t, kw in frames[:4]:
+            fr = render_sky(seq, t, rng=rng, **kw)
+            res = est.estimate_image(fr.image, t)
+        assert fr.truth["visibility"] == "dimmed"
+        if unvouched:
+            assert not res.found and res.reason == "unvouched_glare"
+        else:
+            assert res.found and err_deg(res, fr.truth) < 1.0
 
 
 def _zenith_fit(est, **kw):

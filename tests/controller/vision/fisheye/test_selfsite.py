@@ -64,6 +64,10 @@ def test_without_a_site_the_camera_learns_it_and_gates_by_it():
     assert est.learned is not None
     fit = est.learned[0]
     assert abs(fit.latitude - scn.site.latitude) < 0.5 and abs(fit.longitude - scn.site.longitude) < 0.5
+    # its gate is narrowed by the learned sun's own error, and the true sun is well inside
+    (gate,) = [g for g in est._gates(t0 + 900.0, None) if g.name == "ephemeris_learned"]
+    assert gate.radius_deg == pytest.approx(1.0 - 2.0 * fit.rms_deg / np.sqrt(fit.n))
+    assert gate.distance_deg(_sights([t0 + 900.0], scn.site.latitude, scn.site.longitude)[0]) < 0.1
     est.reset_sequence()  # the site is the camera's: it stays
     early = render_sky(scn, t0 + 600.0)
     late = t0 + 600.0 + 2400.0
