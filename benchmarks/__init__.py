@@ -31,6 +31,7 @@ BENCHMARKS: tuple[str, ...] = (
     "fisheye",
     "fisheye_third",
     "fisheye_third_clouds",
+    "fisheye_selfcal",
     "soak",
 )
 

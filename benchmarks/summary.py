@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .summary_fisheye import fisheye as _fisheye
+from .summary_fisheye import fisheye_selfcal as _fisheye_selfcal
 from .summary_fisheye import fisheye_third as _fisheye_third
 from .summary_fisheye import fisheye_third_clouds as _fisheye_third_clouds
 from .summary_rows import Headline, fmt
@@ -311,6 +312,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "fisheye": _fisheye,
     "fisheye_third": _fisheye_third,
     "fisheye_third_clouds": _fisheye_third_clouds,
+    "fisheye_selfcal": _fisheye_selfcal,
 }
 
 

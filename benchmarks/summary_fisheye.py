@@ -278,3 +278,48 @@ def fisheye_third_clouds(r: dict) -> list[Headline]:
             for what, value, target, flag in rows
         ]
     return out
+
+
+def fisheye_selfcal(r: dict) -> list[Headline]:
+    """Rows of ``heliotrack bench fisheye_selfcal``: each renderer's worst look with the
+    bundle calibrated on another day (rotation and sky-correction scale), and the false
+    detections."""
+    name, acc, out = "fisheye_selfcal", r["acceptance"], []
+    looks = r["looks"]
+    for renderer, label in (("second", "second renderer"), ("third", "third renderer, dark exposure")):
+        for size, target in (("640", "<= 0.03 deg"), ("1280", "<= 0.02 deg")):
+            key = f"{renderer}_{size}"
+            v = r["worst_rms_with_scale"].get(key)
+            if v is None:
+                continue
+            flag = next((k for k in acc if k.startswith(key + "_")), None)
+            pool = [
+                k for k in looks if size in k and k.startswith("third" if renderer == "third" else "other")
+            ]
+            worst = max(pool, key=lambda k: looks[k]["error"]["rotation_and_sky_scale"].get("rms_deg") or 0.0)
+            e = looks[worst]["error"]
+            note = (
+                f"{worst}; rotation alone {fmt(e['rotation'].get('rms_deg'), 4, ' deg')}, "
+                f"truth bundle {fmt(e['truth_bundle'].get('rms_deg'), 4, ' deg')}"
+            )
+            out.append(
+                Headline(
+                    name,
+                    f"{label}: worst look, calibrated on another day (rotation and sky scale), {size}",
+                    fmt(v, 4, " deg"),
+                    target,
+                    note,
+                    ok=acc.get(flag) if flag else None,
+                )
+            )
+    false = sum(x["false_detections"]["rotation_and_sky_scale"] for x in looks.values())
+    out.append(
+        Headline(
+            name,
+            f"false detections, {len(looks)} looks",
+            fmt(false),
+            "0",
+            ok=acc.get("zero_false_detections"),
+        )
+    )
+    return out

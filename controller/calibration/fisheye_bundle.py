@@ -18,6 +18,7 @@ rms_px = 0.06               # optional: reprojection RMS of the lens calibration
 enu_from_camera = [[..], [..], [..]]   # 3 x 3; columns = camera x, y, z (OpenCV) in ENU
 residual_deg = 0.02         # optional: RMS residual of the fit that produced it
 method = "sun"              # optional: how it was obtained
+sky_scale = 1.0             # optional: the sky model's correction of the rim times this
 
 [radiometry]                # optional: grey level <-> light (docs/fisheye.md, "Radiometry")
 response = "srgb"           # "linear" (default), "srgb", "gamma" (with gamma = ..) or "table"
@@ -69,6 +70,13 @@ class OrientationCal:
     )
     method: str | None = setting(None, doc='How it was obtained ("sun", "sun+horizon", "survey").')
     frames: int | None = setting(None, doc="Number of detections used.", ge=0)
+    sky_scale: float = setting(
+        1.0,
+        doc="The sky model's correction of the glare's rim times this (fitted with the rotation "
+        "from a day of sun detections; 1: the model as it is).",
+        ge=0.25,
+        le=4.0,
+    )
 
     def __schema_check__(self, at: Where) -> OrientationCal:
         M = np.asarray(self.enu_from_camera, float)
@@ -277,6 +285,8 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             out.append(f"method = {_fmt(o.method)}")
         if o.frames is not None:
             out.append(f"frames = {int(o.frames)}")
+        if o.sky_scale != 1.0:
+            out.append(f"sky_scale = {_fmt(o.sky_scale)}")
     r = b.radiometry
     if r is not None:
         out += ["", "[radiometry]", f"response = {_fmt(r.response)}"]

@@ -6,7 +6,9 @@ bundle from images.
   rotation to ENU from the camera's own sun detections (Kabsch, then refined on pixels
   together with the lens's focal lengths, principal point and k1, k2, held to their
   checkerboard values by priors; ``--refine rotation`` keeps the lens) -> ``[orientation]``,
-  ``[site]`` and the refined ``[camera]``.
+  ``[site]`` and the refined ``[camera]``.  The frames are then measured again with that
+  rotation, and the scale of the sky's correction of the glare's rim is fitted with it
+  (``[orientation] sky_scale``; ``--sky-scale none`` leaves it at 1).
   ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
 * ``level``: the zenith from the horizon in one clear frame; prints the tilt and residual,
   and the disagreement with the bundle's orientation when it has one.
@@ -59,6 +61,13 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         "its checkerboard values by priors), the rotation only, or not",
     )
     o.add_argument("--horizon", type=Path, help="a clear frame whose horizon constrains the zenith")
+    o.add_argument(
+        "--sky-scale",
+        choices=("fit", "none"),
+        default="fit",
+        help="fit the scale of the sky's correction of the rim with the rotation (default; "
+        "kept at 1 unless it cuts the residual by 15 %%), or leave it at 1",
+    )
     o.add_argument("--bundle", type=Path, required=True)
     o.add_argument("images", nargs="+", type=Path, help="sky frames named with their UTC time")
     o.set_defaults(func=_orientation)
@@ -162,69 +171,43 @@ def _site(args, bundle):
 
 
 def _orientation(args) -> int:
-    from dataclasses import replace
-
-    from controller.calibration.fisheye_bundle import (
-        OrientationCal,
-        as_mat3,
-        load_fisheye_bundle,
-        save_fisheye_bundle,
-    )
-    from controller.calibration.fisheye_orientation import fit_orientation, level_from_horizon
-    from controller.sun.source import Site
-    from controller.vision.fisheye import FisheyeEstimator, load_frame
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle, save_fisheye_bundle
+    from controller.calibration.fisheye_orientation import level_from_horizon
+    from controller.calibration.fisheye_sun_calibration import calibrate_from_sun
+    from controller.vision.fisheye import load_frame
 
     from .estimate_fisheye import frame_times
 
     bundle = load_fisheye_bundle(args.bundle)
     site = _site(args, bundle)
-    est = FisheyeEstimator(replace(bundle, orientation=None))  # camera frame: no gate by ENU
-    times, dirs, uvs, missing = [], [], [], 0
+    frames = []
     for t, path in frame_times(list(args.images), None):
         if t is None:
             raise InputError(f"{path}: no timestamp in the file name (e.g. 2026-03-20T10-15-00Z.png)")
-        r = est.estimate_file(path, t)
-        if r.found and r.d_cam is not None and r.centre_uv is not None:
-            times.append(t)
-            dirs.append(r.d_cam)
-            uvs.append(r.centre_uv)
-        else:
-            missing += 1
+        frames.append((t, path))
     zen = None
     if args.horizon is not None:
         img, reason = load_frame(args.horizon)
         if img is None:
             raise InputError(f"{args.horizon}: {reason}")
         zen = level_from_horizon(img, bundle.camera).zenith_cam
-    fit = fit_orientation(
-        times,
-        np.asarray(dirs).reshape(-1, 3),
-        Site(latitude=site.latitude, longitude=site.longitude, altitude=site.altitude),
-        uv=np.asarray(uvs).reshape(-1, 2),
-        camera=bundle.camera,
+    cal = calibrate_from_sun(
+        bundle,
+        frames,
+        site,
         refine=None if args.refine == "none" else args.refine,
         horizon_zenith_cam=zen,
+        fit_scale=args.sky_scale == "fit",
     )
-    method = "sun" + ("+horizon" if zen is not None else "") + ("+lens" if fit.camera else "")
-    new = replace(
-        bundle,
-        orientation=OrientationCal(
-            enu_from_camera=as_mat3(fit.enu_from_camera),
-            residual_deg=round(fit.residual_deg, 5),
-            method=method,
-            frames=fit.used,
-        ),
-        site=site,
-    )
-    if fit.camera is not None:
-        new = replace(new, camera=fit.camera)
-    save_fisheye_bundle(new, args.bundle)
-    out = {
+    save_fisheye_bundle(cal.bundle, args.bundle)
+    fit, o = cal.fit, cal.bundle.orientation
+    assert o is not None
+    out: dict[str, object] = {
         "step": "fisheye orientation",
-        "method": method,
+        "method": o.method,
         "frames": len(args.images),
-        "detections": len(times),
-        "not_found": missing,
+        "detections": cal.detections,
+        "not_found": cal.not_found,
         "used": fit.used,
         "rejected": fit.rejected,
         "residual_deg": round(fit.residual_deg, 4),
@@ -235,6 +218,13 @@ def _orientation(args) -> int:
         out["residual_px"] = round(fit.residual_px, 4)
     if fit.horizon_disagreement_deg is not None:
         out["horizon_disagreement_deg"] = round(fit.horizon_disagreement_deg, 4)
+    if cal.sky is not None:
+        out["sky_scale"] = round(cal.sky.scale, 4)
+        out["sky_scale_fitted"] = round(cal.sky.fitted, 4)
+        out["sky_scale_residual_deg"] = [
+            round(cal.sky.residual_unscaled_deg, 4),
+            round(cal.sky.residual_deg, 4),
+        ]
     print(json.dumps(out))
     return 0
 

@@ -34,7 +34,7 @@ from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
-from .frames import load_mask
+from .frames import load_mask, with_sky_scale
 from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions, fit_glare
 from .history import GlareHistory
@@ -143,7 +143,7 @@ class FisheyeEstimator(FramePipeline):
 
     def __init__(self, bundle: FisheyeBundle, options: FisheyeOptions | None = None):
         self.bundle = bundle
-        self.options = options or FisheyeOptions()
+        self.options = with_sky_scale(options or FisheyeOptions(), bundle.orientation)
         cam = bundle.camera
         self.lens = FisheyeLens.from_camera(cam)
         self.shape = (cam.height, cam.width)

@@ -7,14 +7,19 @@ channels, an alpha channel is dropped.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
-from ...calibration.fisheye_bundle import FisheyeBundle
+from ...calibration.fisheye_bundle import FisheyeBundle, OrientationCal
 from ...errors import ConfigError
 from ..imageio import read_image
+
+if TYPE_CHECKING:
+    from .default import FisheyeOptions
 
 
 def load_frame(path: str | Path) -> tuple[np.ndarray | None, str | None]:
@@ -63,3 +68,12 @@ def load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | Non
             bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
         )
     return np.where(m > 0, 255, 0).astype(np.uint8)
+
+
+def with_sky_scale(options: FisheyeOptions, orientation: OrientationCal | None) -> FisheyeOptions:
+    """``options`` (a :class:`.default.FisheyeOptions`) with the bundle orientation's
+    ``sky_scale`` applied to its glare options (multiplying theirs)."""
+    if orientation is None or orientation.sky_scale == 1.0:
+        return options
+    glare = replace(options.glare, sky_scale=options.glare.sky_scale * orientation.sky_scale)
+    return replace(options, glare=glare)

@@ -80,6 +80,9 @@ class GlareOptions:
         cloud's, not a correction of the linearisation: the fit goes back to the settled axis
         and its sky (without it, a dimmed sun in our broken-cloud suite wandered 2.9 deg and
         a sunlit cloud's fleck was taken for it).
+    sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
+        with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
+        :func:`controller.calibration.fisheye_orientation.fit_sky_scale`).
     """
 
     level: float = 0.85
@@ -96,6 +99,7 @@ class GlareOptions:
     sky_reads: int = 3
     sky_settled_deg: float = 0.1
     sky_unsettled_deg: float = 0.25
+    sky_scale: float = 1.0
 
 
 @dataclass
@@ -278,7 +282,7 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
-        shift_s = shift * np.ones(n_rays)  # in the sky model's units
+        shift_s = opts.sky_scale * shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
         shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)

@@ -51,6 +51,10 @@ def test_bundle_round_trip(tmp_path):
     assert again.camera == b.camera and again.site == b.site
     np.testing.assert_allclose(again.enu_from_camera, np.eye(3))
     assert 'model = "fisheye"' in p.read_text()
+    assert "sky_scale" not in p.read_text()  # 1, the default, is not written
+    scaled = {**DOC, "orientation": {**DOC["orientation"], "sky_scale": 1.85}}
+    again = load_fisheye_bundle(save_fisheye_bundle(fisheye_bundle_from_dict(scaled), tmp_path / "s.toml"))
+    assert again.orientation.sky_scale == 1.85
 
 
 @pytest.mark.parametrize(
@@ -71,6 +75,10 @@ def test_bundle_round_trip(tmp_path):
         (
             {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "typo": 3}},
             "orientation.typo",
+        ),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "sky_scale": 5.0}},
+            "orientation.sky_scale",
         ),
         ({"radiometry": {"response": "cubic"}}, "radiometry.response"),
         ({"radiometry": {"response": "gamma"}}, "radiometry.gamma"),
