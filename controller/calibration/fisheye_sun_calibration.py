@@ -123,6 +123,6 @@ def calibrate_from_sun(
             ori = OrientationCal(enu_from_camera=as_mat3(sky.enu_from_camera))
             at = replace(out, orientation=ori)
             last = [f for f in _detect(at, frames, sky.scale) if f is not None]
-            fit = _fit(last, sun_site, out, **kw)
+            fit = _fit(last, sun_site, bundle, **kw)  # the lens's priors: the boards' values
             out = _with_fit(out, fit, site, method + lens + "+sky_scale", sky.scale)
     return SunCalibration(out, fit, sky, len(found), len(first) - len(found))

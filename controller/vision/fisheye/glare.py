@@ -82,7 +82,7 @@ class GlareOptions:
         a sunlit cloud's fleck was taken for it).
     sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
         with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
-        :func:`controller.calibration.fisheye_orientation.fit_sky_scale`).
+        :func:`controller.calibration.fisheye_sky_scale.fit_sky_scale`).
     """
 
     level: float = 0.85
