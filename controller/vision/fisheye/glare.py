@@ -79,7 +79,12 @@ class GlareOptions:
         after the second that moves the settled axis by more than ``sky_unsettled_deg`` is a
         cloud's, not a correction of the linearisation: the fit goes back to the settled axis
         and its sky (without it, a dimmed sun in our broken-cloud suite wandered 2.9 deg and
-        a sunlit cloud's fleck was taken for it).
+        a sunlit cloud's fleck was taken for it).  Not when that sky was read inside the glare
+        (``drop_stale_sky``: its innermost ring at or above the rim's level, so it was read
+        around a rim since outgrown): the second renderer's linear output, a 17-deg sun fitted
+        on a 2-deg core at first, settled at 3.8 deg with the sky read there (no dipole), and
+        read 0.74 deg low with a sigma of 0.22; now 0.06.  (The cloud's readings that this
+        rule is for began at 0.5-0.75 of the contrast.)
     sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
         with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
         :func:`controller.calibration.fisheye_sky_scale.fit_sky_scale`).
@@ -99,6 +104,7 @@ class GlareOptions:
     sky_reads: int = 3
     sky_settled_deg: float = 0.1
     sky_unsettled_deg: float = 0.25
+    drop_stale_sky: bool = True
     sky_scale: float = 1.0
 
 
@@ -219,6 +225,7 @@ def fit_glare(
     ring_sel = np.arange(0, n_rays, max(1, n_rays // 36))
     lo_f, hi_f = 0.5, 1.7
     reads, settled, unsettled = 0, math.radians(opts.sky_settled_deg), math.radians(opts.sky_unsettled_deg)
+    read_inside, kept_stale = False, False  # the last reading's rings began inside the glare
     for it in range(opts.max_passes):
         e1, e2 = tangent_basis(a)
         # the streak's rays: both ways, the near-vertical ones (by design: not counted in the
@@ -234,6 +241,7 @@ def fit_glare(
         reads += int(sky_pass)
         if sky_pass and it >= 2:  # a settled fit, kept in case the new reading unsettles it
             kept = (a, rho, dipole, by_el, bg, bg_s, top_s)
+            kept_stale = read_inside and opts.drop_stale_sky
         grids = [(phi, rim_chi)]
         if sky_pass:
             ring_chi = np.arange(1.15 * rho, 3.2 * rho + 4 * step, 3 * step)
@@ -275,6 +283,8 @@ def fit_glare(
             bg_s = bg
             if radiometry is not None:
                 bg = float(radiometry.to_grey(bg_s))
+            inner = samples[1][0][:, ring_chi < 1.4 * rho][rsky[:, ring_chi < 1.4 * rho]]
+            read_inside = inner.size > 0 and float(np.median(inner)) >= bg + opts.level * (peak - bg)
         if by_el is not None:
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)
@@ -325,7 +335,7 @@ def fit_glare(
         idx = np.flatnonzero(has)[inl]
         moved = math.acos(min(1.0, float(a_new @ a)))
         a = a_new
-        if sky_pass and it >= 2 and moved > unsettled:
+        if sky_pass and it >= 2 and moved > unsettled and not kept_stale:
             # a reading that moves a settled axis this far is a cloud's, not a correction of
             # the linearisation: back to the settled fit and its sky, no more readings, and
             # one more pass to refit the rim there (on the last pass, the fit is left unsettled)
