@@ -130,7 +130,7 @@ class GlareFit:
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
     sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
-    sky_gap: bool = False  # the largest gap faces the horizon and its rays found no rim
+    sky_gap: bool = False  # the largest gap faces the horizon (or the zenith, near it), no rim found
     one_way_streak: bool = False  # the rays towards a streak that leaves one way were left out
 
     @property
@@ -370,6 +370,12 @@ def fit_glare(
     # a one-sided streak's rays are in the gap (its rim is unseen there) but found no rim by
     # design: the sky's gap is judged on the gap's other rays
     sky_rays = gap_rays[rays_ok[gap_rays]]
+    # the sky's gap faces the horizon; near it, where the sky is modelled by elevation and
+    # the model's guesses at the rim's top and bottom are dropped, it may face the zenith too
+    mid = float(phi[gap_rays[gap_rays.size // 2]]) if gap_rays.size else 0.0
+    faces_sky = _faces_horizon(mid, a, e1, e2, up_cam) or (
+        by_el is not None and _faces_horizon(mid + math.pi, a, e1, e2, up_cam)
+    )
     return GlareFit(
         axis=a,
         radius_deg=math.degrees(rho),
@@ -378,9 +384,7 @@ def fit_glare(
         n_valid=int(has.sum()),
         n_inliers=len(idx),
         max_gap_deg=gap_deg,
-        sky_gap=sky_rays.size > 0
-        and _faces_horizon(float(phi[gap_rays[gap_rays.size // 2]]), a, e1, e2, up_cam)
-        and float(np.mean(has[sky_rays])) < 0.5,
+        sky_gap=sky_rays.size > 0 and faces_sky and float(np.mean(has[sky_rays])) < 0.5,
         centre_uv=(xc, yc),
         radius_px=r_fit,
         peak=peak,

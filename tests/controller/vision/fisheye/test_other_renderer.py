@@ -217,6 +217,24 @@ def test_a_sky_read_around_a_rim_since_outgrown_is_read_again_not_kept():
     assert errs[1] > 0.5  # the case is still in the frame
 
 
+def test_near_the_horizon_a_rim_whose_top_the_sky_model_drops_is_not_trusted():
+    """CIE sky type 10 at type 12's circumsolar level, a 5.3-deg sun (21 Dec): the sky is
+    modelled by elevation, and its guesses at the rim's top and bottom are dropped, so the
+    rim is two side arcs. Its largest gap (107 deg) faced the zenith, not the horizon, was
+    taken for a cloud's (150 deg allowed), and the sun read 0.29 deg high (sigma 0.84).
+    A 7-deg sun whose gaps stay under 100 deg is still found."""
+    look = next(lk for lk in other.CLEAR_LOOKS if "CIE sky type 10" in lk.name)
+    rays, R = other.pixel_rays(), other.rotation()
+    est = FisheyeEstimator(other.bundle(R, look))
+    img, _ = other.render(look, 1766334600.0, rays, R, np.random.default_rng(0))
+    res = est.estimate_image(img, 1766334600.0)
+    assert not res.found and res.reason == "incomplete_glare"
+    img, truth = other.render(look, 1742454000.0, rays, R, np.random.default_rng(0))
+    res = FisheyeEstimator(other.bundle(R, look)).estimate_image(img, 1742454000.0)
+    assert res.found and "near_horizon" in res.quality
+    assert angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), truth["sun_enu"]) < res.sigma_deg
+
+
 def test_the_simple_look_draws_a_hard_saturated_disk_and_a_halo_under_full_scale():
     rays, R = other.pixel_rays(), other.rotation()
     t = other.utc_midnight(2025, 6, 21) + 12 * 3600.0  # a high sun
