@@ -67,26 +67,21 @@ class FisheyeOptions:
     All are physical or geometric (angular sizes, fractions of the rim), none in pixels of
     one particular camera except ``max_rms_px``, the rim's roughness relative to the pixel (a
     cloud-mangled sun's rim is rough by a few per cent of its radius, a saturated cloud patch
-    by tens of per cent; the sun's visible rims in our broken-cloud suite have a median of
-    0.07 px and 0.6 %, p95 0.20 px and 1.8 %; a thin cloud's bright halo around a dimmed sun,
-    fitted 1-5 deg off it, 4 % in the median: on the third renderer's clouds without the site,
-    45 such detections with 0.6 px + 8 %, 25 with 0.3 px + 4 %, and 2 misses fewer; with the
-    site, our broken-cloud suite with and without it, and 29 clear looks of the three
-    renderers, no frame found or lost; 0.3 px + 3 % cost our suite a miss and, without the
-    site, a false detection), and ``small_glare_px``: a glare of a few pixels' radius must show
-    ``small_min_inlier_fraction`` of its rim. A sun cut by a cloud keeps a large glare with a
-    gap in its rim; a rim of a few pixels fitted on part of its rays is a sunlit cloud's
-    saturated fleck (its roughness cannot tell: the pixels shape it).
-    Measured on both renderers' broken-cloud suites: such flecks fit 35-71 % of their rays,
-    the small glares of suns dimmed by thin cloud 83-100 % (the second renderer) and 56-92 %
-    (ours).
-    A rim whose largest gap is the sky's (it faces the horizon, its middle within 60 deg of
-    down the vertical through the glare, and most of its rays found no rim: next to a low
-    sun the clear sky brightens towards the horizon until the rays clip or the sky's model
-    is a guess) may miss ``max_horizon_gap_deg`` at most: the arc left carries that model's
-    error on its radius straight into its centre (second renderer, wide glare, 15-19 deg:
-    0.15-0.70 deg off with 100-113 deg gaps; 83-97 deg gaps within 0.05).  A cloud's gap
-    is of rays whose rims it pulled in (outliers), and keeps ``max_gap_deg``.
+    by tens of per cent; our broken-cloud suite's visible suns: median 0.07 px and 0.6 %, p95
+    0.20 px and 1.8 %; a thin cloud's bright halo around a dimmed sun, fitted 1-5 deg off it,
+    4 % in the median: the third renderer's clouds without the site gave 45 such detections
+    with 0.6 px + 8 %, 25 with 0.3 px + 4 %; 0.3 px + 3 % cost our suite a miss and, without
+    the site, a false detection; docs/fisheye.md step 8), and ``small_glare_px``: a glare a few
+    pixels in radius must show ``small_min_inlier_fraction`` of its rim (a rim of a few pixels
+    on part of its rays is a sunlit cloud's fleck: 35-71 % of their rays on both renderers'
+    broken-cloud suites; suns dimmed by thin cloud 83-100 % and 56-92 %).
+    A rim whose largest gap is the sky's (most of its rays found no rim, and it faces the
+    horizon, its middle within 60 deg of down the vertical through the glare, or near the
+    horizon the zenith: the clear sky brightens towards the horizon until the rays clip, or
+    the sky's model is a guess) may miss ``max_horizon_gap_deg`` at most: the arc left
+    carries that model's error on its radius straight into its centre (second renderer,
+    wide glare, 15-19 deg: 0.15-0.70 deg off with 100-113 deg gaps; 83-97 deg gaps within
+    0.05).  A cloud's gap is of rays whose rims it pulled in (outliers): ``max_gap_deg``.
     A glare whose centre the sky's correction of its rim moved by more than
     ``max_sky_move_deg`` is refused (``sky_dominated``): that centre is the sky model's, whose
     extrapolation from the rings to the rim is good to 5-15 % (a 1-deg move: 0.05-0.15 deg).
@@ -96,7 +91,9 @@ class FisheyeOptions:
     A sun whose own sigma exceeds ``max_sigma_deg`` is refused (``imprecise_glare``): no gate
     or loop can use it, and a wrong one that size is what it stands for (a rim held on 35 %
     of its rays at 14.5 deg, sigma 1.8, 0.89 off; our bright sky at 22-24 deg, sigma 1.2-1.3,
-    0.10-0.14 off).
+    0.10-0.14 off).  Under ``near_horizon_deg`` the bound is ``max_sigma_near_horizon_deg``:
+    there the error is the elevation model's, the same way frame after frame (CIE sky type
+    10 at 5-10 deg: sigma 0.53-0.90, all read 0.09-0.42 high), which a filter takes for noise.
     """
 
     glare: GlareOptions = field(default_factory=GlareOptions)
@@ -115,6 +112,7 @@ class FisheyeOptions:
     min_core_fill: float = 0.9
     max_last_move_deg: float = 0.1  # a fit still moving this much at its last pass: unsettled
     max_sigma_deg: float = 1.0  # a sun placed no better than this is no observation
+    max_sigma_near_horizon_deg: float = 0.5
     max_sky_move_deg: float = 1.0  # the sky's correction moved the centre further: the sky's, not the glare's
     min_contrast: float = 0.12  # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
@@ -276,7 +274,8 @@ class FisheyeEstimator(FramePipeline):
                     None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
                 )
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
-        if res.sigma_deg is not None and res.sigma_deg > o.max_sigma_deg:
+        bound = o.max_sigma_near_horizon_deg if "near_horizon" in res.quality else o.max_sigma_deg
+        if res.sigma_deg is not None and res.sigma_deg > bound:
             return not_found(
                 None, "imprecise_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
             )
