@@ -112,7 +112,7 @@ class FisheyeOptions:
     min_core_fill: float = 0.9
     max_last_move_deg: float = 0.1  # a fit still moving this much at its last pass: unsettled
     max_sigma_deg: float = 1.0  # a sun placed no better than this is no observation
-    max_sigma_near_horizon_deg: float = 0.5
+    max_sigma_near_horizon_deg: float = 0.5  # the same under near_horizon_deg (see above)
     max_sky_move_deg: float = 1.0  # the sky's correction moved the centre further: the sky's, not the glare's
     min_contrast: float = 0.12  # (peak - sky) / peak
     horizon_margin_deg: float = 1.0
