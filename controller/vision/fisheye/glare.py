@@ -8,10 +8,11 @@ Method (see docs/fisheye.md):
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
    removes the background's gradient first (a sky brighter on one side would shift the rim).
    An unsaturated column smear (a CCD's frame-transfer streak) adds the same level above
-   and below the glare and leaves its centre in place; a saturated streak (bloom,
-   :mod:`.streak`) costs the rays that run into it, whose rims it hides: the near-vertical
-   rays when it leaves both ways, those within 40 deg of its way when it leaves one way
-   (their sky's rings too, and the sky's dipole is fitted on the rest of the circle).
+   and below the glare and is left in, though it can move the centre ~0.07 deg (docs:
+   a seventeenth round); a saturated streak (bloom, :mod:`.streak`) costs the rays that
+   run into it, whose rims it hides: the near-vertical rays when it leaves both ways,
+   those within 40 deg of its way when it leaves one way (their sky's rings too, and the
+   sky's dipole is fitted on the rest of the circle).
 3. **Cone.**  Rim points become unit vectors through the calibrated lens.  Points on a
    small circle of the sphere lie on a plane, ``a . v = cos(rho)``, fitted robustly
    (:func:`.sphere.fit_cone`: median / MAD rejection from all points and from a RANSAC
@@ -194,7 +195,7 @@ def fit_glare(
     H, W = grey.shape
     xc, yc, r = float(x0), float(y0), max(float(r_px), 1.5)
     # a saturated streak (bloom) costs the rays that run into it; an unsaturated column
-    # smear is symmetric about the glare's row and leaves the centre where it is.  The
+    # smear is left in (symmetric about the glare's row, but see the module's step 2).  The
     # candidate's disk is rough (a noisy plateau's inscribed disk is small and off centre):
     # a streak that leaves one way only is judged around the first pass's rim instead
     streak = streak_way(streak_sides(grey, xc, yc, r, peak - 3))
