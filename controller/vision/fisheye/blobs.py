@@ -61,7 +61,7 @@ def find_blobs(
         area = int(cv2.countNonZero(sub))
         if area < min_area_px:
             continue
-        dt = cv2.distanceTransform((sub > 0).astype(np.uint8), cv2.DIST_L2, 5)
+        dt = _inscribed_dt(sub > 0)
         dt_avg = _averaged_core_dt(grey, valid, (x0, y0, x1, y1), threshold)
         centres = [
             (x, y, max(r, float(dt_avg[int(y) - y0, int(x) - x0]))) for x, y, r in _dt_centres(dt, x0, y0)
@@ -88,7 +88,17 @@ def _averaged_core_dt(
     core = avg >= threshold - 0.5 - (float(win.max()) - float(avg.max()))
     if valid is not None:
         core &= valid[y0:y1, x0:x1] > 0
-    return np.asarray(cv2.distanceTransform(core.astype(np.uint8), cv2.DIST_L2, 5))
+    return _inscribed_dt(core)
+
+
+def _inscribed_dt(mask: np.ndarray) -> np.ndarray:
+    """Distance transform (px) of a boolean mask, the box's edge counting as background
+    when nothing inside it does: a flat or white frame is one blob with no background, whose
+    transform is otherwise unbounded (a kernel that size raised)."""
+    if mask.all():
+        padded = cv2.copyMakeBorder(mask.astype(np.uint8), 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+        return np.asarray(cv2.distanceTransform(padded, cv2.DIST_L2, 5))[1:-1, 1:-1]
+    return np.asarray(cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 5))
 
 
 def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[float, float, float]]:

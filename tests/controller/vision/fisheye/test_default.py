@@ -188,6 +188,15 @@ def test_bad_images_are_reasons_not_tracebacks(scn, image, reason):
     assert not res.found and res.reason == reason
 
 
+@pytest.mark.parametrize("level", [255, 250, 200])
+def test_a_flat_frame_is_overexposed_not_a_traceback(scn, level):
+    # one blob with no background pixel: its distance transform was unbounded and raised
+    h, w = scn.lens.height, scn.lens.width
+    for img in (np.full((h, w, 3), level, np.uint8), np.full((h, w), level, np.uint8)):
+        res = FisheyeEstimator(truth_bundle(scn)).estimate_image(img, T)
+        assert not res.found and res.reason == "overexposed"
+
+
 def test_bad_files_are_reasons_not_tracebacks(scn, tmp_path):
     import cv2
 
