@@ -414,11 +414,20 @@ class CameraSunSensor:
             return None
         if self.colour and frame.image.ndim == 3 and frame.image.dtype == np.uint8:
             image = frame.image
-        if self.prior is not None:
-            result = self.estimator.estimate_image(image, frame.time, prior=self.prior(frame.time))
-        else:
-            result = self.estimator.estimate_image(image, frame.time)
-        obs = result.observation()
+        try:
+            if self.prior is not None:
+                result = self.estimator.estimate_image(image, frame.time, prior=self.prior(frame.time))
+            else:
+                result = self.estimator.estimate_image(image, frame.time)
+            obs = result.observation()
+        except Exception as exc:  # a fault of the measurement costs its look, never the loop
+            kind = type(exc).__name__
+            if not any(k.startswith(f"estimator_error: {kind}") for k in self.outcomes):
+                log.exception(
+                    "%s camera: the estimator failed on frame %r (logged once)", self.name, frame.name
+                )
+            self._outcome(f"estimator_error: {kind}")
+            return None
         self._outcome("found" if obs is not None else getattr(result, "reason", "") or "not found")
         return obs
 

@@ -73,3 +73,21 @@ def test_a_group_returns_every_cameras_observation_with_its_own_sigma():
     assert [(o.sensor, o.sigma_deg) for o in both] == [("hotspot", 0.1), ("fisheye", 0.02)]
     assert group.outcomes == {"hotspot: found": 3, "fisheye: no_sun_glare": 1, "fisheye: found": 1}
     assert group.by_camera()["fisheye"] == {"no_sun_glare": 1, "found": 1}
+
+
+class Faulty(Recorder):
+    """An estimator with a bug that shows on some frames only."""
+
+    def estimate_image(self, image, t, prior=None):
+        if int(t) % 120 == 0:
+            raise ValueError("Maximum allowed dimension exceeded")
+        return super().estimate_image(image, t, prior)
+
+
+def test_an_estimator_that_raises_costs_its_look_not_the_loop(caplog):
+    cam = CameraSunSensor(CallableFrameSource(colour_frames), Faulty(0.1, "fisheye"), "fisheye")
+    got = [len(cam.observations(T0 + k * 60.0)) for k in range(4)]
+    assert got == [0, 1, 0, 1]  # T0 is a multiple of 120 s
+    assert cam.outcomes == {"estimator_error: ValueError": 2, "found": 2}
+    tracebacks = [r for r in caplog.records if r.exc_info is not None]
+    assert len(tracebacks) == 1  # logged once, then counted
