@@ -138,6 +138,8 @@ def _lens(args) -> int:
     from controller.calibration.fisheye_bundle import update_fisheye_bundle
     from controller.calibration.fisheye_lens import calibrate_fisheye
 
+    if not (math.isfinite(args.square) and args.square > 0):
+        raise InputError(f"lens: --square: expected the squares' size in metres (> 0), got {args.square}")
     views = [(str(p), _grey(p)) for p in args.images]
     h, w = views[0][1].shape[:2]
     res = calibrate_fisheye(views, (w, h), _pattern(args.pattern), args.square)
@@ -163,6 +165,15 @@ def _lens(args) -> int:
 def _site(args, bundle):
     from controller.calibration.fisheye_bundle import SiteCal
 
+    for flag, value, lo, hi in (
+        ("--lat", args.lat, -90, 90),
+        ("--lon", args.lon, -180, 180),
+        ("--alt", args.alt, -500, 9000),
+    ):
+        if value is not None and not (math.isfinite(value) and lo <= value <= hi):
+            raise InputError(f"orientation: {flag}: expected a number in [{lo}, {hi}], got {value}")
+    if (args.lat is None) != (args.lon is None):
+        raise InputError("orientation: give both --lat and --lon (or neither, to use the bundle's [site])")
     if args.lat is not None and args.lon is not None:
         return SiteCal(latitude=args.lat, longitude=args.lon, altitude=args.alt)
     if bundle.site is not None:

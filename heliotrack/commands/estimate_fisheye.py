@@ -1,9 +1,10 @@
 """``heliotrack estimate --sensor fisheye``: the sky camera's sun, one JSON line per image.
 
 The images of one call are one sequence: they are processed in time order (the time of
-each from ``--time``, else from the timestamp in its file name, canonical form
-``2026-03-20T10-15-00Z.png``; images without a time keep their place after the timed
-ones), so the previous accepted detection gates the next (the paper's rule 3, in angle).
+each from the timestamp in its file name, canonical form ``2026-03-20T10-15-00Z.png``, or
+from ``--time`` for a single image; images without a time keep their place after the
+timed ones), so the previous accepted detection gates the next (the paper's rule 3, in
+angle).
 """
 
 from __future__ import annotations
@@ -12,6 +13,8 @@ import argparse
 import json
 import sys
 from pathlib import Path
+
+from controller.errors import InputError
 
 
 def frame_times(images: list[Path], t_cli: float | None) -> list[tuple[float | None, Path]]:
@@ -41,6 +44,10 @@ def make_estimator(calib: Path, algorithm: str):
 def run(args: argparse.Namespace) -> int:
     from controller.timestamps import parse_timestamp, to_iso
 
+    if args.time and len(args.images) > 1:
+        # several fisheye images are one sequence, gated frame to frame: one time for all
+        # would make every step a jump of zero seconds
+        raise InputError("--time stamps a single image; several images take their times from their names")
     est = make_estimator(args.calib, args.algorithm)
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
     for t, path in frame_times(list(args.images), t_cli):

@@ -80,6 +80,38 @@ def test_calibration_writes_a_fisheye_bundle_with_orientation_and_site(installed
     assert b.orientation.method == "sun+horizon+lens"
 
 
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--lat", "95", "--lon", "48"], "--lat: expected a number in [-90, 90], got 95.0"),
+        (["--lat", "32", "--lon", "400"], "--lon: expected a number in [-180, 180], got 400.0"),
+        (["--lat", "nan", "--lon", "48"], "--lat: expected a number in [-90, 90], got nan"),
+        (["--lat", "32", "--lon", "48", "--alt=-1e5"], "--alt: expected a number in [-500, 9000]"),
+        (["--lat", "32"], "give both --lat and --lon"),
+    ],
+)
+def test_an_impossible_site_is_refused_before_the_bundle_is_touched(
+    installed, capsys, tmp_path, flags, message
+):
+    out, bundle, _ = installed
+    copy = tmp_path / "b.toml"
+    shutil.copy(bundle, copy)
+    text = copy.read_text()
+    day = sorted((out / "day").glob("*.png"))[:3]
+    capsys.readouterr()
+    assert main(["calibrate", "fisheye", "orientation", *flags, "--bundle", str(copy), *map(str, day)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and copy.read_text() == text
+
+
+@pytest.mark.parametrize("square", ["-1", "0", "nan"])
+def test_a_checkerboard_square_must_have_a_size(tmp_path, capsys, square):
+    bundle = tmp_path / "lens.toml"
+    assert main(["calibrate", "fisheye", "lens", "--square", square, "--bundle", str(bundle), "x.png"]) == 2
+    assert "--square: expected the squares' size in metres (> 0)" in capsys.readouterr().err
+    assert not bundle.exists()
+
+
 def test_estimate_prints_one_line_per_image_in_time_order(installed, capsys):
     out, bundle, truth = installed
     frames = sorted((out / "day").glob("*.png"))[2:6]
@@ -95,6 +127,17 @@ def test_estimate_prints_one_line_per_image_in_time_order(installed, capsys):
         )
         assert err < 0.1
         assert {"quality", "sigma_deg", "offset_px", "radius_deg"} <= set(g)
+
+
+def test_one_time_for_a_sequence_of_images_is_refused(installed, capsys):
+    out, bundle, _ = installed
+    frames = [str(p) for p in sorted((out / "day").glob("*.png"))[2:4]]
+    argv = ["estimate", "--sensor", "fisheye", "--calib", str(bundle), "--time", "2026-03-20T10:00:00Z"]
+    assert main([*argv, *frames]) == 2
+    out_, err = capsys.readouterr()
+    assert out_ == "" and "--time stamps a single image" in err
+    assert main([*argv, frames[0]]) == 0
+    assert lines(capsys)[0]["time"] == "2026-03-20T10:00:00Z"
 
 
 def test_estimate_seed_algorithm(installed, capsys):
