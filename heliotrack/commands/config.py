@@ -35,9 +35,28 @@ def _docs(args: argparse.Namespace) -> int:
 
 
 def _validate(args: argparse.Namespace) -> int:
+    from controller.calibration.bundle import load_bundle
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
     from controller.config import load_config
+    from controller.errors import ConfigError
     from heliotrack.scenario import load_scenario
 
-    cfg = load_scenario(args.file) if args.scenario else load_config(args.file)
-    print(f"{args.file}: ok ({len(cfg.links)} link(s), {len(cfg.trackers)} tracker(s))")
+    try:
+        cfg = load_scenario(args.file) if args.scenario else load_config(args.file)
+    except ConfigError as exc:
+        if exc.key == "hil" and not args.scenario:
+            raise ConfigError(
+                exc.file,
+                "hil",
+                "a plant file, with no [hil] table (a [hil] table makes a scenario: validate it with --scenario)",
+            ) from None
+        raise
+    bundles = 0
+    for name, load in (("hotspot", load_bundle), ("fisheye", load_fisheye_bundle)):
+        cam = getattr(cfg, name, None)
+        if cam is not None and getattr(cam, "calibration", None) is not None:
+            load(cam.calibration)  # a bad bundle is the plant file's error too (raises with its key)
+            bundles += 1
+    extra = f", {bundles} calibration bundle(s)" if bundles else ""
+    print(f"{args.file}: ok ({len(cfg.links)} link(s), {len(cfg.trackers)} tracker(s){extra})")
     return 0

@@ -55,6 +55,26 @@ def test_run_and_check_refuse_the_simulators_devices(tmp_path, capsys, command, 
     assert err.count("\n") == 0 and f"{p}: {key}" in err and "heliotrack simulate" in err, err
 
 
+def test_validate_opens_the_calibration_bundle_the_plant_file_names(tmp_path, capsys):
+    good = _variant(tmp_path, "[hotspot]", "[hotspot]")
+    assert main(["config", "validate", str(good)]) == 0
+    assert "1 calibration bundle(s)" in capsys.readouterr().out
+    bundle = tmp_path / "typo.toml"
+    text = (REPO / "config" / "calibration" / "recommended.toml").read_text()
+    bundle.write_text(text.replace("[camera]", "[cameras]", 1))
+    p = tmp_path / "plant.toml"
+    p.write_text(good.read_text().replace(f"{REPO}/config/calibration/recommended.toml", str(bundle)))
+    assert main(["config", "validate", str(p)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"{bundle}: cameras" in err, err
+
+
+def test_validate_points_a_scenario_file_to_the_scenario_flag(capsys):
+    assert main(["config", "validate", str(DEFAULT_CONFIG)]) == 2
+    assert "validate it with --scenario" in capsys.readouterr().err
+    assert main(["config", "validate", "--scenario", str(DEFAULT_CONFIG)]) == 0
+
+
 def test_run_refuses_a_scenario_file(capsys):
     assert main(["run", "--config", str(DEFAULT_CONFIG)]) == 2
     assert "no [hil] table" in capsys.readouterr().err
