@@ -18,6 +18,9 @@ from ..schema import Where, setting
 DIST_LENGTHS = {"pinhole": (4, 5, 8, 12, 14), "fisheye": (4,)}
 
 
+_DEFAULT_DIST = (0.0, 0.0, 0.0, 0.0, 0.0)
+
+
 @dataclass(frozen=True)
 class CameraCal:
     """Intrinsics of the camera (OpenCV)."""
@@ -29,7 +32,7 @@ class CameraCal:
     cx: float = setting(doc="Principal point x.", unit="px")
     cy: float = setting(doc="Principal point y.", unit="px")
     dist: tuple[float, ...] = setting(
-        (0.0, 0.0, 0.0, 0.0, 0.0),
+        _DEFAULT_DIST,
         doc="Distortion "
         "coefficients in OpenCV's order: [k1, k2, p1, p2, k3] "
         "(pinhole), [k1, k2, k3, k4] (fisheye).",
@@ -52,5 +55,13 @@ class CameraCal:
     def __schema_check__(self, at: Where) -> CameraCal:
         if len(self.dist) not in DIST_LENGTHS[self.model]:
             order = "[k1, k2, k3, k4]" if self.model == "fisheye" else "[k1, k2, p1, p2, k3]"
-            raise at.child("dist").error(f"{order} (OpenCV order, {self.model} model)", list(self.dist))
+            got = (
+                "the pinhole's default (is the key missing?)"
+                if self.dist == _DEFAULT_DIST
+                else list(self.dist)
+            )
+            raise at.child("dist").error(f"{order} (OpenCV order, {self.model} model)", got)
+        for key, c, size in (("cx", self.cx, self.width), ("cy", self.cy, self.height)):
+            if not 0 <= c <= size:  # the lens's axis meets the sensor (a sign or a unit error does not)
+                raise at.child(key).error(f"a principal point inside the {size}-px image", c)
         return self

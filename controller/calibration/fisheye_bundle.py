@@ -199,7 +199,14 @@ class FisheyeBundle:
 
     def __schema_check__(self, at: Where) -> FisheyeBundle:
         if self.camera.model != "fisheye":
-            raise at.child("camera").child("model").error('"fisheye" (a cv2.fisheye lens)', self.camera.model)
+            raise (
+                at.child("camera")
+                .child("model")
+                .error(
+                    '"fisheye" (a cv2.fisheye lens; without the key a camera is a pinhole one)',
+                    self.camera.model,
+                )
+            )
         return self
 
     @property

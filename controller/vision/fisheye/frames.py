@@ -67,6 +67,10 @@ def load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | Non
         raise ConfigError(
             bundle.path, "mask", f"a readable {shape[1]}x{shape[0]} mask image", str(bundle.mask)
         )
+    if not m.any():  # every frame would be `no_sun_glare`: a mask written inverted, or black
+        raise ConfigError(
+            bundle.path, "mask", "a mask that leaves some of the sky in (white = use)", str(bundle.mask)
+        )
     return np.where(m > 0, 255, 0).astype(np.uint8)
 
 

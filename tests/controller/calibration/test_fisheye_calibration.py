@@ -92,6 +92,8 @@ def test_bundle_round_trip(tmp_path):
         ({"radiometry": {"response": "linear", "table": [i / 255 for i in range(256)]}}, "radiometry.table"),
         ({"radiometry": {"vignetting": [-1.0]}}, "radiometry.vignetting"),
         ({"radiometry": {"vignetting": [0.0, 0.0, 0.0, 0.0, 0.1]}}, "radiometry.vignetting"),
+        ({"camera": {**DOC["camera"], "cx": 5000.0}}, "camera.cx"),
+        ({"camera": {**DOC["camera"], "cy": -3.0}}, "camera.cy"),
     ],
 )
 def test_bundle_errors_name_the_key(patch, key):
@@ -196,3 +198,26 @@ def test_an_untouched_bundle_type_is_frozen():
     assert isinstance(b, FisheyeBundle)
     with pytest.raises(AttributeError):
         b.site = None  # type: ignore[misc]
+
+
+@pytest.mark.parametrize(
+    "drop, message", [("model", "without the key a camera is a pinhole one"), ("dist", "is the key missing?")]
+)
+def test_a_missing_lens_key_is_not_reported_as_the_pinholes_default(drop, message):
+    camera = {k: v for k, v in DOC["camera"].items() if k != drop}
+    with pytest.raises(ConfigError) as exc:
+        fisheye_bundle_from_dict({**DOC, "camera": camera})
+    assert message in str(exc.value)
+
+
+def test_a_mask_that_hides_the_whole_sky_is_refused(tmp_path):
+    import cv2
+
+    from controller.vision.fisheye.frames import load_mask
+
+    w, h = DOC["camera"]["width"], DOC["camera"]["height"]
+    cv2.imwrite(str(tmp_path / "black.png"), np.zeros((h, w), np.uint8))
+    bundle = fisheye_bundle_from_dict({**DOC, "mask": "black.png"}, tmp_path / "b.toml")
+    with pytest.raises(ConfigError) as exc:
+        load_mask(bundle, (h, w))
+    assert exc.value.key == "mask" and "leaves some of the sky in" in str(exc.value)
