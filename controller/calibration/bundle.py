@@ -238,8 +238,29 @@ class CalibrationBundle:
 
 def load_bundle(path: str | Path) -> CalibrationBundle:
     """Read and validate a bundle; errors name the file, the key and what was expected."""
-    b = load_file(CalibrationBundle, path)
+    try:
+        b = load_file(CalibrationBundle, path)
+    except ConfigError as exc:
+        if _is_fisheye(path):  # the other camera's bundle: say so rather than name a key
+            raise ConfigError(
+                path,
+                "camera.model",
+                "a hotspot camera's bundle (this is a fisheye sky camera's: --sensor fisheye)",
+            ) from exc
+        raise
     return replace(b, path=Path(path))
+
+
+def _is_fisheye(path: str | Path) -> bool:
+    """Whether the TOML file at ``path`` declares a fisheye lens (``[camera] model``)."""
+    import tomllib
+
+    try:
+        doc = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    camera = doc.get("camera")
+    return isinstance(camera, dict) and camera.get("model") == "fisheye"
 
 
 def bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> CalibrationBundle:

@@ -217,6 +217,14 @@ def test_a_hotspot_bundle_is_a_clear_error_for_the_fisheye_sensor(tmp_path):
     assert str(local) in r.stderr and "camera" in r.stderr
 
 
+def test_a_fisheye_bundle_given_to_the_hotspot_sensor_says_which_sensor_it_is_for(installed, capsys):
+    out, bundle, _ = installed
+    frame = sorted((out / "day").glob("*.png"))[0]
+    assert main(["estimate", "--sensor", "hotspot", "--calib", str(bundle), str(frame)]) == 2
+    err = capsys.readouterr().err
+    assert f"{bundle}: camera.model" in err and "--sensor fisheye" in err and err.count("\n") == 1
+
+
 def test_level_prints_the_tilt(installed, capsys):
     out, bundle, _ = installed
     assert main(["calibrate", "fisheye", "level", "--bundle", str(bundle), str(out / "horizon.png")]) == 0
