@@ -125,6 +125,20 @@ def _pattern(text: str) -> tuple[int, int]:
     return nx, ny
 
 
+def _frame_of(path: Path, camera) -> np.ndarray:
+    """The frame at ``path``, of the bundle's lens's size (else a one-line error)."""
+    from controller.vision.fisheye import load_frame
+
+    img, reason = load_frame(path)
+    if img is None:
+        raise InputError(f"{path}: {reason}")
+    if img.shape[:2] != (camera.height, camera.width):
+        raise InputError(
+            f"{path}: size_mismatch (expected {camera.width}x{camera.height}, got {img.shape[1]}x{img.shape[0]})"
+        )
+    return img
+
+
 def _grey(path: Path) -> np.ndarray:
     from controller.vision.imageio import load_grey
 
@@ -185,7 +199,6 @@ def _orientation(args) -> int:
     from controller.calibration.fisheye_bundle import load_fisheye_bundle, save_fisheye_bundle
     from controller.calibration.fisheye_orientation import level_from_horizon
     from controller.calibration.fisheye_sun_calibration import calibrate_from_sun
-    from controller.vision.fisheye import load_frame
 
     from .estimate_fisheye import frame_times
 
@@ -198,10 +211,7 @@ def _orientation(args) -> int:
         frames.append((t, path))
     zen = None
     if args.horizon is not None:
-        img, reason = load_frame(args.horizon)
-        if img is None:
-            raise InputError(f"{args.horizon}: {reason}")
-        zen = level_from_horizon(img, bundle.camera).zenith_cam
+        zen = level_from_horizon(_frame_of(args.horizon, bundle.camera), bundle.camera).zenith_cam
     cal = calibrate_from_sun(
         bundle,
         frames,
@@ -243,13 +253,9 @@ def _orientation(args) -> int:
 def _level(args) -> int:
     from controller.calibration.fisheye_bundle import load_fisheye_bundle
     from controller.calibration.fisheye_orientation import level_from_horizon
-    from controller.vision.fisheye import load_frame
 
     bundle = load_fisheye_bundle(args.bundle)
-    img, reason = load_frame(args.image)
-    if img is None:
-        raise InputError(f"{args.image}: {reason}")
-    lv = level_from_horizon(img, bundle.camera)
+    lv = level_from_horizon(_frame_of(args.image, bundle.camera), bundle.camera)
     out = {
         "step": "fisheye level",
         "zenith_cam": [round(float(x), 7) for x in lv.zenith_cam],

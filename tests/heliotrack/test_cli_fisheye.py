@@ -225,6 +225,16 @@ def test_a_fisheye_bundle_given_to_the_hotspot_sensor_says_which_sensor_it_is_fo
     assert f"{bundle}: camera.model" in err and "--sensor fisheye" in err and err.count("\n") == 1
 
 
+def test_level_names_a_frame_of_another_size(installed, capsys, tmp_path):
+    import cv2
+
+    _, bundle, _ = installed
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), np.zeros((240, 320, 3), np.uint8))
+    assert main(["calibrate", "fisheye", "level", "--bundle", str(bundle), str(small)]) == 2
+    assert f"{small}: size_mismatch (expected 640x480, got 320x240)" in capsys.readouterr().err
+
+
 def test_level_prints_the_tilt(installed, capsys):
     out, bundle, _ = installed
     assert main(["calibrate", "fisheye", "level", "--bundle", str(bundle), str(out / "horizon.png")]) == 0
