@@ -46,7 +46,7 @@ def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.nd
 
     JPEG must end with its EOI marker and PNG with its IEND chunk: OpenCV otherwise decodes
     a truncated file into a partly grey frame.  Reasons: ``file_not_found``,
-    ``unreadable_file``, ``empty_file``, ``truncated_file``, ``image_too_large``,
+    ``is_a_directory``, ``unreadable_file``, ``empty_file``, ``truncated_file``, ``image_too_large``,
     ``undecodable_image``.
     """
     p = Path(path)
@@ -54,7 +54,9 @@ def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.nd
         data = p.read_bytes()
     except FileNotFoundError:
         return None, "file_not_found"
-    except (OSError, ValueError):  # a folder, no permission; a NUL in the name
+    except IsADirectoryError:  # a folder given where its images were meant
+        return None, "is_a_directory"
+    except (OSError, ValueError):  # no permission; a NUL in the name
         return None, "unreadable_file"
     if len(data) == 0:
         return None, "empty_file"

@@ -22,6 +22,7 @@ _DIR = Path(tempfile.mkdtemp(prefix="heliotrack-fuzz-img-"))
 REASONS = {
     "file_not_found",
     "unreadable_file",
+    "is_a_directory",
     "empty_file",
     "truncated_file",
     "image_too_large",
@@ -167,5 +168,5 @@ def test_absurd_header_sizes(data):
 
 def test_paths_that_are_not_files(tmp_path):
     assert read_image(tmp_path / "none.png") == (None, "file_not_found")
-    assert read_image(tmp_path) == (None, "unreadable_file")  # a folder
+    assert read_image(tmp_path) == (None, "is_a_directory")  # a folder
     assert read_image(str(tmp_path / "a\x00b.png")) == (None, "unreadable_file")
