@@ -66,6 +66,10 @@ class DriveHealth:
     #: The drive was seen stowed by its own watchdog (COMM_LOST) before a heartbeat
     #: cleared the flag: resume it once the link is back.
     watchdog_stow: bool = False
+    #: The drive was last seen in a stow that is not ours (a local switch, another master;
+    #: seen in this run or left so by the last shutdown): a COMM_LOST since does not make
+    #: it the watchdog's, only the drive's WATCHDOG_STOW latch does.
+    foreign_stow: bool = False
     #: When the drive last answered an exchange (the clock's monotonic time, s).
     last_ok: float = -math.inf
 
@@ -116,18 +120,20 @@ class DriveHealth:
             self.fault_clears = 0
         modes = {a.mode for a in st.axes}
         # the watchdog's stow: still without heartbeat, or latched by the drive after it
-        comm_lost = any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
+        latched = any(a.status & Status.WATCHDOG_STOW for a in st.axes)
+        comm_lost = latched or (not self.foreign_stow and any(a.status & Status.COMM_LOST for a in st.axes))
         if Mode.MAINTENANCE in modes:
             problems.append("in MAINTENANCE mode (service)")
         if Mode.STOW in modes:
             ours = self.stowed_by_us or self.watchdog_stow or comm_lost
             if ours and not weather_stow:
                 commands.append(Command.RESUME)  # our stow, or the watchdog's
-                self.stowed_by_us = self.watchdog_stow = False
+                self.stowed_by_us = self.watchdog_stow = self.foreign_stow = False
             elif not ours:
+                self.foreign_stow = True
                 problems.append("stowed by a local switch or another master: left stowed")
         else:
-            self.watchdog_stow = False
+            self.watchdog_stow = self.foreign_stow = False
         if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
             problems.append("the drive clamped a target (its limits differ from the configuration)")
         if lost:

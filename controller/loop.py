@@ -128,12 +128,12 @@ class Controller(WindPolling):
     @staticmethod
     def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState, unheard: bool = False) -> None:
         """A STOW is the drive's watchdog's (ours to resume) when it says COMM_LOST or
-        WATCHDOG_STOW, or when it went unheard longer than its watchdog allows or rebooted
-        (``unheard``): a heartbeat, even one for another drive on a CAN bus, clears COMM_LOST
-        at once, and a drive without WATCHDOG_STOW (older firmware) says no more."""
-        if any(a.mode == Mode.STOW for a in st.axes) and (
-            unheard or any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
-        ):
+        WATCHDOG_STOW, or went unheard longer than its watchdog allows or rebooted (``unheard``;
+        a heartbeat, even another drive's on CAN, clears COMM_LOST at once, and older firmware
+        has no WATCHDOG_STOW); a stow last seen as someone else's, only on WATCHDOG_STOW."""
+        latched = any(a.status & Status.WATCHDOG_STOW for a in st.axes)
+        lost = unheard or any(a.status & Status.COMM_LOST for a in st.axes)
+        if any(a.mode == Mode.STOW for a in st.axes) and (latched or (lost and not tr.health.foreign_stow)):
             tr.health.watchdog_stow = True
 
     def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:

@@ -32,7 +32,7 @@ from controller.errors import ConfigError
 from controller.loop import Controller
 from controller.records import TrackerRuntime
 from controller.safety import clamp_targets
-from firmware_protocol import Command, Mode
+from firmware_protocol import Command, Mode, Status
 
 log = logging.getLogger("heliotrack.run")
 
@@ -192,19 +192,23 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
 
 
 def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str]:
-    """Mark the trackers the last shutdown stowed as stowed by us (the loop resumes them);
-    returns their names.  The record is used once."""
+    """Mark the trackers the last shutdown stowed as stowed by us (the loop resumes them),
+    and those it found in someone else's stow as such (left so even if their watchdog has
+    fired since); returns the names resumed.  The record is used once."""
     if state is None or not state.shutdown.exists():
         return []
     try:
-        names = set(json.loads(state.shutdown.read_text())["stowed"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+        record = json.loads(state.shutdown.read_text())
+        names, left = set(record["stowed"]), set(record.get("left", []))
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
         log.warning("%s: unreadable (%s): ignored", state.shutdown, exc)
-        names = set()
+        names, left = set(), set()
     resumed = [tr.cfg.name for tr in ctl.trackers if tr.cfg.name in names]
     for tr in ctl.trackers:
         if tr.cfg.name in names:
             tr.health.stowed_by_us = True
+        elif tr.cfg.name in left:  # someone else's stow: a COMM_LOST since is not the watchdog's
+            tr.health.foreign_stow = True
     try:
         state.shutdown.unlink()
     except OSError:
@@ -224,6 +228,8 @@ class SafeOutcome:
     confirmed: bool
     detail: str
     positions_deg: tuple[float, ...] = ()
+    #: False for a stow this controller did not command (left so, not resumed at the next start)
+    ours: bool = True
 
 
 def _angles(values) -> str:
@@ -247,6 +253,16 @@ async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> Saf
         ok = all(abs(a.target_deg - x) <= 0.02 for a, x in zip(st.axes, targets))
         detail = f"holding at {_angles(targets)} deg" + ("" if ok else " (target not read back)")
         return SafeOutcome(tr.cfg.name, want, ok, detail, tuple(a.actual_deg for a in st.axes))
+    st = await drive.read_state()
+    ours = tr.health.stowed_by_us or tr.health.watchdog_stow
+    ours = ours or any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
+    if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes) and not ours:
+        # a local switch's or a maintenance panel's stow: theirs to lift, so neither
+        # commanded again nor recorded for the next start to resume
+        pos = tuple(a.actual_deg for a in st.axes)
+        modes = "/".join(sorted({a.mode.name for a in st.axes}))
+        detail = f"already in {modes}, not by us: left so (not resumed at the next start)"
+        return SafeOutcome(tr.cfg.name, want, True, detail, pos, ours=False)
     await drive.command(Command.STOW)
     tr.health.stowed_by_us = True
     while True:
@@ -297,9 +313,11 @@ async def go_safe(
             out.detail += f"; its watchdog stows it within {hb:g} s"
         outcomes.append(out)
     if state is not None:
-        stowed = [o.tracker for o in outcomes if o.wanted == "stow"]
+        stowed = [o.tracker for o in outcomes if o.wanted == "stow" and o.ours]
+        left = [o.tracker for o in outcomes if not o.ours]
         try:
-            atomic_write(state.shutdown, json.dumps({"time": time.time(), "stowed": stowed}) + "\n")
+            record = {"time": time.time(), "stowed": stowed, "left": left}
+            atomic_write(state.shutdown, json.dumps(record) + "\n")
         except OSError as exc:
             log.warning(
                 "%s: not written (%s): the next start leaves these drives stowed", state.shutdown, exc

@@ -1,0 +1,60 @@
+"""``go_safe`` at shutdown: a stow this controller did not command is left to its owner."""
+
+import json
+
+from firmware_protocol import Command, Mode, encode, register
+from heliotrack.runtime import StateFolder, go_safe, resume_last_shutdown
+
+
+def command(fw, cmd):
+    reg = register("COMMAND")
+    fw.write(reg.address(), encode(reg, int(cmd)))
+
+
+def test_a_stow_someone_else_set_is_left_and_not_resumed_by_the_next_start(default_plant, tmp_path):
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    command(fws["row-1"], Command.STOW)  # a local wind switch / maintenance panel
+    clock.sleep(cfg.control.period_s)
+    recs = run(ctl.cycle())
+    assert "left stowed" in recs[1].health_reason
+    state = StateFolder(tmp_path)
+    out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
+    assert out["row-1"].confirmed and not out["row-1"].ours and "not by us" in out["row-1"].detail
+    assert out["dual-1"].ours and fws["dual-1"].modes[0] == Mode.STOW  # ours: stowed, recorded
+    assert json.loads(state.shutdown.read_text())["stowed"] == ["dual-1"]
+    # the next start resumes only the stow it commanded; the switch's stays
+    assert resume_last_shutdown(ctl, state) == ["dual-1"]
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        recs = run(ctl.cycle())
+    assert fws["dual-1"].modes[0] == Mode.AUTO and fws["row-1"].modes[0] == Mode.STOW
+    assert "left stowed" in recs[1].health_reason
+
+
+def test_a_stow_left_at_shutdown_stays_left_after_its_watchdog_fired(default_plant, tmp_path):
+    """The controller away longer than the heartbeat timeout: the drive already in a local
+    STOW says COMM_LOST but not WATCHDOG_STOW (the watchdog did not stow it); the next start
+    must not take that stow for the watchdog's (it resumed it before)."""
+    from firmware_protocol import Status
+
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    command(fws["row-1"], Command.STOW)
+    clock.sleep(cfg.control.period_s)
+    run(ctl.cycle())
+    state = StateFolder(tmp_path)
+    run(go_safe(ctl, state=state))
+    assert json.loads(state.shutdown.read_text())["left"] == ["row-1"]
+    fw = fws["row-1"]
+    clock.sleep(cfg.control.heartbeat_timeout_s + 1)
+    fw.update()
+    assert fw.modes[0] == Mode.STOW and fw.comm_lost and not fw.status(0) & Status.WATCHDOG_STOW
+    tr = next(t for t in ctl.trackers if t.cfg.name == "row-1")
+    tr.health = type(tr.health)()  # a new process: nothing known but the record
+    tr.health.last_ok = float("-inf")
+    resume_last_shutdown(ctl, state)
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        recs = run(ctl.cycle())
+    assert fw.modes[0] == Mode.STOW and "left stowed" in recs[1].health_reason
