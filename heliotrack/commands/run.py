@@ -5,7 +5,7 @@ TCP, CANopen through any python-can interface), the configured sun source (the e
 or a camera through the sun-path filter), the pyranometer, the anemometer (polled between
 cycles) and the SunSpec server.  On the first signal every drive goes to its tracker's
 ``safe_position`` (confirmed by reading it back), the learned state is saved and the
-process exits 0; a second signal exits at once.
+process exits 0; a second signal, 0.5 s or more after the first, exits at once.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from heliotrack.runtime import StateFolder
 
 log = logging.getLogger("heliotrack.run")
+#: A repeat of the stop signal sooner than this after the first is the same stop (s).
+REPEAT_S = 0.5
 
 #: After a stop is asked, how long a cycle in progress may take to finish (s).
 CYCLE_GRACE_S = 0.5
@@ -43,7 +45,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run the plant: the production loop on the wall clock",
         description="Drive the plant of a plant file on the wall clock until SIGTERM or SIGINT; "
         "then every drive goes to its safe position (stow or hold, per tracker), the learned "
-        "state is saved, and the exit status is 0.  A second signal exits at once.  One log "
+        "state is saved, and the exit status is 0.  A second signal (0.5 s or more after the "
+        "first) exits at once.  One log "
         "line per cycle at INFO, a warning for every fault (see docs/deploy.md).",
     )
     p.add_argument("--config", type=Path, required=True, help="plant TOML (see config/plant-example.toml)")
@@ -88,6 +91,7 @@ class Service:
         self.state = state
         self.stop: asyncio.Event | None = None
         self.stopped_by = ""
+        self._first_signal = -math.inf
         self.tally: Counter[str] = Counter()
         self.camera_down = False
         self.ctl: Any = None
@@ -98,9 +102,15 @@ class Service:
         name = signal.Signals(signum).name
         assert self.stop is not None
         if self.stop.is_set():
+            if time.monotonic() - self._first_signal < REPEAT_S:
+                # the same stop delivered twice (``timeout``, or a supervisor signalling the
+                # process group): not an operator's second signal, so the drives still go safe
+                log.info("%s again within %g s: taken as the same stop", name, REPEAT_S)
+                return
             log.warning("second signal (%s): exiting at once", name)
             logging.shutdown()
             os._exit(128 + signum)
+        self._first_signal = time.monotonic()
         self.stopped_by = name
         log.info("%s: stopping; every drive to its safe position", name)
         self.stop.set()
@@ -229,8 +239,11 @@ class Service:
         modes = Counter(r.mode for r in records)
         errors = [r.error for r in records if r.error]
         source = records[0].source if records else "none"
+        unwell = {r.tracker: r.health for r in records if r.health != "ok"}
         for r in records:
             self.tally[f"mode {r.mode}"] += 1
+        for name, health in unwell.items():  # the mode is what was commanded, not what was done
+            self.tally[f"health {name} {health}"] += 1
         self.tally[f"source {source}"] += 1
         self.tally["row errors"] += len(errors)
         camera = self._camera_outcome()
@@ -240,9 +253,10 @@ class Service:
             f"; and {len(errors) - MAX_ERRORS_SHOWN} more" if len(errors) > MAX_ERRORS_SHOWN else ""
         )
         log.info(
-            "cycle %d: %s; sun %s (az %.2f, el %.2f)%s; %d error(s)%s",
+            "cycle %d: %s%s; sun %s (az %.2f, el %.2f)%s; %d error(s)%s",
             ctl.cycles,
             text,
+            "".join(f"; {name} {health}" for name, health in sorted(unwell.items())),
             source,
             az,
             el,
@@ -253,6 +267,7 @@ class Service:
                 "fields": {
                     "cycle": ctl.cycles,
                     "modes": dict(modes),
+                    "not_ok": unwell,
                     "source": source,
                     "sun_az_deg": az,
                     "sun_el_deg": el,
@@ -288,6 +303,7 @@ class Service:
         t = self.tally
         sources = {k.removeprefix("source "): v for k, v in t.items() if k.startswith("source ")}
         modes = {k.removeprefix("mode "): v for k, v in t.items() if k.startswith("mode ")}
+        not_ok = {k.removeprefix("health "): v for k, v in t.items() if k.startswith("health ")}
         camera = dict(ctl.sensor.outcomes) if ctl.sensor is not None else {}
         stats = ctl.stats()
         safe = sum(o.confirmed for o in outcomes)
@@ -300,6 +316,7 @@ class Service:
             "sensor_errors": stats["sensor_errors"],
             "sensors_down": dict(ctl.sensors_down),
             "modes": modes,
+            "not_ok_cycles": not_ok,
             "sources": sources,
             "camera": camera,
             "overrides": t["overrides"],
@@ -312,7 +329,7 @@ class Service:
 
         log.info(
             "stopped (%s) after %d cycles in %.0f s: %d row errors, %d link errors, %d sensor errors; "
-            "modes: %s; sources: %s%s; safe position confirmed for %d of %d drives",
+            "modes: %s%s; sources: %s%s; safe position confirmed for %d of %d drives",
             self.stopped_by,
             ctl.cycles,
             wall_s,
@@ -320,6 +337,7 @@ class Service:
             stats["errors"],
             stats["sensor_errors"],
             dict_text(modes),
+            f" (cycles not ok: {dict_text(not_ok)})" if not_ok else "",
             dict_text(sources),
             f"; camera: {dict_text(camera)}" if ctl.sensor is not None else "",
             safe,
