@@ -46,10 +46,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..atomic import atomic_write
 from ..errors import ConfigError
 from ..schema import Where, internal, load, load_file, setting
 from .camera import CameraCal
+from .checked_write import write_if_valid
 
 Vec3 = tuple[float, float, float]
 
@@ -123,6 +123,8 @@ class PoseCal:
         if self.rvec is not None or self.tvec is not None:
             if self.rvec is None or self.tvec is None:
                 raise at.error("both rvec and tvec")
+            if max(abs(x) for x in self.rvec) > 4 * np.pi:  # 1e300 rad made a NaN rotation
+                raise at.child("rvec").error("a rotation vector of at most 4 pi rad", list(self.rvec))
             return self
         if self.markers_model is None and self.markers_image is None:
             raise at.error("rvec and tvec, or markers_model and markers_image")
@@ -133,6 +135,8 @@ class PoseCal:
             raise at.child("markers_image").error(
                 f"as many points as pose.markers_model ({len(mm)})", len(mi)
             )
+        if np.linalg.matrix_rank(np.asarray(mm, float) - np.mean(mm, axis=0), tol=1e-9) < 2:
+            raise at.child("markers_model").error("points that do not all lie on one line or point", len(mm))
         return self
 
 
@@ -386,9 +390,9 @@ def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
 
 
 def save_bundle(b: CalibrationBundle, path: str | Path) -> Path:
-    """Write atomically, so a failure loses nothing already stored."""
+    """Write atomically if it reads back valid, so a failure loses nothing already stored."""
     path = Path(path)
-    return atomic_write(path, bundle_to_toml(b, path.parent))
+    return write_if_valid(path, bundle_to_toml(b, path.parent), lambda doc, at: bundle_from_dict(doc, at))
 
 
 def update_bundle(path: str | Path, **changes) -> CalibrationBundle:

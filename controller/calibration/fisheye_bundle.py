@@ -45,10 +45,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..atomic import atomic_write
 from ..errors import ConfigError
 from ..schema import Where, internal, load, load_file, setting
 from .camera import CameraCal
+from .checked_write import write_if_valid
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
@@ -320,9 +320,11 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
 
 
 def save_fisheye_bundle(b: FisheyeBundle, path: str | Path) -> Path:
-    """Write atomically, so a failure loses nothing already stored."""
+    """Write atomically if it reads back valid, so a failure loses nothing already stored."""
     path = Path(path)
-    return atomic_write(path, fisheye_bundle_to_toml(b, path.parent))
+    return write_if_valid(
+        path, fisheye_bundle_to_toml(b, path.parent), lambda doc, at: fisheye_bundle_from_dict(doc, at)
+    )
 
 
 def update_fisheye_bundle(path: str | Path, **changes: Any) -> FisheyeBundle:

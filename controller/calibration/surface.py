@@ -73,12 +73,18 @@ def read_cloud(path: str | Path) -> tuple[np.ndarray, np.ndarray | None]:
                 a = np.hstack([a, z["normals"]])
         else:
             a = np.loadtxt(path, ndmin=2, delimiter=None)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, IndexError, KeyError) as exc:
         raise InputError(f"{path}: cannot read point cloud ({exc})") from None
     if a.ndim != 2 or a.shape[1] < 3 or a.shape[0] < 10:
         raise InputError(f"{path}: expected >= 10 points with x y z [nx ny nz]")
-    pts = a[:, :3].astype(float)
-    nrm = a[:, 3:6].astype(float) if a.shape[1] >= 6 else None
+    a = a[:, :6].astype(float)
+    bad = np.flatnonzero(~np.isfinite(a).all(axis=1))
+    if bad.size:  # a NaN or inf sends LAPACK into an endless loop
+        raise InputError(f"{path}: point {bad[0] + 1}: not finite ({bad.size} such point(s))")
+    pts = a[:, :3]
+    if np.linalg.matrix_rank(pts - pts.mean(0), tol=1e-9) < 3:
+        raise InputError(f"{path}: the points lie on a plane or a line: not a surface scan")
+    nrm = a[:, 3:6] if a.shape[1] >= 6 else None
     return pts, nrm
 
 

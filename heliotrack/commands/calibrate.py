@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from controller.errors import InputError
+from heliotrack.argtypes import LATITUDE, LONGITUDE, SQUARE_M, board_pattern, int_in, number_in
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,15 +24,17 @@ def register(sub: argparse._SubParsersAction) -> None:
 def add_subcommands(p: argparse.ArgumentParser) -> None:
     sp = p.add_subparsers(dest="calib_step", metavar="STEP")
     a = sp.add_parser("intrinsics", help="camera intrinsics from checkerboard images")
-    a.add_argument("--pattern", default="9x6", help="inner corners per row x per column (9x6)")
-    a.add_argument("--square", type=float, required=True, help="square size, metres")
+    a.add_argument(
+        "--pattern", type=board_pattern, default="9x6", help="inner corners per row x per column (9x6)"
+    )
+    a.add_argument("--square", type=SQUARE_M, required=True, help="square size, metres")
     a.add_argument("--bundle", type=Path, required=True)
     a.add_argument("images", nargs="+", type=Path)
     a.set_defaults(func=_intrinsics)
     s = sp.add_parser("surface", help="surface model from a point cloud (PLY/XYZ/NPZ)")
     s.add_argument("--cloud", type=Path, required=True)
     s.add_argument("--fit-sphere", action="store_true", help="store the fitted analytic sphere")
-    s.add_argument("--min-z", type=float, default=None, help="hemisphere cut (model z)")
+    s.add_argument("--min-z", type=number_in(-10.0, 10.0), default=None, help="hemisphere cut (model z)")
     s.add_argument("--bundle", type=Path, required=True)
     s.set_defaults(func=_surface)
     q = sp.add_parser("pose", help="exterior orientation by PnP on base markers")
@@ -50,8 +54,8 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     )
     az.add_argument("--method", choices=("noon", "ephemeris"), default="noon")
     az.add_argument("--culminates", choices=("south", "north"), default="south")
-    az.add_argument("--lat", type=float)
-    az.add_argument("--lon", type=float)
+    az.add_argument("--lat", type=LATITUDE)
+    az.add_argument("--lon", type=LONGITUDE)
     az.add_argument("--bundle", type=Path, required=True)
     az.set_defaults(func=_azimuth)
     al = sp.add_parser("all", help="the whole chain from an installer's folder (see docs/hotspot.md)")
@@ -60,11 +64,13 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
         type=Path,
         help="checkerboards/, globe_scan.ply, markers_survey.csv, marker_view.png, plumb_view.png, day/",
     )
-    al.add_argument("--pattern", default="9x6")
-    al.add_argument("--square", type=float, default=0.04)
-    al.add_argument("--lat", type=float, help="site latitude (enables the ephemeris azimuth fit)")
-    al.add_argument("--lon", type=float)
-    al.add_argument("--min-z", type=float, default=0.0, help="hemisphere cut in the model frame")
+    al.add_argument("--pattern", type=board_pattern, default="9x6")
+    al.add_argument("--square", type=SQUARE_M, default=0.04)
+    al.add_argument("--lat", type=LATITUDE, help="site latitude (enables the ephemeris azimuth fit)")
+    al.add_argument("--lon", type=LONGITUDE)
+    al.add_argument(
+        "--min-z", type=number_in(-10.0, 10.0), default=0.0, help="hemisphere cut in the model frame"
+    )
     al.add_argument(
         "--method",
         choices=("noon", "ephemeris", "ephemeris-full"),
@@ -74,7 +80,7 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     )
     al.add_argument(
         "--shape-degree",
-        type=int,
+        type=int_in(0, 12),
         default=6,
         help="degree of the radial shape polynomial fitted to the scan (0: sphere only)",
     )
@@ -98,12 +104,8 @@ def _intrinsics(args) -> int:
     from controller.calibration.bundle import update_bundle
     from controller.calibration.intrinsics import calibrate_intrinsics
 
-    try:
-        nx, ny = (int(x) for x in args.pattern.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--pattern: expected like 9x6, got {args.pattern!r}") from None
     res = calibrate_intrinsics(
-        [str(p) for p in args.images], (nx, ny), args.square, [str(p) for p in args.images]
+        [str(p) for p in args.images], args.pattern, args.square, [str(p) for p in args.images]
     )
     update_bundle(args.bundle, camera=res.camera)
     print(
@@ -190,6 +192,10 @@ def _level(args) -> int:
             a = np.loadtxt(args.lines, delimiter=",", skiprows=1, ndmin=2)
         except (OSError, ValueError) as exc:
             raise InputError(f"{args.lines}: expected CSV line,u,v ({exc})") from None
+        bad = np.flatnonzero(~np.isfinite(a).all(axis=1)) if a.ndim == 2 else np.zeros(0, int)
+        if a.ndim != 2 or a.shape[1] < 3 or len(a) == 0 or bad.size:
+            where = f"row {bad[0] + 2}: not finite" if bad.size else "expected rows line,u,v"
+            raise InputError(f"{args.lines}: {where}")
         lines = [a[a[:, 0] == k, 1:3] for k in np.unique(a[:, 0])]
         res = zenith_from_lines(lines, b.camera, rvec)
     elif args.image:
@@ -222,17 +228,28 @@ def _azimuth(args) -> int:
     from controller.calibration.bundle import AzimuthCal, update_bundle
 
     az, el, ts = [], [], []
-    for ln, line in enumerate(args.observations.read_text().splitlines(), 1):
+    try:
+        text = args.observations.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"{args.observations}: expected JSON lines from heliotrack estimate ({exc})"
+        ) from None
+    for ln, line in enumerate(text.splitlines(), 1):
         if not line.strip():
             continue
         try:
             d = json.loads(line)
         except json.JSONDecodeError:
             raise InputError(f"{args.observations}:{ln}: not JSON") from None
+        if not isinstance(d, dict):
+            raise InputError(f"{args.observations}:{ln}: expected a JSON object from heliotrack estimate")
         if not d.get("found") or "levelled_az_deg" not in d:
             continue
-        az.append(d["levelled_az_deg"])
-        el.append(d["levelled_el_deg"])
+        a, e = d.get("levelled_az_deg"), d.get("levelled_el_deg")
+        if not all(isinstance(x, (int, float)) and math.isfinite(x) for x in (a, e)):
+            raise InputError(f"{args.observations}:{ln}: levelled_az_deg, levelled_el_deg: expected numbers")
+        az.append(a)
+        el.append(e)
         ts.append(d.get("time"))
     if args.method == "noon":
         off = noon_offset(az, el, args.culminates)
@@ -242,7 +259,7 @@ def _azimuth(args) -> int:
         from controller.sun.source import Site, solar_position
         from controller.timestamps import parse_timestamp
 
-        tt = [parse_timestamp(t, f"{args.observations}: time") for t in ts]
+        tt = [parse_timestamp(str(t), f"{args.observations}: time") for t in ts]
         sp = solar_position(Site(args.lat, args.lon), tt)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
     update_bundle(args.bundle, azimuth=AzimuthCal(off))
@@ -264,14 +281,10 @@ def _all(args) -> int:
     from controller.calibration.chain import calibrate_folder
     from controller.sun.source import Site
 
-    try:
-        nx, ny = (int(x) for x in args.pattern.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--pattern: expected like 9x6, got {args.pattern!r}") from None
     site = Site(args.lat, args.lon) if args.lat is not None and args.lon is not None else None
     calibrate_folder(
         args.folder,
-        pattern=(nx, ny),
+        pattern=args.pattern,
         square=args.square,
         site=site,
         min_z=args.min_z,

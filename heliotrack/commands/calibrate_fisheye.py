@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from controller.errors import InputError
+from heliotrack.argtypes import SQUARE_M, board_pattern
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -41,8 +42,10 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     f.set_defaults(func=lambda a: (f.print_help(), 2)[1])
     steps = f.add_subparsers(dest="fisheye_step", metavar="STEP")
     a = steps.add_parser("lens", help="lens (cv2.fisheye K, D) from checkerboard images")
-    a.add_argument("--pattern", default="9x6", help="inner corners per row x per column (9x6)")
-    a.add_argument("--square", type=float, required=True, help="square size, metres")
+    a.add_argument(
+        "--pattern", type=board_pattern, default="9x6", help="inner corners per row x per column (9x6)"
+    )
+    a.add_argument("--square", type=SQUARE_M, required=True, help="square size, metres")
     a.add_argument("--bundle", type=Path, required=True)
     a.add_argument("images", nargs="+", type=Path)
     a.set_defaults(func=_lens)
@@ -117,14 +120,6 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     v.set_defaults(func=_vignetting)
 
 
-def _pattern(text: str) -> tuple[int, int]:
-    try:
-        nx, ny = (int(x) for x in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"--pattern: expected like 9x6, got {text!r}") from None
-    return nx, ny
-
-
 def _frame_of(path: Path, camera) -> np.ndarray:
     """The frame at ``path``, of the bundle's lens's size (else a one-line error)."""
     from controller.vision.fisheye import load_frame
@@ -152,11 +147,9 @@ def _lens(args) -> int:
     from controller.calibration.fisheye_bundle import update_fisheye_bundle
     from controller.calibration.fisheye_lens import calibrate_fisheye
 
-    if not (math.isfinite(args.square) and args.square > 0):
-        raise InputError(f"lens: --square: expected the squares' size in metres (> 0), got {args.square}")
     views = [(str(p), _grey(p)) for p in args.images]
     h, w = views[0][1].shape[:2]
-    res = calibrate_fisheye(views, (w, h), _pattern(args.pattern), args.square)
+    res = calibrate_fisheye(views, (w, h), args.pattern, args.square)
     update_fisheye_bundle(args.bundle, camera=res.camera)
     print(
         json.dumps(

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from heliotrack.argtypes import ALTITUDE, LATITUDE, LONGITUDE
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -14,9 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "overcast) and write days.csv, the paper's tables and figures.",
     )
     p.add_argument("files", nargs="+", type=Path, metavar="FILE", help="input files, one station")
-    p.add_argument("--lat", type=float, help="latitude, deg north (required unless the file says)")
-    p.add_argument("--lon", type=float, help="longitude, deg east (required unless the file says)")
-    p.add_argument("--alt", type=float, default=None, help="altitude, m (default from file or 0)")
+    p.add_argument("--lat", type=LATITUDE, help="latitude, deg north (required unless the file says)")
+    p.add_argument("--lon", type=LONGITUDE, help="longitude, deg east (required unless the file says)")
+    p.add_argument("--alt", type=ALTITUDE, default=None, help="altitude, m (default from file or 0)")
     p.add_argument("--format", choices=("csv", "bsrn", "midc", "surfrad"), default="csv")
     p.add_argument("--time-col", help="CSV time column (UTC); guessed if omitted")
     p.add_argument("--ghi-col", help="GHI column; guessed if omitted")

@@ -25,6 +25,11 @@ import sys
 from datetime import UTC, datetime
 from pathlib import Path
 
+from heliotrack.argtypes import LATITUDE, LONGITUDE, number_in
+
+#: The most times ``predict --start/--end`` writes (a year at one-minute steps).
+MAX_STEPS = 600_000
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -45,11 +50,11 @@ def register(sub: argparse._SubParsersAction) -> None:
         default="kalman",
         help="seed: the paper's daily parabola; kalman: the sun-path EKF (default)",
     )
-    p.add_argument("--lat", type=float, default=None, help="site latitude, deg north")
-    p.add_argument("--lon", type=float, default=None, help="site longitude, deg east")
+    p.add_argument("--lat", type=LATITUDE, default=None, help="site latitude, deg north")
+    p.add_argument("--lon", type=LONGITUDE, default=None, help="site longitude, deg east")
     p.add_argument(
         "--utc-offset",
-        type=float,
+        type=number_in(-14.0, 14.0),
         default=None,
         metavar="HOURS",
         help="local civil offset used to group days (default: from the data)",
@@ -89,7 +94,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--window-h",
-        type=float,
+        type=number_in(0.0, 12.0, open_lo=True),
         default=None,
         help="seed: fit only observations within this many hours of noon",
     )
@@ -115,7 +120,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--start", default=None, help="predict: first time (ISO 8601)")
     p.add_argument("--end", default=None, help="predict: last time (ISO 8601)")
-    p.add_argument("--step-min", type=float, default=15.0, help="predict: step, minutes")
+    p.add_argument(
+        "--step-min", type=number_in(0.0, 1440.0, open_lo=True), default=15.0, help="predict: step, minutes"
+    )
     p.set_defaults(func=run)
 
 
@@ -199,6 +206,9 @@ def _predict(args, path: Path | None) -> int:
         t0, t1 = parse_time(args.start, "--start"), parse_time(args.end, "--end")
         if t1 < t0:
             raise InputError("sunpath predict: --end is before --start")
+        n = (t1 - t0) / (args.step_min * 60.0)
+        if n > MAX_STEPS:
+            raise InputError(f"sunpath predict: {n:.0f} steps from --start to --end; at most {MAX_STEPS}")
         times.extend(np.arange(t0, t1 + 1e-6, args.step_min * 60.0).tolist())
     if not times:
         raise InputError("sunpath predict: give --at TIME or --start/--end")

@@ -107,8 +107,10 @@ def test_an_impossible_site_is_refused_before_the_bundle_is_touched(
 @pytest.mark.parametrize("square", ["-1", "0", "nan"])
 def test_a_checkerboard_square_must_have_a_size(tmp_path, capsys, square):
     bundle = tmp_path / "lens.toml"
-    assert main(["calibrate", "fisheye", "lens", "--square", square, "--bundle", str(bundle), "x.png"]) == 2
-    assert "--square: expected the squares' size in metres (> 0)" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:  # argparse: one usage line and the reason
+        main(["calibrate", "fisheye", "lens", f"--square={square}", "--bundle", str(bundle), "x.png"])
+    assert exc.value.code == 2
+    assert "argument --square: expected a number in (0, 1]" in capsys.readouterr().err
     assert not bundle.exists()
 
 

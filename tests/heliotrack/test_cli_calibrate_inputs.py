@@ -1,0 +1,145 @@
+"""Bad input to the hotspot's calibration steps, ``sunpath`` and ``classify``: one line and
+exit 2, before any work (no hang, no traceback), and a bundle that a failed step leaves as
+it was.  Each case is one an audit of the command line found (2026-12-01)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from heliotrack.cli import main
+
+REPO = Path(__file__).resolve().parents[2]
+BUNDLE = REPO / "config" / "calibration" / "recommended.toml"
+
+
+@pytest.fixture
+def bundle(tmp_path) -> Path:
+    b = tmp_path / "b.toml"
+    shutil.copy(BUNDLE, b)
+    return b
+
+
+def error_of(capsys, argv) -> str:
+    """The one-line error of ``argv`` (exit 2 from the command or from argparse)."""
+    try:
+        rc = main(argv)
+    except SystemExit as exc:
+        rc = exc.code
+    assert rc == 2, argv
+    return capsys.readouterr().err.strip().splitlines()[-1]
+
+
+def sphere_points(n: int = 200) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    v = rng.normal(size=(n, 3))
+    return 0.2 * v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda p: np.vstack([p, [np.inf, 0, 0]]), "point 201: not finite"),  # hung in LAPACK
+        (lambda p: np.vstack([p, [np.nan, 0, 0]]), "point 201: not finite"),
+        (lambda p: p * [1, 1, 0], "lie on a plane or a line"),
+    ],
+)
+def test_a_cloud_that_is_no_surface_is_refused_and_the_bundle_kept(tmp_path, capsys, bundle, edit, message):
+    cloud = tmp_path / "scan.xyz"
+    np.savetxt(cloud, edit(sphere_points()))
+    before = bundle.read_text()
+    err = error_of(
+        capsys, ["calibrate", "surface", "--cloud", str(cloud), "--fit-sphere", "--bundle", str(bundle)]
+    )
+    assert message in err and bundle.read_text() == before
+
+
+def test_a_pose_that_comes_out_nan_is_not_written(tmp_path, capsys, bundle):
+    picked = tmp_path / "picked.csv"
+    rows = [[0.1 * i, 0.05 * (i % 2), 0.0, 100.0 + 10 * i, np.nan] for i in range(6)]
+    np.savetxt(picked, rows, delimiter=",", header="x,y,z,u,v", comments="")
+    before = bundle.read_text()
+    err = error_of(capsys, ["calibrate", "pose", "--picked", str(picked), "--bundle", str(bundle)])
+    assert "pose.tvec[0]: expected a finite number (in this step's result: not written" in err
+    assert bundle.read_text() == before
+
+
+def test_plumb_lines_with_a_nan_are_refused(tmp_path, capsys, bundle):
+    lines = tmp_path / "lines.csv"
+    lines.write_text("line,u,v\n0,10,20\n0,nan,40\n1,50,60\n1,55,90\n")
+    err = error_of(capsys, ["calibrate", "level", "--lines", str(lines), "--bundle", str(bundle)])
+    assert f"{lines}: row 3: not finite" in err
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "expected JSON lines from heliotrack estimate"),  # no such file
+        ("[1, 2, 3]\n", ":1: expected a JSON object"),
+        ('{"found": true, "levelled_az_deg": NaN, "levelled_el_deg": 40}\n', ":1: levelled_az_deg"),
+    ],
+)
+def test_azimuth_observations_that_are_not_estimates_are_named(tmp_path, capsys, bundle, content, message):
+    obs = tmp_path / "obs.jsonl"
+    if content is not None:
+        obs.write_text(content)
+    err = error_of(capsys, ["calibrate", "azimuth", "--observations", str(obs), "--bundle", str(bundle)])
+    assert message in err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (
+            [
+                "calibrate",
+                "azimuth",
+                "--observations",
+                "o.jsonl",
+                "--lat=nan",
+                "--lon=48",
+                "--bundle",
+                "b.toml",
+            ],
+            "argument --lat: expected a number in [-90, 90]",
+        ),
+        (["calibrate", "all", "folder", "--lat=95", "--lon=48", "--bundle", "b.toml"], "argument --lat"),
+        (
+            ["calibrate", "all", "folder", "--shape-degree=50", "--bundle", "b.toml"],
+            "argument --shape-degree",
+        ),
+        (
+            ["calibrate", "intrinsics", "--pattern=1x1", "--square=0.04", "--bundle", "b.toml", "x.png"],
+            "argument --pattern: expected inner corners like 9x6",
+        ),
+        (["calibrate", "intrinsics", "--square=0", "--bundle", "b.toml", "x.png"], "argument --square"),
+        (["sunpath", "obs.csv", "--utc-offset=nan"], "argument --utc-offset"),
+        (["classify", "x.csv", "--lat=32", "--lon=48", "--alt=nan"], "argument --alt"),
+        (
+            [
+                "sunpath",
+                "predict",
+                "--lat=32",
+                "--lon=48",
+                "--start=2026-01-01T00:00Z",
+                "--end=2036-01-01T00:00Z",
+                "--step-min=0.0001",
+            ],
+            "steps from --start to --end",
+        ),
+    ],
+)
+def test_impossible_numbers_are_refused_before_any_work(capsys, argv, message):
+    assert message in error_of(capsys, argv)
+
+
+def test_a_bundle_with_an_impossible_pose_is_named(tmp_path, capsys, bundle):
+    text = bundle.read_text().replace("rvec = [2.355593610548941", "rvec = [1e300", 1)
+    bundle.write_text(text)
+    frame = tmp_path / "f.png"
+    frame.write_bytes(b"")
+    err = error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
+    assert "pose.rvec: expected a rotation vector of at most 4 pi rad" in err
