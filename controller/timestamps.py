@@ -17,7 +17,9 @@ camera style       ``2026-03-20_10-15-00``,                 what many cameras an
                    ``2026-03-20-10-15-00``                  write
 =================  =======================================  ===============================
 
-The zone is ``Z``, ``+HH:MM``, ``-HH:MM``, ``+HHMM`` or ``-HHMM``; without one the time is
+The zone is ``Z``, ``+HH:MM``, ``-HH:MM``, ``+HHMM``, ``-HHMM`` or, file-name safe,
+``+HH-MM`` and ``-HH-MM`` (dropped before, a name such as ``2024-03-20T08-00-00+03-30``
+was read 3.5 h late); without one the time is
 UTC (callers that must not guess, such as observation CSVs, pass ``require_zone=True``).
 The time of day uses one separator throughout (``10-15-00`` or ``10:15:00`` or
 ``101500``); ISO 8601 forms may leave out the seconds (``10:15``, ``1015``); a fraction of
@@ -42,7 +44,7 @@ _TIMESTAMP = re.compile(
     r"(?P<sep>[Tt _-])"
     r"(?P<h>\d{2})(?P<ts>[:-]?)(?P<mi>\d{2})"
     r"(?:(?P=ts)(?P<s>\d{2})(?:[.,](?P<frac>\d{1,9}))?)?"
-    r"(?P<tz>[Zz]|[+-]\d{2}:?\d{2})?(?!\d)(?![:-]\d)"
+    r"(?P<tz>[Zz]|[+-]\d{2}[:-]?\d{2})?(?!\d)(?![:-]\d)"
 )
 
 

@@ -28,6 +28,9 @@ T = datetime(2025, 6, 21, 10, 15, 0, tzinfo=UTC).timestamp()
         ("2025-06-21-10-15-00.png", T),
         ("cam1_2025-06-21_10-15-00.jpg", T),
         ("2025-06-21T10-15-00-0300.png", T + 3 * 3600),
+        # a file-name-safe zone (read as UTC before: 3.5 h off)
+        ("2025-06-21T13-45-00+03-30.png", T),
+        ("2025-06-21T07-15-00-03-00.png", T),
     ],
 )
 def test_every_documented_form(name, expected):
