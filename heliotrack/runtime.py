@@ -201,7 +201,15 @@ def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str
         record = json.loads(state.shutdown.read_text())
         names, left = set(record["stowed"]), set(record.get("left", []))
     except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        log.warning("%s: unreadable (%s): ignored", state.shutdown, exc)
+        aside = state.shutdown.with_name(
+            f"shutdown.json.unusable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
+        )
+        try:
+            state.shutdown.rename(aside)  # kept for a look, as the store and the sun-path state are
+            kept = f"kept as {aside.name}"
+        except OSError as err:
+            kept = f"could not move it aside: {err.strerror}"
+        log.warning("%s: unreadable (%s): %s; no stow resumed from it", state.shutdown, exc, kept)
         names, left = set(), set()
     resumed = [tr.cfg.name for tr in ctl.trackers if tr.cfg.name in names]
     for tr in ctl.trackers:

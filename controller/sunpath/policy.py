@@ -20,6 +20,7 @@ noisy measurement.
 from __future__ import annotations
 
 import logging
+import re
 import sqlite3
 import time
 from dataclasses import dataclass
@@ -256,7 +257,8 @@ class SunPathSource(SunSource):
                 aside = path.with_name(f"{path.name}.invalid-{stamp}")
                 try:
                     path.rename(aside)
-                    self.state_note = f"{exc}; kept it as {aside.name}; {start}"
+                    what = re.sub(r"; fix or remove (the file|it)$", "", str(exc))  # done: moved aside
+                    self.state_note = f"{what}; kept it as {aside.name}; {start}"
                 except OSError as err:
                     self.persist = False
                     self.state_note = (

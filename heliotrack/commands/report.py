@@ -10,9 +10,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "report",
         help="rebuild DIR/report/ (figures and index.html) from a run's outputs",
-        description="Read DIR/cycles.csv and DIR/summary.json (written by simulate, replay or "
-        "run) and write the report: PNG figures and one self-contained index.html that opens "
-        "offline.",
+        description="Read DIR/cycles.csv and DIR/summary.json (written by simulate or replay; "
+        "run writes none) and write the report: PNG figures and one self-contained index.html "
+        "that opens offline.",
     )
     p.add_argument("dir", type=Path, metavar="DIR", help="the run's output folder")
     p.add_argument("--out", type=Path, default=None, help="where to write it (default DIR/report)")

@@ -38,7 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--hours", type=float, default=None, help="run this many hours instead of --days whole days"
     )
-    p.add_argument("--out", type=Path, default=Path("out/simulate"), help="output folder")
+    p.add_argument(
+        "--out", type=Path, default=None, help="output folder (default out/simulate; not with --realtime)"
+    )
     p.add_argument(
         "--no-progress",
         action="store_true",
@@ -51,7 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run on the wall clock (for SCADA clients) instead of simulated days",
     )
     p.add_argument(
-        "--duration", type=float, default=60.0, help="with --realtime: seconds to run (default 60)"
+        "--duration", type=float, default=None, help="with --realtime: seconds to run (default 60)"
     )
     p.add_argument(
         "--sunspec",
@@ -74,6 +76,10 @@ def run(args: argparse.Namespace) -> int:
     require_hil(config)
     if args.realtime:
         return _realtime(args, config)
+    if args.duration is not None:
+        raise ConfigError(
+            None, "--duration", "--realtime as well (a simulated run spans --days or --hours)", args.duration
+        )
     if args.sunspec:
         raise ConfigError(
             None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec
@@ -83,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
     start = parse_start(args.start) if args.start else None
     if args.hours is not None and not 0 < args.hours <= 24 * 366:
         raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
-    out = check_out_dir(args.out)
+    out = check_out_dir(args.out if args.out is not None else Path("out/simulate"))
     run = ScenarioRun(
         config,
         simulation_span(config, args.days, start, args.hours),
@@ -127,6 +133,12 @@ def parse_start(text: str):
 def _realtime(args: argparse.Namespace, config) -> int:
     from heliotrack.realtime import run_realtime
 
+    if args.out is not None:  # it prints its counts; the simulated runs write the files
+        raise ConfigError(
+            None, "--out", "no output folder with --realtime (it writes no files)", str(args.out)
+        )
+    if args.duration is None:
+        args.duration = 60.0
     if not 0 < args.duration <= 7 * 86400:
         raise ConfigError(None, "--duration", "seconds in (0, 604800]", args.duration)
     address = None

@@ -204,3 +204,26 @@ def test_sunspec_needs_realtime(tmp_path):
         [*HELIOTRACK, "simulate", "--sunspec", "127.0.0.1:1502"], capture_output=True, text=True
     )
     assert r.returncode == 2 and "--realtime" in r.stderr
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--duration", "5"], "--duration: expected --realtime as well"),  # was a whole day, silently
+        (
+            ["--realtime", "--duration", "5", "--out", "rt"],
+            "--out: expected no output folder with --realtime",
+        ),
+    ],
+)
+def test_simulate_refuses_options_it_would_ignore(tmp_path, capsys, argv, message):
+    cfg = short_config(tmp_path)
+    assert main(["simulate", "--config", str(cfg), *argv]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "rt").exists()
+
+
+def test_a_run_of_some_hours_says_hours_not_days():
+    from heliotrack.output import _span
+
+    assert _span({"days": 1, "hours": 1.0}) == "1 hour(s)"
+    assert _span({"days": 2, "hours": 48.0}) == "2 day(s)"

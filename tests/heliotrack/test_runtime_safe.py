@@ -58,3 +58,12 @@ def test_a_stow_left_at_shutdown_stays_left_after_its_watchdog_fired(default_pla
         clock.sleep(cfg.control.period_s)
         recs = run(ctl.cycle())
     assert fw.modes[0] == Mode.STOW and "left stowed" in recs[1].health_reason
+
+
+def test_an_unreadable_shutdown_record_is_kept_aside_not_deleted(default_plant, tmp_path):
+    run, ctl, fws, clock, cfg = default_plant
+    state = StateFolder(tmp_path)
+    state.shutdown.write_text('{"stowed": ["dual-1"')  # cut short by a power cut
+    assert resume_last_shutdown(ctl, state) == []
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("shutdown.json.unusable-")]
+    assert len(kept) == 1 and kept[0].read_text() == '{"stowed": ["dual-1"' and not state.shutdown.exists()

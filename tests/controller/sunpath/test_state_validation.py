@@ -113,6 +113,7 @@ def test_source_with_an_invalid_state_starts_from_the_ephemeris_and_keeps_the_fi
     warnings = [r for r in caplog.records if r.levelno >= logging.WARNING]
     assert len(warnings) == 1 and "\n" not in warnings[0].getMessage()
     assert str(path) in warnings[0].getMessage() and "lat_deg" in warnings[0].getMessage()
+    assert "fix or remove" not in warnings[0].getMessage()  # it was moved aside already
     assert not src.kf.initialised  # nothing of the bad state
     e = src.estimate(NOW)
     assert e is not None and e.source is EstimateSource.EPHEMERIS
