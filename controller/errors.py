@@ -21,7 +21,8 @@ class ConfigError(UserError):
         self.key = key
         self.expected = expected
         self.got = got
-        where = f"{self.file}: {key}" if key else self.file
+        # no file: a command-line option (``--state``), named alone
+        where = (f"{self.file}: {key}" if file is not None else key) if key else self.file
         detail = f"expected {expected}"
         if got is not None:
             detail += f", got {got!r}"

@@ -175,6 +175,8 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
     if folder is None:
         return config, None
     folder = folder.expanduser().resolve()
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(None, "--state", "a folder (this is a file)", str(folder))
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

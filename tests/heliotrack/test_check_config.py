@@ -116,6 +116,9 @@ def test_the_state_folder_holds_the_learned_state(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(ConfigError, match="--state"):
         use_state_folder(cfg, tmp_path / "file" / "sub")
+    with pytest.raises(ConfigError) as exc:  # the option named alone, not as a config key
+        use_state_folder(cfg, tmp_path / "file")
+    assert str(exc.value).startswith("--state: expected a folder (this is a file)")
 
 
 def test_check_names_a_port_that_is_not_there(tmp_path, capsys):
