@@ -127,9 +127,12 @@ def calibrate_folder(
         sp = solar_position(site, ts)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
     else:
-        method = "noon"
+        asked, method = method, "noon"
         south = site is None or site.latitude > 0
         off = noon_offset(az, el, "south" if south else "north")
+        if asked != "noon":  # said, not silently swapped: the ephemeris needs the site and times
+            why = "no --lat/--lon" if site is None else "fewer than 3 timed frames found"
+            log({"step": "azimuth", "note": f"{asked} asked, {why}: the paper's noon culmination instead"})
     log({"step": "azimuth", "method": method, "observations": len(az), "offset_deg": round(off, 4)})
     b = replace(b, azimuth=AzimuthCal(off))
     if out is not None:

@@ -62,3 +62,15 @@ def test_calibrate_all_recovers_the_installation(dataset, method, capsys):
         from controller.sun.types import azel_to_enu
 
         assert angle_between_deg(azel_to_enu(r.az_deg, r.el_deg), fr.truth["sun_enu"]) < 0.5
+
+
+def test_an_ephemeris_method_without_the_site_says_it_falls_back_to_noon(dataset, capsys):
+    from heliotrack.cli import main
+
+    _, folder = dataset
+    bpath = folder / "bundle-nosite.toml"
+    assert main(["calibrate", "all", str(folder), "--method", "ephemeris-full", "--bundle", str(bpath)]) == 0
+    steps = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    notes = [s["note"] for s in steps if "note" in s]
+    assert notes == ["ephemeris-full asked, no --lat/--lon: the paper's noon culmination instead"]
+    assert any(s.get("method") == "noon" for s in steps)
