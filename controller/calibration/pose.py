@@ -23,6 +23,10 @@ class PoseResult:
     image_points: np.ndarray | None = None
 
 
+#: The largest reprojection RMS a pose may have (px): a good one is under 1 px.
+MAX_RMS_PX = 10.0
+
+
 def solve_pose(model_pts: np.ndarray, image_pts: np.ndarray, cam: CameraCal) -> PoseResult:
     model_pts = np.ascontiguousarray(np.asarray(model_pts, np.float64).reshape(-1, 1, 3))
     image_pts = np.ascontiguousarray(np.asarray(image_pts, np.float64).reshape(-1, 1, 2))
@@ -51,6 +55,11 @@ def solve_pose(model_pts: np.ndarray, image_pts: np.ndarray, cam: CameraCal) -> 
     if best is None:
         raise InputError("PnP failed on the marker points")
     rms, rvec, tvec = best
+    if not rms <= MAX_RMS_PX:  # (NaN too) points mismatched, in another unit, or another image
+        raise InputError(
+            f"pose: the markers reproject {rms:.1f} px RMS from where they were seen (at most "
+            f"{MAX_RMS_PX:g}): check the survey's units (m), its ids and the image"
+        )
     return PoseResult(
         rvec.ravel(), tvec.ravel(), rms, len(model_pts), model_pts.reshape(-1, 3), image_pts.reshape(-1, 2)
     )

@@ -57,13 +57,13 @@ def test_a_cloud_that_is_no_surface_is_refused_and_the_bundle_kept(tmp_path, cap
     assert message in err and bundle.read_text() == before
 
 
-def test_a_pose_that_comes_out_nan_is_not_written(tmp_path, capsys, bundle):
+def test_a_pose_that_comes_out_nan_or_far_off_is_not_written(tmp_path, capsys, bundle):
     picked = tmp_path / "picked.csv"
     rows = [[0.1 * i, 0.05 * (i % 2), 0.0, 100.0 + 10 * i, np.nan] for i in range(6)]
     np.savetxt(picked, rows, delimiter=",", header="x,y,z,u,v", comments="")
     before = bundle.read_text()
     err = error_of(capsys, ["calibrate", "pose", "--picked", str(picked), "--bundle", str(bundle)])
-    assert "pose.tvec[0]: expected a finite number (in this step's result: not written" in err
+    assert "pose: the markers reproject nan px RMS" in err
     assert bundle.read_text() == before
 
 
@@ -143,3 +143,13 @@ def test_a_bundle_with_an_impossible_pose_is_named(tmp_path, capsys, bundle):
     frame.write_bytes(b"")
     err = error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
     assert "pose.rvec: expected a rotation vector of at most 4 pi rad" in err
+
+
+def test_a_pose_far_from_its_markers_is_refused(tmp_path, capsys, bundle):
+    picked = tmp_path / "picked.csv"
+    rng = np.random.default_rng(1)
+    rows = np.column_stack([rng.uniform(-0.1, 0.1, (8, 2)), np.zeros(8), rng.uniform(0, 900, (8, 2))])
+    np.savetxt(picked, rows, delimiter=",", header="x,y,z,u,v", comments="")
+    before = bundle.read_text()
+    err = error_of(capsys, ["calibrate", "pose", "--picked", str(picked), "--bundle", str(bundle)])
+    assert "px RMS from where they were seen (at most 10)" in err and bundle.read_text() == before
