@@ -146,7 +146,10 @@ def _surface(args) -> int:
 
         pts, _ = load_cloud(args.cloud)
         srf = SurfaceCal(kind="cloud", cloud=args.cloud.resolve(), min_z=args.min_z)
-        info = {"points": len(pts)}
+        info = {
+            "points": len(pts),
+            "note": "the cloud mode is not reliable (docs/hotspot.md, Decisions): prefer --fit-sphere",
+        }
     update_bundle(args.bundle, surface=srf)
     print(json.dumps({"step": "surface", **info, "bundle": str(args.bundle)}))
     return 0
