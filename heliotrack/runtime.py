@@ -264,8 +264,10 @@ async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> Saf
         detail = f"holding at {_angles(targets)} deg" + ("" if ok else " (target not read back)")
         return SafeOutcome(tr.cfg.name, want, ok, detail, tuple(a.actual_deg for a in st.axes))
     st = await drive.read_state()
+    # whose stow it is: the loop's rule (controller.health.DriveHealth.assess)
     ours = tr.health.stowed_by_us or tr.health.watchdog_stow
-    ours = ours or any(a.status & (Status.COMM_LOST | Status.WATCHDOG_STOW) for a in st.axes)
+    ours = ours or any(a.status & Status.WATCHDOG_STOW for a in st.axes)
+    ours = ours or (not tr.health.foreign_stow and any(a.status & Status.COMM_LOST for a in st.axes))
     if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes) and not ours:
         # a local switch's or a maintenance panel's stow: theirs to lift, so neither
         # commanded again nor recorded for the next start to resume

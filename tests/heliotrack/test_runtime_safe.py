@@ -67,3 +67,20 @@ def test_an_unreadable_shutdown_record_is_kept_aside_not_deleted(default_plant, 
     assert resume_last_shutdown(ctl, state) == []
     kept = [p for p in tmp_path.iterdir() if p.name.startswith("shutdown.json.unusable-")]
     assert len(kept) == 1 and kept[0].read_text() == '{"stowed": ["dual-1"' and not state.shutdown.exists()
+
+
+def test_a_stow_seen_as_someone_elses_stays_theirs_at_shutdown_though_its_link_dropped(
+    default_plant, tmp_path
+):
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    command(fws["row-1"], Command.STOW)
+    clock.sleep(cfg.control.period_s)
+    run(ctl.cycle())  # seen: someone else's stow
+    fw = fws["row-1"]
+    clock.sleep(cfg.control.heartbeat_timeout_s + 1)  # the controller stalled: COMM_LOST
+    fw.update()
+    assert fw.comm_lost
+    state = StateFolder(tmp_path)
+    out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
+    assert not out["row-1"].ours and json.loads(state.shutdown.read_text())["left"] == ["row-1"]
