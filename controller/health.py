@@ -80,7 +80,7 @@ class DriveHealth:
         if self.errors_in_row < self.policy.lost_after:
             self.state, self.reason = Health.DEGRADED, why
             return False
-        self.state, self.reason = Health.LOST, f"{why} ({self.errors_in_row} cycles in a row)"
+        self.state, self.reason = Health.LOST, f"{why} ({self.errors_in_row} failed attempts in a row)"
         self.backoff_s = min(max(2 * self.backoff_s, self.policy.min_backoff_s), self.policy.max_backoff_s)
         self.reconnect_at = now + self.backoff_s
         return True
