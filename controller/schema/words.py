@@ -56,6 +56,12 @@ def expected_text(tp: Any, spec: Spec) -> str:
         )
     if get_origin(tp) is Literal:
         return "one of " + ", ".join(toml_text(a) for a in get_args(tp))
+    args = union_args(tp)
+    lits = [a for a in args or () if get_origin(a) is Literal]
+    if lits:  # a choice, or an array of choices: name the choices, not "string"
+        choices = ", ".join(toml_text(x) for a in lits for x in get_args(a))
+        arrays = any(get_origin(a) in (tuple, list) for a in args or ())
+        return f"one of {choices}" + (" (or an array of them)" if arrays else "")
     if get_origin(tp) in (tuple, list):
         each = f" each in {rng}" if rng else ""
         nonempty = "a non-empty " if spec.nonempty else "an "

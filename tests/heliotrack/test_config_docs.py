@@ -30,3 +30,15 @@ def test_config_validate_command(tmp_path, capsys):
     assert "ok (1 link(s), 2 tracker(s))" in capsys.readouterr().out
     assert main(["config", "validate", str(DEFAULT_CONFIG)]) == 2  # [hil] in a plant file
     assert "hil: expected a plant file, with no [hil] table" in capsys.readouterr().err
+
+
+def test_a_choice_or_array_of_choices_names_its_choices(tmp_path, capsys):
+    from tests.conftest import DEFAULT_CONFIG
+
+    text = DEFAULT_CONFIG.read_text()
+    assert '\nsky = "clear"' in text
+    p = tmp_path / "s.toml"
+    p.write_text(text.replace('\nsky = "clear"', '\nsky = "sunny"', 1))
+    assert main(["config", "validate", "--scenario", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert 'hil.sky: expected one of "clear", "overcast", "partly-cloudy" (or an array of them)' in err
