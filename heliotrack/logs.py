@@ -4,7 +4,9 @@ The standard :mod:`logging` module throughout.  One handler on the root logger (
 or the file), so a library's records reach the same place; our own loggers (``heliotrack.*``,
 and the ``controller`` and ``hil`` packages' module loggers) log at the level asked for,
 every other logger (pymodbus, python-can, canopen) at WARNING and above, whatever the
-level: nothing is silenced, and a debug run is not drowned in a library's frames.
+level: nothing is silenced, and a debug run is not drowned in a library's frames.  One
+exception: pymodbus's ERROR for each timed-out request (with the frame dumped) counts as
+DEBUG, since the link retries it and reports the failure with the drive's name.
 
 ``json`` writes one object per line: ``time`` (ISO 8601 UTC), ``level``, ``logger``,
 ``message``, and the fields a caller passed as ``extra={"fields": {...}}``.
@@ -64,7 +66,17 @@ class _LevelFilter(logging.Filter):
         self.level = level
 
     def filter(self, record: logging.LogRecord) -> bool:
-        return record.levelno >= (self.level if is_ours(record.name) else max(self.level, LIBRARY_LEVEL))
+        if is_ours(record.name):
+            return record.levelno >= self.level
+        if record.name.startswith("pymodbus") and str(record.msg).startswith(_PYMODBUS_TIMEOUT):
+            # an ERROR, with the frame dumped, for every timed-out request, which our links
+            # retry and report with the drive's name: a debug record
+            return self.level <= logging.DEBUG
+        return record.levelno >= max(self.level, LIBRARY_LEVEL)
+
+
+#: How pymodbus begins its message for a request that timed out.
+_PYMODBUS_TIMEOUT = "No response received"
 
 
 def _plain(value: Any) -> Any:

@@ -165,6 +165,18 @@ def test_json_lines_our_level_and_libraries_at_warning(tmp_path):
     assert lines[0]["cycle"] == 7 and lines[0]["el"] is None and lines[0]["time"].endswith("+00:00")
 
 
+@pytest.mark.parametrize("level, shown", [("INFO", False), ("DEBUG", True)])
+def test_pymodbus_timeouts_are_debug_records_and_its_other_errors_stay(tmp_path, level, shown):
+    log_file = tmp_path / "run.log"
+    with logging_configured(level, "json", log_file):
+        lib = logging.getLogger("pymodbus.logging")
+        lib.error("No response received after 0 retries, continue with next request\n>>>>> send: 0x0 0x1")
+        lib.error("a library's real error")
+    got = [json.loads(line)["message"] for line in log_file.read_text().splitlines()]
+    timeouts = [m for m in got if m.startswith("No response received")]
+    assert bool(timeouts) is shown and "a library's real error" in got
+
+
 def test_a_log_file_that_cannot_be_written_is_one_line(tmp_path, capsys):
     bad = tmp_path / "missing" / "x.log"
     assert main(["--log-file", str(bad), "config", "validate", str(EXAMPLE)]) == 2
