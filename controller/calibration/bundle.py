@@ -140,6 +140,10 @@ class PoseCal:
         return self
 
 
+#: The largest tilt of the dome's axis from the zenith a bundle may state (deg).
+MAX_TILT_DEG = 45.0
+
+
 @dataclass(frozen=True)
 class LevelCal:
     """Which way is up in the model frame: the zenith, or plumb lines seen in an image."""
@@ -151,8 +155,18 @@ class LevelCal:
 
     def __schema_check__(self, at: Where) -> LevelCal:
         if self.zenith_model is not None:
-            if np.linalg.norm(self.zenith_model) < 1e-9:
+            norm = float(np.linalg.norm(self.zenith_model))
+            if norm < 1e-9:
                 raise at.child("zenith_model").error("a non-zero vector", list(self.zenith_model))
+            # the model's z is the dome's axis, installed about level: a zenith far from it
+            # (plumb lines that were not vertical, a sign flipped) saw nothing but `below_horizon`
+            tilt = float(np.degrees(np.arccos(np.clip(self.zenith_model[2] / norm, -1, 1))))
+            if tilt > MAX_TILT_DEG:
+                raise at.child("zenith_model").error(
+                    f"a zenith within {MAX_TILT_DEG:g} deg of the model's z axis (the dome's), "
+                    f"not {tilt:.1f} deg",
+                    list(self.zenith_model),
+                )
             return self
         lines = self.plumb_lines_image
         if lines is None:

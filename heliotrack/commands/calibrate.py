@@ -128,6 +128,11 @@ def _surface(args) -> int:
 
     if args.fit_sphere:
         f = fit_sphere(args.cloud)
+        if args.min_z is not None and args.min_z >= f.center[2] + f.radius:
+            raise InputError(
+                f"surface: --min-z {args.min_z:g} m is above the fitted sphere's top "
+                f"({f.center[2] + f.radius:.4f} m): nothing of it would be left"
+            )
         srf = SurfaceCal(
             kind="sphere",
             center=vec3(f.center),

@@ -153,3 +153,29 @@ def test_a_pose_far_from_its_markers_is_refused(tmp_path, capsys, bundle):
     before = bundle.read_text()
     err = error_of(capsys, ["calibrate", "pose", "--picked", str(picked), "--bundle", str(bundle)])
     assert "px RMS from where they were seen (at most 10)" in err and bundle.read_text() == before
+
+
+def test_a_cut_above_the_sphere_is_refused(tmp_path, capsys, bundle):
+    cloud = tmp_path / "scan.xyz"
+    np.savetxt(cloud, sphere_points())
+    argv = [
+        "calibrate",
+        "surface",
+        "--cloud",
+        str(cloud),
+        "--fit-sphere",
+        "--min-z",
+        "0.5",
+        "--bundle",
+        str(bundle),
+    ]
+    assert "is above the fitted sphere's top" in error_of(capsys, argv)
+
+
+def test_plumb_lines_that_are_not_vertical_are_refused_and_the_bundle_kept(tmp_path, capsys, bundle):
+    lines = tmp_path / "lines.csv"  # two horizontal lines (an audit's case: a 63 deg tilt)
+    lines.write_text("line,u,v\n0,0,100\n0,900,100\n1,0,300\n1,900,300\n")
+    before = bundle.read_text()
+    err = error_of(capsys, ["calibrate", "level", "--lines", str(lines), "--bundle", str(bundle)])
+    assert "level.zenith_model: expected a zenith within 45 deg of the model's z axis" in err
+    assert bundle.read_text() == before
