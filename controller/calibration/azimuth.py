@@ -31,6 +31,12 @@ def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
     if c2 >= 0:
         raise InputError("elevation vs azimuth has no maximum: observations do not span noon")
     apex = -c1 / (2 * c2)
+    before, after = int(np.sum(a < apex)), int(np.sum(a > apex))
+    if min(before, after) < 2:  # an apex extrapolated from one side of noon (353 deg for 23)
+        raise InputError(
+            f"the noon method needs observations before and after noon: {before} before and "
+            f"{after} after the fitted apex (at least 2 each)"
+        )
     true = 180.0 if culminates == "south" else 0.0
     return float((apex - true) % 360.0)
 

@@ -179,3 +179,15 @@ def test_plumb_lines_that_are_not_vertical_are_refused_and_the_bundle_kept(tmp_p
     err = error_of(capsys, ["calibrate", "level", "--lines", str(lines), "--bundle", str(bundle)])
     assert "level.zenith_model: expected a zenith within 45 deg of the model's z axis" in err
     assert bundle.read_text() == before
+
+
+def test_the_noon_method_needs_both_sides_of_noon():
+    from controller.calibration.azimuth import noon_offset
+    from controller.errors import InputError
+
+    az = np.linspace(100.0, 170.0, 10)  # a morning: the apex would be extrapolated
+    el = 60.0 - 0.01 * (az - 203.0) ** 2
+    with pytest.raises(InputError, match="10 before and 0 after"):
+        noon_offset(az, el)
+    az = np.linspace(120.0, 240.0, 13)
+    assert noon_offset(az, 60.0 - 0.01 * (az - 203.0) ** 2) == pytest.approx(23.0)
