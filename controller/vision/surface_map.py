@@ -139,6 +139,12 @@ class SurfaceMap:
         if edge_px > 0:
             k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * edge_px + 1, 2 * edge_px + 1))
             M = np.asarray(cv2.erode(M, k, borderType=cv2.BORDER_CONSTANT, borderValue=0), np.uint8)
+        if not M.any():  # every frame would be `empty_mask`: say why once, at load
+            raise ConfigError(
+                b.path,
+                "pose",
+                "a camera that sees the surface (none of it is in the image: behind the camera?)",
+            )
         self.mask = M
         self.mask_area = int(M.sum())
         # angular scale: sun-direction degrees per pixel near the globe's centre of view

@@ -191,3 +191,14 @@ def test_the_noon_method_needs_both_sides_of_noon():
         noon_offset(az, el)
     az = np.linspace(120.0, 240.0, 13)
     assert noon_offset(az, 60.0 - 0.01 * (az - 203.0) ** 2) == pytest.approx(23.0)
+
+
+def test_a_bundle_whose_camera_sees_no_surface_is_named_at_load(tmp_path, capsys, bundle):
+    text = bundle.read_text()
+    start = text.index("tvec = [")
+    end = text.index("]", start) + 1
+    bundle.write_text(text[:start] + "tvec = [0.0, 0.04, -0.8]" + text[end:])  # the globe behind it
+    frame = tmp_path / "f.png"
+    frame.write_bytes(b"")
+    err = error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
+    assert "pose: expected a camera that sees the surface" in err
