@@ -13,6 +13,10 @@ def _unwrap_around(az, ref):
     return (np.asarray(az, float) - ref + 180.0) % 360.0 - 180.0 + ref
 
 
+#: The largest RMS (deg) of the levelled-minus-ephemeris azimuths about their mean offset.
+MAX_SPREAD_DEG = 5.0
+
+
 def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
     """Fit el = c0 + c1 az + c2 az^2 to a day; its extremum is the true south (180) or north (0)."""
     az = np.asarray(az_levelled, float)
@@ -41,13 +45,31 @@ def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
     return float((apex - true) % 360.0)
 
 
-def ephemeris_offset(az_levelled, el_levelled, az_true) -> float:
-    """Weighted circular mean of (az_levelled - az_true), weights cos(el)."""
+def ephemeris_offset(az_levelled, el_levelled, az_true, el_true=None) -> float:
+    """Weighted circular mean of (az_levelled - az_true), weights cos(el).  ``el_true``
+    (the ephemeris' elevations, deg), when given, must agree with the levelled ones, which
+    the azimuth offset does not touch: a site or a clock half a day off mirrors the sun's
+    path into a steady azimuth offset that only the elevations show."""
+    if el_true is not None:
+        de = np.asarray(el_levelled, float) - np.asarray(el_true, float)
+        rms = float(np.sqrt(np.mean(de**2))) if de.size else 0.0
+        if not rms <= MAX_SPREAD_DEG:
+            raise InputError(
+                f"the ephemeris method: the observed elevations and the ephemeris' differ by "
+                f"{rms:.1f} deg RMS (at most {MAX_SPREAD_DEG:g}): check --lat/--lon and the times"
+            )
     d = np.radians(np.asarray(az_levelled, float) - np.asarray(az_true, float))
     w = np.cos(np.radians(np.asarray(el_levelled, float)))
     if d.size < 1:
         raise InputError("the ephemeris method needs >= 1 observation")
-    return float(np.degrees(np.arctan2((w * np.sin(d)).sum(), (w * np.cos(d)).sum())) % 360.0)
+    off = float(np.arctan2((w * np.sin(d)).sum(), (w * np.cos(d)).sum()))
+    spread = float(np.degrees(np.sqrt(np.mean(np.angle(np.exp(1j * (d - off))) ** 2))))
+    if not spread <= MAX_SPREAD_DEG:  # a wrong site or clock turns the offset with the hour
+        raise InputError(
+            f"the ephemeris method: the observations and the ephemeris disagree by {spread:.1f} deg "
+            f"RMS about one offset (at most {MAX_SPREAD_DEG:g}): check --lat/--lon and the times"
+        )
+    return float(np.degrees(off) % 360.0)
 
 
 def ephemeris_rotation(s_model, s_enu, weights=None):

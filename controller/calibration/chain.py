@@ -125,7 +125,7 @@ def calibrate_folder(
         from ..sun.source import solar_position
 
         sp = solar_position(site, ts)
-        off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
+        off = ephemeris_offset(az, el, sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
     else:
         asked, method = method, "noon"
         south = site is None or site.latitude > 0

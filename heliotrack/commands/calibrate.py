@@ -269,7 +269,7 @@ def _azimuth(args) -> int:
 
         tt = [parse_timestamp(str(t), f"{args.observations}: time") for t in ts]
         sp = solar_position(Site(args.lat, args.lon), tt)
-        off = ephemeris_offset(az, el, sp["azimuth"].to_numpy())
+        off = ephemeris_offset(az, el, sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
     update_bundle(args.bundle, azimuth=AzimuthCal(off))
     print(
         json.dumps(

@@ -202,3 +202,42 @@ def test_a_bundle_whose_camera_sees_no_surface_is_named_at_load(tmp_path, capsys
     frame.write_bytes(b"")
     err = error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
     assert "pose: expected a camera that sees the surface" in err
+
+
+@pytest.mark.parametrize("lon, ok", [("48.3364", True), ("-131.6636", False), ("-48.3364", False)])
+def test_the_ephemeris_method_refuses_a_site_that_does_not_fit_the_day(tmp_path, capsys, bundle, lon, ok):
+    import json as _json
+
+    from controller.sun.source import Site, solar_position
+    from controller.timestamps import to_iso
+
+    ts = [1742450400.0 + 1800.0 * k for k in range(16)]  # 20 Mar 2025, 06:00-13:30 UTC
+    sp = solar_position(Site(32.4835, 48.3364), ts)
+    obs = tmp_path / "obs.jsonl"
+    obs.write_text(
+        "".join(
+            _json.dumps(
+                {"found": True, "time": to_iso(t), "levelled_az_deg": (a + 23.0) % 360, "levelled_el_deg": e}
+            )
+            + "\n"
+            for t, a, e in zip(ts, sp["azimuth"], sp["apparent_elevation"])
+            if e > 5
+        )
+    )
+    argv = [
+        "calibrate",
+        "azimuth",
+        "--observations",
+        str(obs),
+        "--method",
+        "ephemeris",
+        "--lat=32.4835",
+        f"--lon={lon}",
+    ]
+    if ok:
+        assert main([*argv, "--bundle", str(bundle)]) == 0
+        assert _json.loads(capsys.readouterr().out)["offset_deg"] == pytest.approx(23.0, abs=0.01)
+    else:
+        before = bundle.read_text()
+        err = error_of(capsys, [*argv, "--bundle", str(bundle)])
+        assert "check --lat/--lon and the times" in err and bundle.read_text() == before
