@@ -289,6 +289,9 @@ def _all(args) -> int:
     from controller.calibration.chain import calibrate_folder
     from controller.sun.source import Site
 
+    if not args.folder.is_dir():
+        what = "not found" if not args.folder.exists() else "not a folder"
+        raise InputError(f"{args.folder}: {what}: expected an installer's folder (see docs/hotspot.md)")
     site = Site(args.lat, args.lon) if args.lat is not None and args.lon is not None else None
     calibrate_folder(
         args.folder,

@@ -241,3 +241,12 @@ def test_the_ephemeris_method_refuses_a_site_that_does_not_fit_the_day(tmp_path,
         before = bundle.read_text()
         err = error_of(capsys, [*argv, "--bundle", str(bundle)])
         assert "check --lat/--lon and the times" in err and bundle.read_text() == before
+
+
+@pytest.mark.parametrize("make, what", [(None, "not found"), ("file", "not a folder")])
+def test_calibrate_all_names_a_folder_that_is_not_one(tmp_path, capsys, make, what):
+    folder = tmp_path / "install"
+    if make == "file":
+        folder.write_text("")
+    err = error_of(capsys, ["calibrate", "all", str(folder), "--bundle", str(tmp_path / "b.toml")])
+    assert f"{folder}: {what}: expected an installer's folder" in err
