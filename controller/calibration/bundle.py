@@ -125,6 +125,12 @@ class PoseCal:
                 raise at.error("both rvec and tvec")
             if max(abs(x) for x in self.rvec) > 4 * np.pi:  # 1e300 rad made a NaN rotation
                 raise at.child("rvec").error("a rotation vector of at most 4 pi rad", list(self.rvec))
+            if float(np.linalg.norm(self.tvec)) > MAX_CAMERA_DISTANCE_M:  # a survey in mm, say
+                raise at.child("tvec").error(
+                    f"a camera within {MAX_CAMERA_DISTANCE_M:g} m of the surface's model origin "
+                    "(is the survey in metres?)",
+                    list(self.tvec),
+                )
             return self
         if self.markers_model is None and self.markers_image is None:
             raise at.error("rvec and tvec, or markers_model and markers_image")
@@ -140,6 +146,8 @@ class PoseCal:
         return self
 
 
+#: The farthest a hotspot camera may stand from its surface's model origin (m).
+MAX_CAMERA_DISTANCE_M = 20.0
 #: The largest tilt of the dome's axis from the zenith a bundle may state (deg).
 MAX_TILT_DEG = 45.0
 

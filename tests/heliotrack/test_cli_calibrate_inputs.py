@@ -250,3 +250,14 @@ def test_calibrate_all_names_a_folder_that_is_not_one(tmp_path, capsys, make, wh
         folder.write_text("")
     err = error_of(capsys, ["calibrate", "all", str(folder), "--bundle", str(tmp_path / "b.toml")])
     assert f"{folder}: {what}: expected an installer's folder" in err
+
+
+def test_a_bundle_whose_camera_stands_kilometres_away_is_named(tmp_path, capsys, bundle):
+    text = bundle.read_text()
+    start = text.index("tvec = [")
+    end = text.index("]", start) + 1
+    bundle.write_text(text[:start] + "tvec = [0.17, 41.0, 799.7]" + text[end:])  # a survey in mm
+    frame = tmp_path / "f.png"
+    frame.write_bytes(b"")
+    err = error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
+    assert "pose.tvec: expected a camera within 20 m of the surface's model origin" in err
