@@ -21,7 +21,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..sun.types import SunObservation
-from ..timestamps import parse_timestamp
+from ..timestamps import parse_timestamp, to_iso
 
 REQUIRED = ("time", "az_deg", "el_deg")
 DEFAULT_SIGMA_DEG = 0.3
@@ -44,7 +44,7 @@ def read_text_strict(path: Path, what: str) -> str:
 
 
 def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]:
-    out = []
+    out: list[tuple[SunObservation, int]] = []
     skipped = 0
     for line_no, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
@@ -77,11 +77,10 @@ def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]
         frame = d.get("frame", "enu")
         if frame not in ("enu", "model"):
             raise InputError(f"{w}, key 'frame': expected enu or model, got {frame!r}")
-        out.append(SunObservation(t, az % 360.0, el, sig, frame=frame, sensor=sensor))
+        out.append((SunObservation(t, az % 360.0, el, sig, frame=frame, sensor=sensor), line_no))
     if not out:
         raise InputError(f"{path}: no observations with found = true ({skipped} without)")
-    out.sort(key=lambda o: o.time)
-    return out
+    return _time_ordered(out, path, "line")
 
 
 def parse_time(text: str, where: str) -> float:
@@ -111,7 +110,7 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
     text = read_text_strict(path, "observations")
     if text.lstrip().startswith("{"):
         return _read_json_lines(path, text, sensor)
-    out = []
+    out: list[tuple[SunObservation, int]] = []
     with io.StringIO(text, newline="") as fh:
         reader = csv.DictReader(fh)
         header = [h.strip() for h in (reader.fieldnames or [])]
@@ -148,8 +147,26 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
                 if sig_text
                 else DEFAULT_SIGMA_DEG
             )
-            out.append(SunObservation(t, az % 360.0, el, sig, sensor=sensor))
+            out.append((SunObservation(t, az % 360.0, el, sig, sensor=sensor), row_no))
     if not out:
         raise InputError(f"{path}: no observations (expected rows of time, az_deg, el_deg)")
-    out.sort(key=lambda o: o.time)
-    return out
+    return _time_ordered(out, path, "row")
+
+
+def _time_ordered(rows: list[tuple[SunObservation, int]], path: Path, unit: str) -> list[SunObservation]:
+    """The observations sorted by time; a time given twice is an InputError naming both rows.
+
+    The filter would take a repeated row as a second, independent sighting (its weight
+    doubled) and two different directions at one time as a sun that jumped, so a log
+    concatenated twice or merged from two sensors is refused rather than guessed at.
+    """
+    rows = sorted(rows, key=lambda r: (r[0].time, r[1]))
+    for (a, na), (b, nb) in zip(rows, rows[1:], strict=False):
+        if b.time == a.time:
+            same = (a.az_deg, a.el_deg) == (b.az_deg, b.el_deg)
+            raise InputError(
+                f"{path}: {unit} {nb}: time {to_iso(b.time)} repeats {unit} {na}"
+                + (" (the same observation twice)" if same else " with another direction")
+                + "; one observation per time"
+            )
+    return [o for o, _ in rows]

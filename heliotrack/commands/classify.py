@@ -5,7 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from heliotrack.argtypes import ALTITUDE, LATITUDE, LONGITUDE
+from heliotrack.argtypes import ALTITUDE, LATITUDE, LONGITUDE, number_in
+
+#: The fractal dimension of a day's curve lies in [1, 2] (SkyConfig.d_thresholds' range).
+D_VALUE = number_in(1.0, 2.0)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--d-thresholds",
-        type=float,
+        type=D_VALUE,
         nargs=2,
         metavar=("D_I", "D_II"),
         help="fixed D_I D_II (implies --threshold-rule fixed)",
@@ -91,6 +94,12 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--max-missing-min: expected minutes in [0, 1440], got {args.max_missing_min}")
         overrides["max_missing_s"] = 60.0 * args.max_missing_min
     if args.d_thresholds:
+        if args.d_thresholds[0] > args.d_thresholds[1]:
+            # the seed rule reads D < D_I as clear and D > D_II as overcast: inverted, no day
+            # would be partly cloudy and the two classes would overlap
+            raise InputError(
+                f"--d-thresholds: expected D_I <= D_II, got {args.d_thresholds[0]:g} {args.d_thresholds[1]:g}"
+            )
         overrides.update(threshold_rule="fixed", d_thresholds=tuple(args.d_thresholds))
     elif args.threshold_rule is not None:
         overrides["threshold_rule"] = args.threshold_rule

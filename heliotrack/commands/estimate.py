@@ -12,6 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from controller.errors import InputError
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("estimate", help="estimate the sun's direction from sensor images (JSON lines)")
@@ -33,8 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--method",
         choices=("subpixel", "paper"),
-        default="subpixel",
-        help="direction from the hotspot: sub-pixel (default) or the paper's weights",
+        default=None,
+        help="hotspot only: direction from the hotspot, sub-pixel (default) or the paper's "
+        "weights (the fisheye's paper pipeline is --algorithm seed)",
     )
     p.add_argument("images", nargs="+", type=Path, metavar="IMAGE")
     p.set_defaults(func=run)
@@ -44,13 +47,20 @@ def run(args: argparse.Namespace) -> int:
     if args.sensor == "fisheye":
         from . import estimate_fisheye
 
+        if args.method is not None:
+            # silently ignored, it would look like a comparison of two methods that was not made
+            raise InputError(
+                "--method chooses the hotspot sensor's direction method; "
+                "for the fisheye's paper pipeline give --algorithm seed"
+            )
+
         return estimate_fisheye.run(args)
     from controller.calibration.bundle import load_bundle
     from controller.timestamps import parse_timestamp, time_from_name, to_iso
     from controller.vision import HotspotEstimator
 
     bundle = load_bundle(args.calib)
-    est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method)
+    est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method or "subpixel")
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
     for path in args.images:
         t = t_cli if t_cli is not None else time_from_name(str(path))

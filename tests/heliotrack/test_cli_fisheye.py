@@ -142,6 +142,15 @@ def test_one_time_for_a_sequence_of_images_is_refused(installed, capsys):
     assert lines(capsys)[0]["time"] == "2026-03-20T10:00:00Z"
 
 
+def test_the_hotspot_method_option_is_refused_for_the_fisheye(installed, capsys):
+    out, bundle, _ = installed
+    frame = str(sorted((out / "day").glob("*.png"))[3])
+    argv = ["estimate", "--sensor", "fisheye", "--calib", str(bundle), "--method", "paper", frame]
+    assert main(argv) == 2
+    out_, err = capsys.readouterr()
+    assert out_ == "" and "--algorithm seed" in err and "Traceback" not in err
+
+
 def test_estimate_seed_algorithm(installed, capsys):
     out, bundle, _ = installed
     frames = sorted((out / "day").glob("*.png"))[1:4]

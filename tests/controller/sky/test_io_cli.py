@@ -165,3 +165,32 @@ def test_surfrad_file_through_pvlib_reader(tmp_path, dataset_1min, capsys):
     days = pd.read_csv(out / "days.csv")
     assert "truth" in days and len(days) >= 1
     assert days["n_samples"].max() >= 1430
+
+
+@pytest.mark.parametrize(
+    ("pair", "needle"),
+    [(("1.4", "1.2"), "expected D_I <= D_II, got 1.4 1.2"), (("0.5", "1.2"), "expected a number in [1, 2]")],
+)
+def test_d_thresholds_out_of_order_or_range_are_refused(tmp_path, capsys, pair, needle):
+    g = tmp_path / "any.csv"
+    g.write_text("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,2\n")
+    argv = [
+        "classify",
+        str(g),
+        "--lat",
+        "1",
+        "--lon",
+        "2",
+        "--d-thresholds",
+        *pair,
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    try:
+        rc = main(argv)
+    except SystemExit as exc:  # argparse's own refusal
+        rc = exc.code
+    assert rc == 2
+    err = capsys.readouterr().err
+    assert "--d-thresholds" in err and needle in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
