@@ -33,7 +33,16 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
     a.set_defaults(func=_intrinsics)
     s = sp.add_parser("surface", help="surface model from a point cloud (PLY/XYZ/NPZ)")
     s.add_argument("--cloud", type=Path, required=True)
-    s.add_argument("--fit-sphere", action="store_true", help="store the fitted analytic sphere")
+    s.add_argument(
+        "--fit-sphere",
+        action="store_true",
+        help="store the fitted analytic sphere (the default; kept for older scripts)",
+    )
+    s.add_argument(
+        "--keep-cloud",
+        action="store_true",
+        help="store the scan itself instead (experimental: not reliable, docs/hotspot.md Decisions)",
+    )
     s.add_argument("--min-z", type=number_in(-10.0, 10.0), default=None, help="hemisphere cut (model z)")
     s.add_argument("--bundle", type=Path, required=True)
     s.set_defaults(func=_surface)
@@ -126,7 +135,9 @@ def _surface(args) -> int:
     from controller.calibration.bundle import SurfaceCal, update_bundle, vec3
     from controller.calibration.surface import fit_sphere
 
-    if args.fit_sphere:
+    if args.fit_sphere and args.keep_cloud:
+        raise InputError("surface: --fit-sphere and --keep-cloud exclude each other")
+    if not args.keep_cloud:
         f = fit_sphere(args.cloud)
         if args.min_z is not None and args.min_z >= f.center[2] + f.radius:
             raise InputError(
@@ -153,7 +164,7 @@ def _surface(args) -> int:
         srf = SurfaceCal(kind="cloud", cloud=args.cloud.resolve(), min_z=args.min_z)
         info = {
             "points": len(pts),
-            "note": "the cloud mode is not reliable (docs/hotspot.md, Decisions): prefer --fit-sphere",
+            "note": "the cloud mode is not reliable (docs/hotspot.md, Decisions): prefer the fitted sphere",
         }
     update_bundle(args.bundle, surface=srf)
     print(json.dumps({"step": "surface", **info, "bundle": str(args.bundle)}))

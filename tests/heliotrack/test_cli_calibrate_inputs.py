@@ -57,6 +57,31 @@ def test_a_cloud_that_is_no_surface_is_refused_and_the_bundle_kept(tmp_path, cap
     assert message in err and bundle.read_text() == before
 
 
+def test_the_surface_step_stores_the_fitted_sphere_unless_told_to_keep_the_scan(tmp_path, capsys, bundle):
+    import tomllib
+
+    cloud = tmp_path / "scan.xyz"
+    np.savetxt(cloud, sphere_points() + [0.01, -0.02, 0.03])
+    assert main(["calibrate", "surface", "--cloud", str(cloud), "--bundle", str(bundle)]) == 0
+    srf = tomllib.loads(bundle.read_text())["surface"]
+    assert srf["kind"] == "sphere" and srf["radius"] == pytest.approx(0.2, abs=1e-9)
+    assert srf["center"] == pytest.approx([0.01, -0.02, 0.03], abs=1e-9)
+    assert main(["calibrate", "surface", "--cloud", str(cloud), "--keep-cloud", "--bundle", str(bundle)]) == 0
+    assert "not reliable" in capsys.readouterr().out
+    assert tomllib.loads(bundle.read_text())["surface"]["kind"] == "cloud"
+    argv = [
+        "calibrate",
+        "surface",
+        "--cloud",
+        str(cloud),
+        "--keep-cloud",
+        "--fit-sphere",
+        "--bundle",
+        str(bundle),
+    ]
+    assert "exclude each other" in error_of(capsys, argv)
+
+
 def test_a_pose_that_comes_out_nan_or_far_off_is_not_written(tmp_path, capsys, bundle):
     picked = tmp_path / "picked.csv"
     rows = [[0.1 * i, 0.05 * (i % 2), 0.0, 100.0 + 10 * i, np.nan] for i in range(6)]
