@@ -158,6 +158,12 @@ class StateFolder:
         """The trackers the last shutdown stowed (resumed by the next start)."""
         return self.path / "shutdown.json"
 
+    @property
+    def foreign_stows(self) -> Path:
+        """The trackers seen in someone else's stow, kept up to date while ``run`` runs, so
+        that a start after ``kill -9`` or a power cut still knows whose stow it was."""
+        return self.path / "foreign-stows.json"
+
 
 def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, StateFolder | None]:
     """Create (if needed) and check the state folder; the config with its state files in it:
@@ -193,11 +199,57 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
     return config, state
 
 
+def note_foreign_stows(
+    ctl: Controller, state: StateFolder | None, last: frozenset[str] | None
+) -> frozenset[str] | None:
+    """Write the trackers now in someone else's stow to ``state.foreign_stows`` when the set
+    has changed since ``last`` (the set last written; None: not written yet by this
+    process, so write); returns the set now on record.
+
+    Without it, a drive stowed by a local switch while the controller was killed (no
+    shutdown record) says COMM_LOST once its watchdog has found it stowed, and older
+    firmware (without WATCHDOG_STOW) makes that look like the watchdog's stow, which the
+    next start would resume.  Written on change only: one small file a stow, not a cycle.
+    """
+    now = frozenset(tr.cfg.name for tr in ctl.trackers if tr.health.foreign_stow)
+    if state is None or now == last:
+        return last
+    try:
+        atomic_write(state.foreign_stows, json.dumps({"time": time.time(), "trackers": sorted(now)}) + "\n")
+    except OSError as exc:
+        log.warning("%s: not written (%s)", state.foreign_stows, exc)
+        return last
+    return now
+
+
+def _recorded_foreign_stows(state: StateFolder) -> set[str]:
+    """The names :func:`note_foreign_stows` last wrote (none when absent or unreadable)."""
+    try:
+        names = json.loads(state.foreign_stows.read_text())["trackers"]
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise TypeError("trackers: expected a list of names")
+        return set(names)
+    except FileNotFoundError:
+        return set()
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        # rewritten by the first cycle; a stow nobody vouches for is then taken as before
+        log.warning("%s: unreadable (%s); ignored", state.foreign_stows, exc)
+        return set()
+
+
 def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str]:
     """Mark the trackers the last shutdown stowed as stowed by us (the loop resumes them),
     and those it found in someone else's stow as such (left so even if their watchdog has
-    fired since); returns the names resumed.  The record is used once."""
-    if state is None or not state.shutdown.exists():
+    fired since); returns the names resumed.  The shutdown record is used once.  Without
+    one (``kill -9``, a power cut), the trackers last seen in someone else's stow
+    (:func:`note_foreign_stows`) are marked as such."""
+    if state is None:
+        return []
+    if not state.shutdown.exists():
+        left = _recorded_foreign_stows(state)
+        for tr in ctl.trackers:
+            if tr.cfg.name in left:
+                tr.health.foreign_stow = True
         return []
     try:
         record = json.loads(state.shutdown.read_text())
@@ -212,7 +264,7 @@ def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str
         except OSError as err:
             kept = f"could not move it aside: {err.strerror}"
         log.warning("%s: unreadable (%s): %s; no stow resumed from it", state.shutdown, exc, kept)
-        names, left = set(), set()
+        names, left = set(), _recorded_foreign_stows(state)
     resumed = [tr.cfg.name for tr in ctl.trackers if tr.cfg.name in names]
     for tr in ctl.trackers:
         if tr.cfg.name in names:

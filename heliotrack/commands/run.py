@@ -96,6 +96,7 @@ class Service:
         self.camera_down = False
         self.ctl: Any = None
         self.bridge: Any = None
+        self._foreign: frozenset[str] | None = None  # trackers on record in someone else's stow
 
     # -- signals -----------------------------------------------------------------------------
     def _on_signal(self, signum: int) -> None:
@@ -232,7 +233,10 @@ class Service:
         )
 
     def _on_cycle(self, records) -> None:
+        from heliotrack.runtime import note_foreign_stows
+
         ctl = self.ctl
+        self._foreign = note_foreign_stows(ctl, self.state, self._foreign)
         if self.bridge is not None:
             self.bridge.publish(records)
             self.tally["overrides"] += self.bridge.apply_pending()

@@ -84,3 +84,53 @@ def test_a_stow_seen_as_someone_elses_stays_theirs_at_shutdown_though_its_link_d
     state = StateFolder(tmp_path)
     out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
     assert not out["row-1"].ours and json.loads(state.shutdown.read_text())["left"] == ["row-1"]
+
+
+def test_a_stow_seen_as_someone_elses_stays_theirs_after_kill_9(default_plant, tmp_path):
+    """No shutdown record (kill -9, a power cut): the record ``run`` keeps while it runs
+    says whose stow it was, so the COMM_LOST of a watchdog that found the drive stowed does
+    not make it the watchdog's (older firmware: no WATCHDOG_STOW)."""
+    from firmware_protocol import Status
+    from heliotrack.runtime import note_foreign_stows
+
+    run, ctl, fws, clock, cfg = default_plant
+    state = StateFolder(tmp_path)
+    on_record = note_foreign_stows(ctl, state, None)
+    assert json.loads(state.foreign_stows.read_text())["trackers"] == []
+    run(ctl.cycle())
+    command(fws["row-1"], Command.STOW)  # a local switch
+    clock.sleep(cfg.control.period_s)
+    run(ctl.cycle())
+    on_record = note_foreign_stows(ctl, state, on_record)
+    assert json.loads(state.foreign_stows.read_text())["trackers"] == ["row-1"]
+    # kill -9: nothing more is written; the watchdog fires while the controller is away
+    fw = fws["row-1"]
+    clock.sleep(cfg.control.heartbeat_timeout_s + 1)
+    fw.update()
+    assert fw.modes[0] == Mode.STOW and fw.comm_lost and not fw.status(0) & Status.WATCHDOG_STOW
+    for tr in ctl.trackers:  # a new process
+        tr.health = type(tr.health)()
+        tr.health.last_ok = float("-inf")
+    assert not state.shutdown.exists() and resume_last_shutdown(ctl, state) == []
+    on_record = None
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        recs = run(ctl.cycle())
+        on_record = note_foreign_stows(ctl, state, on_record)
+    assert fw.modes[0] == Mode.STOW and "left stowed" in recs[1].health_reason
+    # the switch released: the record follows
+    command(fw, Command.RESUME)
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        run(ctl.cycle())
+        on_record = note_foreign_stows(ctl, state, on_record)
+    assert fw.modes[0] != Mode.STOW and json.loads(state.foreign_stows.read_text())["trackers"] == []
+
+
+def test_an_unreadable_record_of_foreign_stows_is_ignored_with_a_warning(default_plant, tmp_path, caplog):
+    run, ctl, fws, clock, cfg = default_plant
+    state = StateFolder(tmp_path)
+    state.foreign_stows.write_text('{"trackers": ["row-1"')  # cut short
+    assert resume_last_shutdown(ctl, state) == []
+    assert not any(tr.health.foreign_stow for tr in ctl.trackers)
+    assert "foreign-stows.json: unreadable" in caplog.text
