@@ -41,7 +41,7 @@ class ControlConfig:
     )
     lead_s: float = setting(
         doc="Setpoints aim at the sun this far ahead of the cycle, so "
-        "the panel leads then lags it by the same amount.",
+        "the panel leads then lags it by the same amount (at most period_s).",
         unit="s",
         ge=0,
         le=3600,
@@ -55,7 +55,7 @@ class ControlConfig:
         unit="s",
         gt=0,
         le=6553,
-        derived="3 x period_s, at least 5",
+        derived="3 x period_s, at least 5 (set it when that is over 6553)",
     )
     sun_source: SunSourceKind = setting(
         "ephemeris",
@@ -69,8 +69,17 @@ class ControlConfig:
         c = self
         if c.lead_s != c.lead_s:  # DERIVED (NaN)
             c = replace(c, lead_s=c.period_s / 2)
+        if c.lead_s > c.period_s:  # aimed further ahead than the next setpoint replaces it
+            raise at.child("lead_s").error(
+                f"at most control.period_s ({c.period_s:g} s; default half of it)", c.lead_s
+            )
         if c.heartbeat_timeout_s != c.heartbeat_timeout_s:
             c = replace(c, heartbeat_timeout_s=max(3 * c.period_s, 5.0))
+            if c.heartbeat_timeout_s > 6553:  # the drives' register holds 6553.5 s
+                raise at.child("heartbeat_timeout_s").error(
+                    f"a value set (the default, 3 x period_s = {c.heartbeat_timeout_s:g} s, is over "
+                    "the drives' 6553 s)"
+                )
         if c.heartbeat_timeout_s <= c.period_s:
             raise at.child("heartbeat_timeout_s").error(
                 f"more than control.period_s ({c.period_s:g} s)", c.heartbeat_timeout_s
@@ -297,14 +306,29 @@ class Config:
 
     def __schema_check__(self, at: Where) -> Config:
         links: dict[str, LinkConfig] = {}
+        serial: dict[tuple[str, ...], str] = {}
         for i, link in enumerate(self.links):
             if link.name in links:
                 raise at.child("links").item(i).child("name").error("a unique link name", link.name)
             links[link.name] = link
+            if link.bus[0] == "serial":  # a serial port is opened by one link only
+                if link.bus in serial:
+                    raise (
+                        at.child("links")
+                        .item(i)
+                        .child("port")
+                        .error(
+                            f"a port no other link opens (link {serial[link.bus]!r} has it: put "
+                            "every device of one RS-485 line on one link)",
+                            link.bus[1],
+                        )
+                    )
+                serial[link.bus] = link.name
         if not self.trackers:
             raise at.child("trackers").error("at least one [[trackers]] table")
         names: set[str] = set()
-        used: dict[tuple[str, int], str] = {}
+        # device ids are unique per physical bus (two links may reach one gateway or CAN bus)
+        used: dict[tuple[tuple[str, ...], int], str] = {}
         for i, tr in enumerate(self.trackers):
             here = at.child("trackers").item(i)
             if tr.name in names:
@@ -314,13 +338,14 @@ class Config:
                 raise here.child("link").error(
                     f"the name of a [[links]] table ({', '.join(links) or 'none defined'})", tr.link
                 )
+            bus = links[tr.link].bus
             for address in _addresses(links[tr.link], tr.device_id, tr.axes):
-                if (tr.link, address) in used:
+                if (bus, address) in used:
                     raise here.child("device_id").error(
-                        f"an id not used on link {tr.link!r} already (by {used[tr.link, address]})",
+                        f"an id not used on the bus of link {tr.link!r} already (by {used[bus, address]})",
                         tr.device_id,
                     )
-                used[tr.link, address] = tr.name
+                used[bus, address] = tr.name
             if links[tr.link].kind == "canopen" and tr.device_id + tr.axes - 1 > 126:
                 raise here.child("device_id").error(
                     f"a CANopen node id with all {tr.axes} axes within 1..126 (127 is the master's)",
@@ -345,7 +370,7 @@ class Config:
                 raise here.child("link").error("the name of a [[links]] table", pyr.link)
             if not isinstance(links[pyr.link], (ModbusRtuLink, ModbusTcpLink)):
                 raise here.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", pyr.link)
-            if (pyr.link, pyr.device_id) in used:
+            if (links[pyr.link].bus, pyr.device_id) in used:
                 raise here.child("device_id").error(
                     f"an id not used by a drive on {pyr.link!r}", pyr.device_id
                 )
@@ -372,12 +397,42 @@ class Config:
         for table in ("hotspot", "fisheye"):
             if source in (table, "fused") and getattr(self, table) is None:
                 raise at.child(table).error(f"a [{table}] table when control.sun_source = {source!r}")
+        self._check_state_paths(at)
         for i, name in enumerate(self.closedloop.trackers if self.closedloop is not None else ()):
             if name not in names:
                 raise at.child("closedloop").child("trackers").item(i).error("a tracker name", name)
         return c
 
-    def _check_wind(self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[str, int], str]) -> None:
+    def _check_state_paths(self, at: Where) -> None:
+        """The files the controller writes are none of the files it reads: an unreadable
+        state file is moved aside, and so would a plant file or a bundle be."""
+        read: dict[Path, str] = {}
+        if at.file is not None and not at.file.startswith("<"):  # `file` is set after the checks
+            read[Path(at.file).resolve()] = "the configuration file itself"
+        for table in ("hotspot", "fisheye"):
+            sensor = getattr(self, table)
+            if sensor is not None:
+                read[Path(sensor.calibration).resolve()] = f"{table}.calibration"
+        written = (
+            (at.child("store").child("path"), self.store.path),
+            (at.child("sunpath").child("state"), self.sunpath.state),
+        )
+        for where, path in written:
+            if path is not None and Path(path).resolve() in read:
+                raise where.error(f"a file of its own (this is {read[Path(path).resolve()]})", str(path))
+        if self.store.path is not None and self.store.path == self.sunpath.state:
+            raise (
+                at.child("sunpath")
+                .child("state")
+                .error(
+                    "a file other than store.path (the store is SQLite, the state JSON)",
+                    str(self.sunpath.state),
+                )
+            )
+
+    def _check_wind(
+        self, at: Where, links: dict[str, LinkConfig], used: dict[tuple[tuple[str, ...], int], str]
+    ) -> None:
         wind = self.wind
         assert wind is not None
         if wind.link not in links:
@@ -385,8 +440,9 @@ class Config:
         if not isinstance(links[wind.link], (ModbusRtuLink, ModbusTcpLink)):
             raise at.child("link").error("a Modbus link (modbus-rtu or modbus-tcp)", wind.link)
         pyr = self.pyranometer
-        if (wind.link, wind.device_id) in used or (
-            pyr is not None and (pyr.link, pyr.device_id) == (wind.link, wind.device_id)
+        bus = links[wind.link].bus
+        if (bus, wind.device_id) in used or (
+            pyr is not None and (links[pyr.link].bus, pyr.device_id) == (bus, wind.device_id)
         ):
             raise at.child("device_id").error(f"an id not used on {wind.link!r} already", wind.device_id)
         # the wind stow angle becomes each drive's STOW_ANGLE: it must be reachable

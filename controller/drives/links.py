@@ -27,6 +27,13 @@ class LinkConfig:
         """Names a device only the simulator provides (``port = "hil"``)."""
         return False
 
+    @property
+    def bus(self) -> tuple[str, ...]:
+        """The physical bus this link is on: two links with the same ``bus`` share one
+        address space (device ids must differ across them).  A simulator's link is a bus of
+        its own."""
+        return ("link", self.name)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ModbusRtuLink(LinkConfig):
@@ -47,6 +54,10 @@ class ModbusRtuLink(LinkConfig):
     def is_hil(self) -> bool:
         return self.port == "hil"
 
+    @property
+    def bus(self) -> tuple[str, ...]:
+        return super().bus if self.is_hil else ("serial", self.port)
+
 
 @dataclass(frozen=True, kw_only=True)
 class ModbusTcpLink(LinkConfig):
@@ -63,6 +74,11 @@ class ModbusTcpLink(LinkConfig):
     @property
     def is_hil(self) -> bool:
         return self.host == "hil"
+
+    @property
+    def bus(self) -> tuple[str, ...]:
+        # a gateway's unit ids are one address space, whichever link reaches it
+        return super().bus if self.is_hil else ("tcp", self.host.lower(), str(self.tcp_port))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,6 +110,12 @@ class CanopenLink(LinkConfig):
     @property
     def is_hil(self) -> bool:
         return self.channel == "hil"
+
+    @property
+    def bus(self) -> tuple[str, ...]:
+        if self.is_hil or self.interface == "virtual":  # python-can's virtual buses are per channel
+            return super().bus if self.is_hil else ("can", "virtual", self.channel)
+        return ("can", self.channel)
 
     def __schema_check__(self, at: Where) -> CanopenLink:
         from can.interfaces import VALID_INTERFACES  # python-can's own list, plug-ins too

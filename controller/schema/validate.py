@@ -209,6 +209,8 @@ def _path(v: Any, at: Where, spec: Spec) -> Path:
             raise at.error("an existing file", str(p))
         if spec.path == "dir" and not p.is_dir():
             raise at.error("an existing folder", str(p))
+        if spec.path == "new" and p.is_dir():  # a file goes there: a folder would be moved aside
+            raise at.error("a file's path (this is a folder)", str(p))
     except RuntimeError:  # "~user" of no known user
         raise at.error("a path (its '~' names no user with a home folder)", v) from None
     except OSError as exc:  # a name too long, a loop of links...

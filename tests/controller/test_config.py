@@ -212,3 +212,132 @@ def test_derived_defaults():
     assert isinstance(cfg, Config)
     assert cfg.control.lead_s == 0.5 and cfg.control.heartbeat_timeout_s == 5.0
     assert cfg.diffuse.enabled is False
+
+
+def _plant(links, trackers, **extra):
+    return {
+        "site": {"latitude": 10, "longitude": 20},
+        "control": {"period_s": 10},
+        "links": links,
+        "trackers": trackers,
+        **extra,
+    }
+
+
+@pytest.mark.parametrize(
+    ("links", "second_id", "match"),
+    [
+        # two links on one RS-485 port: two masters on one line
+        (
+            [
+                {"name": "l1", "kind": "modbus-rtu", "port": "/dev/ttyUSB0"},
+                {"name": "l2", "kind": "modbus-rtu", "port": "/dev/ttyUSB0"},
+            ],
+            2,
+            r"links\[1\].port: expected a port no other link opens",
+        ),
+        # one gateway reached by two links: one unit-id space
+        (
+            [
+                {"name": "l1", "kind": "modbus-tcp", "host": "10.0.0.5"},
+                {"name": "l2", "kind": "modbus-tcp", "host": "10.0.0.5"},
+            ],
+            1,
+            r"trackers\[1\].device_id: expected an id not used on the bus of link 'l2' already \(by d1\)",
+        ),
+        # one CAN bus: a dual-axis drive at 5 holds nodes 5 and 6
+        (
+            [
+                {"name": "l1", "kind": "canopen", "interface": "socketcan", "channel": "can0"},
+                {"name": "l2", "kind": "canopen", "interface": "socketcan", "channel": "can0"},
+            ],
+            6,
+            r"trackers\[1\].device_id: expected an id not used",
+        ),
+    ],
+)
+def test_device_ids_are_unique_per_physical_bus_not_per_link(links, second_id, match):
+    trackers = [
+        {
+            "name": "d1",
+            "type": "dual-axis",
+            "link": "l1",
+            "device_id": 1 if links[0]["kind"] != "canopen" else 5,
+        },
+        {"name": "d2", "type": "single-axis", "link": "l2", "device_id": second_id},
+    ]
+    with pytest.raises(ConfigError, match=match):
+        parse_config(_plant(links, trackers))
+    if links[0]["kind"] != "modbus-rtu":  # other addresses on the shared bus are fine
+        trackers[1]["device_id"] = 7
+        assert len(parse_config(_plant(links, trackers)).trackers) == 2
+
+
+def test_the_simulators_links_are_buses_of_their_own():
+    links = [{"name": "l1", "kind": "modbus-rtu"}, {"name": "l2", "kind": "modbus-rtu"}]
+    trackers = [
+        {"name": "d1", "type": "dual-axis", "link": "l1", "device_id": 1},
+        {"name": "d2", "type": "single-axis", "link": "l2", "device_id": 1},
+    ]
+    assert len(parse_config(_plant(links, trackers)).trackers) == 2
+
+
+def test_a_long_period_needs_a_watchdog_timeout_the_drives_can_hold():
+    doc = _plant(
+        [{"name": "a", "kind": "modbus-tcp"}],
+        [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}],
+    )
+    doc["control"] = {"period_s": 3000.0}
+    with pytest.raises(
+        ConfigError,
+        match=r"control.heartbeat_timeout_s: expected a value set \(the default, 3 x period_s = 9000 s",
+    ):
+        parse_config(doc)
+    doc["control"]["heartbeat_timeout_s"] = 6000.0
+    assert parse_config(doc).control.heartbeat_timeout_s == 6000.0
+
+
+def test_a_lead_beyond_the_period_is_refused():
+    doc = _plant(
+        [{"name": "a", "kind": "modbus-tcp"}],
+        [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}],
+    )
+    doc["control"] = {"period_s": 60.0, "lead_s": 3600.0}
+    with pytest.raises(ConfigError, match=r"control.lead_s: expected at most control.period_s \(60 s"):
+        parse_config(doc)
+    doc["control"]["lead_s"] = 60.0
+    assert parse_config(doc).control.lead_s == 60.0
+
+
+@pytest.mark.parametrize(
+    ("table", "target", "match"),
+    [
+        (
+            "[store]\npath",
+            "plant.toml",
+            r"store.path: expected a file of its own \(this is the configuration file itself\)",
+        ),
+        ("[store]\npath", "calibration", r"store.path: expected a file's path \(this is a folder\)"),
+        ("[sunpath]\nstate", "calibration", r"sunpath.state: expected a file's path \(this is a folder\)"),
+        (
+            "[sunpath]\nstate",
+            "calibration/b.toml",
+            r"sunpath.state: expected a file of its own \(this is hotspot.calibration\)",
+        ),
+        ("[sunpath]\nstate", "same.db", r"sunpath.state: expected a file other than store.path"),
+    ],
+)
+def test_a_state_file_may_not_be_a_folder_or_a_file_the_controller_reads(tmp_path, table, target, match):
+    """An unreadable state file is moved aside at start: a plant file or a bundle named
+    there had been renamed, and a folder replaced by the store (an audit's finding)."""
+    (tmp_path / "calibration").mkdir()
+    bundle = tmp_path / "calibration" / "b.toml"
+    bundle.write_text("")
+    text = BASE + f'[hotspot]\ncalibration = "calibration/b.toml"\n{table} = "{target}"\n'
+    if "same.db" in target:
+        text += '[store]\npath = "same.db"\n'
+    plant = tmp_path / "plant.toml"
+    plant.write_text(text)
+    with pytest.raises(ConfigError, match=match):
+        load_config(plant)
+    assert bundle.exists() and plant.read_text() == text and (tmp_path / "calibration").is_dir()

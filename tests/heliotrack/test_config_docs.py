@@ -17,7 +17,7 @@ def test_reference_documents_every_key_of_every_table():
         "`[camera]`",
         "`[sky]`",
         "`heartbeat_timeout_s`",
-        "`3 x period_s, at least 5`",
+        "`3 x period_s, at least 5 (set it when that is over 6553)`",
         '| `parity` | string |  | `"N"` | "N", "E", "O" |',
     ):
         assert needle in text, needle
