@@ -121,18 +121,27 @@ def cycle_row(
 
 class CyclesWriter:
     """``cycles.csv`` written as the run goes: every cycle's rows are on disk (flushed)
-    before the next cycle starts, so an interrupted run keeps what it did."""
+    before the next cycle starts, so an interrupted run keeps what it did.
+
+    The file is opened (and an earlier run's truncated) with the first rows only: a run
+    that fails or is stopped before its first cycle leaves the folder as it was."""
 
     def __init__(self, path: Path, trackers: Sequence[TrackerConfig]):
         self.path = Path(path)
         self.axes = {tr.name: axis_names(tr) for tr in trackers}
         self.columns = cycle_columns(trackers)
         self.rows = 0
-        self._file: IO[str] | None = open(self.path, "w", newline="")  # noqa: SIM115 - closed in close()
-        self._csv = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore", restval="")
-        self._csv.writeheader()
+        self._file: IO[str] | None = None
+        self._csv: csv.DictWriter | None = None
 
     def write(self, rows: Iterable[dict[str, Any]]) -> None:
+        rows = list(rows)
+        if not rows:
+            return
+        if self._csv is None:
+            self._file = open(self.path, "w", newline="")  # noqa: SIM115 - closed in close()
+            self._csv = csv.DictWriter(self._file, fieldnames=self.columns, extrasaction="ignore", restval="")
+            self._csv.writeheader()
         assert self._file is not None
         for row in rows:
             self._csv.writerow(row)
@@ -151,8 +160,17 @@ class CyclesWriter:
         self.close()
 
 
-def check_out_dir(out: Path, option: str = "--out") -> Path:
-    """Make ``out`` (and its parents) and prove it writable, before a long run."""
+#: What a run writes in its ``--out``: files, and the report's folder.
+RUN_FILES = ("cycles.csv", "summary.json")
+RUN_FOLDERS = ("report",)
+
+
+def check_out_dir(
+    out: Path, option: str = "--out", files: Sequence[str] = RUN_FILES, folders: Sequence[str] = RUN_FOLDERS
+) -> Path:
+    """Make ``out`` (and its parents) and prove it writable, before a long run; the
+    ``files`` it will write there must not be folders, nor its ``folders`` files (found at
+    the end of a run, that had cost the run)."""
     out = Path(out)
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -161,6 +179,12 @@ def check_out_dir(out: Path, option: str = "--out") -> Path:
         probe.unlink()
     except OSError as exc:
         raise InputError(f"{option}: cannot write to {out}: {exc.strerror or exc}") from None
+    for name in files:
+        if (out / name).is_dir():
+            raise InputError(f"{option}: {out / name} is a folder; a run writes a file there")
+    for name in folders:
+        if (out / name).exists() and not (out / name).is_dir():
+            raise InputError(f"{option}: {out / name} is a file; a run writes a folder there")
     return out
 
 

@@ -238,7 +238,7 @@ class ScenarioRun:
         finally:
             if self.writer is not None:
                 self.writer.close()
-        if out_dir is not None:
+        if out_dir is not None and summary["cycles"]:  # none run: the folder keeps what it had
             write_summary(Path(out_dir), summary)
         return summary
 

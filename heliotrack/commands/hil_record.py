@@ -91,7 +91,7 @@ def run_record(args: argparse.Namespace) -> int:
         raise ConfigError(None, "--every", "seconds in [0.01, 86400]", args.every)
     start = parse_start(args.start) if args.start else None
     span = simulation_span(config, args.days, start, args.hours)
-    out = check_out_dir(args.out)
+    out = check_out_dir(args.out, files=("truth.csv",), folders=())
     result = record_frames(
         config,
         span,

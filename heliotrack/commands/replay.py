@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.truth is not None and not args.truth.is_file():
         raise InputError(f"--truth: {args.truth}: no such file")
-    out = check_out_dir(args.out)
+    out = check_out_dir(args.out, folders=() if args.no_report else ("report",))
     summary = run_replay(
         config,
         args.source,

@@ -24,6 +24,6 @@ def run(args: argparse.Namespace) -> int:
     from heliotrack.reports.run_report import write_report
 
     if args.out is not None:
-        check_out_dir(args.out)
+        check_out_dir(args.out, files=("index.html",), folders=())
     print(f"wrote {write_report(args.dir, args.out)}")
     return 0

@@ -89,7 +89,10 @@ def run(args: argparse.Namespace) -> int:
     start = parse_start(args.start) if args.start else None
     if args.hours is not None and not 0 < args.hours <= 24 * 366:
         raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
-    out = check_out_dir(args.out if args.out is not None else Path("out/simulate"))
+    out = check_out_dir(
+        args.out if args.out is not None else Path("out/simulate"),
+        folders=() if args.no_report else ("report",),
+    )
     run = ScenarioRun(
         config,
         simulation_span(config, args.days, start, args.hours),
@@ -102,6 +105,13 @@ def run(args: argparse.Namespace) -> int:
 
 def finish(summary: dict, out: Path, report: bool = True) -> int:
     """After a run: the report, the files written, and 130 when it was interrupted."""
+    if not summary["cycles"]:
+        print(
+            f"no cycle was run{' (interrupted before the first)' if summary.get('interrupted') else ''}: "
+            f"nothing written; what {out} held is as it was",
+            file=sys.stderr,
+        )
+        return 130 if summary.get("interrupted") else 1
     written = [out / "summary.json", out / "cycles.csv"]
     if report:
         from heliotrack.reports.run_report import write_report

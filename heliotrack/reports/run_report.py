@@ -12,6 +12,7 @@ import base64
 import html
 import io
 import json
+import logging
 import math
 from collections.abc import Callable
 from pathlib import Path
@@ -24,6 +25,8 @@ from controller.atomic import atomic_write
 from controller.errors import InputError
 
 from . import figures
+
+log = logging.getLogger(__name__)
 
 __all__ = ["load_run", "write_report"]
 
@@ -64,6 +67,10 @@ def load_run(folder: Path) -> tuple[pd.DataFrame, dict]:
         raise InputError(f"{cycles_path}: missing column(s) {', '.join(sorted(missing))}")
     df["time"] = pd.to_datetime(df["time_utc"], utc=True, format="ISO8601", errors="coerce")
     df = df[df["time"].notna()].copy()
+    if df.empty:
+        raise InputError(
+            f"{cycles_path}: no cycle with a readable time_utc (a run stopped before its first cycle?)"
+        )
     for col in TEXT_COLUMNS:  # a writer of fewer columns (an older run) still gets a report
         df[col] = df[col].fillna("").astype(str) if col in df else ""
     df["tracker"] = df["tracker"].astype(str)
@@ -124,14 +131,26 @@ def write_report(run_dir: Path, out_dir: Path | None = None) -> Path:
     return the path of ``index.html``.  ``out_dir``: elsewhere than ``run_dir/report``."""
     df, summary = load_run(Path(run_dir))
     out = Path(out_dir) if out_dir is not None else Path(run_dir) / "report"
-    out.mkdir(parents=True, exist_ok=True)
-    pngs = build_figures(df, summary)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file named report, a read-only folder
+        raise InputError(f"{out}: cannot make the report folder ({exc.strerror or exc})") from None
+    try:
+        pngs = build_figures(df, summary)
+        index = page(summary, pngs, len(df))
+    except (TypeError, ValueError, KeyError, AttributeError, IndexError) as exc:
+        # the files are a run's by name but not by content (edited, or another program's)
+        log.debug("report of %s failed", run_dir, exc_info=True)
+        raise InputError(
+            f"{Path(run_dir) / 'summary.json'} and cycles.csv: not the outputs of a heliotrack run "
+            f"({type(exc).__name__}: {exc})"
+        ) from None
     for name, data in pngs.items():
         atomic_write(out / f"{name}.png", data)
     for stale in out.glob("*.png"):
         if stale.stem in CAPTIONS and stale.stem not in pngs:
             stale.unlink()
-    return atomic_write(out / "index.html", page(summary, pngs, len(df)))
+    return atomic_write(out / "index.html", index)
 
 
 # -- the page ------------------------------------------------------------------------------

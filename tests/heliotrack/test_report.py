@@ -135,3 +135,36 @@ def test_a_run_that_wrote_fewer_columns_still_gets_its_report(tmp_path):
     assert main(["report", str(tmp_path)]) == 0
     figs = images((tmp_path / "report" / "index.html").read_text())
     assert set(figs) == {"sky_dome", "timeline"}  # the true sun from the ephemeris
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [
+        (
+            lambda f: (f / "cycles.csv").write_text((f / "cycles.csv").read_text().splitlines()[0] + "\n"),
+            "no cycle with a readable time_utc",
+        ),
+        (
+            lambda f: (f / "summary.json").write_text('{"trackers": {"dual-1": 5}}'),
+            "not the outputs of a heliotrack run (AttributeError",
+        ),
+        (
+            lambda f: (f / "summary.json").write_text('{"control_period_s": "abc"}'),
+            "not the outputs of a heliotrack run (ValueError",
+        ),
+        (lambda f: (f / "report").write_text("x"), "cannot make the report folder"),
+    ],
+)
+def test_a_run_folder_that_is_no_run_is_one_line_and_the_old_report_stays(tmp_path, capsys, edit, needle):
+    """An audit's cases: each had ended in a traceback."""
+    folder = synthetic_run(tmp_path / "run", days=("clear",))
+    assert main(["report", str(folder), "--out", str(tmp_path / "kept")]) == 0
+    before = (tmp_path / "kept" / "index.html").read_text()
+    edit(folder)
+    capsys.readouterr()
+    assert main(["report", str(folder)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and len(err.splitlines()) == 1 and "Traceback" not in err
+    if not (folder / "report").is_file():
+        assert main(["report", str(folder), "--out", str(tmp_path / "kept")]) == 2
+        assert (tmp_path / "kept" / "index.html").read_text() == before

@@ -115,6 +115,40 @@ def test_an_unwritable_out_fails_before_the_run(tmp_path, capsys):
     assert err.startswith("heliotrack: error: --out:") and len(err.splitlines()) == 1
 
 
+@pytest.mark.parametrize(
+    ("name", "make"), [("cycles.csv", "mkdir"), ("summary.json", "mkdir"), ("report", "file")]
+)
+def test_an_out_whose_files_are_folders_or_report_a_file_fails_before_the_run(tmp_path, capsys, name, make):
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / name).mkdir() if make == "mkdir" else (out / name).write_text("x")
+    assert main(["simulate", "--days", "1", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"heliotrack: error: --out: {out / name} is a") and len(err.splitlines()) == 1
+
+
+def test_a_run_stopped_before_its_first_cycle_leaves_the_earlier_run(tmp_path, capsys):
+    """Ctrl-C during the start-up had truncated cycles.csv to its header, written a summary
+    of 0 cycles, and crashed building the report (an audit of replay)."""
+    from heliotrack.commands.simulate import finish
+    from heliotrack.output import CyclesWriter
+
+    config = load_scenario(DEFAULT_CONFIG)
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "cycles.csv").write_text("the earlier run\n")
+    with CyclesWriter(out / "cycles.csv", config.trackers) as w:
+        w.write([])
+    assert (out / "cycles.csv").read_text() == "the earlier run\n"
+    assert finish({"cycles": 0, "interrupted": True}, out) == 130
+    assert "interrupted before the first" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["cycles.csv"]
+    with CyclesWriter(out / "cycles.csv", config.trackers) as w:  # the first rows replace it
+        w.write([{"tracker": "dual-1"}])
+    lines = (out / "cycles.csv").read_text().splitlines()
+    assert lines[0].startswith("time_utc,") and "dual-1" in lines[1]
+
+
 def test_a_real_port_is_refused_with_a_pointer_to_run(tmp_path, capsys):
     cfg = tmp_path / "plant.toml"
     cfg.write_text(DEFAULT_CONFIG.read_text().replace('port = "hil"', 'port = "/dev/ttyUSB0"'))
