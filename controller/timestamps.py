@@ -48,12 +48,19 @@ _TIMESTAMP = re.compile(
 )
 
 
+#: The years a time may name: wider than any tracker's life, narrower than pandas' (1677-2262)
+#: and pvlib SPA's, so a typo (2924 for 2024) is an error, not a crash or a run of centuries.
+YEARS = (1900, 2200)
+
+
 def _from_match(m: re.Match[str]) -> float | None:
     g = m.groupdict()
+    if not YEARS[0] <= int(g["y"]) <= YEARS[1]:
+        return None
     # ISO basic dates run their fields together; a '-' or ':' time separator belongs to the
     # extended or camera forms, which have separated dates as well.
-    if not g["ds"] and g["ts"]:
-        return None
+    if not g["ds"] and (g["ts"] or (g["tz"] and len(g["tz"]) > 5)):
+        return None  # a basic date has a basic time and zone: "20240101_2024-03-20..." is two things
     # Seconds may be left out in ISO 8601 (10:15, 1015), not in the hyphenated forms.
     if g["s"] is None and g["ts"] == "-":
         return None
@@ -96,10 +103,12 @@ def time_from_name(name: str) -> float | None:
     True
     """
     base = re.split(r"[\\/]", name)[-1]
-    for m in _TIMESTAMP.finditer(base):
+    pos = 0
+    while (m := _TIMESTAMP.search(base, pos)) is not None:
         t = _from_match(m)
         if t is not None:
             return t
+        pos = m.start() + 1  # not past the refused match: a timestamp may start inside it
     return None
 
 
@@ -125,6 +134,8 @@ def parse_timestamp(text: str, where: str = "time", *, require_zone: bool = Fals
     m = _TIMESTAMP.fullmatch(s)
     t = _from_match(m) if m else None
     if t is None:
+        if m and not YEARS[0] <= int(m.group("y")) <= YEARS[1]:
+            raise InputError(f"{where}: year {m.group('y')} is outside {YEARS[0]}-{YEARS[1]}, got {text!r}")
         raise InputError(
             f"{where}: expected a time such as {CANONICAL_EXAMPLE} or 2026-03-20T10:15:00+03:30, got {text!r}"
         )

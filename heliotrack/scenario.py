@@ -71,6 +71,23 @@ FAULT_DEFAULTS: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
     "wall_clock_step": ((60.0, 7200.0), (30.0, 3600.0)),
 }
 
+#: The largest magnitude of each fault that has one, either sign: a clock step of a year, a
+#: glitch of a turn, a reading a register can hold (a wire fault has none).
+MAGNITUDE_BOUNDS: dict[str, float] = {
+    "encoder_glitch": 360.0,
+    "pyranometer_out_of_range": 32767.0,  # an int16 register, W/m2
+    "anemometer_out_of_range": 655.0,  # a uint16 register in 0.01 m/s
+    "wall_clock_step": 366 * 86400.0,
+}
+
+
+def _check_magnitude(at: Where, kind: str, values: tuple[float, ...]) -> None:
+    bound = MAGNITUDE_BOUNDS.get(kind)
+    if bound is not None and any(abs(v) > bound for v in values):
+        raise at.error(
+            f"a {kind} magnitude within +-{bound:g}", list(values) if len(values) > 1 else values[0]
+        )
+
 
 @dataclass(frozen=True, kw_only=True)
 class HilDrive:
@@ -224,6 +241,8 @@ class HilFaultRate:
             r = getattr(self, key)
             if r is not None and not r[0] <= r[1]:
                 raise at.child(key).error("[min, max] with min <= max", list(r))
+        if self.magnitude is not None:
+            _check_magnitude(at.child("magnitude"), self.type, self.magnitude)
         return self
 
     def durations(self) -> tuple[float, float]:
@@ -256,6 +275,8 @@ class HilFaultEvent:
             parse_timestamp(self.at, "at", require_zone=True)
         except InputError as exc:
             raise at.child("at").error("a time with a zone, e.g. 2024-03-20T10:00:00Z", self.at) from exc
+        if self.magnitude is not None:
+            _check_magnitude(at.child("magnitude"), self.type, (self.magnitude,))
         return self
 
     @property
@@ -370,6 +391,10 @@ class HilConfig:
         return [0.0] * axes
 
     def __schema_check__(self, at: Where) -> HilConfig:
+        from controller.timestamps import YEARS
+
+        if not YEARS[0] <= self.start.year <= YEARS[1]:
+            raise at.child("start").error(f"a day in the years {YEARS[0]}-{YEARS[1]}", self.start.isoformat())
         if not isinstance(self.sky, str) and not self.sky:
             raise at.child("sky").error("at least one sky kind", list(self.sky))
         return self

@@ -108,12 +108,13 @@ class FolderFrameSource(FrameSource):
         self.max_age_s = max_age_s
         self._mtime_ns = -1
         self._skipped: set[str] = set()
+        self._twins: set[tuple[str, str]] = set()
         bad = self._scan()
         if bad:
             raise ConfigError(
                 None,
                 "hotspot.frames",
-                f"image names with a timestamp (e.g. {CANONICAL_EXAMPLE}.png)",
+                f"image names with a timestamp (e.g. {CANONICAL_EXAMPLE}.png, years 1900-2200)",
                 ", ".join(bad[:3]) + (" ..." if len(bad) > 3 else ""),
             )
 
@@ -128,6 +129,16 @@ class FolderFrameSource(FrameSource):
         stamped = [(time_from_name(p.name), p) for p in files]
         bad = sorted(p.name for ts, p in stamped if ts is None)
         self.frames = sorted((ts, p) for ts, p in stamped if ts is not None)
+        for (t0, p0), (t1, p1) in zip(self.frames, self.frames[1:], strict=False):
+            if t0 == t1 and (p0.name, p1.name) not in self._twins:  # say so once per pair
+                self._twins.add((p0.name, p1.name))
+                log.warning(
+                    "frame folder %s: %s and %s name the same time; %s is used",
+                    self.folder,
+                    p0.name,
+                    p1.name,
+                    p1.name,
+                )
         self.times = np.array([ts for ts, _ in self.frames])
         return bad
 

@@ -127,15 +127,21 @@ def finish(summary: dict, out: Path, report: bool = True) -> int:
 def parse_start(text: str):
     """``--start``: a date (the run starts at local mean midnight) or a time with a zone."""
     from controller.errors import InputError
-    from controller.timestamps import parse_timestamp
+    from controller.timestamps import YEARS, parse_timestamp
 
     try:
-        return date.fromisoformat(text)
+        day = date.fromisoformat(text)
     except ValueError:
         pass
+    else:
+        if not YEARS[0] <= day.year <= YEARS[1]:
+            raise ConfigError(None, "--start", f"a date in the years {YEARS[0]}-{YEARS[1]}", text)
+        return day
     try:
         t = parse_timestamp(text, "--start", require_zone=True)
-    except InputError:
+    except InputError as exc:
+        if "is outside" in str(exc):
+            raise
         raise ConfigError(None, "--start", "YYYY-MM-DD or an ISO time with a UTC offset", text) from None
     return datetime.fromtimestamp(t, UTC)
 

@@ -48,6 +48,7 @@ def test_every_documented_form(name, expected):
         "2025-06-21T10:15-00Z.png",  # mixed time separators
         "20250621-10-15-00.png",  # basic date, extended time
         "12025-06-21T10-15-00Z.png",  # five-digit year
+        "2924-03-20T08-00-00Z.png",  # a typo for 2024: outside 1900-2200
     ],
 )
 def test_names_without_a_valid_timestamp(name):
@@ -84,3 +85,17 @@ def test_iso_forms_may_leave_out_seconds():
     assert parse_timestamp("2025-06-21 10:15") == T
     assert time_from_name("20250621T1015Z.png") == T
     assert time_from_name("2025-06-21-10-15.png") is None
+
+
+def test_a_basic_date_before_a_stamp_does_not_take_its_zone():
+    """An audit's case: "cam20240101_2024-03-20T08-00-00Z" had read as 2024-01-01 20:24
+    with a zone -03:20 taken from the stamp that followed."""
+    assert time_from_name("cam20240101_2024-03-20T08-00-00Z.png") == time_from_name(
+        "2024-03-20T08-00-00Z.png"
+    )
+    assert time_from_name("20240320T0800+0330.png") == time_from_name("2024-03-20T08:00:00+03:30")
+
+
+def test_a_year_outside_the_range_is_named():
+    with pytest.raises(InputError, match=r"--start: year 2924 is outside 1900-2200"):
+        parse_timestamp("2924-03-20T00:00:00Z", "--start")

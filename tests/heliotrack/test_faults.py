@@ -67,6 +67,38 @@ def test_the_faults_table_is_validated_with_the_key_named():
         scenario({"per_transaction": {"late_reply": 2}})
 
 
+@pytest.mark.parametrize(
+    ("faults", "key"),
+    [
+        (
+            {"events": [{"type": "wall_clock_step", "at": at(0), "magnitude": 1e12}]},
+            r"events\[0\]\.magnitude",
+        ),
+        (
+            {"random": [{"type": "encoder_glitch", "per_hour": 1, "magnitude": [-1e308, 1e308]}]},
+            r"random\[0\]\.magnitude",
+        ),
+        (
+            {"random": [{"type": "pyranometer_out_of_range", "per_hour": 1, "magnitude": [1e5, 2e5]}]},
+            r"random\[0\]\.magnitude",
+        ),
+    ],
+)
+def test_a_fault_magnitude_beyond_what_its_target_can_hold_is_refused(faults, key):
+    """An audit's cases: a clock step of 1e12 s and a glitch of 1e308 deg had passed
+    validation and crashed the run (a year 33712, an int overflow)."""
+    with pytest.raises(ConfigError, match=rf"hil\.faults\.{key}: expected a \w+ magnitude within"):
+        scenario(faults)
+    scenario({"events": [{"type": "wall_clock_step", "at": at(0), "magnitude": -3600.0}]})
+
+
+def test_a_first_day_centuries_away_is_refused():
+    with pytest.raises(
+        ConfigError, match=r"hil\.start: expected a day in the years 1900-2200, got '2420-03-20'"
+    ):
+        scenario({}, hil={"start": "2420-03-20"})
+
+
 # -- the ledger -------------------------------------------------------------------------------------
 def test_a_fault_survives_when_its_rows_are_back_in_service_after_it_cleared():
     ledger = FaultLedger(["a", "b"], period_s=60.0)

@@ -149,6 +149,29 @@ def test_a_run_stopped_before_its_first_cycle_leaves_the_earlier_run(tmp_path, c
     assert lines[0].startswith("time_utc,") and "dual-1" in lines[1]
 
 
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["simulate", "--start", "2924-03-20"], "--start: expected a date in the years 1900-2200"),
+        (["simulate", "--start", "9999-12-31T23:00:00Z"], "--start: year 9999 is outside 1900-2200"),
+        (
+            ["hil", "record", "--start", "2924-03-20", "--hours", "0.05"],
+            "--start: expected a date in the years",
+        ),
+        (["replay", "samples/frames", "--start", "1677-01-01T00:00:00Z"], "--start: year 1677 is outside"),
+    ],
+)
+def test_a_start_centuries_away_is_one_line(tmp_path, capsys, argv, needle):
+    """An audit's cases: they had ended in pandas' OutOfBoundsDatetime (exit 1)."""
+    from pathlib import Path
+
+    argv = [str(Path(__file__).parents[2] / a) if a == "samples/frames" else a for a in argv]
+    assert main([*argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "o" / "truth.csv").exists()
+
+
 def test_a_real_port_is_refused_with_a_pointer_to_run(tmp_path, capsys):
     cfg = tmp_path / "plant.toml"
     cfg.write_text(DEFAULT_CONFIG.read_text().replace('port = "hil"', 'port = "/dev/ttyUSB0"'))

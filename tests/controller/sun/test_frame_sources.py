@@ -200,3 +200,16 @@ def test_frames_are_judged_before_the_estimator_sees_them(tmp_path):
     assert sensor.last_outcome == "same frame" and len(est.images) == 1
     assert sensor.observe(T0 + 1000) is None and sensor.last_outcome == "no frame"  # too old
     assert dict(sensor.outcomes) == {"no_glint": 1, "same frame": 1, "no frame": 1}
+
+
+def test_two_frames_of_one_time_are_named_once(tmp_path, caplog):
+    """An audit's case: a camera's name and the canonical one for the same moment; one was
+    taken by name order without a word."""
+    folder = tmp_path / "f"
+    _png(folder, T0, 10)
+    cv2.imwrite(str(folder / "cam_2026-03-20_10-15-00.png"), np.full((4, 4), 20, np.uint8))
+    src = FolderFrameSource(folder)
+    assert src.grab(T0 + 1).time == T0
+    src.grab(T0 + 2)
+    assert caplog.text.count("name the same time") == 1
+    assert f"{format_name_time(T0)}.png" in caplog.text and "cam_2026-03-20_10-15-00.png" in caplog.text
