@@ -29,7 +29,15 @@ def _docs(args: argparse.Namespace) -> int:
     if str(args.out) == "-":
         print(text, end="")
         return 0
-    path = atomic_write(args.out or DOCS_PATH, text)
+    from controller.errors import InputError
+
+    target = args.out or DOCS_PATH
+    if target.is_dir() or not target.name:
+        raise InputError(f"--out: {target} is a folder; give the file to write")
+    try:
+        path = atomic_write(target, text)
+    except OSError as exc:
+        raise InputError(f"--out: cannot write {target} ({exc.strerror or exc})") from None
     print(f"wrote {path}")
     return 0
 

@@ -108,6 +108,16 @@ def firmware(args: argparse.Namespace):
         )
     if not args.max_speed > 0:
         raise HilError(f"--max-speed must be > 0 deg/s, got {args.max_speed}")
+    from firmware_protocol import ProtocolError, encode, register
+
+    for option, name, value in (
+        ("--heartbeat-timeout", "HEARTBEAT_TIMEOUT", args.heartbeat_timeout),
+        ("--max-speed", "MAX_SPEED", args.max_speed),
+    ):
+        try:  # the firmware's own register must hold it, or every read of it fails
+            encode(register(name), value)
+        except ProtocolError as exc:
+            raise HilError(f"{option}: {exc}") from None
     stow = args.stow if args.stow else ([180.0, 90.0] if args.axes == 2 else [0.0])
     if len(stow) != args.axes:
         raise HilError(f"--stow needs {args.axes} value(s), got {len(stow)}")

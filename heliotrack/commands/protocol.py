@@ -16,8 +16,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run_export(args: argparse.Namespace) -> int:
+    from controller.errors import InputError
     from firmware_protocol.generate import write_all
 
-    for path in write_all(args.dir):
+    try:
+        written = write_all(args.dir)
+    except OSError as exc:  # a file where the folder goes, a folder where a file goes
+        raise InputError(f"{exc.filename or args.dir}: cannot write ({exc.strerror or exc})") from None
+    for path in written:
         print(path)
     return 0

@@ -184,7 +184,16 @@ def test_a_log_file_that_cannot_be_written_is_one_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
-    "option, value", [("--heartbeat-timeout", "-1"), ("--max-speed", "-2"), ("--max-speed", "0")]
+    "option, value",
+    [
+        ("--heartbeat-timeout", "-1"),
+        ("--max-speed", "-2"),
+        ("--max-speed", "0"),
+        # beyond what the drive's own registers hold: every read of them had failed
+        ("--heartbeat-timeout", "7000"),
+        ("--heartbeat-timeout", "inf"),
+        ("--max-speed", "100"),
+    ],
 )
 def test_hil_drive_refuses_a_negative_timeout_or_speed(capsys, option, value):
     assert main(["hil", "drive", option, value]) == 2
@@ -238,3 +247,23 @@ def test_check_reads_the_sensors_on_a_line(tmp_path, capsys):
     assert f"{link.path} id 10" in rows["pyranometer"] and " W/m2" in rows["pyranometer"], out
     assert f"{link.path} id 11" in rows["anemometer"] and "m/s, gust" in rows["anemometer"], out
     assert "at 180.00, 90.00 deg (AUTO, AUTO)" in rows["dual-1"], out
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["protocol", "export", "{f}"], "cannot write"),
+        (["protocol", "export", "{f}/sub"], "cannot write"),
+        (["config", "docs", "--out", "{d}"], "is a folder"),
+        (["config", "docs", "--out", "{f}/x.md"], "cannot write"),
+    ],
+)
+def test_an_output_path_that_cannot_be_written_is_one_line(tmp_path, capsys, argv, needle):
+    """An audit's cases: FileExistsError, NotADirectoryError, IsADirectoryError tracebacks."""
+    (tmp_path / "afile").write_text("x")
+    (tmp_path / "adir").mkdir()
+    argv = [a.format(f=tmp_path / "afile", d=tmp_path / "adir") for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and err.count("\n") == 0 and "Traceback" not in err
+    assert (tmp_path / "afile").read_text() == "x"
