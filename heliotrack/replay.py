@@ -55,6 +55,10 @@ VIDEO_SUFFIXES = {".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm", ".mjpeg", ".m
 TOLERANCE_S = 0.002
 #: A frame older than this is not used (the controller predicts instead).
 MAX_AGE_S = 120.0
+#: The longest replay (days): a year of frames; beyond, a wrong --start or --fps.
+MAX_SPAN_DAYS = 366
+#: A recorded sun further than this (deg) from the ephemeris is another site's or convention's.
+TRUTH_GAP_DEG = 2.0
 
 
 def _grey(image: np.ndarray) -> np.ndarray:
@@ -97,6 +101,7 @@ class FolderFrames(RecordedFrames):
 
     def __init__(self, folder: Path, max_age_s: float = MAX_AGE_S):
         super().__init__(folder)
+        self.unreadable: list[str] = []  # frames that could not be read when their turn came
         try:
             self.inner = FolderFrameSource(folder, max_age_s=max_age_s)
         except ConfigError as exc:
@@ -112,7 +117,11 @@ class FolderFrames(RecordedFrames):
         i = int(np.searchsorted(self.times, t + TOLERANCE_S, side="right")) - 1
         if i < 0 or self.times[i] <= self.last_time:
             return None  # no frame yet, or the newest one was already used: skip reading it
-        frame = self.fresh(self.inner.grab(t + TOLERANCE_S))
+        got = self.inner.grab(t + TOLERANCE_S)
+        if got is None and t + TOLERANCE_S - self.times[i] <= self.inner.max_age_s:
+            self.unreadable.append(self.inner.frames[i][1].name)  # truncated, empty, not an image
+            self.last_time = float(self.times[i])  # told once, not at every cycle until the next
+        frame = self.fresh(got)
         return None if frame is None else replace(frame, image=_grey(frame.image))
 
 
@@ -228,11 +237,14 @@ class RecordedTruth:
         spacing = float(np.median(np.diff(self.t))) if self.t.size > 1 else 60.0
         self.max_gap_s = max(3 * spacing, MAX_AGE_S)
         self.has_sky = all(k in self.cols for k in SKY_COLUMNS)
+        gap = float(np.max(np.hypot(self.d_az * np.cos(np.radians(eph.elevation)), self.d_el)))
+        #: the largest angle (deg) between a recorded sun and the ephemeris's at the site
+        self.worst_gap_deg = gap
 
     @staticmethod
     def _read(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
         try:
-            with open(path, newline="", encoding="utf-8") as f:
+            with open(path, newline="", encoding="utf-8-sig") as f:  # a spreadsheet's BOM too
                 reader = csv.DictReader(f)
                 fields = reader.fieldnames or []
                 need = {"time_utc", "sun_az_deg", "sun_el_deg"}
@@ -249,11 +261,12 @@ class RecordedTruth:
                     )
                     for c in numeric:
                         try:
-                            values[c].append(float(row[c]))
+                            x = float(row[c])
                         except (TypeError, ValueError):
-                            raise InputError(
-                                f"{path}:{line}: {c}: expected a number, got {row[c]!r}"
-                            ) from None
+                            x = math.nan
+                        if not math.isfinite(x):  # a NaN row was dropped from the score unseen
+                            raise InputError(f"{path}:{line}: {c}: expected a finite number, got {row[c]!r}")
+                        values[c].append(x)
         except UnicodeDecodeError as exc:
             raise InputError(f"{path}: not UTF-8 text ({exc.reason})") from None
         except OSError as exc:
@@ -339,6 +352,11 @@ def plan(frames: RecordedFrames, period_s: float, start: float | None, hours: fl
             f"--start: after the last frame ({to_iso(last)}); the frames cover {_span_text(first, last)}"
         )
     n = max(1, round((end - t0) / period_s))
+    if n * period_s > MAX_SPAN_DAYS * 86400.0:  # a wrong --start or --fps: days of wall time
+        raise InputError(
+            f"the run would span {_span_text(t0, t0 + n * period_s)}, over {MAX_SPAN_DAYS} days "
+            f"(the frames cover {_span_text(first, last)}): check --start, --hours and --fps"
+        )
     warnings = []
     reach = max(MAX_AGE_S, 1.5 * frames.cadence_s, period_s)
     if t0 < first - reach or t0 + n * period_s > last + reach:
@@ -406,6 +424,12 @@ def run_replay(
                 f"{truth_file} does not cover {int(uncovered.sum())} of {times.size} cycles: "
                 "scored against the ephemeris there"
             )
+        if recorded.worst_gap_deg > TRUTH_GAP_DEG:
+            warnings.append(
+                f"{truth_file}: its sun is up to {recorded.worst_gap_deg:.1f} deg from the ephemeris's at the "
+                f"site ({scenario.site.latitude:g}, {scenario.site.longitude:g}): another site, another "
+                "azimuth convention (from south?) or times in another zone; the score is against it"
+            )
     for w in warnings:
         if warn is not None:
             warn(w)
@@ -430,4 +454,27 @@ def run_replay(
         speed=speed,
         extra=extra,
     )
-    return run.execute(out_dir)
+    summary = run.execute(out_dir)
+    for w in _frame_warnings(frames, summary):
+        if warn is not None:
+            warn(w)
+    return summary
+
+
+def _frame_warnings(frames: RecordedFrames, summary: dict) -> list[str]:
+    """What the run could not use of the frames: said after it, since reading every frame
+    up front would cost as much as the run."""
+    out = []
+    bad = getattr(frames, "unreadable", [])
+    if bad:
+        shown = ", ".join(bad[:3]) + (f" and {len(bad) - 3} more" if len(bad) > 3 else "")
+        out.append(f"{len(bad)} frame(s) could not be read (empty, truncated or not an image): {shown}")
+    outcomes = summary.get("camera_frames") or {}
+    if outcomes.get("size_mismatch"):
+        out.append(
+            f"{outcomes['size_mismatch']} frame(s) are not the size of the camera's calibration "
+            "bundle (size_mismatch): another camera's frames, or resized"
+        )
+    if summary.get("cycles") and not outcomes.get("found"):
+        out.append("no frame gave a sun: the run tracked on prediction and the ephemeris alone")
+    return out

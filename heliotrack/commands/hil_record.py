@@ -63,6 +63,10 @@ def add_record_parser(hil_subparsers: argparse._SubParsersAction) -> None:
     r.set_defaults(func=run_record)
 
 
+#: The most frames one recording writes (a year at one a minute is 525 600).
+MAX_FRAMES = 1_000_000
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Until ``heliotrack/commands/hil.py`` calls :func:`add_record_parser` itself: find the
     ``hil`` parser's subcommands and add ``record`` there."""
@@ -91,6 +95,14 @@ def run_record(args: argparse.Namespace) -> int:
         raise ConfigError(None, "--every", "seconds in [0.01, 86400]", args.every)
     start = parse_start(args.start) if args.start else None
     span = simulation_span(config, args.days, start, args.hours)
+    every = args.every or config.control.period_s
+    if span.n_cycles * config.control.period_s / every > MAX_FRAMES:  # the times alone took GiB
+        raise ConfigError(
+            None,
+            "--every",
+            f"at most {MAX_FRAMES:,} frames over the span ({span.n_cycles * config.control.period_s / 3600:g} h)",
+            every,
+        )
     out = check_out_dir(args.out, files=("truth.csv",), folders=())
     result = record_frames(
         config,

@@ -73,7 +73,9 @@ def run(args: argparse.Namespace) -> int:
             None, "--speed", "a factor > 0 (e.g. 60: a minute of frames per second)", args.speed
         )
     if args.truth is not None and not args.truth.is_file():
-        raise InputError(f"--truth: {args.truth}: no such file")
+        raise InputError(
+            f"--truth: {args.truth}: {'a folder, not a file' if args.truth.is_dir() else 'no such file'}"
+        )
     out = check_out_dir(args.out, folders=() if args.no_report else ("report",))
     summary = run_replay(
         config,

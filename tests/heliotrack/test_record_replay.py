@@ -172,3 +172,90 @@ def test_a_folder_frame_is_observed_once(recorded):
     assert first is not None and first.time == t0
     assert src.grab(t0 + 60.0) is None  # still the newest frame, already observed
     assert src.grab(t0 + 600.0).time == t0 + 600.0
+
+
+def _copy(frames: Path, folder: Path, truth=lambda text: text) -> Path:
+    folder.mkdir()
+    for p in sorted(frames.glob("*.png")):
+        (folder / p.name).symlink_to(p)
+    (folder / "truth.csv").write_text(truth((frames / "truth.csv").read_text()), encoding="utf-8")
+    return folder
+
+
+@pytest.mark.parametrize("bad", ["nan", "inf", "NaN"])
+def test_a_truth_that_is_not_a_number_is_named(recorded, tmp_path, capsys, bad):
+    """An audit's case: NaN rows were dropped from the score unseen (n 8 instead of 88)."""
+    cfg, frames, _, _ = recorded
+
+    def spoil(text: str) -> str:
+        lines = text.splitlines()
+        head = lines[0].split(",")
+        row = lines[2].split(",")
+        row[head.index("sun_el_deg")] = bad
+        return "\n".join([*lines[:2], ",".join(row), *lines[3:]]) + "\n"
+
+    src = _copy(frames, tmp_path / "src", spoil)
+    assert main(["replay", str(src), "--config", str(cfg), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert f"truth.csv:3: sun_el_deg: expected a finite number, got '{bad}'" in err
+
+
+def test_a_truth_from_a_spreadsheet_with_a_bom_is_read(recorded, tmp_path, capsys):
+    cfg, frames, live, _ = recorded
+    src = _copy(frames, tmp_path / "src", lambda text: "\ufeff" + text)
+    s = replay(tmp_path, cfg, src)
+    assert s["replay"]["truth"].endswith("truth.csv") and "warning" not in capsys.readouterr().err
+
+
+def test_a_truth_far_from_the_ephemeris_is_warned_about(recorded, tmp_path, capsys):
+    """Azimuth from south (a PV habit): the score had gone on against it without a word."""
+    cfg, frames, _, _ = recorded
+    lines = (frames / "truth.csv").read_text().splitlines()
+    az = lines[0].split(",").index("sun_az_deg")
+
+    def from_south(text: str) -> str:
+        rows = [r.split(",") for r in text.splitlines()]
+        for r in rows[1:]:
+            r[az] = f"{float(r[az]) - 180.0:.6f}"
+        return "\n".join(",".join(r) for r in rows) + "\n"
+
+    replay(tmp_path, cfg, _copy(frames, tmp_path / "src", from_south))
+    assert "deg from the ephemeris's at the site" in capsys.readouterr().err
+
+
+def test_frames_that_cannot_be_read_are_named_after_the_run(recorded, tmp_path, capsys):
+    cfg, frames, _, _ = recorded
+    src = _copy(frames, tmp_path / "src")
+    victims = sorted(src.glob("*.png"))[1:3]
+    for p in victims:
+        p.unlink()
+        p.write_bytes(b"")  # a camera that died mid-write
+    s = replay(tmp_path, cfg, src)
+    err = capsys.readouterr().err
+    assert f"2 frame(s) could not be read (empty, truncated or not an image): {victims[0].name}" in err
+    assert s["camera_frames"]["found"] == 4
+
+
+def test_a_replay_over_a_year_is_refused(recorded, tmp_path, capsys):
+    """A wrong --start had planned 12 million cycles (30 hours), with a warning only."""
+    cfg, frames, _, _ = recorded
+    argv = [
+        "replay",
+        str(frames),
+        "--config",
+        str(cfg),
+        "--start",
+        "2000-01-01T00:00:00Z",
+        "--out",
+        str(tmp_path / "o"),
+    ]
+    assert main(argv) == 2
+    assert "over 366 days" in capsys.readouterr().err
+
+
+def test_a_recording_of_more_frames_than_a_year_at_a_minute_is_refused(tmp_path, capsys):
+    """An audit's case: 3e9 frame times asked for 23.6 GiB before the first frame."""
+    argv = ["hil", "record", "--hours", "8784", "--every", "0.01", "--out", str(tmp_path / "o")]
+    assert main(argv) == 2
+    assert "--every: expected at most 1,000,000 frames" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
