@@ -129,7 +129,12 @@ class DualAxisTracker(TrackerConfig):
 
     type: Literal["dual-axis"] = setting("dual-axis", doc="Dual-axis tracker.")
     azimuth_limits: tuple[float, float] = setting(
-        (0.0, 360.0), doc="Azimuth travel [min, max].", unit="deg", ge=-360, le=720
+        (0.0, 360.0),
+        doc="Azimuth travel [min, max]; its seam must not lie on the sun's path: [-180, 180] "
+        "south of the equator (`config validate`, `run` and `simulate` warn).",
+        unit="deg",
+        ge=-360,
+        le=720,
     )
     elevation_limits: tuple[float, float] = setting(
         (0.0, 90.0), doc="Elevation travel [min, max].", unit="deg", ge=-10, le=100

@@ -28,8 +28,9 @@ from controller.sun.camera import CameraFrame, FrameSource
 from firmware_protocol import Mode, Status
 from hil.camera.faults import damage
 
+from .fault_kinds import FAULT_DEFAULTS, FAULT_KINDS, WIRE_FAULTS
 from .fault_ledger import FaultLedger
-from .scenario import FAULT_DEFAULTS, FAULT_KINDS, WIRE_FAULTS, ScenarioConfig, fault_targets
+from .scenario import ScenarioConfig, fault_targets
 from .world import World
 
 __all__ = ["Fault", "FaultScheduler", "FaultyFrameSource", "unexpected_error"]

@@ -6,87 +6,24 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
-from typing import Any, Literal, get_args
+from typing import Any, Literal
 
 from controller.config import Config, load_config, parse_config
 from controller.schema import Where, setting
 from controller.timestamps import parse_timestamp
 from hil.drive import AxisParams
 
+from .fault_kinds import (
+    FAULT_DEFAULTS,
+    FAULT_KINDS,
+    WIRE_FAULTS,
+    EventFault,
+    TimedFault,
+    check_magnitude,
+)
+
 SkyKind = Literal["clear", "overcast", "partly-cloudy"]
 WindKind = Literal["calm", "gusty", "storm"]
-#: Faults that last a while: switched on and off on the simulated clock.
-TimedFault = Literal[
-    "drive_stall",
-    "limit_switch",
-    "encoder_glitch",
-    "emulator_restart",
-    "can_error_passive",
-    "can_bus_off",
-    "pyranometer_out_of_range",
-    "pyranometer_frozen",
-    "pyranometer_nan",
-    "anemometer_out_of_range",
-    "anemometer_frozen",
-    "anemometer_nan",
-    "camera_black",
-    "camera_saturated",
-    "camera_truncated",
-    "camera_wrong_size",
-    "camera_missing",
-    "wall_clock_step",
-]
-#: Faults on single Modbus replies (a scheduled one hits every reply of its target).
-WireFault = Literal[
-    "modbus_timeout", "crc_error", "garbled_reply", "split_reply", "late_reply", "wrong_id_reply"
-]
-#: Any fault a scheduled event may be.
-EventFault = Literal[TimedFault, WireFault]
-TIMED_FAULTS: tuple[str, ...] = get_args(TimedFault)
-WIRE_FAULTS: tuple[str, ...] = get_args(WireFault)
-#: Every fault kind, as counted in summary.json.
-FAULT_KINDS: tuple[str, ...] = (*WIRE_FAULTS, "can_frame_lost", *TIMED_FAULTS)
-
-#: Default (duration range s, magnitude range) of each timed fault; the magnitude is the
-#: step of the wall clock (s, either sign), the encoder's error (deg, either sign), or the
-#: out-of-range reading (W/m2, m/s), and means nothing for the others.
-FAULT_DEFAULTS: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
-    "drive_stall": ((30.0, 300.0), (0.0, 0.0)),
-    "limit_switch": ((10.0, 120.0), (0.0, 0.0)),
-    "encoder_glitch": ((1.0, 10.0), (0.5, 3.0)),
-    "emulator_restart": ((5.0, 120.0), (0.0, 0.0)),
-    "can_error_passive": ((10.0, 120.0), (0.0, 0.0)),
-    "can_bus_off": ((5.0, 60.0), (0.0, 0.0)),
-    "pyranometer_out_of_range": ((60.0, 1800.0), (1700.0, 3000.0)),
-    "pyranometer_frozen": ((600.0, 7200.0), (0.0, 0.0)),
-    "pyranometer_nan": ((60.0, 1800.0), (0.0, 0.0)),
-    "anemometer_out_of_range": ((30.0, 600.0), (80.0, 200.0)),
-    "anemometer_frozen": ((30.0, 900.0), (0.0, 0.0)),
-    "anemometer_nan": ((30.0, 600.0), (0.0, 0.0)),
-    "camera_black": ((60.0, 1800.0), (0.0, 0.0)),
-    "camera_saturated": ((60.0, 1800.0), (0.0, 0.0)),
-    "camera_truncated": ((60.0, 1800.0), (0.0, 0.0)),
-    "camera_wrong_size": ((60.0, 1800.0), (0.0, 0.0)),
-    "camera_missing": ((60.0, 1800.0), (0.0, 0.0)),
-    "wall_clock_step": ((60.0, 7200.0), (30.0, 3600.0)),
-}
-
-#: The largest magnitude of each fault that has one, either sign: a clock step of a year, a
-#: glitch of a turn, a reading a register can hold (a wire fault has none).
-MAGNITUDE_BOUNDS: dict[str, float] = {
-    "encoder_glitch": 360.0,
-    "pyranometer_out_of_range": 32767.0,  # an int16 register, W/m2
-    "anemometer_out_of_range": 655.0,  # a uint16 register in 0.01 m/s
-    "wall_clock_step": 366 * 86400.0,
-}
-
-
-def _check_magnitude(at: Where, kind: str, values: tuple[float, ...]) -> None:
-    bound = MAGNITUDE_BOUNDS.get(kind)
-    if bound is not None and any(abs(v) > bound for v in values):
-        raise at.error(
-            f"a {kind} magnitude within +-{bound:g}", list(values) if len(values) > 1 else values[0]
-        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -242,7 +179,7 @@ class HilFaultRate:
             if r is not None and not r[0] <= r[1]:
                 raise at.child(key).error("[min, max] with min <= max", list(r))
         if self.magnitude is not None:
-            _check_magnitude(at.child("magnitude"), self.type, self.magnitude)
+            check_magnitude(at.child("magnitude"), self.type, self.magnitude)
         return self
 
     def durations(self) -> tuple[float, float]:
@@ -276,7 +213,7 @@ class HilFaultEvent:
         except InputError as exc:
             raise at.child("at").error("a time with a zone, e.g. 2024-03-20T10:00:00Z", self.at) from exc
         if self.magnitude is not None:
-            _check_magnitude(at.child("magnitude"), self.type, (self.magnitude,))
+            check_magnitude(at.child("magnitude"), self.type, (self.magnitude,))
         return self
 
     @property

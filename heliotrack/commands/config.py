@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 
@@ -66,5 +67,9 @@ def _validate(args: argparse.Namespace) -> int:
             load(cam.calibration)  # a bad bundle is the plant file's error too (raises with its key)
             bundles += 1
     extra = f", {bundles} calibration bundle(s)" if bundles else ""
+    from controller.geometry.travel import travel_warnings
+
+    for warning in travel_warnings(cfg):  # valid, but it will not track as meant
+        print(f"heliotrack: warning: {args.file}: {warning}", file=sys.stderr)
     print(f"{args.file}: ok ({len(cfg.links)} link(s), {len(cfg.trackers)} tracker(s){extra})")
     return 0

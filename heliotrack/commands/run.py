@@ -220,7 +220,11 @@ class Service:
 
     # -- log lines -------------------------------------------------------------------------------
     def _log_start(self, duration: float | None) -> None:
+        from controller.geometry.travel import travel_warnings
+
         c = self.config
+        for warning in travel_warnings(c):
+            log.warning("%s", warning)
         links = ", ".join(f"{link.name} ({link.kind})" for link in c.links)
         log.info(
             "heliotrack run: %d tracker(s) on %s; sun source %s; period %g s; state %s%s",

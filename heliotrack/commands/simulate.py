@@ -98,6 +98,10 @@ def run(args: argparse.Namespace) -> int:
         simulation_span(config, args.days, start, args.hours),
         progress=not args.no_progress and sys.stderr.isatty(),
     )
+    from controller.geometry.travel import travel_warnings
+
+    for warning in travel_warnings(config):
+        print(f"heliotrack: warning: {warning}", file=sys.stderr)
     summary = run.execute(out)
     print(summary_table(summary))
     return finish(summary, out, report=not args.no_report)
