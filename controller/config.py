@@ -8,6 +8,7 @@ the tables it owns (the simulator's ``[hil]``, see ``heliotrack.scenario``).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, ClassVar, Literal, TypeVar
@@ -403,6 +404,18 @@ class Config:
             if source in (table, "fused") and getattr(self, table) is None:
                 raise at.child(table).error(f"a [{table}] table when control.sun_source = {source!r}")
         self._check_state_paths(at)
+        for key in ("snow_dual_axis_elevation_deg", "hail_dual_axis_elevation_deg"):
+            for tr in self.trackers:  # clamped silently before: the stow was not the one asked for
+                lo, hi = tr.elevation_limits if isinstance(tr, DualAxisTracker) else (-math.inf, math.inf)
+                if not lo <= getattr(self.stow, key) <= hi:
+                    raise (
+                        at.child("stow")
+                        .child(key)
+                        .error(
+                            f"an elevation within every tracker's limits ({tr.name}: [{lo:g}, {hi:g}])",
+                            getattr(self.stow, key),
+                        )
+                    )
         for i, name in enumerate(self.closedloop.trackers if self.closedloop is not None else ()):
             if name not in names:
                 raise at.child("closedloop").child("trackers").item(i).error("a tracker name", name)

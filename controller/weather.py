@@ -67,6 +67,11 @@ class WindConfig:
             raise at.child("mean_resume_m_s").error(
                 f"less than mean_stow_m_s ({self.mean_stow_m_s:g} m/s)", self.mean_resume_m_s
             )
+        if self.mean_stow_m_s >= self.gust_stow_m_s:  # a mean never passes the gusts it averages
+            raise at.child("mean_stow_m_s").error(
+                f"less than gust_stow_m_s ({self.gust_stow_m_s:g} m/s; at or above it, it never acts)",
+                self.mean_stow_m_s,
+            )
         if self.silent_timeout_s < self.poll_s:
             raise at.child("silent_timeout_s").error(
                 f"at least poll_s ({self.poll_s:g} s)", self.silent_timeout_s

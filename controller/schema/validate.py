@@ -26,7 +26,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
     except OSError as exc:
         raise ConfigError(path, "", f"a readable TOML file ({exc.strerror})") from None
     try:
-        text = data.decode("utf-8")
+        text = data.decode("utf-8-sig")  # Notepad's byte-order mark is not a TOML error
     except UnicodeDecodeError as exc:
         raise ConfigError(path, "", f"UTF-8 text (byte {exc.start} is not)") from None
     try:

@@ -341,3 +341,33 @@ def test_a_state_file_may_not_be_a_folder_or_a_file_the_controller_reads(tmp_pat
     with pytest.raises(ConfigError, match=match):
         load_config(plant)
     assert bundle.exists() and plant.read_text() == text and (tmp_path / "calibration").is_dir()
+
+
+def test_a_snow_or_hail_stow_outside_a_trackers_travel_is_refused():
+    """An audit's case: -10 deg with limits [0, 90] had been clamped to 0 without a word."""
+    doc = _plant(
+        [{"name": "a", "kind": "modbus-tcp"}],
+        [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}],
+    )
+    doc["stow"] = {"snow_dual_axis_elevation_deg": -10.0}
+    with pytest.raises(
+        ConfigError,
+        match=r"stow.snow_dual_axis_elevation_deg: expected an elevation within every tracker's limits \(t: \[0, 90\]\)",
+    ):
+        parse_config(doc)
+
+
+def test_a_mean_wind_stow_at_or_above_the_gust_stow_is_refused():
+    doc = _plant(
+        [{"name": "a", "kind": "modbus-tcp"}],
+        [{"name": "t", "type": "dual-axis", "link": "a", "device_id": 1}],
+        wind={"link": "a", "device_id": 9, "gust_stow_m_s": 20.0, "mean_stow_m_s": 25.0},
+    )
+    with pytest.raises(ConfigError, match=r"wind.mean_stow_m_s: expected less than gust_stow_m_s \(20 m/s"):
+        parse_config(doc)
+
+
+def test_a_byte_order_mark_is_not_a_toml_error(tmp_path):
+    p = tmp_path / "plant.toml"
+    p.write_bytes(b"\xef\xbb\xbf" + (BASE + ROW).encode())
+    assert len(load_config(p).trackers) == 2

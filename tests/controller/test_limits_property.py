@@ -84,8 +84,9 @@ def plants(draw) -> Config:
             },
         ],
         "stow": {
-            "snow_dual_axis_elevation_deg": draw(st.floats(-10.0, 100.0)),
-            "hail_dual_axis_elevation_deg": draw(st.floats(-10.0, 100.0)),
+            # within the tracker's travel, as the configuration requires (as for the wind's)
+            "snow_dual_axis_elevation_deg": draw(st.floats(el_lo, el_hi)),
+            "hail_dual_axis_elevation_deg": draw(st.floats(el_lo, el_hi)),
             "snow_single_axis_deg": draw(st.floats(-90.0, 90.0)),
             "hail_single_axis_deg": draw(st.floats(-90.0, 90.0)),
         },
