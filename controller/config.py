@@ -404,6 +404,22 @@ class Config:
             if source in (table, "fused") and getattr(self, table) is None:
                 raise at.child(table).error(f"a [{table}] table when control.sun_source = {source!r}")
         self._check_state_paths(at)
+        sunspec = self.sunspec
+        for i, link in enumerate(self.links):  # the server would bind the endpoint the link dials
+            if (
+                sunspec.enabled
+                and isinstance(link, ModbusTcpLink)
+                and link.host == sunspec.host
+                and link.tcp_port == sunspec.port != 0
+            ):
+                raise (
+                    at.child("sunspec")
+                    .child("port")
+                    .error(
+                        f"a port other than links[{i}]'s ({link.name} reaches {link.host}:{link.tcp_port})",
+                        sunspec.port,
+                    )
+                )
         for key in ("snow_dual_axis_elevation_deg", "hail_dual_axis_elevation_deg"):
             for tr in self.trackers:  # clamped silently before: the stow was not the one asked for
                 lo, hi = tr.elevation_limits if isinstance(tr, DualAxisTracker) else (-math.inf, math.inf)

@@ -126,6 +126,11 @@ class HilWind:
     def kinds(self) -> tuple[str, ...]:
         return (self.days,) if isinstance(self.days, str) else self.days
 
+    def __schema_check__(self, at: Where) -> HilWind:
+        if not self.kinds:  # as for hil.sky: an empty cycle has no day to repeat
+            raise at.child("days").error("at least one wind kind", [])
+        return self
+
     def script(self, t0: float):
         """The :class:`hil.wind.WindScript` of this table, days counted from ``t0``."""
         from hil.wind import Storm, WindScript

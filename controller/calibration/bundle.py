@@ -193,7 +193,9 @@ class LevelCal:
 class AzimuthCal:
     """Azimuth alignment: ``az_enu = (az_levelled - offset_deg) mod 360``."""
 
-    offset_deg: float = setting(doc="Azimuth offset of the levelled model frame.", unit="deg")
+    offset_deg: float = setting(
+        doc="Azimuth offset of the levelled model frame.", unit="deg", ge=-360, le=720
+    )
 
 
 @dataclass(frozen=True)

@@ -117,6 +117,7 @@ def run_record(args: argparse.Namespace) -> int:
         print(
             f"wrote {result.frames} frames ({result.first} to {result.last}, every {result.every_s:g} s; "
             f"sun visible in {result.visible}) and {out / 'truth.csv'}"
+            + (" (interrupted: the span was cut short)" if result.interrupted else "")
         )
     else:
         print(

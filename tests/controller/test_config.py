@@ -371,3 +371,15 @@ def test_a_byte_order_mark_is_not_a_toml_error(tmp_path):
     p = tmp_path / "plant.toml"
     p.write_bytes(b"\xef\xbb\xbf" + (BASE + ROW).encode())
     assert len(load_config(p).trackers) == 2
+
+
+def test_sunspec_may_not_serve_the_endpoint_a_link_dials():
+    doc = _plant(
+        [{"name": "gw", "kind": "modbus-tcp", "host": "127.0.0.1", "tcp_port": 502}],
+        [{"name": "t", "type": "dual-axis", "link": "gw", "device_id": 1}],
+        sunspec={"enabled": True, "host": "127.0.0.1", "port": 502},
+    )
+    with pytest.raises(ConfigError, match=r"sunspec.port: expected a port other than links\[0\]'s"):
+        parse_config(doc)
+    doc["sunspec"]["port"] = 1502
+    assert parse_config(doc).sunspec.port == 1502

@@ -30,6 +30,10 @@ def test_config_validate_command(tmp_path, capsys):
     assert "ok (1 link(s), 2 tracker(s))" in capsys.readouterr().out
     assert main(["config", "validate", str(DEFAULT_CONFIG)]) == 2  # [hil] in a plant file
     assert "hil: expected a plant file, with no [hil] table" in capsys.readouterr().err
+    plant = tmp_path / "plant.toml"  # the simulator's devices in a plant file: what run says
+    plant.write_text(DEFAULT_CONFIG.read_text().split("[hil]")[0])
+    assert main(["config", "validate", str(plant)]) == 2
+    assert "links[0].port: expected a real device for heliotrack run" in capsys.readouterr().err
 
 
 def test_a_choice_or_array_of_choices_names_its_choices(tmp_path, capsys):

@@ -92,6 +92,11 @@ def test_a_fault_magnitude_beyond_what_its_target_can_hold_is_refused(faults, ke
     scenario({"events": [{"type": "wall_clock_step", "at": at(0), "magnitude": -3600.0}]})
 
 
+def test_an_empty_wind_cycle_is_refused_as_an_empty_sky_cycle_is():
+    with pytest.raises(ConfigError, match=r"hil\.wind\.days: expected at least one wind kind"):
+        scenario({}, hil={"wind": {"days": []}})
+
+
 def test_a_first_day_centuries_away_is_refused():
     with pytest.raises(
         ConfigError, match=r"hil\.start: expected a day in the years 1900-2200, got '2420-03-20'"

@@ -68,6 +68,10 @@ def test_relative_paths_resolve_against_the_bundle_folder(tmp_path, monkeypatch)
             "surface.cloud",
         ),
         ("this is = not toml [", ""),
+        (  # an audit's case: accepted before
+            "[camera]\nwidth = 640\nheight = 480\nfx = 5.0\nfy = 500.0\ncx = 1\ncy = 1\n[azimuth]\noffset_deg = 1e308\n",
+            "azimuth.offset_deg",
+        ),
     ],
 )
 def test_errors_name_file_key_and_expectation(tmp_path, text, key):
