@@ -76,6 +76,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(
             f"--truth: {args.truth}: {'a folder, not a file' if args.truth.is_dir() else 'no such file'}"
         )
+    from heliotrack.replay import replay_config
+
+    replay_config(config)  # a camera to feed: refused before --out is made
+    if not args.source.exists():
+        raise InputError(f"{args.source}: no such folder or video file")
     out = check_out_dir(args.out, folders=() if args.no_report else ("report",))
     summary = run_replay(
         config,

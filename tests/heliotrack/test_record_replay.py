@@ -151,16 +151,19 @@ def test_replay_refuses_what_it_cannot_read(recorded, tmp_path, capsys):
         assert main(args) == 2
         err = capsys.readouterr().err.strip()
         assert expect in err and len(err.splitlines()) == 1, err
+        if expect == "no such folder":  # refused before --out is made
+            assert not (tmp_path / "o").exists()
     args = [
         "replay",
         str(empty),
         "--config",
         str(REPO / "config" / "hil-default.toml"),
         "--out",
-        str(tmp_path / "o"),
+        str(tmp_path / "o2"),
     ]
     assert main(args) == 2
     assert "control.sun_source" in capsys.readouterr().err
+    assert not (tmp_path / "o2").exists()
 
 
 def test_a_folder_frame_is_observed_once(recorded):
