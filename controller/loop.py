@@ -421,7 +421,7 @@ class Controller(WindPolling):
             # heartbeat clears its COMM_LOST flag.
             self._note_watchdog_stow(tr, await tr.drive.read_state(), self._unheard(tr))
         await self._heartbeat(tr)
-        if tr.index in self._home_requested:
+        if tr.index in self._home_requested and self._may_home(tr, order):
             await tr.drive.command(Command.HOME)
             self._home_requested.discard(tr.index)
         state = await tr.drive.exchange(targets)
@@ -446,6 +446,15 @@ class Controller(WindPolling):
             self._event("health", tracker=tr.cfg.name, state=tr.health.state.value, reason=tr.health.reason)
         tr.last_targets, tr.last_state = tuple(targets), state
         return state
+
+    @staticmethod
+    def _may_home(tr: TrackerRuntime, order: StowOrder | None) -> bool:
+        """A "Calibrate" waits for any stow to end: homing drives the axis to its index, out
+        of the stow (a weather order in force, or a drive last seen stowed by anyone)."""
+        held = tr.last_state is not None and any(
+            a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in tr.last_state.axes
+        )
+        return order is None and not held
 
     # -- operator -------------------------------------------------------------------
     def set_override(self, tracker: int | None, ctl: str, el_deg: float | None, az_deg: float | None) -> None:

@@ -259,3 +259,38 @@ def test_a_drive_that_reboots_is_configured_again(default_plant):
     assert any(e["kind"] == "drive_reboot" and e["tracker"] == "row-1" for e in ctl.events)
     assert fw.heartbeat_timeout == cfg.control.heartbeat_timeout_s
     assert fw.axes[0].p.soft_max == 55.0 and not recs[1].error
+
+
+def test_a_calibrate_waits_for_a_stow_to_end(default_plant):
+    """An audit's case: SCADA's hail stow request and a Calibrate in the same second; the
+    next cycle homed both drives during the hail stow (homing moves the axis to its index)."""
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    for fw in fws.values():
+        fw.homed = [False] * len(fw.homed)  # to see a HOME arrive
+    ctl.safety.request("sunspec", "hail")
+    ctl.set_override(None, "Calibrate", None, None)
+    for _ in range(3):
+        clock.sleep(cfg.control.period_s)
+        run(ctl.cycle())
+    assert not any(any(fw.homed) for fw in fws.values())
+    ctl.safety.request("sunspec", None)  # the stow ends: the drives home
+    for _ in range(3):
+        clock.sleep(cfg.control.period_s)
+        run(ctl.cycle())
+    assert all(all(fw.homed) for fw in fws.values())
+
+
+def test_a_calibrate_leaves_a_drive_in_someone_elses_stow_unhomed(default_plant):
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    command(fws["row-1"], Command.STOW)  # a local switch
+    clock.sleep(cfg.control.period_s)
+    run(ctl.cycle())
+    for fw in fws.values():
+        fw.homed = [False] * len(fw.homed)
+    ctl.set_override(None, "Calibrate", None, None)
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        run(ctl.cycle())
+    assert fws["dual-1"].homed == [True, True] and fws["row-1"].homed == [False]
