@@ -57,6 +57,24 @@ class StoreError(UserError):
     """The store file cannot be used; the message says which file and why."""
 
 
+class StoreBusy(StoreError):
+    """Another program holds the store's lock (a backup, a browser, a second instance):
+    the file is sound and must not be moved aside."""
+
+
+#: How long a write waits for another program's lock before it is skipped (s): the loop
+#: runs the store's writes between its exchanges, and a longer wait would stall them.
+BUSY_TIMEOUT_S = 0.5
+#: How long opening the store waits for such a lock (s).
+OPEN_TIMEOUT_S = 5.0
+TABLES = ("state", "observations", "setpoints")
+
+
+def _busy(exc: sqlite3.Error) -> bool:
+    code = getattr(exc, "sqlite_errorcode", None)
+    return code in (sqlite3.SQLITE_BUSY, sqlite3.SQLITE_LOCKED) or "locked" in str(exc)
+
+
 @dataclass(frozen=True)
 class StateRecord:
     name: str
@@ -80,13 +98,16 @@ class Store:
         self.path = Path(path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._db = sqlite3.connect(self.path, timeout=10.0, isolation_level=None)
+            self._db = sqlite3.connect(self.path, timeout=OPEN_TIMEOUT_S, isolation_level=None)
         except (OSError, sqlite3.Error) as exc:
             raise StoreError(f"{self.path}: cannot open the store ({exc})") from None
         try:
             self._setup(check)
+            self._db.execute(f"PRAGMA busy_timeout={int(BUSY_TIMEOUT_S * 1000)}")
         except sqlite3.DatabaseError as exc:
             self._db.close()
+            if _busy(exc):
+                raise StoreBusy(f"{self.path}: held by another program ({exc})") from None
             raise StoreError(f"{self.path}: not a usable heliotrack store ({exc})") from None
         except StoreError:
             self._db.close()
@@ -115,6 +136,10 @@ class Store:
                 for sql in MIGRATIONS[v]:
                     db.execute(sql)
                 db.execute(f"PRAGMA user_version={v}")
+        have = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        missing = [t for t in TABLES if t not in have]
+        if missing:
+            raise StoreError(f"{self.path}: a heliotrack store without its table(s) {', '.join(missing)}")
 
     def _transaction(self):
         return _Transaction(self._db)
@@ -145,14 +170,34 @@ class Store:
         StoreError
             The stored text is not JSON (the row is left as it is).
         """
-        row = self._db.execute("SELECT version, updated, body FROM state WHERE name=?", (name,)).fetchone()
+        try:
+            row = self._db.execute("SELECT version, updated, body FROM state WHERE name=?", (name,)).fetchone()
+        except sqlite3.Error as exc:
+            raise StoreError(f"{self.path}: state {name!r} cannot be read ({exc})") from None
         if row is None:
             return None
         try:
             body = json.loads(row[2])
-        except (TypeError, json.JSONDecodeError) as exc:
-            raise StoreError(f"{self.path}: state {name!r} version {row[0]} is not JSON ({exc})") from None
-        return StateRecord(name, int(row[0]), float(row[1]), body)
+        except (TypeError, json.JSONDecodeError, RecursionError) as exc:
+            reason = "nested too deeply" if isinstance(exc, RecursionError) else exc
+            raise StoreError(f"{self.path}: state {name!r} version {row[0]} is not JSON ({reason})") from None
+        try:
+            return StateRecord(name, int(row[0]), float(row[1]), body)
+        except (TypeError, ValueError, OverflowError):
+            raise StoreError(
+                f"{self.path}: state {name!r}: version {row[0]!r} or time {row[1]!r} is not a number"
+            ) from None
+
+    def copy_state(self, name: str, new_name: str) -> bool:
+        """Copy the row ``name`` to ``new_name`` as stored, whatever its text (kept aside
+        for a look); False when there is no such row."""
+        with self._transaction():
+            cur = self._db.execute(
+                "INSERT OR REPLACE INTO state(name, version, updated, body) "
+                "SELECT ?, version, updated, body FROM state WHERE name=?",
+                (new_name, name),
+            )
+        return cur.rowcount > 0
 
     # -- history --------------------------------------------------------------------------
     def add_observations(self, rows: Iterable[tuple[float, str, float, float, float, bool]]) -> None:
@@ -226,11 +271,21 @@ def open_store_or_none(path: str | Path, warn: Callable[[str], None]) -> Store |
     """
     path = Path(path)
     try:
+        if path.is_file() and path.stat().st_size == 0:  # nothing was ever committed to it
+            warn(f"{path}: an empty file; the store starts afresh in it")
+    except OSError:
+        pass  # Store() below says what is wrong with the path
+    try:
         return Store(path)
+    except StoreBusy as exc:  # sound, only locked: left where it is for the next start
+        warn(f"{exc}; running without the store this time (it is not moved)")
+        return None
     except StoreError as exc:
-        warn(str(exc))
         if not path.exists() or "newer than this heliotrack" in str(exc):
-            return None  # a newer store is left as it is: the old program must not touch it
+            # a newer store is left as it is: the old program must not touch it
+            warn(f"{exc}; running without a store")
+            return None
+        warn(str(exc))
     aside = path.with_name(f"{path.name}.unusable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
     try:
         path.rename(aside)

@@ -180,7 +180,10 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
     """
     if folder is None:
         return config, None
-    folder = folder.expanduser().resolve()
+    try:
+        folder = folder.expanduser().resolve()
+    except (RuntimeError, OSError) as exc:  # a symlink loop, a "~user" of no one
+        raise ConfigError(None, "--state", f"a usable folder path ({exc})", str(folder)) from None
     if folder.exists() and not folder.is_dir():
         raise ConfigError(None, "--state", "a folder (this is a file)", str(folder))
     try:
@@ -216,25 +219,58 @@ def note_foreign_stows(
         return last
     try:
         atomic_write(state.foreign_stows, json.dumps({"time": time.time(), "trackers": sorted(now)}) + "\n")
-    except OSError as exc:
+    except OSError as exc:  # said once for this set, not at every cycle
         log.warning("%s: not written (%s)", state.foreign_stows, exc)
-        return last
     return now
+
+
+def _move_aside(path: Path) -> str:
+    """Rename an unusable record ``<name>.unusable-<UTC>`` (kept for a look, never deleted,
+    as the store and the sun-path state are); what was done, for the warning."""
+    aside = path.with_name(f"{path.name}.unusable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
+    try:
+        path.rename(aside)
+        return f"kept as {aside.name}"
+    except OSError as err:
+        return f"could not move it aside: {err.strerror}"
+
+
+def _load_names(path: Path, keys: dict[str, bool]) -> dict[str, set[str]] | None:
+    """The lists of tracker names under ``keys`` (key: required) of a JSON record of the
+    state folder; None when there is no record.
+
+    Raises
+    ------
+    ValueError
+        The record cannot be used (not JSON, nested too deeply, a key missing or not a list
+        of names); the message names the file and why, and the file has been moved aside.
+    """
+    if not (path.exists() or path.is_symlink()):  # a dangling or looping link is a bad record
+        return None
+    try:
+        record = json.loads(path.read_text())
+        if not isinstance(record, dict):
+            raise TypeError("expected a JSON object")
+        out = {}
+        for key, required in keys.items():
+            names = record[key] if required else record.get(key, [])
+            if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+                raise TypeError(f"{key}: expected a list of tracker names, got {type(names).__name__}")
+            out[key] = set(names)
+        return out
+    except (OSError, ValueError, TypeError, KeyError, RecursionError) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else f"{type(exc).__name__}: {exc}"
+        raise ValueError(f"{path}: unreadable ({why}): {_move_aside(path)}") from None
 
 
 def _recorded_foreign_stows(state: StateFolder) -> set[str]:
     """The names :func:`note_foreign_stows` last wrote (none when absent or unreadable)."""
     try:
-        names = json.loads(state.foreign_stows.read_text())["trackers"]
-        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
-            raise TypeError("trackers: expected a list of names")
-        return set(names)
-    except FileNotFoundError:
+        record = _load_names(state.foreign_stows, {"trackers": True})
+    except ValueError as exc:  # rewritten by the first cycle
+        log.warning("%s; no foreign stow known from it", exc)
         return set()
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        # rewritten by the first cycle; a stow nobody vouches for is then taken as before
-        log.warning("%s: unreadable (%s); ignored", state.foreign_stows, exc)
-        return set()
+    return set() if record is None else record["trackers"]
 
 
 def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str]:
@@ -245,26 +281,14 @@ def resume_last_shutdown(ctl: Controller, state: StateFolder | None) -> list[str
     (:func:`note_foreign_stows`) are marked as such."""
     if state is None:
         return []
-    if not state.shutdown.exists():
-        left = _recorded_foreign_stows(state)
-        for tr in ctl.trackers:
-            if tr.cfg.name in left:
-                tr.health.foreign_stow = True
-        return []
     try:
-        record = json.loads(state.shutdown.read_text())
-        names, left = set(record["stowed"]), set(record.get("left", []))
-    except (OSError, ValueError, KeyError, TypeError, AttributeError) as exc:
-        aside = state.shutdown.with_name(
-            f"shutdown.json.unusable-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
-        )
-        try:
-            state.shutdown.rename(aside)  # kept for a look, as the store and the sun-path state are
-            kept = f"kept as {aside.name}"
-        except OSError as err:
-            kept = f"could not move it aside: {err.strerror}"
-        log.warning("%s: unreadable (%s): %s; no stow resumed from it", state.shutdown, exc, kept)
-        names, left = set(), _recorded_foreign_stows(state)
+        record = _load_names(state.shutdown, {"stowed": True, "left": False})
+    except ValueError as exc:
+        log.warning("%s; no stow resumed from it", exc)
+        record = {"stowed": set(), "left": _recorded_foreign_stows(state)}
+    if record is None:  # no shutdown record: kill -9 or a power cut
+        record = {"stowed": set(), "left": _recorded_foreign_stows(state)}
+    names, left = record["stowed"], record["left"]
     resumed = [tr.cfg.name for tr in ctl.trackers if tr.cfg.name in names]
     for tr in ctl.trackers:
         if tr.cfg.name in names:

@@ -294,9 +294,8 @@ class SunPathSource(SunSource):
                 self.state_note = f"{exc}; starting {start}; the learned state will not be saved"
             else:
                 aside = f"{STORE_KEY}.invalid-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}"
-                try:
-                    rec = self.store.get_state(STORE_KEY)
-                    self.store.put_state(aside, rec.body if rec is not None else None)
+                try:  # the row as stored: garbage or NaN cannot be parsed to be copied
+                    self.store.copy_state(STORE_KEY, aside)
                     self.state_note = f"{exc}; kept it as {aside!r}; starting {start}"
                 except Exception as err:  # noqa: BLE001 - a store that cannot even copy: do not touch it
                     self.persist = False

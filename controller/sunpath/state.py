@@ -57,6 +57,8 @@ def _read(path: Path) -> dict:
             f"{path}: corrupt sun-path state: not JSON (line {exc.lineno}, "
             f"column {exc.colno}: {exc.msg}); fix or remove the file"
         ) from None
+    except RecursionError:
+        raise StateError(f"{path}: corrupt sun-path state: JSON nested too deeply") from None
     return doc
 
 

@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from firmware_protocol import Command, Mode, encode, register
 from heliotrack.runtime import StateFolder, go_safe, resume_last_shutdown
 
@@ -134,3 +136,45 @@ def test_an_unreadable_record_of_foreign_stows_is_ignored_with_a_warning(default
     assert resume_last_shutdown(ctl, state) == []
     assert not any(tr.health.foreign_stow for tr in ctl.trackers)
     assert "foreign-stows.json: unreadable" in caplog.text
+
+
+DEEP = "[" * 100000 + "]" * 100000
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "why"),
+    [
+        ("shutdown.json", DEEP, "nested too deeply"),
+        ("shutdown.json", '{"stowed": "dual-1"}', "stowed: expected a list of tracker names, got str"),
+        ("shutdown.json", '{"stowed": {"dual-1": 1}}', "stowed: expected a list of tracker names, got dict"),
+        ("shutdown.json", '{"stowed": [], "left": "row-1"}', "left: expected a list of tracker names"),
+        ("foreign-stows.json", DEEP, "nested too deeply"),
+        ("foreign-stows.json", '{"trackers": "dual-1"}', "trackers: expected a list of tracker names"),
+    ],
+)
+def test_a_state_record_that_cannot_be_used_is_kept_aside_and_named(
+    default_plant, tmp_path, caplog, name, text, why
+):
+    """An audit's cases: deep nesting crashed every start (RecursionError); a string of
+    names was read as its letters; a bad foreign-stows record was overwritten."""
+    run, ctl, fws, clock, cfg = default_plant
+    state = StateFolder(tmp_path)
+    (tmp_path / name).write_text(text)
+    assert resume_last_shutdown(ctl, state) == []
+    assert f"{name}: unreadable" in caplog.text and why in caplog.text
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith(f"{name}.unusable-")]
+    assert len(kept) == 1 and kept[0].read_text() == text and not (tmp_path / name).exists()
+
+
+def test_a_looping_link_for_a_record_or_the_state_folder_is_named(default_plant, tmp_path, caplog):
+    from controller.errors import ConfigError
+    from heliotrack.runtime import use_state_folder
+
+    run, ctl, fws, clock, cfg = default_plant
+    (tmp_path / "shutdown.json").symlink_to(tmp_path / "shutdown.json")
+    assert resume_last_shutdown(ctl, StateFolder(tmp_path)) == []
+    assert "shutdown.json: unreadable" in caplog.text
+    loop = tmp_path / "loop"
+    loop.symlink_to(loop)
+    with pytest.raises(ConfigError, match="--state: expected a usable folder path"):
+        use_state_folder(cfg, loop)

@@ -201,3 +201,11 @@ def test_a_missing_state_file_is_one_line_and_a_safe_start(tmp_path, caplog):
     assert src.estimate(NOW).source is EstimateSource.EPHEMERIS
     src.save()
     assert load_state(path) is not None
+
+
+def test_a_state_file_nested_too_deeply_is_a_state_error(tmp_path):
+    """An audit's case: it had crashed every start with a RecursionError."""
+    p = tmp_path / "sunpath.json"
+    p.write_text("[" * 100000 + "]" * 100000)
+    with pytest.raises(StateError, match="nested too deeply"):
+        load_state(p)
