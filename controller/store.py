@@ -171,7 +171,9 @@ class Store:
             The stored text is not JSON (the row is left as it is).
         """
         try:
-            row = self._db.execute("SELECT version, updated, body FROM state WHERE name=?", (name,)).fetchone()
+            row = self._db.execute(
+                "SELECT version, updated, body FROM state WHERE name=?", (name,)
+            ).fetchone()
         except sqlite3.Error as exc:
             raise StoreError(f"{self.path}: state {name!r} cannot be read ({exc})") from None
         if row is None:

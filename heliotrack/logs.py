@@ -6,7 +6,9 @@ and the ``controller`` and ``hil`` packages' module loggers) log at the level as
 every other logger (pymodbus, python-can, canopen) at WARNING and above, whatever the
 level: nothing is silenced, and a debug run is not drowned in a library's frames.  One
 exception: pymodbus's ERROR for each timed-out request (with the frame dumped) counts as
-DEBUG, since the link retries it and reports the failure with the drive's name.
+DEBUG, since the link retries it and reports the failure with the drive's name, and so
+does its ERROR for each request to a unit id the SunSpec server does not answer (the
+client gets exception 0x0B; a client could otherwise fill the log).
 
 ``json`` writes one object per line: ``time`` (ISO 8601 UTC), ``level``, ``logger``,
 ``message``, and the fields a caller passed as ``extra={"fields": {...}}``.
@@ -68,15 +70,18 @@ class _LevelFilter(logging.Filter):
     def filter(self, record: logging.LogRecord) -> bool:
         if is_ours(record.name):
             return record.levelno >= self.level
-        if record.name.startswith("pymodbus") and str(record.msg).startswith(_PYMODBUS_TIMEOUT):
+        if record.name.startswith("pymodbus") and str(record.msg).startswith(_PYMODBUS_ROUTINE):
             # an ERROR, with the frame dumped, for every timed-out request, which our links
-            # retry and report with the drive's name: a debug record
+            # retry and report with the drive's name; or for every request a SCADA client
+            # sends to another unit id, which it is answered (exception 0x0B): a debug
+            # record, not one line per request in the plant's log
             return self.level <= logging.DEBUG
         return record.levelno >= max(self.level, LIBRARY_LEVEL)
 
 
-#: How pymodbus begins its message for a request that timed out.
-_PYMODBUS_TIMEOUT = "No response received"
+#: How pymodbus begins its messages for a request that timed out (a drive link), and for
+#: one to a unit id the server does not answer (the SunSpec server).
+_PYMODBUS_ROUTINE = ("No response received", "requested device id does not exist")
 
 
 def _plain(value: Any) -> Any:

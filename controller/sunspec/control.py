@@ -172,6 +172,11 @@ class ControlTable:
                 ExcCodes.ILLEGAL_ADDRESS,
                 f"{p.name} is unimplemented for a single-axis plant (rotation is in the El points)",
             )
+        if attr == "az_deg" and slot.tracker is not None and plant.trackers[slot.tracker].single_axis:
+            raise WriteRefused(  # a row of a mixed plant: the plant's Typ is the dual-axis one
+                ExcCodes.ILLEGAL_ADDRESS,
+                f"{p.name} is unimplemented for a single-axis row (rotation is in the El points)",
+            )
         if raw == INT32_UNIMPLEMENTED:
             raise WriteRefused(ExcCodes.ILLEGAL_VALUE, f"{p.name}: the unimplemented value is not a setpoint")
         deg = raw_to_deg(raw)

@@ -80,7 +80,13 @@ class _PeerAwareTcpServer(ModbusTcpServer):
 
 class _SingleUnitCore(SimCore):
     """SimCore that answers only our unit id (others: exception 0x0B via NoSuchId),
-    instead of the KeyError -> exception 4 the stock SimCore gives."""
+    instead of the KeyError -> exception 4 the stock SimCore gives.  Writes pass
+    ``guard`` first (writes disabled, client not allowed: exception 1 wherever they
+    point, so a refused client cannot map the registers), and a write the map refuses
+    (outside it: exception 2) is logged as the others are."""
+
+    guard: Callable[[int], ExcCodes | None] | None = None
+    on_outside: Callable[[int], object] | None = None
 
     async def async_getValues(self, device_id, func_code, address, count=1):
         if device_id not in self.devices:
@@ -90,7 +96,13 @@ class _SingleUnitCore(SimCore):
     async def async_setValues(self, device_id, func_code, address, values):
         if device_id not in self.devices:
             raise NoSuchIdException(device_id)
-        return await super().async_setValues(device_id, func_code, address, values)
+        refused = self.guard(address) if self.guard is not None else None
+        if refused is not None:
+            return refused
+        result = await super().async_setValues(device_id, func_code, address, values)
+        if result == ExcCodes.ILLEGAL_ADDRESS and self.on_outside is not None:
+            self.on_outside(address)  # the map refused it before our action saw it
+        return result
 
 
 def _networks(allow: Iterable[str]) -> tuple:
@@ -230,7 +242,12 @@ class SunSpecServer:
             action=self._action,
         )
         server = _PeerAwareTcpServer(device, address=(self.host, self.requested_port))
-        server.context = _SingleUnitCore(device)
+        core = _SingleUnitCore(device)
+        core.guard = self._guard
+        core.on_outside = lambda address: self._refuse(
+            ExcCodes.ILLEGAL_ADDRESS, _PEER.get(), address, "outside the SunSpec map"
+        )
+        server.context = core
         return server
 
     # -- requests --------------------------------------------------------------------
@@ -254,12 +271,20 @@ class SunSpecServer:
             log.exception("SunSpec request fc=%s address=%s count=%s failed", fc, address, count)
             return ExcCodes.DEVICE_FAILURE
 
-    def _write(self, address: int, words: list[int]) -> ExcCodes | None:
+    def _guard(self, address: int) -> ExcCodes | None:
+        """Exception 1 for any write of a client that may not write (None: go on)."""
         peer = _PEER.get()
         if not self.writes_enabled:
             return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "writes are disabled")
         if not peer_allowed(peer, self._networks):
             return self._refuse(ExcCodes.ILLEGAL_FUNCTION, peer, address, "client not in the allowlist")
+        return None
+
+    def _write(self, address: int, words: list[int]) -> ExcCodes | None:
+        peer = _PEER.get()
+        refused = self._guard(address)
+        if refused is not None:
+            return refused
         controls = self._controls
         assert controls is not None  # built by start()
         plant = self.snapshot()

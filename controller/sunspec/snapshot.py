@@ -53,6 +53,8 @@ class TrackerSnapshot:
     el_limits_deg, az_limits_deg : (float, float) or None
         Soft limits, degrees; operator writes outside them are refused (exception 3).
         None = only the protocol range (elevation/rotation [-90, 90], azimuth [0, 360)).
+    single_axis : bool
+        A single-axis row (made by :meth:`row`): writes to its azimuth points are refused.
     """
 
     name: str
@@ -66,6 +68,7 @@ class TrackerSnapshot:
     manual_az_deg: float | None = None
     el_limits_deg: tuple[float, float] | None = None
     az_limits_deg: tuple[float, float] | None = None
+    single_axis: bool = False  # a row (:meth:`row`): its azimuth points are unimplemented
 
     def __post_init__(self):
         # accept controller.modes.ControlMode members as well as their string values
@@ -98,6 +101,7 @@ class TrackerSnapshot:
             None,
             rotation_limits_deg,
             None,
+            single_axis=True,
         )
 
 

@@ -171,10 +171,11 @@ def test_pymodbus_timeouts_are_debug_records_and_its_other_errors_stay(tmp_path,
     with logging_configured(level, "json", log_file):
         lib = logging.getLogger("pymodbus.logging")
         lib.error("No response received after 0 retries, continue with next request\n>>>>> send: 0x0 0x1")
+        lib.error("requested device id does not exist: 2")  # a SCADA client's wrong unit id
         lib.error("a library's real error")
     got = [json.loads(line)["message"] for line in log_file.read_text().splitlines()]
-    timeouts = [m for m in got if m.startswith("No response received")]
-    assert bool(timeouts) is shown and "a library's real error" in got
+    routine = [m for m in got if m.startswith(("No response received", "requested device id"))]
+    assert len(routine) == (2 if shown else 0) and "a library's real error" in got
 
 
 def test_a_log_file_that_cannot_be_written_is_one_line(tmp_path, capsys):

@@ -294,6 +294,23 @@ def test_single_axis_refuses_azimuth_writes_and_takes_rotation(serve):
         dev.close()
 
 
+def test_a_row_of_a_mixed_plant_refuses_azimuth_writes(serve):
+    """An audit's case: the plant's Typ is the dual-axis one, and a row's AzCtl = 100 deg
+    was accepted (and ignored); docs/sunspec.md says exception 2."""
+    plant = Plant(1)
+    plant.trackers.append(TrackerSnapshot.row("row-1", -40.0, -39.9, rotation_limits_deg=(-55.0, 55.0)))
+    srv = serve(plant, writes_enabled=True)
+    dev = scan(srv)
+    try:
+        with pytest.raises(ModbusClientError) as e:
+            _write(dev, 1, AzCtl=100.0)
+        _refused_with(e, 2)
+        _write(dev, 0, AzCtl=100.0, ElCtl=30.0, Ctl=1)  # the dual-axis tracker's are writable
+        assert [(c.tracker, c.az_deg) for c in plant.overrides][-1] == (0, 100.0)
+    finally:
+        dev.close()
+
+
 def test_failing_override_callback_refuses_and_unstages(serve):
     plant = Plant(1)
 
@@ -328,3 +345,21 @@ def test_poll_latency_reports_figures(serve):
     assert res.n_trackers == 5 and res.registers == 2 + 26 + 22 * 5 and res.n == 10
     assert 0 < res.read_p50_s <= res.read_p99_s <= res.read_max_s
     assert "p99" in res.summary()
+
+
+@pytest.mark.parametrize(("enabled", "code"), [(False, 1), (True, 2)])
+def test_a_write_outside_the_map_is_answered_by_policy_and_logged(serve, caplog, enabled, code):
+    """An audit's case: a write past the end got exception 2 even with writes disabled (a
+    refused client could map the registers), and no log line."""
+    from pymodbus.client import ModbusTcpClient
+
+    srv = serve(Plant(1), writes_enabled=enabled, allow=[HOST])
+    client = ModbusTcpClient(HOST, port=srv.port)
+    assert client.connect()
+    try:
+        past = 40000 + srv.map.size + 10
+        reply = client.write_register(past, 1, device_id=1)
+        assert reply.isError() and reply.exception_code == code
+    finally:
+        client.close()
+    assert f"SunSpec write at {past} from 127.0.0.1 refused (exception {code})" in caplog.text
