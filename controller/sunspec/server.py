@@ -29,6 +29,8 @@ import contextvars
 import copy
 import ipaddress
 import logging
+import math
+import time
 from collections.abc import Callable, Iterable
 from typing import Self
 
@@ -176,6 +178,7 @@ class SunSpecServer:
         self.port: int | None = None
         self.map: SunSpecMap | None = None
         self.stats = {"reads": 0, "writes_accepted": 0, "writes_refused": 0, "errors": 0}
+        self._log_budget = _LogBudget()
         self._encoder: Encoder | None = None
         self._controls: ControlTable | None = None
         self._thread = ServerThread(self._make_server, name="sunspec-server")
@@ -305,12 +308,37 @@ class SunSpecServer:
             return ExcCodes.DEVICE_FAILURE
         self.stats["writes_accepted"] += 1
         for cmd in commands:
-            log.info("SunSpec override from %s: %s", peer, cmd)
+            if self._log_budget.allows(peer):
+                log.info("SunSpec override from %s: %s", peer, cmd)
         return None
 
     def _refuse(self, code: ExcCodes, peer, address: int, reason: str) -> ExcCodes:
         self.stats["writes_refused"] += 1
-        log.warning(
-            "SunSpec write at %d from %s refused (exception %d): %s", address, peer, int(code), reason
-        )
+        if self._log_budget.allows(peer):
+            log.warning(
+                "SunSpec write at %d from %s refused (exception %d): %s", address, peer, int(code), reason
+            )
         return code
+
+
+class _LogBudget:
+    """At most ``per_window`` log lines of writes per client per ``window_s``; the rest are
+    counted and said in one line when the client's next window opens (a SCADA loop
+    writing a thousand times a second must not fill the plant's log)."""
+
+    def __init__(self, per_window: int = 20, window_s: float = 10.0):
+        self.per_window, self.window_s = per_window, window_s
+        self._open: dict[str | None, tuple[float, int, int]] = {}  # peer: (start, lines, unsaid)
+
+    def allows(self, peer: str | None) -> bool:
+        now = time.monotonic()
+        start, lines, unsaid = self._open.get(peer, (-math.inf, 0, 0))
+        if now - start >= self.window_s:
+            if unsaid:
+                log.warning(
+                    "SunSpec: %d more writes from %s in %g s were not logged", unsaid, peer, self.window_s
+                )
+            start, lines, unsaid = now, 0, 0
+        ok = lines < self.per_window
+        self._open[peer] = (start, lines + ok, unsaid + (not ok))
+        return ok

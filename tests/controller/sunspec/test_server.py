@@ -363,3 +363,22 @@ def test_a_write_outside_the_map_is_answered_by_policy_and_logged(serve, caplog,
     finally:
         client.close()
     assert f"SunSpec write at {past} from 127.0.0.1 refused (exception {code})" in caplog.text
+
+
+def test_a_client_that_writes_in_a_loop_does_not_fill_the_log(serve, caplog):
+    """An audit's case: 1000 writes in 0.15 s were 1000 log lines."""
+    from pymodbus.client import ModbusTcpClient
+
+    srv = serve(Plant(1), writes_enabled=False, allow=[HOST])
+    client = ModbusTcpClient(HOST, port=srv.port)
+    assert client.connect()
+    try:
+        for _ in range(200):
+            assert client.write_register(40002, 1, device_id=1).exception_code == 1
+    finally:
+        client.close()
+    assert srv.stats["writes_refused"] == 200  # every one counted and answered
+    assert caplog.text.count("refused (exception 1)") == 20
+    srv._log_budget._open = {k: (v[0] - 60.0, v[1], v[2]) for k, v in srv._log_budget._open.items()}
+    assert srv._log_budget.allows(HOST)  # the next window opens with the count of the rest
+    assert "SunSpec: 180 more writes from 127.0.0.1 in 10 s were not logged" in caplog.text
