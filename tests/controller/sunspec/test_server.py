@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import threading
+from contextlib import closing
 from datetime import datetime
 
 import pytest
@@ -299,16 +300,12 @@ def test_a_row_of_a_mixed_plant_refuses_azimuth_writes(serve):
     was accepted (and ignored); docs/sunspec.md says exception 2."""
     plant = Plant(1)
     plant.trackers.append(TrackerSnapshot.row("row-1", -40.0, -39.9, rotation_limits_deg=(-55.0, 55.0)))
-    srv = serve(plant, writes_enabled=True)
-    dev = scan(srv)
-    try:
+    with closing(scan(serve(plant, writes_enabled=True))) as dev:
         with pytest.raises(ModbusClientError) as e:
             _write(dev, 1, AzCtl=100.0)
         _refused_with(e, 2)
         _write(dev, 0, AzCtl=100.0, ElCtl=30.0, Ctl=1)  # the dual-axis tracker's are writable
-        assert [(c.tracker, c.az_deg) for c in plant.overrides][-1] == (0, 100.0)
-    finally:
-        dev.close()
+    assert [(c.tracker, c.az_deg) for c in plant.overrides][-1] == (0, 100.0)
 
 
 def test_failing_override_callback_refuses_and_unstages(serve):
