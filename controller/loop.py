@@ -17,12 +17,13 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from firmware_protocol import Command, Mode, Status
+from firmware_protocol import Command, Mode
 
 from . import setpoints as sp
 from .clock import Clock
 from .config import Config
 from .diffuse import DiffuseSwitch
+from .drive_setup import DriveSetup
 from .drives.base import DriveCommError, DriveLink, DriveState
 from .health import Health
 from .history import History
@@ -44,7 +45,7 @@ class LinkDownError(DriveCommError):
     nothing failed again (the backoff does not grow, the reason is not wrapped anew)."""
 
 
-class Controller(WindPolling):
+class Controller(WindPolling, DriveSetup):
     """Drives every configured tracker from one sun source.
 
     A failing drive is recorded and skipped for that cycle; it never stops the others.
@@ -104,100 +105,9 @@ class Controller(WindPolling):
         self.events: deque[dict[str, Any]] = deque(maxlen=10_000)
 
     # -- start-up -----------------------------------------------------------------
-    async def start(self) -> None:
-        """Connect and configure every drive (limits, stow angles, watchdog).
-
-        A drive that fails here is recorded and retried by the next cycles; the others
-        start regardless.
-        """
-        await asyncio.gather(*(self._start_one(tr) for tr in self.trackers))
-
-    async def _start_one(self, tr: TrackerRuntime) -> None:
-        try:
-            await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
-        except (TimeoutError, DriveCommError) as exc:
-            tr.errors += 1
-            self._link_failed(tr, str(exc) or "no answer at start-up")
-
-    def _unheard(self, tr: TrackerRuntime) -> bool:
-        """The drive has not answered an exchange for longer than its watchdog allows (it has
-        stowed itself since); False before its first answer."""
-        silent = self.clock.monotonic() - tr.health.last_ok
-        return math.isfinite(silent) and silent >= self.config.control.heartbeat_timeout_s
-
-    @staticmethod
-    def _note_watchdog_stow(tr: TrackerRuntime, st: DriveState, unheard: bool = False) -> None:
-        """A STOW is the drive's watchdog's (ours to resume) when it says COMM_LOST or
-        WATCHDOG_STOW, or went unheard longer than its watchdog allows or rebooted (``unheard``;
-        a heartbeat, even another drive's on CAN, clears COMM_LOST at once, and older firmware
-        has no WATCHDOG_STOW); a stow last seen as someone else's, only on WATCHDOG_STOW."""
-        latched = any(a.status & Status.WATCHDOG_STOW for a in st.axes)
-        lost = unheard or any(a.status & Status.COMM_LOST for a in st.axes)
-        if any(a.mode == Mode.STOW for a in st.axes) and (latched or (lost and not tr.health.foreign_stow)):
-            tr.health.watchdog_stow = True
-
-    def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:
-        """What a drive's STOW_ANGLE holds: the wind stow when wind is watched (the safest
-        place to be unattended, and where the watchdog sends it), else the night stow."""
-        if self.config.wind is not None:
-            return self.safety.angles(tr.cfg, "wind")
-        return tr.cfg.stow_angles
-
-    async def _configure(self, tr: TrackerRuntime, rebooted: bool = False, connected: bool = False) -> None:
-        if not connected:
-            await tr.drive.connect()
-        if tr.drive.axis_count < tr.cfg.axes:
-            raise DriveCommError(
-                f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
-                f"a {tr.cfg.type} tracker needs {tr.cfg.axes}"
-            )
-        # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
-        self._note_watchdog_stow(tr, await tr.drive.read_state(), rebooted or self._unheard(tr))
-        tr.uptime_s = None
-        await tr.drive.configure(
-            heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
-            soft_limits=tr.cfg.soft_limits,
-            stow_angles=self.drive_stow_angles(tr),
-        )
-        await self._heartbeat(tr, force=True)
-        # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
-        tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
-        tr.configured = True
-
     def _deadline(self) -> float:
         """Per-tracker time budget for one cycle (s of wall time)."""
         return max(0.8 * self.config.control.period_s, 0.2) if self.realtime else 30.0
-
-    async def _heartbeat(self, tr: TrackerRuntime, force: bool = False) -> None:
-        # Three heartbeats per watchdog timeout are plenty and spare the bus.
-        t = self.clock.monotonic()
-        timeout = self.config.control.heartbeat_timeout_s
-        if force or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
-            await tr.drive.heartbeat()
-            tr.last_heartbeat = t
-            await self._check_reboot(tr)
-
-    async def _check_reboot(self, tr: TrackerRuntime) -> None:
-        """A drive whose uptime went back has rebooted: it forgot its configuration (limits,
-        stow angle, watchdog), so it is configured again before the next exchange."""
-        ident = await tr.drive.identify()
-        if ident is None:
-            return
-        now = self.clock.monotonic()
-        # the uptime it should show by now, had it not restarted since the last reading
-        expected = None if tr.uptime_s is None else tr.uptime_s + (now - tr.uptime_at)
-        before = tr.uptime_s
-        tr.uptime_s, tr.uptime_at = ident.uptime_s, now
-        if expected is not None and before is not None and ident.uptime_s + 5.0 < expected:
-            log.warning(
-                "%s: drive rebooted (uptime %.0f s, was %.0f s): configuring it again",
-                tr.cfg.name,
-                ident.uptime_s,
-                before,
-            )
-            self._event("drive_reboot", tracker=tr.cfg.name)
-            tr.uptime_s = None
-            await self._configure(tr, rebooted=True)
 
     # -- one cycle ----------------------------------------------------------------
     async def cycle(self) -> list[CycleRecord]:
