@@ -78,6 +78,9 @@ class DriveSetup:
         return tr.cfg.stow_angles
 
     async def _configure(self, tr: TrackerRuntime, rebooted: bool = False, connected: bool = False) -> None:
+        # until it succeeds the drive is not in service: a configuration that failed after a
+        # reboot would otherwise leave it on its factory watchdog and limits, reported ok
+        tr.configured = False
         if not connected:
             await tr.drive.connect()
         if tr.drive.axis_count < tr.cfg.axes:

@@ -25,6 +25,7 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -37,6 +38,22 @@ class Health(str, Enum):
     OK = "ok"
     DEGRADED = "degraded"
     LOST = "lost"
+
+
+#: How far past its travel an axis may read before the reading is taken for a fault (deg):
+#: an overshoot, a backlash, a hand-crank are within it; 1e6 deg or a sentinel are not.
+PLAUSIBLE_MARGIN_DEG = 10.0
+
+
+def implausible_axes(st: DriveState, limits: Sequence[tuple[float, float]]) -> str:
+    """What is impossible in the axes' readings (empty when nothing): an angle that is not a
+    number or lies more than :data:`PLAUSIBLE_MARGIN_DEG` outside the axis's travel."""
+    bad = []
+    for k, (a, (lo, hi)) in enumerate(zip(st.axes, limits, strict=False)):
+        x = a.actual_deg
+        if not (math.isfinite(x) and lo - PLAUSIBLE_MARGIN_DEG <= x <= hi + PLAUSIBLE_MARGIN_DEG):
+            bad.append(f"axis {k} reads {x:.2f} deg, outside its travel [{lo:g}, {hi:g}]")
+    return "; ".join(bad) + (" (encoder or firmware fault)" if bad else "")
 
 
 @dataclass(frozen=True)
@@ -72,6 +89,8 @@ class DriveHealth:
     foreign_stow: bool = False
     #: When the drive last answered an exchange (the clock's monotonic time, s).
     last_ok: float = -math.inf
+    #: RESUMEs sent while the drive stayed stowed (a watchdog stow that does not lift).
+    resumes_unanswered: int = 0
 
     # -- link -----------------------------------------------------------------------
     def comm_failed(self, now: float, why: str) -> bool:
@@ -89,8 +108,16 @@ class DriveHealth:
         return now >= self.reconnect_at
 
     # -- what the drive says -----------------------------------------------------------
-    def assess(self, st: DriveState, now: float, *, weather_stow: bool) -> list[Command]:
-        """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME)."""
+    def assess(
+        self,
+        st: DriveState,
+        now: float,
+        *,
+        weather_stow: bool,
+        limits: Sequence[tuple[float, float]] = (),
+    ) -> list[Command]:
+        """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME).
+        ``limits``: each axis's travel (deg), to judge its reading."""
         self.last_ok = now
         self.errors_in_row = 0
         self.backoff_s = 0.0
@@ -126,14 +153,26 @@ class DriveHealth:
             problems.append("in MAINTENANCE mode (service)")
         if Mode.STOW in modes:
             ours = self.stowed_by_us or self.watchdog_stow or comm_lost
-            if ours and not weather_stow:
+            if ours and not weather_stow and faults:
+                problems.append("stowed with a fault latched: resumed once the fault clears")
+            elif ours and not weather_stow:
                 commands.append(Command.RESUME)  # our stow, or the watchdog's
+                self.resumes_unanswered += 1
+                if self.resumes_unanswered > 2:  # still stowed after RESUMEs: not lifting
+                    problems.append(
+                        f"its stow does not lift after {self.resumes_unanswered - 1} RESUMEs"
+                        + (" (COMM_LOST still set: heartbeats not accepted?)" if comm_lost else "")
+                    )
                 self.stowed_by_us = self.watchdog_stow = self.foreign_stow = False
             elif not ours:
                 self.foreign_stow = True
                 problems.append("stowed by a local switch or another master: left stowed")
         else:
             self.watchdog_stow = self.foreign_stow = False
+            self.resumes_unanswered = 0
+        wrong = implausible_axes(st, limits)
+        if wrong:
+            problems.append(wrong)
         if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
             problems.append("the drive clamped a target (its limits differ from the configuration)")
         if lost:

@@ -340,7 +340,9 @@ class Controller(WindPolling, DriveSetup):
             await tr.drive.command(Command.STOW)  # a drive the fast path missed
             tr.health.stowed_by_us = True
         before = tr.health.state
-        for cmd in tr.health.assess(state, self.clock.monotonic(), weather_stow=wind):
+        for cmd in tr.health.assess(
+            state, self.clock.monotonic(), weather_stow=wind, limits=tr.cfg.soft_limits
+        ):
             if cmd == Command.RESUME:
                 await self._heartbeat(tr, force=True)
             await tr.drive.command(cmd)

@@ -26,9 +26,10 @@ from pathlib import Path
 
 from controller.atomic import atomic_write
 from controller.config import Config
-from controller.drives.base import DriveCommError
+from controller.drives.base import DriveCommError, DriveNoAnswer
 from controller.drives.links import CanopenLink, LinkConfig, ModbusRtuLink, ModbusTcpLink
 from controller.errors import ConfigError
+from controller.health import implausible_axes
 from controller.loop import Controller
 from controller.records import TrackerRuntime
 from controller.safety import clamp_targets
@@ -327,8 +328,22 @@ async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> Saf
     drive = tr.drive
     if not tr.configured:
         await drive.connect()  # a drive the loop had lost: one more try
-    if want == "hold":
+    try:
         st = await drive.read_state()
+    except DriveCommError as exc:  # it answers, but not with a state to trust: stow it anyway
+        if isinstance(exc, DriveNoAnswer):
+            raise  # silent: its watchdog is all there is (go_safe says so)
+        await drive.command(Command.STOW)
+        tr.health.stowed_by_us = True
+        return SafeOutcome(tr.cfg.name, want, False, f"state unreadable ({exc}): STOW sent, not read back")
+    if any(a.mode == Mode.MAINTENANCE for a in st.axes):  # in someone's hands: whatever the flags say
+        pos = tuple(a.actual_deg for a in st.axes)
+        return SafeOutcome(tr.cfg.name, want, True, "in MAINTENANCE: left so", pos, ours=False)
+    wrong = implausible_axes(st, tr.cfg.soft_limits)
+    if want == "hold" and wrong:  # holding there would drive it to a limit
+        want = "stow"
+        log.warning("%s: %s: stowed at shutdown instead of held", tr.cfg.name, wrong)
+    if want == "hold":
         if any(a.mode == Mode.STOW for a in st.axes):
             # a weather or watchdog stow in force: the safest place, left so
             return SafeOutcome(
@@ -339,7 +354,6 @@ async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> Saf
         ok = all(abs(a.target_deg - x) <= 0.02 for a, x in zip(st.axes, targets))
         detail = f"holding at {_angles(targets)} deg" + ("" if ok else " (target not read back)")
         return SafeOutcome(tr.cfg.name, want, ok, detail, tuple(a.actual_deg for a in st.axes))
-    st = await drive.read_state()
     # whose stow it is: the loop's rule (controller.health.DriveHealth.assess)
     ours = tr.health.stowed_by_us or tr.health.watchdog_stow
     ours = ours or any(a.status & Status.WATCHDOG_STOW for a in st.axes)
@@ -357,9 +371,9 @@ async def _safe_one(ctl: Controller, tr: TrackerRuntime, deadline: float) -> Saf
         st = await drive.read_state()
         if all(a.mode in (Mode.STOW, Mode.MAINTENANCE) for a in st.axes):
             pos = tuple(a.actual_deg for a in st.axes)
-            return SafeOutcome(
-                tr.cfg.name, want, True, f"stowing from {_angles(pos)} deg (mode STOW read back)", pos
-            )
+            modes = "/".join(sorted({a.mode.name for a in st.axes}))
+            where = "" if wrong else f" from {_angles(pos)} deg"
+            return SafeOutcome(tr.cfg.name, want, True, f"stowing{where} (mode {modes} read back)", pos)
         if time.monotonic() >= deadline:
             modes = ", ".join(a.mode.name for a in st.axes)
             return SafeOutcome(tr.cfg.name, want, False, f"STOW not read back (modes {modes})")

@@ -294,3 +294,34 @@ def test_a_calibrate_leaves_a_drive_in_someone_elses_stow_unhomed(default_plant)
         clock.sleep(cfg.control.period_s)
         run(ctl.cycle())
     assert fws["dual-1"].homed == [True, True] and fws["row-1"].homed == [False]
+
+
+def test_a_reboot_whose_configuration_fails_is_configured_again(default_plant):
+    """An audit's case: the configuration after a reboot failed once, the drive stayed
+    'configured' and ran on its factory watchdog and limits, reported ok."""
+    from controller.drives.base import DriveCommError
+    from hil.drive import DriveFirmware
+
+    run, ctl, fws, clock, cfg = default_plant
+    fw, tr = fws["row-1"], next(t for t in ctl.trackers if t.cfg.name == "row-1")
+    run(ctl.cycle())
+    clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+    run(ctl.cycle())
+    fresh = DriveFirmware([ax.p for ax in fw.axes], clock.now, heartbeat_timeout=10.0)
+    fw.__dict__.update(fresh.__dict__)
+    fw.axes[0].p.soft_max = 90.0
+    real, calls = tr.drive.configure, []
+
+    async def flaky(**kw):
+        calls.append(kw)
+        if len(calls) == 1:
+            raise DriveCommError("row-1: soft limit write refused")
+        await real(**kw)
+
+    tr.drive.configure = flaky
+    for _ in range(4):
+        clock.sleep(cfg.control.heartbeat_timeout_s / 3)
+        recs = run(ctl.cycle())
+    assert len(calls) >= 2 and tr.configured
+    assert fw.heartbeat_timeout == cfg.control.heartbeat_timeout_s and fw.axes[0].p.soft_max == 55.0
+    assert not recs[1].error

@@ -178,3 +178,58 @@ def test_a_looping_link_for_a_record_or_the_state_folder_is_named(default_plant,
     loop.symlink_to(loop)
     with pytest.raises(ConfigError, match="--state: expected a usable folder path"):
         use_state_folder(cfg, loop)
+
+
+def test_a_drive_reading_an_impossible_angle_is_stowed_not_held(default_plant, tmp_path, caplog):
+    """An audit's case: 'holding at 360.00, 0.00 deg', the clamped reading of a drive that
+    said 1e6 deg, slewed it to a limit at shutdown."""
+    from dataclasses import replace
+
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
+    tr.cfg = replace(tr.cfg, safe_position="hold")
+    fws["dual-1"].axes[0].encoder_offset = 100_000.0
+    out = {o.tracker: o for o in run(go_safe(ctl, state=StateFolder(tmp_path)))}
+    assert (
+        out["dual-1"].wanted == "stow" and out["dual-1"].confirmed and "holding" not in out["dual-1"].detail
+    )
+    assert fws["dual-1"].modes[0] == Mode.STOW
+    assert (
+        "outside its travel [0, 360]" in caplog.text and "stowed at shutdown instead of held" in caplog.text
+    )
+
+
+def test_a_drive_in_maintenance_is_left_whatever_its_flags_say(default_plant, tmp_path):
+    """An audit's case: MAINTENANCE with COMM_LOST stuck was commanded to STOW and recorded
+    as ours."""
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    fw = fws["dual-1"]
+    for k in range(2):
+        fw._set_mode(k, Mode.MAINTENANCE)
+    fw.comm_lost = True
+    state = StateFolder(tmp_path)
+    out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
+    assert out["dual-1"].detail == "in MAINTENANCE: left so" and not out["dual-1"].ours
+    assert fw.modes == [Mode.MAINTENANCE, Mode.MAINTENANCE]
+    assert "dual-1" not in json.loads(state.shutdown.read_text())["stowed"]
+
+
+def test_a_drive_whose_state_cannot_be_trusted_is_sent_stow_anyway(default_plant, tmp_path):
+    """An audit's case: an undefined mode value made the state read fail, and no STOW was
+    sent ('no answer: ... 7 is not a valid Mode'); the drive had answered."""
+    from controller.drives.base import DriveCommError
+
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
+
+    async def implausible():
+        raise DriveCommError("dual-1: implausible state from the drive: 7 is not a valid Mode")
+
+    tr.drive.read_state = implausible
+    out = {o.tracker: o for o in run(go_safe(ctl, state=StateFolder(tmp_path)))}
+    assert out["dual-1"].detail.startswith("state unreadable (dual-1: implausible state")
+    assert "STOW sent, not read back" in out["dual-1"].detail and not out["dual-1"].confirmed
+    assert fws["dual-1"].modes[0] == Mode.STOW

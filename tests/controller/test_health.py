@@ -1,0 +1,64 @@
+"""A drive's health from what it says: readings that cannot be, and stows that do not lift.
+
+Each case is one an audit of bad wire data found (2026-12-01); each failed on the code before."""
+
+import math
+
+import pytest
+
+from controller.drives.base import AxisState, DriveState
+from controller.health import DriveHealth, Health, implausible_axes
+from firmware_protocol import Command, Fault, Mode, Status
+
+LIMITS = ((0.0, 360.0), (0.0, 90.0))
+
+
+NO_STATUS = Status(0)
+
+
+def state(*angles, mode=Mode.AUTO, status=NO_STATUS, fault=Fault.NONE):
+    axes = tuple(AxisState(a, a, 0.0, status, fault, mode) for a in angles)
+    return DriveState(len(axes), axes, status)
+
+
+@pytest.mark.parametrize(
+    ("angles", "bad"),
+    [
+        ((224.0, 21.0), ""),
+        ((365.0, -5.0), ""),  # an overshoot past the travel is not a fault
+        ((1e6, -1e6), "axis 0 reads 1000000.00 deg, outside its travel [0, 360]"),
+        ((-2147483.648, 21.0), "axis 0 reads -2147483.65 deg"),  # an int32 sentinel in mdeg
+        ((224.0, math.nan), "axis 1 reads nan deg"),
+    ],
+)
+def test_readings_outside_the_travel_are_named(angles, bad):
+    got = implausible_axes(state(*angles), LIMITS)
+    assert (got == "") if not bad else (bad in got and got.endswith("(encoder or firmware fault)"))
+
+
+def test_a_drive_that_reads_an_impossible_angle_is_degraded():
+    """It had been ok, 0 errors, with 1e6 deg read every cycle."""
+    h = DriveHealth()
+    h.assess(state(1e6, 21.0), 0.0, weather_stow=False, limits=LIMITS)
+    assert h.state == Health.DEGRADED and "axis 0 reads 1000000.00 deg" in h.reason
+
+
+def test_a_watchdog_stow_that_does_not_lift_is_said():
+    """It had been ok, with a RESUME every cycle, the drive stowed the whole run."""
+    h = DriveHealth()
+    stuck = state(180.0, 90.0, mode=Mode.STOW, status=Status.COMM_LOST)
+    sent = [h.assess(stuck, float(t), weather_stow=False, limits=LIMITS) for t in range(4)]
+    assert all(cmds == [Command.RESUME] for cmds in sent)
+    assert h.state == Health.DEGRADED and "does not lift after 3 RESUMEs (COMM_LOST still set" in h.reason
+    h.assess(state(180.0, 90.0), 5.0, weather_stow=False, limits=LIMITS)
+    assert h.state == Health.OK and h.resumes_unanswered == 0
+
+
+def test_a_stow_with_a_fault_latched_is_not_resumed_until_it_clears():
+    h = DriveHealth(watchdog_stow=True)
+    faulted = state(180.0, 90.0, mode=Mode.STOW, status=Status.FAULT, fault=Fault.HARD_LIMIT)
+    cmds = h.assess(faulted, 0.0, weather_stow=False, limits=LIMITS)
+    assert Command.RESUME not in cmds and Command.CLEAR_FAULT in cmds
+    assert "resumed once the fault clears" in h.reason
+    cmds = h.assess(state(180.0, 90.0, mode=Mode.STOW), 1.0, weather_stow=False, limits=LIMITS)
+    assert cmds == [Command.RESUME]
