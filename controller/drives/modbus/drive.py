@@ -242,6 +242,34 @@ class ModbusDrive(DriveLink):
                     await self._call(
                         "configure", self.client.write_registers, _STOW.address(k), encode(_STOW, step)
                     )
+        await self._read_back(heartbeat_timeout_s, limits)
+
+    async def _read_back(self, heartbeat_timeout_s: float | None, limits: list[tuple[float, float]]) -> None:
+        """The configuration as the drive holds it after the writes: a firmware that
+        acknowledges and ignores them (its watchdog off, its factory limits) is refused."""
+        wrong = []
+        if heartbeat_timeout_s is not None:
+            reg = register("HEARTBEAT_TIMEOUT")
+            got = float(
+                decode(
+                    reg,
+                    await self._read(
+                        "configuration read",
+                        reg.words,
+                        self.client.read_holding_registers,
+                        reg.address(),
+                        count=reg.words,
+                    ),
+                )
+            )
+            if abs(got - heartbeat_timeout_s) > reg.scale:
+                wrong.append(f"HEARTBEAT_TIMEOUT reads {got:g} s, {heartbeat_timeout_s:g} written")
+        for k, (lo, hi) in enumerate(limits):
+            got_lo, got_hi = await self._soft_limits(k)
+            if abs(got_lo - lo) > _LIMIT_MIN.scale or abs(got_hi - hi) > _LIMIT_MAX.scale:
+                wrong.append(f"axis {k} soft limits read [{got_lo:g}, {got_hi:g}], [{lo:g}, {hi:g}] written")
+        if wrong:
+            raise DriveCommError(f"{self.label}: configuration not taken: {'; '.join(wrong)}")
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""

@@ -110,3 +110,28 @@ def test_modbus_tcp_backend_on_loopback(sim_clock):
 
     with ModbusServerThread({3: fw}, tcp=("127.0.0.1", 0)) as srv:
         run(scenario(srv.tcp_port))
+
+
+def test_a_configuration_the_drive_does_not_take_is_refused(pty_drive):
+    """An audit's case: a firmware that acknowledged the writes and kept its watchdog off
+    and its factory limits was driven as configured, reported ok."""
+    from firmware_protocol import register
+
+    fw, path, clock = pty_drive
+    ignored = {register("HEARTBEAT_TIMEOUT").address(), register("SOFT_LIMIT_MIN").address(1)}
+    write = fw.write
+    fw.write = lambda address, words: None if address in ignored else write(address, words)
+
+    async def scenario():
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        try:
+            await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80])
+        finally:
+            await d.close()
+
+    with pytest.raises(DriveCommError) as e:
+        run(scenario())
+    msg = str(e.value)
+    assert "configuration not taken: HEARTBEAT_TIMEOUT reads" in msg and "50 written" in msg
+    assert "axis 1 soft limits read" in msg and "[5, 85] written" in msg
