@@ -91,6 +91,8 @@ class DriveHealth:
     last_ok: float = -math.inf
     #: RESUMEs sent while the drive stayed stowed (a watchdog stow that does not lift).
     resumes_unanswered: int = 0
+    #: Per axis: (the reading it stands still at, since when) while away from its target.
+    still: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     # -- link -----------------------------------------------------------------------
     def comm_failed(self, now: float, why: str) -> bool:
@@ -173,6 +175,7 @@ class DriveHealth:
         wrong = implausible_axes(st, limits)
         if wrong:
             problems.append(wrong)
+        problems.extend(self._not_following(st, now))
         if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
             problems.append("the drive clamped a target (its limits differ from the configuration)")
         if lost:
@@ -184,10 +187,32 @@ class DriveHealth:
         self.reason = "; ".join(problems)
         return commands
 
+    def _not_following(self, st: DriveState, now: float) -> list[str]:
+        out = []
+        for k, a in enumerate(st.axes):
+            away = a.mode == Mode.AUTO and abs(a.target_deg - a.actual_deg) > FOLLOW_AWAY_DEG
+            x0, t0 = self.still.get(k, (math.nan, now))
+            if not away:
+                self.still.pop(k, None)  # where it should be (or not ours to move)
+            elif not abs(a.actual_deg - x0) <= STILL_DEG:
+                self.still[k] = (a.actual_deg, now)  # moving: the clock starts again
+            elif now - t0 >= FOLLOW_S:
+                out.append(
+                    f"axis {k} does not follow its target (at {a.actual_deg:.2f} deg, target "
+                    f"{a.target_deg:.2f}, for {now - t0:.0f} s)"
+                )
+        return out
+
     def _due(self, now: float, interval: float) -> bool:
         """``interval`` s since the last clear, give or take 5 %: a cycle's exchange a few ms
         early must not put the clear off by a whole period."""
         return now - self.last_clear >= 0.95 * interval
+
+
+#: An axis in AUTO this far from its target (deg) that has not moved ``FOLLOW_S`` seconds
+#: does not follow it (a drive that acknowledges targets and never moves, and sets no
+#: STALLED bit); a slew starts within a second, so half a minute is no false alarm.
+FOLLOW_AWAY_DEG, FOLLOW_S, STILL_DEG = 1.0, 30.0, 0.01
 
 
 def _fault_text(fault: Fault, status: Status) -> str:

@@ -62,3 +62,34 @@ def test_a_stow_with_a_fault_latched_is_not_resumed_until_it_clears():
     assert "resumed once the fault clears" in h.reason
     cmds = h.assess(state(180.0, 90.0, mode=Mode.STOW), 1.0, weather_stow=False, limits=LIMITS)
     assert cmds == [Command.RESUME]
+
+
+def test_an_axis_that_does_not_follow_its_target_is_named():
+    """An audit's case: a drive that took targets and stayed at 100/30 was ok all run."""
+    h = DriveHealth()
+
+    def reading(az, target_az):
+        axes = (
+            AxisState(az, target_az, 0.0, NO_STATUS, Fault.NONE, Mode.AUTO),
+            AxisState(30.0, 30.0, 0.0, NO_STATUS, Fault.NONE, Mode.AUTO),
+        )
+        return DriveState(2, axes)
+
+    for t in range(0, 31, 10):
+        h.assess(reading(100.0, 224.0), float(t), weather_stow=False, limits=LIMITS)
+    assert h.state == Health.DEGRADED
+    assert "axis 0 does not follow its target (at 100.00 deg, target 224.00, for 30 s)" in h.reason
+    h.assess(reading(101.0, 224.0), 40.0, weather_stow=False, limits=LIMITS)  # moving again
+    assert h.state == Health.OK
+    for t in range(40, 200, 10):  # a long slew that moves is never flagged
+        h.assess(reading(101.0 + (t - 40) * 0.5, 224.0), float(t), weather_stow=False, limits=LIMITS)
+    assert h.state == Health.OK
+
+
+def test_a_drive_that_starts_a_slew_after_a_stow_is_not_flagged():
+    """The clock starts at the first reading away from the target, not at the stow before."""
+    h = DriveHealth()
+    h.assess(state(0.0, 90.0, mode=Mode.STOW), 0.0, weather_stow=False, limits=LIMITS)
+    axes = (AxisState(0.0, -9.87, 0.0, NO_STATUS, Fault.NONE, Mode.AUTO),) * 2
+    h.assess(DriveState(2, axes), 60.0, weather_stow=False, limits=((-55.0, 55.0),) * 2)
+    assert "does not follow" not in h.reason
