@@ -64,10 +64,20 @@ def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = Non
     }
     out_dir = results_dir or RESULTS_DIR
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"{name}{'-quick' if quick else ''}.json"
+    # a size other than the default is another result, not the benchmark's (soak-10d.json)
+    sizes = "".join(
+        _SIZE_NAMES.get(k, f"-{k}{{}}").format(v)
+        for k, v in kwargs.items()
+        if v != getattr(module, k.upper(), accepted[k].default)
+    )
+    path = out_dir / f"{name}{sizes}{'-quick' if quick else ''}.json"
     atomic_write(path, json.dumps(record, indent=2, default=_json_default) + "\n")
     record["path"] = str(path)
     return record
+
+
+#: How a non-default size names its result file.
+_SIZE_NAMES = {"days": "-{}d", "kills": "-kills{}"}
 
 
 def _json_default(obj):

@@ -69,8 +69,12 @@ def one_kill(path: Path, rng: np.random.Generator, committed: int = 0) -> dict:
     }
 
 
+#: Kills of a full run (``--kills`` changes it; a quick run makes 20).
+KILLS = 1000
+
+
 def run(quick: bool = False, kills: int | None = None) -> dict:
-    n = kills if kills is not None else (20 if quick else 1000)
+    n = kills if kills is not None else (20 if quick else KILLS)
     rng = np.random.default_rng(1)
     outcomes = []
     t0 = time.perf_counter()

@@ -116,13 +116,17 @@ def soak_config(days: int, state_dir: Path, seed: int = 29):
     )
 
 
+#: Simulated days of a full run (``--days`` changes it; a quick run makes 1).
+DAYS = 30
+
+
 def run(quick: bool = False, days: int | None = None) -> dict:
     from heliotrack.allocator import bound_heap
     from heliotrack.span import simulation_span
 
     bound_heap()  # as `heliotrack run` does: the soak stands for a month of it
 
-    days = days or (1 if quick else 30)
+    days = days or (1 if quick else DAYS)
     with tempfile.TemporaryDirectory(prefix="heliotrack-soak-") as tmp:
         cfg = soak_config(days, Path(tmp))
         soak = SoakRun(cfg, simulation_span(cfg, days), progress=False)

@@ -5,8 +5,9 @@ CSV column guessing (case-insensitive, first rule that matches wins; give ``time
 
 * time: a column named ``time``, ``timestamp``, ``datetime``, ``date_time``, ``time_utc``,
   ``timestamp_utc``, ``utc`` or ``date``; else the only column whose name contains
-  ``time``.  Text times are parsed by pandas; naive times are taken as UTC, times with an
-  offset are converted to UTC.  A numeric time column is read as POSIX seconds.
+  ``time``.  Text times are ISO 8601 (a form like 01/06/2016 reads day first or month
+  first and is not guessed; a time without a date is refused); naive times are taken as
+  UTC, times with an offset are converted to UTC.  A numeric time column is read as POSIX seconds.
 * GHI: ``ghi``, ``ghi_wm2``, ``global``, ``global_horizontal``, ``glob``, ``dw_solar``,
   ``swdown``; else the only column whose name contains ``ghi`` or ``global``.
 * DNI (optional): ``dni``, ``dni_wm2``, ``direct``, ``direct_normal``, ``beam``; else the
@@ -19,6 +20,7 @@ or above 2000 W/m2, and unparsable times are errors that name the file, row and 
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -127,15 +129,33 @@ def _irradiance(values: pd.Series, path: Path, column: str, row_offset: int) -> 
     return arr
 
 
+_TIME_ONLY = re.compile(r"\d{1,2}:\d{2}(:\d{2}(\.\d+)?)?")
+
+
 def _times(values: pd.Series, path: Path, column: str, row_offset: int) -> np.ndarray:
     if pd.api.types.is_numeric_dtype(values):
         t = values.to_numpy(dtype=float)
         bad = ~np.isfinite(t)
     else:
-        try:  # fast path for the common ISO 8601 column
+        try:
             parsed = pd.to_datetime(values, utc=True, format="ISO8601")
         except (ValueError, TypeError):
-            parsed = pd.to_datetime(values, utc=True, errors="coerce", format="mixed")
+            # ISO 8601 only: pandas' guessing read 20/03/2024 day first and 01/04/2024
+            # month first in one column, and a time without a date as today's
+            parsed = pd.to_datetime(values, utc=True, errors="coerce", format="ISO8601")
+            first = int(np.flatnonzero(parsed.isna().to_numpy())[0])
+            text = str(values.iloc[first]).strip()
+            if _TIME_ONLY.fullmatch(text):
+                raise InputError(
+                    f"{path}: row {first + row_offset}, column {column!r}: {text!r} is a time without a "
+                    "date (a date in another column?): give one column of date and time, e.g. "
+                    "2016-06-01T12:00:00Z"
+                ) from None
+            raise InputError(
+                f"{path}: row {first + row_offset}, column {column!r}: expected an ISO 8601 time "
+                f"(2016-06-01T12:00:00Z, or 2016-06-01 12:00 as UTC), got {text!r}: a form like "
+                "01/06/2016 reads day first or month first, so it is not guessed"
+            ) from None
         # pandas reads "now" and "today" as the clock's present: not a sample time
         relative = values.astype(str).str.strip().str.lower().isin(["now", "today"]).to_numpy()
         bad = parsed.isna().to_numpy() | relative

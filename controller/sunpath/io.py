@@ -56,7 +56,10 @@ def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]
             raise InputError(f"{w}: not JSON ({exc.msg}, column {exc.colno})") from None
         if not isinstance(d, dict):
             raise InputError(f"{w}: expected a JSON object per line")
-        if not d.get("found"):
+        found = d.get("found", False)
+        if not isinstance(found, bool):  # "false", a string, is true
+            raise InputError(f"{w}, key 'found': expected true or false, got {found!r}")
+        if not found:
             skipped += 1
             continue
         if d.get("time") is None:

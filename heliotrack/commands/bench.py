@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from heliotrack.argtypes import int_in
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from benchmarks import BENCHMARKS
@@ -30,11 +32,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--kills",
-        type=int,
+        type=int_in(1, 100_000),
         default=None,
-        help="persistence: how many times to kill the writer (default 1000)",
+        help="persistence: how many times to kill the writer (default 1000; another count "
+        "is written as persistence-kills<N>.json)",
     )
-    p.add_argument("--days", type=int, default=None, help="soak: simulated days (default 30)")
+    p.add_argument(
+        "--days",
+        type=int_in(1, 3660),
+        default=None,
+        help="soak: simulated days (default 30; another count is written as soak-<N>d.json)",
+    )
     p.add_argument(
         "--results-dir", type=Path, default=None, help="where to write JSON (default benchmarks/results/)"
     )
@@ -47,9 +55,11 @@ def run(args: argparse.Namespace) -> int:
     from benchmarks import BENCHMARKS, RESULTS_DIR, run_benchmark
     from benchmarks.summary import headlines, load_results, markdown, table
     from controller.atomic import atomic_write
+    from heliotrack.output import check_out_dir
 
     names = [n for n in args.names if n != "all"] or list(BENCHMARKS)
-    results_dir = args.results_dir or RESULTS_DIR
+    # before a run that may take 18 minutes, not after it
+    results_dir = check_out_dir(args.results_dir or RESULTS_DIR, "--results-dir", files=(), folders=())
     rows = []
     if not args.summary_only:
         from tqdm import tqdm

@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
     from controller.sky.io import read_records
     from controller.sky.settings import SkyConfig, SkySettings
     from controller.sun.source import Site
+    from heliotrack.output import check_out_dir
     from heliotrack.reports.skytype import write_figures, write_tables
 
     progress = sys.stderr.isatty()
@@ -104,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
     elif args.threshold_rule is not None:
         overrides["threshold_rule"] = args.threshold_rule
     config = replace(config, **overrides)
+    check_out_dir(args.out, "--out", files=(), folders=())  # before the analysis, not after it
     try:
         grid = build_day_grid(rec.times, rec.ghi, lon, dni=rec.dni)
     except ValueError as exc:

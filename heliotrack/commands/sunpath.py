@@ -133,6 +133,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("sunpath: give both --lat and --lon, or neither")
     if args.lat is not None and not (-90 <= args.lat <= 90 and -180 <= args.lon <= 360):
         raise InputError("sunpath: --lat must be in [-90, 90] and --lon in [-180, 360]")
+    _check_out(args)
     if args.inputs[0] == "predict":
         if len(args.inputs) > 2:
             raise InputError("sunpath predict: expected at most one OBS.csv")
@@ -156,10 +157,34 @@ def _kalman(args, obs):
     kf = load_state(args.state) if args.state is not None else None
     if kf is None:
         kf = SunPathKalman(KalmanConfig(declination=args.declination), _site(args))
+    else:
+        _same_site(kf, args)
     rows, kf = run_kalman(obs or [], utc_offset_h=args.utc_offset, kf=kf)
-    if args.state is not None:
+    if args.state is not None and (obs or args.state.exists()):  # nothing learned: no new file
         save_state(args.state, kf)
     return rows, kf
+
+
+def _same_site(kf, args) -> None:
+    """A state learned at another site than --lat/--lon say is an error (it had been
+    followed silently: a prediction for the state's site, not the one asked for)."""
+    from controller.errors import InputError
+    from controller.sunpath.kalman_config import LAT, LON
+
+    if args.lat is None:
+        return
+    if kf.initialised:
+        lat, lon = float(kf.x[LAT]), float(kf.x[LON])
+    elif kf.site is not None:
+        lat, lon = kf.site.latitude, kf.site.longitude
+    else:
+        return
+    dlon = (lon - args.lon + 180.0) % 360.0 - 180.0
+    if max(abs(lat - args.lat), abs(dlon)) > kf.config.site_mismatch_deg:
+        raise InputError(
+            f"{args.state}: learned at lat {lat:.4f}, lon {lon:.4f}; --lat/--lon say {args.lat:g}, "
+            f"{args.lon:g} (over {kf.config.site_mismatch_deg:g} deg away): give this site's state, or none"
+        )
 
 
 def _fit(args, path: Path) -> int:
@@ -245,7 +270,23 @@ def _predict(args, path: Path | None) -> int:
     return 0
 
 
+def _check_out(args) -> None:
+    """``--out`` must be a file that can be written: checked before the work."""
+    from controller.errors import InputError
+
+    out = args.out
+    if out is None:
+        return
+    if out.is_dir():
+        raise InputError(f"--out: {out} is a folder; give the file to write")
+    if not out.parent.is_dir():
+        raise InputError(f"--out: {out.parent} is not a folder that exists")
+
+
 def _write(rows: list[dict], args) -> None:
+    if not rows:  # an empty file written over the user's would say nothing, and lose it
+        print("heliotrack: warning: no row to write (no day could be fitted)", file=sys.stderr)
+        return
     fmt = args.format or (
         "jsonl" if args.out is not None and args.out.suffix.lower() in (".jsonl", ".json") else "csv"
     )
@@ -261,4 +302,6 @@ def _write(rows: list[dict], args) -> None:
     if args.out is None:
         sys.stdout.write(buf.getvalue())
     else:
-        args.out.write_text(buf.getvalue(), encoding="utf-8")
+        from controller.atomic import atomic_write
+
+        atomic_write(args.out, buf.getvalue())

@@ -27,3 +27,20 @@ def test_summary_marks_a_miss_and_the_command_exits_1(tmp_path, capsys):
     assert "persistence: corruptions = 2 (target 0)" in capsys.readouterr().err
     md = (tmp_path / "summary.md").read_text()
     assert "| persistence" in md and "**miss**" in md and "(not run)" in md
+
+
+def test_a_size_other_than_the_default_is_its_own_result(tmp_path, capsys):
+    """An audit's case: --kills 3 overwrote the 1000-kill persistence.json; --kills 0 passed
+    vacuously; a --results-dir that was a file failed after the run."""
+    import pytest
+
+    assert main(["bench", "persistence", "--kills", "3", "--results-dir", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.glob("persistence*.json")) == ["persistence-kills3.json"]
+    for bad in ("0", "-5"):
+        with pytest.raises(SystemExit):
+            main(["bench", "persistence", "--kills", bad, "--results-dir", str(tmp_path)])
+        assert "expected an integer in [1, 100000]" in capsys.readouterr().err
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    assert main(["bench", "persistence", "--kills", "3", "--results-dir", str(blocker)]) == 2
+    assert "--results-dir: cannot write to" in capsys.readouterr().err

@@ -83,7 +83,16 @@ def test_column_guessing_and_explicit_names(tmp_path, dataset_1min):
 @pytest.mark.parametrize(
     "body,match",
     [
-        ("time,ghi\n2016-06-01T00:00:00Z,1\nyesterday,2\n", r"row 3, column 'time'.*UTC time"),
+        ("time,ghi\n2016-06-01T00:00:00Z,1\nyesterday,2\n", r"row 3, column 'time'.*ISO 8601 time"),
+        # an audit's cases: read month first (01/04 as 4 Jan) or dated today, exit 0
+        (
+            "timestamp,ghi\n13/04/2024 10:00,1\n01/04/2024 10:00,2\n",
+            r"row 2, column 'timestamp'.*day first or month first",
+        ),
+        (
+            "date,time,ghi\n2024-03-19,20:46:39,0.0\n",
+            r"row 2, column 'time': '20:46:39' is a time without a date",
+        ),
         ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,-300\n", r"row 3, column 'ghi'.*between"),
         ("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,lots\n", r"row 3, column 'ghi'.*'lots'"),
         ("time,ghi\n", "no data rows"),
@@ -194,3 +203,13 @@ def test_d_thresholds_out_of_order_or_range_are_refused(tmp_path, capsys, pair, 
     err = capsys.readouterr().err
     assert "--d-thresholds" in err and needle in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_an_out_that_is_a_file_is_refused_before_the_work(tmp_path, capsys):
+    g = tmp_path / "any.csv"
+    g.write_text("time,ghi\n2016-06-01T00:00:00Z,1\n2016-06-01T00:01:00Z,2\n")
+    (tmp_path / "outfile").write_text("keep")
+    assert main(["classify", str(g), "--lat", "1", "--lon", "2", "--out", str(tmp_path / "outfile")]) == 2
+    err = capsys.readouterr().err
+    assert "--out: cannot write to" in err and "Traceback" not in err
+    assert (tmp_path / "outfile").read_text() == "keep"

@@ -1,10 +1,13 @@
 import csv
 import io
 import json
+from pathlib import Path
 
 import pandas as pd
 import pytest
 
+from controller.errors import InputError
+from controller.sunpath.io import read_observations
 from heliotrack.cli import main
 
 from ._synth import ANDIMESHK, observations, sample_times
@@ -169,3 +172,36 @@ def test_sky_only_mode_and_seed_variant(obs_csv, tmp_path, capsys):
     )
     rows = list(csv.DictReader(io.StringIO(capsys.readouterr().out)))
     assert len(rows) == 3 and rows[0]["method"] == "seed"
+
+
+def test_a_state_of_another_site_is_refused_for_this_one(tmp_path, capsys):
+    """An audit's case: --lat/--lon were ignored once a state was loaded (el -10 for 34 deg)."""
+    obs = Path(__file__).resolve().parents[3] / "samples" / "observations.csv"
+    st = tmp_path / "st.json"
+    assert main(["sunpath", str(obs), "--state", str(st), "--out", str(tmp_path / "days.csv")]) == 0
+    argv = ["sunpath", "predict", "--state", str(st), "--lat", "-33.45", "--lon", "-70.67"]
+    assert main([*argv, "--at", "2024-06-01T16:40Z"]) == 2
+    assert "learned at lat 32.4" in capsys.readouterr().err
+
+
+def test_sunpath_out_and_state_mistakes_lose_nothing(tmp_path, capsys):
+    """An audit's cases: --out a folder was a traceback after the state was saved; no row
+    truncated an existing file; predict with a missing state created it."""
+    one = tmp_path / "one.csv"
+    one.write_text("time,az_deg,el_deg\n2024-03-20T09:00:00Z,120,30\n")
+    keep = tmp_path / "keep.csv"
+    keep.write_text("precious")
+    assert main(["sunpath", str(one), "--method", "seed", "--out", str(keep)]) == 0
+    assert keep.read_text() == "precious" and "no row to write" in capsys.readouterr().err
+    assert main(["sunpath", str(one), "--out", str(tmp_path)]) == 2
+    assert "is a folder" in capsys.readouterr().err
+    missing = tmp_path / "nonexist.json"
+    assert main(["sunpath", "predict", "--state", str(missing), "--at", "2024-03-20T09:00Z"]) == 2
+    assert not missing.exists()
+
+
+def test_found_must_be_a_boolean(tmp_path):
+    p = tmp_path / "obs.jsonl"
+    p.write_text('{"found": "false", "time": "2024-03-01T09:00:00Z", "az_deg": 120, "el_deg": 30}\n')
+    with pytest.raises(InputError, match=r"key 'found': expected true or false, got 'false'"):
+        read_observations(p)
