@@ -294,6 +294,17 @@ class ModbusDrive(DriveLink):
             a = reg.address() - first.address()
             return float(decode(reg, w[a : a + reg.words]))
 
+        # the drive it connected to, still: another device at this address, or one that
+        # came back from a reset without its identity, is not driven on as if it were
+        if w[0] != MAGIC or int(val("PROTOCOL_VERSION")) >> 8 != PROTOCOL_VERSION >> 8:
+            raise DriveCommError(
+                f"{self.label}: identity changed (register 0 = {w[0]:#06x}, protocol "
+                f"{int(val('PROTOCOL_VERSION')) >> 8}.x): not the heliotrack drive connected to"
+            )
+        if int(val("AXIS_COUNT")) != self.axis_count:
+            raise DriveCommError(
+                f"{self.label}: identity changed ({int(val('AXIS_COUNT'))} axes, {self.axis_count} at connect)"
+            )
         return DriveIdentity(
             int(val("AXIS_COUNT")), int(val("PROTOCOL_VERSION")), int(val("FIRMWARE_VERSION")), val("UPTIME")
         )

@@ -135,3 +135,27 @@ def test_a_configuration_the_drive_does_not_take_is_refused(pty_drive):
     msg = str(e.value)
     assert "configuration not taken: HEARTBEAT_TIMEOUT reads" in msg and "50 written" in msg
     assert "axis 1 soft limits read" in msg and "[5, 85] written" in msg
+
+
+def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
+    """An audit's case: every other identification read said MAGIC 0xBEEF, protocol 7, one
+    axis; run went on, 0 errors."""
+    fw, path, clock = pty_drive
+    read = fw.read
+
+    def other_device(address, count):
+        words = read(address, count)
+        return [0xBEEF, *words[1:]] if address == 0 else words
+
+    async def scenario():
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        await d.identify()  # the drive it connected to
+        fw.read = other_device
+        try:
+            await d.identify()
+        finally:
+            await d.close()
+
+    with pytest.raises(DriveCommError, match=r"identity changed \(register 0 = 0xbeef"):
+        run(scenario())
