@@ -305,15 +305,13 @@ class SunPathSource(SunSource):
 
     def _check_site(self, path: Path, kf: SunPathKalman) -> None:
         """Refuse a state learned at a site far from the configured one (StateError)."""
-        from .state import StateError
+        from .state import StateError, learned_site
 
         assert self.site is not None
-        if kf.initialised:
-            lat, lon = float(kf.x[LAT]), float(kf.x[LON])
-        elif kf.site is not None:
-            lat, lon = kf.site.latitude, kf.site.longitude
-        else:
+        site = learned_site(kf)
+        if site is None:
             return
+        lat, lon = site
         dlat, dlon = lat - self.site.latitude, float(wrap180(lon - self.site.longitude))
         if max(abs(dlat), abs(dlon)) > kf.config.site_mismatch_deg:
             raise StateError(

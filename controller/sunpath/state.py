@@ -62,6 +62,18 @@ def _read(path: Path) -> dict:
     return doc
 
 
+def learned_site(kf: SunPathKalman) -> tuple[float, float] | None:
+    """(latitude, longitude), deg, of the site a filter tracks: what it learned once started,
+    else the site it was given; None when neither."""
+    from .kalman_config import LAT, LON
+
+    if kf.initialised:
+        return float(kf.x[LAT]), float(kf.x[LON])
+    if kf.site is not None:
+        return kf.site.latitude, kf.site.longitude
+    return None
+
+
 def load_from_store(store: Store, now: float | None = None) -> SunPathKalman | None:
     """The filter saved in ``store`` (None when never saved); StateError when it cannot be
     used (the entry is left as it is)."""

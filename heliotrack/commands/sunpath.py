@@ -169,16 +169,12 @@ def _same_site(kf, args) -> None:
     """A state learned at another site than --lat/--lon say is an error (it had been
     followed silently: a prediction for the state's site, not the one asked for)."""
     from controller.errors import InputError
-    from controller.sunpath.kalman_config import LAT, LON
+    from controller.sunpath.state import learned_site
 
-    if args.lat is None:
+    site = learned_site(kf)
+    if args.lat is None or site is None:
         return
-    if kf.initialised:
-        lat, lon = float(kf.x[LAT]), float(kf.x[LON])
-    elif kf.site is not None:
-        lat, lon = kf.site.latitude, kf.site.longitude
-    else:
-        return
+    lat, lon = site
     dlon = (lon - args.lon + 180.0) % 360.0 - 180.0
     if max(abs(lat - args.lat), abs(dlon)) > kf.config.site_mismatch_deg:
         raise InputError(
