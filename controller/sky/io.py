@@ -309,6 +309,16 @@ def read_records(
         raise InputError(f"{', '.join(r.sources[0] for r in recs)}: every GHI value is missing")
     with_dni = all(r.dni is not None for r in recs)
     first = recs[0]
+    for r in recs[1:]:  # one station: files of two would be averaged into one
+        for a, b, what in (
+            (first.latitude, r.latitude, "latitude"),
+            (first.longitude, r.longitude, "longitude"),
+        ):
+            if a is not None and b is not None and abs(a - b) > 0.01:
+                raise InputError(
+                    f"{r.sources[0]}: {what} {b:g}, but {first.sources[0]} says {a:g}: "
+                    "the files of one run are one station's"
+                )
     return Record(
         times=np.concatenate([r.times for r in recs]),
         ghi=np.concatenate([r.ghi for r in recs]),

@@ -159,10 +159,28 @@ def _kalman(args, obs):
         kf = SunPathKalman(KalmanConfig(declination=args.declination), _site(args))
     else:
         _same_site(kf, args)
+        obs = _not_yet_absorbed(kf, obs or [], args.state)
     rows, kf = run_kalman(obs or [], utc_offset_h=args.utc_offset, kf=kf)
     if args.state is not None and (obs or args.state.exists()):  # nothing learned: no new file
         save_state(args.state, kf)
     return rows, kf
+
+
+def _not_yet_absorbed(kf, obs: list, state: Path) -> list:
+    """The observations after the time the state refers to: one fed again (the same file
+    run twice into one --state) would count twice and shrink the sigmas each time."""
+    if kf.t is None:
+        return obs
+    new = [o for o in obs if o.time > kf.t]
+    if len(new) < len(obs):
+        from controller.timestamps import to_iso
+
+        print(
+            f"heliotrack: warning: {len(obs) - len(new)} observation(s) at or before {to_iso(kf.t)}, "
+            f"the time {state} refers to, skipped: the state has them already",
+            file=sys.stderr,
+        )
+    return new
 
 
 def _same_site(kf, args) -> None:

@@ -213,3 +213,19 @@ def test_an_out_that_is_a_file_is_refused_before_the_work(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--out: cannot write to" in err and "Traceback" not in err
     assert (tmp_path / "outfile").read_text() == "keep"
+
+
+def test_files_of_two_stations_are_refused(tmp_path, monkeypatch):
+    """An audit's case: Bondville's and Desert Rock's SURFRAD files were averaged into one
+    record at the first file's site; three clear days came out II."""
+    import controller.sky.io as sky_io
+
+    def station(path, fmt, ghi_col=None, dni_col=None):
+        lat = 40.05 if "bon" in str(path) else 36.624
+        t = np.arange(3) * 60.0 + 1.7e9
+        return sky_io.Record(t, np.ones(3), None, lat, -100.0, 1000.0, (str(path),))
+
+    monkeypatch.setattr(sky_io, "read_station_record", station)
+    with pytest.raises(InputError, match=r"dra24080.dat: latitude 36.624, but bon24080.dat says 40.05"):
+        read_records(["bon24080.dat", "dra24080.dat"], "surfrad")
+    assert len(read_records(["dra24080.dat", "dra24081.dat"], "surfrad").times) == 6

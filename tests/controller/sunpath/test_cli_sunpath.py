@@ -205,3 +205,17 @@ def test_found_must_be_a_boolean(tmp_path):
     p.write_text('{"found": "false", "time": "2024-03-01T09:00:00Z", "az_deg": 120, "el_deg": 30}\n')
     with pytest.raises(InputError, match=r"key 'found': expected true or false, got 'false'"):
         read_observations(p)
+
+
+def test_a_file_fed_again_into_its_state_is_not_counted_twice(tmp_path, capsys):
+    """An audit's case: five runs of one file into one --state took lat sigma from 0.0158
+    to 0.0073 deg, 680 observations accepted for 136."""
+    obs = Path(__file__).resolve().parents[3] / "samples" / "observations.csv"
+    st = tmp_path / "st.json"
+    assert main(["sunpath", str(obs), "--state", str(st), "--out", str(tmp_path / "a.csv")]) == 0
+    first = json.loads(st.read_text())
+    capsys.readouterr()
+    assert main(["sunpath", str(obs), "--state", str(st), "--out", str(tmp_path / "b.csv")]) == 0
+    assert "skipped: the state has them already" in capsys.readouterr().err
+    again = json.loads(st.read_text())
+    assert again["filter"]["P"] == first["filter"]["P"]
