@@ -152,7 +152,10 @@ class Controller(WindPolling, DriveSetup):
                 rec.latency_s = time.perf_counter() - t_wall
             elif not rec.latency_s:
                 tr.errors += 1
-                rec.error = f"{tr.cfg.name}: no answer within {self._deadline():g} s"
+                rec.error = (
+                    f"{tr.cfg.name}: exchange not done within the cycle's {self._deadline():g} s "
+                    "(no answer, or answers and retries slower than the period allows)"
+                )
                 rec.latency_s = time.perf_counter() - t_wall
                 self._link_failed(tr, rec.error)
             rec.health, rec.health_reason = tr.health.state.value, tr.health.reason

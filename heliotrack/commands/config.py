@@ -71,9 +71,10 @@ def _validate(args: argparse.Namespace) -> int:
             load(cam.calibration)  # a bad bundle is the plant file's error too (raises with its key)
             bundles += 1
     extra = f", {bundles} calibration bundle(s)" if bundles else ""
+    from controller.drives.links import link_timing_warnings
     from controller.geometry.travel import travel_warnings
 
-    for warning in travel_warnings(cfg):  # valid, but it will not track as meant
+    for warning in travel_warnings(cfg) + link_timing_warnings(cfg):  # valid, but it will not track as meant
         print(f"heliotrack: warning: {args.file}: {warning}", file=sys.stderr)
     print(f"{args.file}: ok ({len(cfg.links)} link(s), {len(cfg.trackers)} tracker(s){extra})")
     return 0

@@ -220,10 +220,11 @@ class Service:
 
     # -- log lines -------------------------------------------------------------------------------
     def _log_start(self, duration: float | None) -> None:
+        from controller.drives.links import link_timing_warnings
         from controller.geometry.travel import travel_warnings
 
         c = self.config
-        for warning in travel_warnings(c):
+        for warning in travel_warnings(c) + link_timing_warnings(c):
             log.warning("%s", warning)
         links = ", ".join(f"{link.name} ({link.kind})" for link in c.links)
         log.info(

@@ -172,7 +172,7 @@ def test_an_unexpected_exception_in_a_row_is_told_from_a_link_error():
     assert unexpected_error(rec) == "IndexError"
     for text in (
         "/dev/pts/3 id 2: state read failed after 3 attempt(s): Timeout",
-        "row-1: no answer within 30 s",
+        "row-1: exchange not done within the cycle's 30 s (no answer, or answers and retries slower than the period allows)",
         "",
     ):
         rec.error = text
