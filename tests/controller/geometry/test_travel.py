@@ -4,7 +4,7 @@ import pytest
 
 from controller.config import parse_config
 from controller.geometry.travel import SAMPLED_DAYS, travel_warnings, unwinding_days
-from heliotrack.cli import main
+from tests.controller.validate import validated
 
 
 @pytest.mark.parametrize(
@@ -50,12 +50,11 @@ def test_a_southern_plant_with_the_northern_travel_is_warned_about(tmp_path, cap
     assert warning.endswith("[-180, 180] suits it")
     assert travel_warnings(_plant(-32.5, (-180.0, 180.0))) == []
     assert travel_warnings(_plant(32.5, (0.0, 360.0))) == []
-    plant = tmp_path / "plant.toml"
-    plant.write_text(
+    out, err = validated(
+        tmp_path,
+        capsys,
         "[site]\nlatitude = -32.5\nlongitude = 48.3\n"
         '[[links]]\nname = "a"\nkind = "modbus-tcp"\nhost = "10.0.0.5"\n'
-        '[[trackers]]\nname = "d"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
+        '[[trackers]]\nname = "d"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n',
     )
-    assert main(["config", "validate", str(plant)]) == 0
-    out = capsys.readouterr()
-    assert "ok (1 link(s), 1 tracker(s))" in out.out and "unwind a whole turn" in out.err
+    assert "ok (1 link(s), 1 tracker(s))" in out and "unwind a whole turn" in err
