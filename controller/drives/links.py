@@ -127,24 +127,20 @@ class CanopenLink(LinkConfig):
         return self
 
 
-#: Transactions of one drive in one cycle, about (heartbeat, target write, state read, and
-#: now and then an identification read or a command).
-CYCLE_TRANSACTIONS = 4
-
-
 def link_timing_warnings(config) -> list[str]:
-    """One line per link of ``config`` (a :class:`controller.config.Config`) whose drives may
-    need longer than a realtime cycle allows (``0.8 x period_s``) when each transaction
-    takes all its attempts: such a drive is taken for lost while it still answers."""
+    """One line per link of ``config`` (a :class:`controller.config.Config`) on which one
+    transaction with all its attempts takes longer than a realtime cycle allows
+    (``0.8 x period_s``): a drive that needs its retries is then taken for lost while it
+    still answers."""
     budget = max(0.8 * config.control.period_s, 0.2)
     out = []
     for i, link in enumerate(config.links):
-        worst = link.timeout_s * (link.retries + 1) * CYCLE_TRANSACTIONS
-        if worst > budget:
+        ladder = link.timeout_s * (link.retries + 1)
+        if ladder > budget:
             out.append(
-                f"links[{i}] ({link.name}): a drive may take up to {worst:g} s a cycle (timeout_s "
-                f"{link.timeout_s:g} x {link.retries + 1} attempts x about {CYCLE_TRANSACTIONS} "
-                f"transactions), over the cycle's {budget:g} s: one that needs its retries is taken "
-                "for lost; lower timeout_s or retries, or raise control.period_s"
+                f"links[{i}] ({link.name}): one transaction with its retries may take {ladder:g} s "
+                f"(timeout_s {link.timeout_s:g} x {link.retries + 1} attempts), over the "
+                f"{budget:g} s a drive has each period: one that needs its retries is taken for "
+                "lost; lower timeout_s or retries, or raise control.period_s"
             )
     return out

@@ -224,8 +224,6 @@ class Service:
         from controller.geometry.travel import travel_warnings
 
         c = self.config
-        for warning in travel_warnings(c) + link_timing_warnings(c):
-            log.warning("%s", warning)
         links = ", ".join(f"{link.name} ({link.kind})" for link in c.links)
         log.info(
             "heliotrack run: %d tracker(s) on %s; sun source %s; period %g s; state %s%s",
@@ -236,6 +234,8 @@ class Service:
             self.state.path if self.state else "not kept (no --state)",
             f"; for {duration:g} s" if duration else "",
         )
+        for warning in travel_warnings(c) + link_timing_warnings(c):  # after the line that says what runs
+            log.warning("%s", warning)
 
     def _on_cycle(self, records) -> None:
         from heliotrack.runtime import note_foreign_stows

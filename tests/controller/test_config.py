@@ -397,8 +397,8 @@ def test_a_link_whose_retries_outlast_the_cycle_is_warned_about(tmp_path, capsys
     doc["control"] = {"period_s": 1.0}
     (warning,) = link_timing_warnings(parse_config(doc))
     assert (
-        warning.startswith("links[0] (lan): a drive may take up to 4 s a cycle")
-        and "over the cycle's 0.8 s" in warning
+        warning.startswith("links[0] (lan): one transaction with its retries may take 1 s")
+        and "over the 0.8 s a drive has each period" in warning
     )
     doc["control"] = {"period_s": 60.0}
     assert link_timing_warnings(parse_config(doc)) == []
@@ -409,4 +409,4 @@ def test_a_link_whose_retries_outlast_the_cycle_is_warned_about(tmp_path, capsys
         '[[links]]\nname = "lan"\nkind = "modbus-tcp"\nhost = "10.0.0.5"\ntimeout_s = 0.5\nretries = 1\n'
         '[[trackers]]\nname = "t"\ntype = "dual-axis"\nlink = "lan"\ndevice_id = 1\n',
     )
-    assert "a drive may take up to 4 s a cycle" in err
+    assert "one transaction with its retries may take 1 s" in err
