@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 from firmware_protocol import Mode, Status
 
 from .drives.base import DriveCommError, DriveState
+from .safety import drive_stow_angles
 
 if TYPE_CHECKING:
     from .clock import Clock
@@ -70,13 +71,6 @@ class DriveSetup:
         if any(a.mode == Mode.STOW for a in st.axes) and (latched or (lost and not tr.health.foreign_stow)):
             tr.health.watchdog_stow = True
 
-    def drive_stow_angles(self, tr: TrackerRuntime) -> tuple[float, ...]:
-        """What a drive's STOW_ANGLE holds: the wind stow when wind is watched (the safest
-        place to be unattended, and where the watchdog sends it), else the night stow."""
-        if self.config.wind is not None:
-            return self.safety.angles(tr.cfg, "wind")
-        return tr.cfg.stow_angles
-
     async def _configure(self, tr: TrackerRuntime, rebooted: bool = False, connected: bool = False) -> None:
         # until it succeeds the drive is not in service: a configuration that failed after a
         # reboot would otherwise leave it on its factory watchdog and limits, reported ok
@@ -94,7 +88,7 @@ class DriveSetup:
         await tr.drive.configure(
             heartbeat_timeout_s=self.config.control.heartbeat_timeout_s,
             soft_limits=tr.cfg.soft_limits,
-            stow_angles=self.drive_stow_angles(tr),
+            stow_angles=drive_stow_angles(self.safety, tr.cfg),
         )
         await self._heartbeat(tr, force=True)
         # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.

@@ -117,6 +117,14 @@ class SafetyState:
         return tracker.stow[0], min(max(el, lo), hi)
 
 
+def drive_stow_angles(safety: SafetyState, tracker: TrackerConfig) -> tuple[float, ...]:
+    """What a drive's STOW_ANGLE holds: the wind stow when wind is watched (the safest
+    place to be unattended, and where the drive's watchdog sends it), else the night stow."""
+    if safety.wind_config is not None:
+        return safety.angles(tracker, "wind")
+    return tracker.stow_angles
+
+
 def clamp_targets(tracker: TrackerConfig, targets: list[float]) -> list[float]:
     """The last guard before the wire: every axis target inside its soft limits, and a
     target that is not a finite number replaced by the axis's stow angle."""

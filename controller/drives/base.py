@@ -18,6 +18,7 @@ from firmware_protocol import Command, Fault, Mode, Status
 from ..errors import UserError
 
 if TYPE_CHECKING:
+    from .configuration import DriveConfiguration
     from .links import LinkConfig
 
 
@@ -165,6 +166,11 @@ class DriveLink(abc.ABC):
     async def identify(self) -> DriveIdentity | None:
         """Who the drive is and how long it has been up (a reboot resets ``uptime_s``);
         None from a backend that cannot tell (no reboot detection, ``check`` says so)."""
+        return None
+
+    async def read_configuration(self) -> DriveConfiguration | None:
+        """The watchdog, soft limits and stow angles the drive holds now (None from a
+        backend that cannot read them)."""
         return None
 
     @abc.abstractmethod

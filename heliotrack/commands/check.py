@@ -85,7 +85,7 @@ async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | 
         print(f"{'DEVICE':<{width}}{'WHERE':<34} {'RESULT':<7}DETAIL", file=out, flush=True)
     for tr in config.trackers:
         link = links[tr.link]
-        emit(await _guarded(tr.name, _where(link, tr.device_id), _drive(tr, link)))
+        emit(await _guarded(tr.name, _where(link, tr.device_id), _drive(config, tr, link)))
     if config.pyranometer is not None:
         p = config.pyranometer
         emit(await _guarded("pyranometer", _where(links[p.link], p.device_id), _pyranometer(config, clock)))
@@ -124,7 +124,7 @@ async def _guarded(device: str, where: str, check) -> Row:
     return Row(device, where, ok, detail)
 
 
-async def _drive(tr: TrackerConfig, link) -> tuple[bool, str]:
+async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
     from controller.drives.registry import open_drive
     from firmware_protocol import PROTOCOL_VERSION, Fault, Status
 
@@ -134,6 +134,7 @@ async def _drive(tr: TrackerConfig, link) -> tuple[bool, str]:
         count = drive.axis_count
         ident = await drive.identify()
         state = await drive.read_state()
+        held = await drive.read_configuration()
     finally:
         await drive.close()
     problems = []
@@ -160,8 +161,29 @@ async def _drive(tr: TrackerConfig, link) -> tuple[bool, str]:
     pos = ", ".join(f"{a.actual_deg:.2f}" for a in state.axes)
     modes = ", ".join(a.mode.name + (" COMM_LOST" if a.status & Status.COMM_LOST else "") for a in state.axes)
     parts.append(f"at {pos} deg ({modes})")
+    if held is not None:
+        parts.append(_configuration(config, tr, held))
     text = "; ".join(parts)
     return (False, "; ".join(problems) + f" ({text})") if problems else (True, text)
+
+
+def _configuration(config: Config, tr: TrackerConfig, held) -> str:
+    """The watchdog, limits and stow angles the drive holds, and what ``run`` will write
+    where the plant file says otherwise (not a failure: ``run`` configures every drive)."""
+    from controller.drives.configuration import Tolerances, differences
+    from controller.safety import SafetyState, drive_stow_angles
+
+    stows = drive_stow_angles(SafetyState(config.wind, config.stow, 0.0), tr)
+    diffs = differences(
+        held,
+        Tolerances(0.1, 0.001, 0.01),  # the coarsest step of the backends' units
+        heartbeat_timeout_s=config.control.heartbeat_timeout_s,
+        soft_limits=tr.soft_limits,
+        stow_angles=stows,
+    )
+    if not diffs:
+        return held.describe() + " (as the plant file has it)"
+    return held.describe() + "; run writes " + ", ".join(f"{what} {wanted}" for what, _, wanted in diffs)
 
 
 def _duration(s: float) -> str:

@@ -108,6 +108,14 @@ def test_check_prints_a_row_per_device_all_ok(plant, capsys):
     assert "slcan:/dev/" in rows["row-can"] and "1 axis" in rows["row-can"]
     assert "frame 1280x1024" in rows["camera"]
     assert out.splitlines()[-1] == "4 of 4 device(s) ok"
+    # what the drives hold now, and what run will write over it (an audit's finding: the
+    # integrator saw neither the watchdog nor the limits)
+    assert (
+        "watchdog 10 s; limits [0, 360] / [0, 90] deg; stow 180 / 90 deg; run writes watchdog 3 s"
+        in rows["dual-1"]
+    )
+    assert "watchdog 10 s on node 127; limits [-60, 60] deg" in rows["row-can"]
+    assert rows["row-tcp"].endswith("run writes watchdog 3 s, axis 0 soft limits [-55, 55]")
 
 
 def test_run_tracks_then_sigterm_leaves_every_axis_safe(plant):
@@ -207,4 +215,8 @@ def test_check_with_an_emulator_stopped_names_it(plant, capsys, tmp_path):
     rtu = procs.drives["dual-1"].address
     assert f"no answer on {rtu} id 7 after 3 tries" in rows["ghost"], out
     assert " ok " in rows["dual-1"] and " ok " in rows["row-can"]
+    # the runs before configured the drives: they hold what the plant file says
+    assert rows["row-can"].endswith(
+        "watchdog 3 s on node 127; limits [-55, 55] deg; stow 0 deg (as the plant file has it)"
+    )
     assert out.splitlines()[-1] == "3 of 5 device(s) ok; 2 failed"

@@ -52,10 +52,12 @@ from ..base import (
     LinkSettingsError,
     LinkStats,
 )
+from ..configuration import DriveConfiguration
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
 from .axis import Axis402, all_fresh, load_od
 from .axis_control import SetPointNotAcknowledged, reenable, set_point
+from .configure import configure_drive, read_configuration
 from .network import SharedNetwork, send_master_heartbeat
 
 log = logging.getLogger(__name__)
@@ -488,8 +490,9 @@ class CanopenDrive(DriveLink):
         stow_angles: Sequence[float] | None = None,
     ) -> None:
         """Consumer heartbeat, soft limits and stow angles (see :mod:`.configure`)."""
-        from .configure import configure_drive
-
         await configure_drive(
             self, heartbeat_timeout_s=heartbeat_timeout_s, soft_limits=soft_limits, stow_angles=stow_angles
         )
+
+    async def read_configuration(self) -> DriveConfiguration:
+        return await read_configuration(self)

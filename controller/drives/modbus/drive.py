@@ -30,6 +30,7 @@ from ..base import (
     LinkStats,
     soft_limit_steps,
 )
+from ..configuration import DriveConfiguration, Tolerances, differences, not_taken
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .client import checked, endpoint, modbus_client, retry_policy
 
@@ -43,6 +44,8 @@ class ShortAnswer(ModbusException):
 _TARGET = register("TARGET_ANGLE")
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
+#: a read-back within one register step of the value written is the value written
+_TOLERANCES = Tolerances(register("HEARTBEAT_TIMEOUT").scale, _LIMIT_MIN.scale, _STOW.scale)
 
 
 class ModbusDrive(DriveLink):
@@ -242,34 +245,41 @@ class ModbusDrive(DriveLink):
                     await self._call(
                         "configure", self.client.write_registers, _STOW.address(k), encode(_STOW, step)
                     )
-        await self._read_back(heartbeat_timeout_s, limits)
+        await self._read_back(heartbeat_timeout_s, limits, stows)
 
-    async def _read_back(self, heartbeat_timeout_s: float | None, limits: list[tuple[float, float]]) -> None:
+    async def _read_back(
+        self, heartbeat_timeout_s: float | None, limits: list[tuple[float, float]], stows: list[float]
+    ) -> None:
         """The configuration as the drive holds it after the writes: a firmware that
         acknowledges and ignores them (its watchdog off, its factory limits) is refused."""
-        wrong = []
-        if heartbeat_timeout_s is not None:
-            reg = register("HEARTBEAT_TIMEOUT")
-            got = float(
-                decode(
-                    reg,
-                    await self._read(
-                        "configuration read",
-                        reg.words,
-                        self.client.read_holding_registers,
-                        reg.address(),
-                        count=reg.words,
-                    ),
-                )
+        got = await self.read_configuration()
+        diffs = differences(
+            got, _TOLERANCES, heartbeat_timeout_s=heartbeat_timeout_s, soft_limits=limits, stow_angles=stows
+        )
+        if diffs:
+            raise DriveCommError(not_taken(self.label, diffs))
+
+    async def read_configuration(self) -> DriveConfiguration:
+        reg = register("HEARTBEAT_TIMEOUT")
+        words = await self._read(
+            "configuration read",
+            reg.words,
+            self.client.read_holding_registers,
+            reg.address(),
+            count=reg.words,
+        )
+        limits, stows = [], []
+        for k in range(self.axis_count):
+            limits.append(await self._soft_limits(k))
+            w = await self._read(
+                "stow angle read",
+                _STOW.words,
+                self.client.read_holding_registers,
+                _STOW.address(k),
+                count=_STOW.words,
             )
-            if abs(got - heartbeat_timeout_s) > reg.scale:
-                wrong.append(f"HEARTBEAT_TIMEOUT reads {got:g} s, {heartbeat_timeout_s:g} written")
-        for k, (lo, hi) in enumerate(limits):
-            got_lo, got_hi = await self._soft_limits(k)
-            if abs(got_lo - lo) > _LIMIT_MIN.scale or abs(got_hi - hi) > _LIMIT_MAX.scale:
-                wrong.append(f"axis {k} soft limits read [{got_lo:g}, {got_hi:g}], [{lo:g}, {hi:g}] written")
-        if wrong:
-            raise DriveCommError(f"{self.label}: configuration not taken: {'; '.join(wrong)}")
+            stows.append(float(decode(_STOW, w)))
+        return DriveConfiguration(float(decode(reg, words)), tuple(limits), tuple(stows))
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""

@@ -234,3 +234,44 @@ def test_connecting_again_starts_afresh():
                 await d.close()
 
         run(scenario())
+
+
+def test_the_configuration_is_read_back():
+    """An audit's case: SDO downloads are confirmed by the node, not by its firmware; a
+    firmware that kept its watchdog off and its own stow angle was driven as configured."""
+    from firmware_protocol import register
+
+    with emulated(axes=two_axes(), node_id=10) as (fw, _emu, ch):
+
+        async def configure(d):
+            await d.configure(heartbeat_timeout_s=50, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 80])
+
+        async def scenario():
+            d = open_drive(can(ch), 10)
+            await d.connect()
+            try:
+                await configure(d)
+                got = await d.read_configuration()
+                assert got.heartbeat_timeout_s == pytest.approx(50) and got.producers == (127, 127)
+                assert got.soft_limits == (pytest.approx((10, 350)), pytest.approx((5, 85)))
+                assert got.stow_angles == pytest.approx((180, 80))
+                assert (
+                    got.describe()
+                    == "watchdog 50 s on node 127; limits [10, 350] / [5, 85] deg; stow 180 / 80 deg"
+                )
+                # now a firmware that acknowledges and ignores the watchdog and axis 1's stow angle
+                ignored = {register("HEARTBEAT_TIMEOUT").address(), register("STOW_ANGLE").address(1)}
+                write = fw.write
+                fw.write = lambda address, words: None if address in ignored else write(address, words)
+                with pytest.raises(DriveCommError) as e:
+                    await d.configure(
+                        heartbeat_timeout_s=30, soft_limits=[(10, 350), (5, 85)], stow_angles=[180, 60]
+                    )
+                return str(e.value)
+            finally:
+                await d.close()
+
+        msg = run(scenario())
+    assert "configuration not taken: watchdog reads" in msg and "30 s written" in msg, msg
+    assert "axis 1 stow angle reads 80, 60 written" in msg, msg
+    assert "axis 0" not in msg, msg

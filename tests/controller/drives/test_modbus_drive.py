@@ -118,7 +118,11 @@ def test_a_configuration_the_drive_does_not_take_is_refused(pty_drive):
     from firmware_protocol import register
 
     fw, path, clock = pty_drive
-    ignored = {register("HEARTBEAT_TIMEOUT").address(), register("SOFT_LIMIT_MIN").address(1)}
+    ignored = {
+        register("HEARTBEAT_TIMEOUT").address(),
+        register("SOFT_LIMIT_MIN").address(1),
+        register("STOW_ANGLE").address(1),
+    }
     write = fw.write
     fw.write = lambda address, words: None if address in ignored else write(address, words)
 
@@ -133,8 +137,9 @@ def test_a_configuration_the_drive_does_not_take_is_refused(pty_drive):
     with pytest.raises(DriveCommError) as e:
         run(scenario())
     msg = str(e.value)
-    assert "configuration not taken: HEARTBEAT_TIMEOUT reads" in msg and "50 written" in msg
+    assert "configuration not taken: watchdog reads" in msg and "50 s written" in msg
     assert "axis 1 soft limits read" in msg and "[5, 85] written" in msg
+    assert "axis 1 stow angle reads" in msg and "80 written" in msg
 
 
 def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
