@@ -19,7 +19,9 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
   back; a STOW the controller commanded is resumed when the weather allows; any other
   STOW (a local wind switch, a maintenance panel, another master) is left alone and
   reported; MAINTENANCE is reported and left alone too;
-* a target the drive had to clamp means the controller's limits and the drive's disagree.
+* a target the drive had to clamp means the controller's limits and the drive's disagree;
+* readings that cannot be: an angle far outside the travel or not a number, a jump faster
+  than the drive's own speed limit, an axis in AUTO standing still away from its target.
 """
 
 from __future__ import annotations
@@ -93,6 +95,8 @@ class DriveHealth:
     resumes_unanswered: int = 0
     #: Per axis: (the reading it stands still at, since when) while away from its target.
     still: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: Per axis: (the last reading, when): a jump faster than the drive can move is a fault.
+    readings: dict[int, tuple[float, float]] = field(default_factory=dict)
 
     # -- link -----------------------------------------------------------------------
     def comm_failed(self, now: float, why: str) -> bool:
@@ -117,9 +121,11 @@ class DriveHealth:
         *,
         weather_stow: bool,
         limits: Sequence[tuple[float, float]] = (),
+        max_speeds: Sequence[float] = (),
     ) -> list[Command]:
         """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME).
-        ``limits``: each axis's travel (deg), to judge its reading."""
+        ``limits``: each axis's travel (deg), to judge its reading; ``max_speeds``: each
+        axis's speed limit as the drive holds it (deg/s), to judge its motion."""
         self.last_ok = now
         self.errors_in_row = 0
         self.backoff_s = 0.0
@@ -175,6 +181,7 @@ class DriveHealth:
         wrong = implausible_axes(st, limits)
         if wrong:
             problems.append(wrong)
+        problems.extend(self._jumps(st, now, max_speeds))
         problems.extend(self._not_following(st, now))
         if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
             problems.append("the drive clamped a target (its limits differ from the configuration)")
@@ -186,6 +193,24 @@ class DriveHealth:
             self.state = Health.OK
         self.reason = "; ".join(problems)
         return commands
+
+    def _jumps(self, st: DriveState, now: float, max_speeds: Sequence[float]) -> list[str]:
+        """Axes whose reading moved further since the last one than their speed limit
+        allows (with :data:`JUMP_FACTOR` and :data:`JUMP_SLACK_DEG` for timing and
+        quantisation): an encoder or firmware fault, or a drive that reports another
+        axis's angle."""
+        out = []
+        for k, (a, vmax) in enumerate(zip(st.axes, max_speeds, strict=False)):
+            x0, t0 = self.readings.get(k, (math.nan, now))
+            if math.isfinite(a.actual_deg):
+                self.readings[k] = (a.actual_deg, now)
+            moved, dt = abs(a.actual_deg - x0), now - t0
+            if moved > vmax * dt * JUMP_FACTOR + JUMP_SLACK_DEG:
+                out.append(
+                    f"axis {k} reading jumped {moved:.2f} deg in {dt:.1f} s, faster than its "
+                    f"{vmax:g} deg/s (encoder or firmware fault)"
+                )
+        return out
 
     def _not_following(self, st: DriveState, now: float) -> list[str]:
         out = []
@@ -213,6 +238,9 @@ class DriveHealth:
 #: does not follow it (a drive that acknowledges targets and never moves, and sets no
 #: STALLED bit); a slew starts within a second, so half a minute is no false alarm.
 FOLLOW_AWAY_DEG, FOLLOW_S, STILL_DEG = 1.0, 30.0, 0.01
+#: A reading may move ``JUMP_FACTOR`` times the axis's speed limit times the time since the
+#: last reading, plus ``JUMP_SLACK_DEG`` (a reading's age within a cycle, a quantum).
+JUMP_FACTOR, JUMP_SLACK_DEG = 1.5, 1.0
 
 
 def _fault_text(fault: Fault, status: Status) -> str:

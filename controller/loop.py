@@ -343,8 +343,13 @@ class Controller(WindPolling, DriveSetup):
             await tr.drive.command(Command.STOW)  # a drive the fast path missed
             tr.health.stowed_by_us = True
         before = tr.health.state
+        held = tr.drive.configuration
         for cmd in tr.health.assess(
-            state, self.clock.monotonic(), weather_stow=wind, limits=tr.cfg.soft_limits
+            state,
+            self.clock.monotonic(),
+            weather_stow=wind,
+            limits=tr.cfg.soft_limits,
+            max_speeds=held.max_speeds if held is not None else (),
         ):
             if cmd == Command.RESUME:
                 await self._heartbeat(tr, force=True)

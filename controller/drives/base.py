@@ -106,6 +106,9 @@ class DriveLink(abc.ABC):
     stats: LinkStats
     axis_count: int = 0
     label: str = ""
+    #: What the drive held when its configuration was last read back (None: not yet, or a
+    #: backend that cannot read it).
+    configuration: DriveConfiguration | None = None
     #: The settings dataclass of this backend's ``[[links]]`` table.
     config_type: ClassVar[type[LinkConfig]]
     #: The attribute holding the ``RetryPolicy`` that :meth:`connect` runs under (None: none).

@@ -14,11 +14,13 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class DriveConfiguration:
-    """One drive's configuration as it reports it.
+    """One drive's configuration as it reports it (:meth:`DriveLink.read_configuration`;
+    ``DriveLink.configuration`` keeps the last read-back after a configuration).
 
     heartbeat_timeout_s : the watchdog's timeout (s); 0: the watchdog is off.
     soft_limits : per axis, (min, max) a target may ask for (deg).
     stow_angles : per axis, where STOW sends the axis (deg).
+    max_speeds : per axis, the position loop's speed limit (deg/s); empty when not read.
     heartbeat_producer : CANopen only, the node id whose heartbeat the watchdog consumes
         (None where the link has no such notion, or the axes disagree: see ``producers``).
     producers : CANopen only, that node id per axis.
@@ -29,6 +31,7 @@ class DriveConfiguration:
     stow_angles: tuple[float, ...]
     heartbeat_producer: int | None = None
     producers: tuple[int, ...] = ()
+    max_speeds: tuple[float, ...] = ()
 
     def describe(self) -> str:
         """One line for an operator: ``watchdog 180 s; limits [-55, 55] deg; stow 0 deg``."""
@@ -37,7 +40,10 @@ class DriveConfiguration:
             dog += " on node " + "/".join(str(p) for p in sorted(set(self.producers)))
         limits = " / ".join(f"[{lo:g}, {hi:g}]" for lo, hi in self.soft_limits)
         stows = " / ".join(f"{a:g}" for a in self.stow_angles)
-        return f"{dog}; limits {limits} deg; stow {stows} deg"
+        text = f"{dog}; limits {limits} deg; stow {stows} deg"
+        if self.max_speeds:
+            text += "; speed " + " / ".join(f"{v:g}" for v in self.max_speeds) + " deg/s"
+        return text
 
 
 @dataclass(frozen=True)

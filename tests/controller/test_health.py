@@ -43,6 +43,32 @@ def test_a_drive_that_reads_an_impossible_angle_is_degraded():
     assert h.state == Health.DEGRADED and "axis 0 reads 1000000.00 deg" in h.reason
 
 
+def test_a_reading_that_moves_faster_than_the_drive_can_is_named():
+    """An audit's case: a drive reporting a 120-deg slew between two one-second cycles,
+    where its speed limit is 1 deg/s, had been ok."""
+    h = DriveHealth()
+    speeds = (1.0, 0.5)
+    h.assess(state(100.0, 20.0), 0.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    h.assess(state(101.0, 20.5), 1.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    assert h.state == Health.OK, h.reason  # at its speed limit: a slew
+    h.assess(state(221.0, 20.5), 2.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    assert h.state == Health.DEGRADED
+    assert (
+        h.reason
+        == "axis 0 reading jumped 120.00 deg in 1.0 s, faster than its 1 deg/s (encoder or firmware fault)"
+    )
+    h.assess(state(221.0, 20.5), 3.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    assert h.state == Health.OK  # it stays there: the new reading is the reference
+    # a long gap (a link lost for minutes) allows a long slew
+    h.assess(state(160.0, 50.0), 123.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    assert h.state == Health.OK, h.reason
+    # without the drive's speed limit (a backend that cannot read it) nothing is judged
+    h2 = DriveHealth()
+    h2.assess(state(100.0, 20.0), 0.0, weather_stow=False, limits=LIMITS)
+    h2.assess(state(221.0, 20.0), 1.0, weather_stow=False, limits=LIMITS)
+    assert h2.state == Health.OK
+
+
 def test_a_watchdog_stow_that_does_not_lift_is_said():
     """It had been ok, with a RESUME every cycle, the drive stowed the whole run."""
     h = DriveHealth()

@@ -115,7 +115,7 @@ def test_check_prints_a_row_per_device_all_ok(plant, capsys):
         in rows["dual-1"]
     )
     assert "watchdog 10 s on node 127; limits [-60, 60] deg" in rows["row-can"]
-    assert rows["row-tcp"].endswith("run writes watchdog 3 s, axis 0 soft limits [-55, 55]")
+    assert rows["row-tcp"].endswith("run writes watchdog 3 s, axis 0 soft limits [-55, 55]"), out
 
 
 def test_run_tracks_then_sigterm_leaves_every_axis_safe(plant):
@@ -217,6 +217,6 @@ def test_check_with_an_emulator_stopped_names_it(plant, capsys, tmp_path):
     assert " ok " in rows["dual-1"] and " ok " in rows["row-can"]
     # the runs before configured the drives: they hold what the plant file says
     assert rows["row-can"].endswith(
-        "watchdog 3 s on node 127; limits [-55, 55] deg; stow 0 deg (as the plant file has it)"
-    )
+        "watchdog 3 s on node 127; limits [-55, 55] deg; stow 0 deg; speed 10 deg/s (as the plant file has it)"
+    ), out
     assert out.splitlines()[-1] == "3 of 5 device(s) ok; 2 failed"

@@ -26,6 +26,7 @@ if TYPE_CHECKING:
 LIMIT_MIN = register("SOFT_LIMIT_MIN")
 LIMIT_MAX = register("SOFT_LIMIT_MAX")
 STOW = register("STOW_ANGLE")
+SPEED = register("MAX_SPEED")  # 0x6081, profile velocity
 #: one step of the objects' units: 0x1016's ms, the limits' and the stow angle's scales
 TOLERANCES = Tolerances(0.001, LIMIT_MIN.scale, STOW.scale)
 
@@ -89,7 +90,7 @@ async def _read_back(
     limits: list[tuple[float, float]],
     stows: list[float],
 ) -> None:
-    got = await read_configuration(drive)
+    got = drive.configuration = await read_configuration(drive)
     diffs = differences(
         got,
         TOLERANCES,
@@ -109,7 +110,7 @@ async def read_configuration(drive: CanopenDrive) -> DriveConfiguration:
     counts as off only when every node is off)."""
     if not drive.axes:
         raise DriveCommError(f"{drive.label}: not connected")
-    timeouts, producers, limits, stows = [], [], [], []
+    timeouts, producers, limits, stows, speeds = [], [], [], [], []
     for axis in drive.axes:
         sdo = axis.node.sdo
         value = await drive.sdo("consumer heartbeat read", partial(getattr, sdo[0x1016][1], "raw"))
@@ -121,6 +122,8 @@ async def read_configuration(drive: CanopenDrive) -> DriveConfiguration:
         limits.append((lo * LIMIT_MIN.scale, hi * LIMIT_MAX.scale))
         stow = await drive.sdo("stow angle read", partial(getattr, sdo[mirror_index(STOW)], "raw"))
         stows.append(stow * STOW.scale)
+        speed = await drive.sdo("speed limit read", partial(getattr, sdo[0x6081], "raw"))
+        speeds.append(speed * SPEED.scale)
     watched = [p for p, t in zip(producers, timeouts) if t > 0]
     return DriveConfiguration(
         max(timeouts),
@@ -128,4 +131,5 @@ async def read_configuration(drive: CanopenDrive) -> DriveConfiguration:
         tuple(stows),
         heartbeat_producer=watched[0] if watched and len(set(watched)) == 1 else None,
         producers=tuple(producers),
+        max_speeds=tuple(speeds),
     )

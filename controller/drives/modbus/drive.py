@@ -252,7 +252,7 @@ class ModbusDrive(DriveLink):
     ) -> None:
         """The configuration as the drive holds it after the writes: a firmware that
         acknowledges and ignores them (its watchdog off, its factory limits) is refused."""
-        got = await self.read_configuration()
+        got = self.configuration = await self.read_configuration()
         diffs = differences(
             got, _TOLERANCES, heartbeat_timeout_s=heartbeat_timeout_s, soft_limits=limits, stow_angles=stows
         )

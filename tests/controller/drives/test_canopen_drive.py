@@ -255,9 +255,8 @@ def test_the_configuration_is_read_back():
                 assert got.heartbeat_timeout_s == pytest.approx(50) and got.producers == (127, 127)
                 assert got.soft_limits == (pytest.approx((10, 350)), pytest.approx((5, 85)))
                 assert got.stow_angles == pytest.approx((180, 80))
-                assert (
-                    got.describe()
-                    == "watchdog 50 s on node 127; limits [10, 350] / [5, 85] deg; stow 180 / 80 deg"
+                assert got.describe() == (
+                    "watchdog 50 s on node 127; limits [10, 350] / [5, 85] deg; stow 180 / 80 deg; speed 10 / 10 deg/s"
                 )
                 # now a firmware that acknowledges and ignores the watchdog and axis 1's stow angle
                 ignored = {register("HEARTBEAT_TIMEOUT").address(), register("STOW_ANGLE").address(1)}
