@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from firmware_protocol import Mode, Status
 
-from .drives.base import DriveCommError, DriveState
+from .drives.base import DriveCommError, DriveHeld, DriveState
 from .safety import drive_stow_angles
 
 if TYPE_CHECKING:
@@ -36,7 +36,7 @@ class DriveSetup:
     def _event(self, kind: str, **detail: Any) -> None:  # pragma: no cover - the controller's
         raise NotImplementedError
 
-    def _link_failed(self, tr: TrackerRuntime, why: str) -> None:  # pragma: no cover
+    def _link_failed(self, tr: TrackerRuntime, why: str, held: bool = False) -> None:  # pragma: no cover
         raise NotImplementedError
 
     async def start(self) -> None:
@@ -52,7 +52,11 @@ class DriveSetup:
             await asyncio.wait_for(self._configure(tr), self.START_TIMEOUT_S)
         except (TimeoutError, DriveCommError) as exc:
             tr.errors += 1
-            self._link_failed(tr, str(exc) or "no answer at start-up")
+            self._link_failed(tr, str(exc) or "no answer at start-up", held=isinstance(exc, DriveHeld))
+        except Exception as exc:  # noqa: BLE001 - one drive's failure must not stop the others' start
+            tr.errors += 1
+            log.debug("%s: start-up failed", tr.cfg.name, exc_info=True)
+            self._link_failed(tr, f"{type(exc).__name__}: {exc}")
 
     def _unheard(self, tr: TrackerRuntime) -> bool:
         """The drive has not answered an exchange for longer than its watchdog allows (it has
@@ -77,10 +81,13 @@ class DriveSetup:
         tr.configured = False
         if not connected:
             await tr.drive.connect()
-        if tr.drive.axis_count < tr.cfg.axes:
+        if tr.drive.axis_count != tr.cfg.axes:
+            # a single-axis row on a dual-axis drive had been configured with the row's
+            # limits on the azimuth axis and refused by it, every cycle
             raise DriveCommError(
-                f"{tr.cfg.name}: drive has {tr.drive.axis_count} axis, "
-                f"a {tr.cfg.type} tracker needs {tr.cfg.axes}"
+                f"{tr.cfg.name}: drive has {tr.drive.axis_count} "
+                f"{'axis' if tr.drive.axis_count == 1 else 'axes'}, a {tr.cfg.type} tracker "
+                f"drives {tr.cfg.axes}: wrong device_id?"
             )
         # Before our first heartbeat: a drive its watchdog stowed still says COMM_LOST.
         self._note_watchdog_stow(tr, await tr.drive.read_state(), rebooted or self._unheard(tr))
@@ -90,6 +97,7 @@ class DriveSetup:
             soft_limits=tr.cfg.soft_limits,
             stow_angles=drive_stow_angles(self.safety, tr.cfg),
         )
+        tr.restarts_seen = tr.drive.restarts
         await self._heartbeat(tr, force=True)
         # Spread the rows' heartbeats over the interval so they do not all fall on one cycle.
         tr.last_heartbeat -= (tr.index % 3) * self.config.control.heartbeat_timeout_s / 9
@@ -103,6 +111,15 @@ class DriveSetup:
             await tr.drive.heartbeat()
             tr.last_heartbeat = t
             await self._check_reboot(tr)
+
+    async def _check_restart(self, tr: TrackerRuntime) -> None:
+        """A drive its backend started again after a boot-up message (a CANopen reboot or NMT
+        reset, whose uptime may not go back) is configured again at once."""
+        if tr.drive.restarts != tr.restarts_seen:
+            log.warning("%s: drive restarted after a reboot or reset: configuring it again", tr.cfg.name)
+            self._event("drive_reboot", tracker=tr.cfg.name)
+            tr.uptime_s = None
+            await self._configure(tr, rebooted=True, connected=True)
 
     async def _check_reboot(self, tr: TrackerRuntime) -> None:
         """A drive whose uptime went back has rebooted: it forgot its configuration (limits,

@@ -110,6 +110,11 @@ class DriveHealth:
         self.reconnect_at = now + self.backoff_s
         return True
 
+    def hold(self, why: str) -> None:
+        """The drive answers but another party holds it (:class:`DriveHeld`): ``degraded``
+        with the reason, and not a link failure (a reconnection would start it again)."""
+        self.state, self.reason = Health.DEGRADED, why
+
     def may_reconnect(self, now: float) -> bool:
         return now >= self.reconnect_at
 
@@ -122,10 +127,12 @@ class DriveHealth:
         weather_stow: bool,
         limits: Sequence[tuple[float, float]] = (),
         max_speeds: Sequence[float] = (),
+        targets: Sequence[float] = (),
     ) -> list[Command]:
         """Judge a successful exchange; returns the commands to send (CLEAR_FAULT, RESUME).
         ``limits``: each axis's travel (deg), to judge its reading; ``max_speeds``: each
-        axis's speed limit as the drive holds it (deg/s), to judge its motion."""
+        axis's speed limit as the drive holds it (deg/s), to judge its motion; ``targets``:
+        what this exchange commanded (deg), to judge the target the drive works to."""
         self.last_ok = now
         self.errors_in_row = 0
         self.backoff_s = 0.0
@@ -182,6 +189,7 @@ class DriveHealth:
         if wrong:
             problems.append(wrong)
         problems.extend(self._jumps(st, now, max_speeds))
+        problems.extend(_other_targets(st, targets))
         problems.extend(self._not_following(st, now))
         if any(a.status & Status.TARGET_CLAMPED for a in st.axes):
             problems.append("the drive clamped a target (its limits differ from the configuration)")
@@ -241,6 +249,23 @@ FOLLOW_AWAY_DEG, FOLLOW_S, STILL_DEG = 1.0, 30.0, 0.01
 #: A reading may move ``JUMP_FACTOR`` times the axis's speed limit times the time since the
 #: last reading, plus ``JUMP_SLACK_DEG`` (a reading's age within a cycle, a quantum).
 JUMP_FACTOR, JUMP_SLACK_DEG = 1.5, 1.0
+#: A drive's target may differ from the one commanded by its encoding's rounding (deg).
+TARGET_TOLERANCE_DEG = 0.01
+
+
+def _other_targets(st: DriveState, targets: Sequence[float]) -> list[str]:
+    """Axes in AUTO that work to another target than the one just commanded, without saying
+    they clamped it (TARGET_CLAMPED) or being faulted: a firmware that acknowledges
+    set-points and latches others, which the axis then follows as if told to."""
+    out = []
+    for k, (a, want) in enumerate(zip(st.axes, targets, strict=False)):
+        if a.mode != Mode.AUTO or a.status & (Status.TARGET_CLAMPED | Status.FAULT):
+            continue
+        if not abs(a.target_deg - want) <= TARGET_TOLERANCE_DEG:
+            out.append(
+                f"axis {k} works to {a.target_deg:.3f} deg, {want:.3f} commanded (another target latched)"
+            )
+    return out
 
 
 def _fault_text(fault: Fault, status: Status) -> str:

@@ -24,7 +24,7 @@ from .clock import Clock
 from .config import Config
 from .diffuse import DiffuseSwitch
 from .drive_setup import DriveSetup
-from .drives.base import DriveCommError, DriveLink, DriveState
+from .drives.base import DriveCommError, DriveHeld, DriveLink, DriveState
 from .health import Health
 from .history import History
 from .modes import ControlMode, ModeDecision, decide_mode
@@ -150,6 +150,7 @@ class Controller(WindPolling, DriveSetup):
                 tr.errors += 1
                 rec.error = f"{tr.cfg.name}: {type(exc).__name__}: {exc}"
                 rec.latency_s = time.perf_counter() - t_wall
+                self._link_failed(tr, rec.error)  # three in a row: a fresh link (a library's stuck state)
             elif not rec.latency_s:
                 tr.errors += 1
                 rec.error = (
@@ -294,12 +295,14 @@ class Controller(WindPolling, DriveSetup):
             tr.errors += 1
             rec.error = str(exc)
             if not isinstance(exc, LinkDownError):
-                self._link_failed(tr, str(exc))
+                self._link_failed(tr, str(exc), held=isinstance(exc, DriveHeld))
         rec.latency_s = time.perf_counter() - t_wall
 
-    def _link_failed(self, tr: TrackerRuntime, why: str) -> None:
+    def _link_failed(self, tr: TrackerRuntime, why: str, held: bool = False) -> None:
         before = tr.health.state
-        if tr.health.comm_failed(self.clock.monotonic(), why) and tr.configured:
+        if held:
+            tr.health.hold(why)
+        elif tr.health.comm_failed(self.clock.monotonic(), why) and tr.configured:
             tr.configured = False  # reconnect (and reconfigure) after the backoff
             asyncio.ensure_future(self._close_quietly(tr.drive))
         if tr.health.state != before:
@@ -338,6 +341,7 @@ class Controller(WindPolling, DriveSetup):
             await tr.drive.command(Command.HOME)
             self._home_requested.discard(tr.index)
         state = await tr.drive.exchange(targets)
+        await self._check_restart(tr)
         wind = order is not None and order.kind == "wind"
         if wind and any(a.mode not in (Mode.STOW, Mode.MAINTENANCE) for a in state.axes):
             await tr.drive.command(Command.STOW)  # a drive the fast path missed
@@ -350,6 +354,7 @@ class Controller(WindPolling, DriveSetup):
             weather_stow=wind,
             limits=tr.cfg.soft_limits,
             max_speeds=held.max_speeds if held is not None else (),
+            targets=targets,
         ):
             if cmd == Command.RESUME:
                 await self._heartbeat(tr, force=True)

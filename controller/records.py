@@ -51,6 +51,7 @@ class TrackerRuntime:
     configured: bool = False
     uptime_s: float | None = None  # the drive's last reported uptime, s
     uptime_at: float = 0.0  # when it was read (the clock's monotonic time)
+    restarts_seen: int = 0  # the drive's ``restarts`` when it was last configured
     index: int = 0
     errors: int = 0
     health: DriveHealth = field(default_factory=DriveHealth)

@@ -35,6 +35,12 @@ class DriveNoAnswer(DriveCommError):
         super().__init__(f"{label}: {what} failed after {attempts} attempt(s): {last}")
 
 
+class DriveHeld(DriveCommError):
+    """The drive answers, but another party holds it where it is (a CANopen NMT stop, a CiA
+    402 quick stop or disable by a service tool): reported, never overridden, and not a
+    link failure (reconnecting would start it again)."""
+
+
 class LinkSettingsError(UserError):
     """Two links disagree about one physical port (or a link cannot be used as given)."""
 
@@ -109,6 +115,9 @@ class DriveLink(abc.ABC):
     #: What the drive held when its configuration was last read back (None: not yet, or a
     #: backend that cannot read it).
     configuration: DriveConfiguration | None = None
+    #: Times the backend started the drive again by itself after it announced a reboot or a
+    #: reset (CANopen boot-up): its configuration is gone, the loop configures it again.
+    restarts: int = 0
     #: The settings dataclass of this backend's ``[[links]]`` table.
     config_type: ClassVar[type[LinkConfig]]
     #: The attribute holding the ``RetryPolicy`` that :meth:`connect` runs under (None: none).

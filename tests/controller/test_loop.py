@@ -73,6 +73,13 @@ def test_an_unexpected_error_in_one_row_is_recorded_not_hidden(plant):
     recs = run(ctl.cycle())
     assert "RuntimeError: library bug" in recs[1].error
     assert not recs[0].error and recs[0].targets_deg
+    assert recs[1].health == "degraded"
+    # three in a row: the link is closed and opened afresh (an audit's case: a CAN bus whose
+    # receive thread had died stayed dead, the row failing every cycle until a restart)
+    for _ in range(2):
+        clock.sleep(cfg.control.period_s)
+        recs = run(ctl.cycle())
+    assert recs[1].health == "lost" and "3 failed attempts in a row" in recs[1].health_reason
 
 
 def test_manual_override_outranks_night_stow(plant):

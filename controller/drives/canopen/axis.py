@@ -12,7 +12,7 @@ import canopen
 from canopen.objectdictionary import eds as eds_format
 
 from firmware_protocol import Fault, Mode, Status, register
-from firmware_protocol.canopen import State402, mirror_index, state_from_statusword
+from firmware_protocol.canopen import FAULT_ERROR_CODES, State402, mirror_index, state_from_statusword
 from firmware_protocol.eds import eds
 
 from ..base import AxisState, DriveCommError
@@ -44,6 +44,8 @@ class Axis402:
         self.node = node
         self.tpdo_time: dict[int, float] = {}  # TPDO number -> monotonic reception
         self.heartbeat_time: float | None = None
+        #: The node sent a boot-up message (a reboot, or an NMT reset) since it was started.
+        self.booted = False
 
     @property
     def statusword(self) -> int:
@@ -112,12 +114,18 @@ class Axis402:
         """
         v = self.node.tpdo_values
         try:
+            status, fault = Status(int(v[IDX_STATUS])), Fault(int(v[IDX_FAULT]))
+            if self.state in (State402.FAULT, State402.FAULT_REACTION_ACTIVE) and not status & Status.FAULT:
+                # the 402 layer holds a fault the heliotrack mirror does not show (cleared
+                # locally, or the drive's own): it drops every set-point until a fault reset
+                status |= Status.FAULT
+                fault = fault_of_error_code(int(v.get(0x603F, 0)))
             return AxisState(
                 actual_deg=v[0x6064] * _ACTUAL.scale,
                 target_deg=v[IDX_EFFECTIVE_TARGET] * _TARGET.scale,
                 velocity_dps=v[0x606C] * _VELOCITY.scale,
-                status=Status(int(v[IDX_STATUS])),
-                fault=Fault(int(v[IDX_FAULT])),
+                status=status,
+                fault=fault,
                 mode=Mode(int(v[IDX_MODE])),
             )
         except KeyError as exc:
@@ -126,6 +134,15 @@ class Axis402:
             ) from None
         except ValueError as exc:  # an unknown fault or mode code on the wire
             raise DriveCommError(f"{label}: implausible state from node {self.node.id}: {exc}") from None
+
+
+def fault_of_error_code(code: int) -> Fault:
+    """The heliotrack fault of a CiA 402 error code (0x603F); an unknown or zero code (the
+    402 FAULT state alone) counts as an encoder / firmware fault, the most general."""
+    for fault, c in FAULT_ERROR_CODES.items():
+        if c == code and fault != Fault.NONE:
+            return fault
+    return Fault.ENCODER
 
 
 def all_fresh(axes: Sequence[Axis402], stale_s: float, producer_heartbeat_ms: int, label: str) -> bool:

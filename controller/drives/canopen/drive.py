@@ -34,7 +34,7 @@ from typing import Any
 import canopen
 from canopen.sdo import SdoAbortedError, SdoCommunicationError
 
-from firmware_protocol import MAGIC, PROTOCOL_VERSION, Command, Status, register
+from firmware_protocol import Command, Status, register
 from firmware_protocol.canopen import (
     AXIS_INDEX_OBJECT,
     MASTER_NODE_ID,
@@ -46,6 +46,7 @@ from firmware_protocol.codec import to_raw
 
 from ..base import (
     DriveCommError,
+    DriveHeld,
     DriveIdentity,
     DriveLink,
     DriveState,
@@ -58,15 +59,13 @@ from ..retry import RetryPolicy
 from .axis import Axis402, all_fresh, load_od
 from .axis_control import SetPointNotAcknowledged, reenable, set_point
 from .configure import configure_drive, read_configuration
+from .identity import check_new, identify
 from .network import SharedNetwork, send_master_heartbeat
 
 log = logging.getLogger(__name__)
 
 _TARGET = register("TARGET_ANGLE")
 _IDX_COMMAND = mirror_index(register("COMMAND"))
-_IDX_MAGIC, _IDX_PROTOCOL, _IDX_AXES = (
-    mirror_index(register(n)) for n in ("MAGIC", "PROTOCOL_VERSION", "AXIS_COUNT")
-)
 #: SDO failures worth another attempt; an abort is the drive's answer and final.  An answer
 #: of the wrong size for the object's type does not decode (ObjectDictionaryError): garbled.
 _SDO_RETRY_ON = (
@@ -216,8 +215,10 @@ class CanopenDrive(DriveLink):
 
         return callback
 
-    def _heard(self, axis: Axis402, _state: int) -> None:  # canopen's receive thread
+    def _heard(self, axis: Axis402, state: int) -> None:  # canopen's receive thread
         axis.heartbeat_time = time.monotonic()
+        if state == 0:  # a boot-up message: the node forgot its configuration
+            axis.booted = True
         loop, event = self._loop, self._tpdo_event
         if loop is not None and event is not None and not loop.is_closed():
             loop.call_soon_threadsafe(event.set)
@@ -260,19 +261,7 @@ class CanopenDrive(DriveLink):
             self._shared, self.network = shared, shared.network
         try:
             first = self._add_node(self.node_id)
-            magic = await self.sdo("identification read", lambda: first.sdo[_IDX_MAGIC].raw)
-            if magic != MAGIC:
-                raise DriveCommError(
-                    f"{self.label}: not a heliotrack drive (0x{_IDX_MAGIC:04X} = {magic:#06x})"
-                )
-            version = await self.sdo("identification read", lambda: first.sdo[_IDX_PROTOCOL].raw)
-            if version >> 8 != PROTOCOL_VERSION >> 8:
-                raise DriveCommError(
-                    f"{self.label}: protocol {version >> 8}.x, expected {PROTOCOL_VERSION >> 8}.x"
-                )
-            count = await self.sdo("identification read", lambda: first.sdo[_IDX_AXES].raw)
-            if not 1 <= count <= 2:
-                raise DriveCommError(f"{self.label}: implausible axis count {count}")
+            count = await check_new(self, first)
             check_node_id(self.node_id, count)
             self.axes = [Axis402(first)]
             for k in range(1, count):
@@ -330,6 +319,10 @@ class CanopenDrive(DriveLink):
     async def _enable(self, axis: Axis402) -> None:
         """Profile position mode and OPERATION ENABLED (the 402 helper's blocking calls)."""
         node = axis.node
+        if axis.state == State402.QUICK_STOP_ACTIVE:  # someone's stop: a restart lifts none
+            raise DriveHeld(
+                f"{self.label}: node {node.id} is in QUICK STOP; not enabled (lift it there, or RESUME)"
+            )
 
         def enable() -> None:
             node.op_mode = "PROFILED POSITION"
@@ -367,14 +360,23 @@ class CanopenDrive(DriveLink):
 
     # -- state --------------------------------------------------------------------------
     async def _restart_if_rebooted(self) -> None:
-        """A node of this drive that announced itself again (a reboot: its heartbeat says
-        PRE-OPERATIONAL) is started afresh before it is used, the CANopen side of reopening
-        a link; the loop's uptime check then configures the drive again."""
-        if any(
-            a.heartbeat_time and a.node.nmt.state not in ("OPERATIONAL", "INITIALISING") for a in self.axes
-        ):
-            log.warning("%s: a node rebooted; starting the drive again", self.label)
+        """A node that sent a boot-up message (a reboot, or an NMT reset, which forgets the
+        consumer heartbeat too) is started afresh before it is used, and counted in
+        ``restarts`` so that the loop configures the drive again.  A node that left
+        OPERATIONAL without one was put there by another master (a service tool's NMT stop
+        or pre-operational): it is held, not started again from here."""
+        if any(a.booted for a in self.axes):
+            log.warning("%s: a node announced a reboot or reset; starting the drive again", self.label)
             await self.connect()
+            self.restarts += 1
+            return
+        for a in self.axes:
+            state = a.node.nmt.state
+            if a.heartbeat_time and state not in ("OPERATIONAL", "INITIALISING"):
+                raise DriveHeld(
+                    f"{self.label}: node {a.node.id} put in NMT {state} by another master; "
+                    "not started again (an NMT start there, or a reboot, lifts it)"
+                )
 
     async def read_state(self) -> DriveState:
         if not self.axes:
@@ -415,10 +417,11 @@ class CanopenDrive(DriveLink):
             if state == State402.FAULT:
                 continue  # read_state shows the fault; command(CLEAR_FAULT) recovers
             if state != State402.OPERATION_ENABLED:
-                raise DriveCommError(
+                # a quick stop or a disable by a service tool or the drive's own panel
+                raise DriveHeld(
                     f"{self.label}: axis {k} (node {axis.node.id}) is "
                     f"{state.name if state else 'in an unknown state'}, not "
-                    "OPERATION ENABLED; not re-enabled automatically"
+                    "OPERATION ENABLED; not re-enabled automatically (lift it there, or RESUME)"
                 )
             try:
                 await set_point(self, k, axis, raw)
@@ -456,20 +459,7 @@ class CanopenDrive(DriveLink):
             self.stats.transactions += 1
 
     async def identify(self) -> DriveIdentity:
-        if not self.axes:
-            raise DriveCommError(f"{self.label}: not connected")
-        node = self.axes[0].node
-
-        def read(name: str) -> float:
-            reg = register(name)
-            raw = node.sdo[mirror_index(reg)].raw
-            return float(raw * reg.scale)
-
-        values = [
-            await self.sdo("identification read", partial(read, n))
-            for n in ("AXIS_COUNT", "PROTOCOL_VERSION", "FIRMWARE_VERSION", "UPTIME")
-        ]
-        return DriveIdentity(int(values[0]), int(values[1]), int(values[2]), values[3])
+        return await identify(self)
 
     async def command(self, cmd: Command) -> None:
         if not self.axes:

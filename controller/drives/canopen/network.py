@@ -4,10 +4,56 @@ heartbeat."""
 from __future__ import annotations
 
 import asyncio
+import logging
+import struct
 import threading
+import time
 from typing import Any, ClassVar
 
+import can
 import canopen
+
+log = logging.getLogger(__name__)
+
+#: What a bus's reader raises for one malformed frame (slcan: a line that is not hex).
+_FRAME_ERRORS = (ValueError, IndexError, struct.error)
+
+
+class TolerantBus(can.BusABC):
+    """A python-can bus whose malformed received frames are dropped and counted.
+
+    python-can's notifier thread stops for good at the first exception its bus raises: one
+    garbled slcan line (noise on the USB serial link, a second program on the adapter)
+    had left every drive on the bus without state until the controller restarted.  A
+    bus that cannot be read at all (an adapter unplugged) still raises: that is the
+    link's failure, handled by reconnecting.
+    """
+
+    def __init__(self, inner: can.BusABC, **kwargs: Any):
+        self.inner = inner
+        self.dropped = 0
+        self._said = -float("inf")
+        self.channel_info = inner.channel_info
+        super().__init__(channel=str(getattr(inner, "channel", inner.channel_info)), **kwargs)
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        self.inner.send(msg, timeout)
+
+    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        try:
+            return self.inner.recv(timeout), False
+        except _FRAME_ERRORS as exc:
+            self.dropped += 1
+            if time.monotonic() - self._said >= 60.0:  # at most a line a minute
+                self._said = time.monotonic()
+                log.warning(
+                    "%s: a malformed frame was dropped (%s; %d so far)", self.channel_info, exc, self.dropped
+                )
+            return None, False
+
+    def shutdown(self) -> None:
+        self.inner.shutdown()
+        super().shutdown()
 
 
 class SharedNetwork:
@@ -23,9 +69,10 @@ class SharedNetwork:
 
     def __init__(self, interface: str, channel: str, bus_kwargs: dict[str, Any]):
         self.key = (interface, channel)
-        self.network = canopen.Network()
+        self.bus = TolerantBus(can.Bus(interface=interface, channel=channel, **bus_kwargs))
+        self.network = canopen.Network(self.bus)
         self.network.NOTIFIER_CYCLE = 0.1  # closing waits for one notifier cycle
-        self.network.connect(interface=interface, channel=channel, **bus_kwargs)
+        self.network.connect()  # the notifier, on the bus given
         self.users = 0
 
     @classmethod

@@ -274,3 +274,32 @@ def test_the_configuration_is_read_back():
     assert "configuration not taken: watchdog reads" in msg and "30 s written" in msg, msg
     assert "axis 1 stow angle reads 80, 60 written" in msg, msg
     assert "axis 0" not in msg, msg
+
+
+def test_a_malformed_slcan_line_is_dropped_and_the_drive_goes_on():
+    """An audit's case: one garbled line on the USB-CAN adapter's serial link stopped
+    python-can's notifier thread for good, every later cycle "ValueError: non-hexadecimal
+    number" until the controller restarted."""
+    from hil.canopen.slcan import open_slcan_pty
+
+    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
+        link, adapter = open_slcan_pty(ch)
+        try:
+
+            async def scenario():
+                d = open_drive(CanopenLink(name="usb", interface="slcan", channel=link.path), 8)
+                await d.connect()
+                try:
+                    adapter._write(b"t1A18zz\r")  # a line that is not hex
+                    await asyncio.sleep(0.3)
+                    await d.write_targets([4.0])
+                    return await settle(d, lambda s: s.axes[0].target_deg == pytest.approx(4.0)), d
+                finally:
+                    await d.close()
+
+            st, d = run(scenario())
+        finally:
+            adapter.stop()
+            adapter.bus.shutdown()
+            link.close()
+    assert st.axes[0].target_deg == pytest.approx(4.0)
