@@ -16,7 +16,6 @@ from __future__ import annotations
 import io
 import logging
 import math
-import threading
 import time
 from collections.abc import Callable
 
@@ -28,7 +27,6 @@ from firmware_protocol import Command, Fault, Mode, ProtocolError, Status, encod
 from firmware_protocol.canopen import (
     AXIS_INDEX_OBJECT,
     FAULT_ERROR_CODES,
-    MASTER_NODE_ID,
     PROFILE_POSITION,
     Controlword,
     State402,
@@ -38,9 +36,10 @@ from firmware_protocol.canopen import (
 from firmware_protocol.codec import words_to_raw
 from firmware_protocol.eds import eds
 from firmware_protocol.registers import AXIS_BASE, AXIS_REGISTERS, AXIS_STRIDE
-from hil.drive.firmware import DriveFirmware, FirmwareReject
+from hil.drive.firmware import FirmwareReject
 
 from .cia402 import Cia402StateMachine
+from .drive_bus import DriveBus
 
 log = logging.getLogger(__name__)
 
@@ -55,41 +54,6 @@ _NOT_ERROR_CODE = 0xFF00  # generic manufacturer code for a fault without a mapp
 def object_dictionary(node_id: int) -> canopen.ObjectDictionary:
     """The generated EDS parsed for ``node_id`` (a fresh copy each call)."""
     return eds_format.import_eds(io.StringIO(eds()), node_id)
-
-
-class DriveBus:
-    """What the axis nodes of one drive share: the firmware, a lock, a heartbeat counter,
-    and the node whose heartbeat feeds the watchdog.
-
-    Parameters
-    ----------
-    firmware : DriveFirmware
-        The drive's firmware (its ``now`` is the physics clock).
-    """
-
-    def __init__(self, firmware: DriveFirmware):
-        self.fw = firmware
-        self.lock = threading.RLock()
-        self._beat = 0
-        #: Node id of the heartbeat producer the watchdog consumes (0x1016:1 of any axis).
-        self.producer = MASTER_NODE_ID
-        self.nodes: list[AxisNode] = []
-
-    @property
-    def node_ids(self) -> list[int]:
-        return [n.id for n in self.nodes]
-
-    def beat(self) -> None:
-        """A heartbeat of the master arrived: feed the firmware watchdog."""
-        self._beat = (self._beat + 1) & 0xFFFF
-        self.fw.write(register("HEARTBEAT").address(), [self._beat])
-
-    def set_producer(self, producer: int) -> None:
-        """Consume the heartbeat of ``producer`` on every axis node (the watchdog is the
-        drive's: 0x1016 written on one axis sets it for all)."""
-        self.producer = producer
-        for node in self.nodes:
-            node.listen_to(producer)
 
 
 class AxisNode:
@@ -140,6 +104,14 @@ class AxisNode:
     def attach(self, network: canopen.Network) -> None:
         """Join ``network``: SDO server, NMT, PDOs, SYNC and heartbeat consumer."""
         self.network = network
+        serve = self.node.sdo.on_request
+
+        def sdo_unless_stopped(can_id: int, data: bytearray, timestamp: float) -> None:
+            # CiA 301: a STOPPED node answers NMT and sends its heartbeat, nothing else
+            if self.node.nmt.state != "STOPPED":
+                serve(can_id, data, timestamp)
+
+        self.node.sdo.on_request = sdo_unless_stopped  # type: ignore[method-assign]
         network.add_node(self.node)
         self.node.add_read_callback(self._on_sdo_read)
         self.node.add_write_callback(self._on_sdo_write)
@@ -372,14 +344,21 @@ class AxisNode:
         self.ack = True
 
     def _fault_reset(self) -> None:
+        """A fault reset edge: CLEAR_FAULT is the drive's command, so it clears every axis
+        whose cause is gone, and each such axis's node leaves FAULT with it (a reset on
+        one node had left the other axis's node in 402 FAULT with no fault code)."""
         self.fw.write(register("COMMAND").address(), encode("COMMAND", int(Command.CLEAR_FAULT)))
-        if self._reg_raw("FAULT_CODE") == Fault.NONE:
-            self.sm.fault_cleared()
-            self._fault_seen = Fault.NONE
-            if self.network is not None:
-                self.node.emcy.reset()
-        else:
-            self.sm.fault_reset_edge = False
+        self.sm.fault_reset_edge = False
+        for node in self.drive.nodes:
+            node._leave_fault_if_cleared()
+
+    def _leave_fault_if_cleared(self) -> None:
+        if self._reg_raw("FAULT_CODE") != Fault.NONE or self.sm.state != State402.FAULT:
+            return
+        self.sm.fault_cleared()
+        self._fault_seen = Fault.NONE
+        if self.network is not None:
+            self.node.emcy.reset()
 
     def _check_fault(self, snap: dict[str, int]) -> None:
         code = snap["FAULT_CODE"]

@@ -389,11 +389,21 @@ class DriveFirmware:
                     self.clamped[k] = clamped != value
                     ax.target = clamped
             case "MODE":
+                leaving = self.modes[k] == Mode.MAINTENANCE and value in (Mode.AUTO, Mode.MANUAL)
                 self._set_mode(k, Mode(value))
-            case "SOFT_LIMIT_MIN":
-                ax.p.soft_min = value
-            case "SOFT_LIMIT_MAX":
-                ax.p.soft_max = value
+                if leaving:  # hold where the service left it, as RESUME does: no slew to a stale target
+                    ax.target = ax.encoder
+            case "SOFT_LIMIT_MIN" | "SOFT_LIMIT_MAX":
+                if name == "SOFT_LIMIT_MIN":
+                    ax.p.soft_min = value
+                else:
+                    ax.p.soft_max = value
+                if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
+                    # the target in force obeys the new limits at once (it had driven on outside them)
+                    clamped = min(max(ax.target, ax.p.soft_min), ax.p.soft_max)
+                    if clamped != ax.target:
+                        self.clamped[k] = True
+                        ax.target = clamped
             case "MAX_SPEED":
                 ax.p.max_speed = value
             case "STOW_ANGLE":

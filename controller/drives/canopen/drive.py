@@ -459,6 +459,7 @@ class CanopenDrive(DriveLink):
             self.stats.transactions += 1
 
     async def identify(self) -> DriveIdentity:
+        await self._restart_if_rebooted()  # a STOPPED node answers no SDO: held, not silent
         return await identify(self)
 
     async def command(self, cmd: Command) -> None:

@@ -119,6 +119,27 @@ def test_fault_reaction_emcy_and_fault_reset():
         assert node.sdo[0x603F].raw == 0
 
 
+def test_a_fault_reset_on_one_node_takes_every_cleared_axis_out_of_fault():
+    """CLEAR_FAULT is the drive's: a reset on node 10 had cleared axis 1's fault too, but
+    left node 11 in 402 FAULT with no fault code, for good."""
+    with emulated(axes=two_axes(), node_id=10) as (fw, _emu, ch), master(ch) as net:
+        nodes = [node402(net, 10), node402(net, 11)]
+        for n in nodes:
+            _enable(n)
+        for ax in fw.axes:
+            ax.p.stall_time = 0.2
+            ax.jammed = True
+        assert _set_point(nodes[0], 170.0) and _set_point(nodes[1], 80.0)
+        assert wait_for(lambda: all(n.state == "FAULT" for n in nodes), 5.0)
+        for ax in fw.axes:
+            ax.jammed = False
+        nodes[0].controlword = 0x00
+        nodes[0].controlword = 0x80  # fault reset edge on node 10 only
+        assert wait_for(lambda: nodes[0].state == "SWITCH ON DISABLED")
+        assert wait_for(lambda: nodes[1].state == "SWITCH ON DISABLED"), nodes[1].statusword
+        assert nodes[1].sdo[0x603F].raw == 0
+
+
 def test_heartbeat_consumer_stows_on_loss(sim_clock):
     with emulated(now=sim_clock.now) as (fw, _emu, ch), master(ch) as net:
         node = node402(net, 5)

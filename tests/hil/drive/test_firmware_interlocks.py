@@ -86,3 +86,26 @@ def test_negative_parameters_are_refused_at_construction():
         DriveFirmware([AxisParams(max_speed=-1.0)], lambda: 0.0)
     with pytest.raises(ValueError):
         DriveFirmware([AxisParams()], lambda: 0.0, heartbeat_timeout=-5.0)
+
+
+def test_new_soft_limits_clamp_the_target_in_force(fw, sim_clock):
+    """A firmware-side audit's case: with target 170 deg, SOFT_LIMIT_MIN = 175 was taken and
+    the axis drove on to 170, outside its new limits."""
+    write(fw, "TARGET_ANGLE", 170.0, 0)
+    write(fw, "SOFT_LIMIT_MIN", 175.0, 0)
+    assert read(fw, "TARGET_ANGLE", 0) == pytest.approx(175.0)
+    assert Status(read(fw, "STATUS", 0)) & Status.TARGET_CLAMPED
+    sim_clock.sleep(30.0)
+    assert read(fw, "ACTUAL_ANGLE", 0) >= 175.0 - 0.01
+
+
+def test_leaving_maintenance_holds_where_the_service_left_the_axis(fw, sim_clock):
+    """It had driven straight to the target set before the maintenance."""
+    write(fw, "TARGET_ANGLE", 170.0, 0)
+    write(fw, "MODE", int(Mode.MAINTENANCE), 0)
+    sim_clock.sleep(1.0)
+    here = read(fw, "ACTUAL_ANGLE", 0)
+    write(fw, "MODE", int(Mode.AUTO), 0)
+    assert read(fw, "TARGET_ANGLE", 0) == pytest.approx(here, abs=0.001)
+    sim_clock.sleep(30.0)
+    assert read(fw, "ACTUAL_ANGLE", 0) == pytest.approx(here, abs=0.01)
