@@ -3,9 +3,11 @@ when they and its heartbeat were last heard."""
 
 from __future__ import annotations
 
+import contextlib
 import io
+import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import canopen
@@ -16,6 +18,8 @@ from firmware_protocol.canopen import FAULT_ERROR_CODES, State402, mirror_index,
 from firmware_protocol.eds import eds
 
 from ..base import AxisState, DriveCommError
+
+log = logging.getLogger(__name__)
 
 _TARGET = register("TARGET_ANGLE")
 _ACTUAL = register("ACTUAL_ANGLE")
@@ -46,6 +50,49 @@ class Axis402:
         self.heartbeat_time: float | None = None
         #: The node sent a boot-up message (a reboot, or an NMT reset) since it was started.
         self.booted = False
+        #: TPDO frames of the wrong length, dropped whole (see :meth:`guard_tpdos`).
+        self.bad_length = 0
+        self._guards: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
+        self._said = -float("inf")
+
+    def guard_tpdos(self, network: canopen.Network, label: str) -> None:
+        """Put a length check in front of each enabled TPDO: a frame shorter or longer than
+        its mapping is dropped whole and counted, with a warning at most once a minute.
+        canopen had decoded it object by object, updating the statusword and leaving the
+        position stale, and logged an error for every frame (ten a second)."""
+        for number, pdo in self.node.tpdo.items():
+            if not (pdo.enabled and pdo.cob_id):
+                continue
+            need = (pdo.length + 7) // 8
+
+            def guard(
+                can_id: int, data: bytearray, timestamp: float, pdo=pdo, need=need, number=number
+            ) -> None:
+                if len(data) == need:
+                    pdo.on_message(can_id, data, timestamp)
+                    return
+                self.bad_length += 1
+                if time.monotonic() - self._said >= 60.0:
+                    self._said = time.monotonic()
+                    log.warning(
+                        "%s: TPDO%d from node %d has %d bytes, its mapping needs %d: dropped (%d so far)",
+                        label,
+                        number,
+                        self.node.id,
+                        len(data),
+                        need,
+                        self.bad_length,
+                    )
+
+            network.unsubscribe(pdo.cob_id, pdo.on_message)
+            network.subscribe(pdo.cob_id, guard)
+            self._guards.append((pdo.cob_id, guard))
+
+    def unguard(self, network: canopen.Network) -> None:
+        for cob_id, guard in self._guards:
+            with contextlib.suppress(KeyError, ValueError):
+                network.unsubscribe(cob_id, guard)
+        self._guards = []
 
     @property
     def statusword(self) -> int:
@@ -134,6 +181,15 @@ class Axis402:
             ) from None
         except ValueError as exc:  # an unknown fault or mode code on the wire
             raise DriveCommError(f"{label}: implausible state from node {self.node.id}: {exc}") from None
+
+
+def log_emcy(label: str, node_id: int, err: canopen.emcy.EmcyError) -> None:  # canopen's receive thread
+    """An EMCY a node sent, logged: the fault reaches the state through the TPDOs, but the
+    EMCY is the drive's word for it (a vendor's code included), for a field engineer."""
+    if err.code:
+        log.warning(
+            "%s: EMCY from node %d: 0x%04X (error register 0x%02X)", label, node_id, err.code, err.register
+        )
 
 
 def fault_of_error_code(code: int) -> Fault:

@@ -56,7 +56,7 @@ from ..base import (
 from ..configuration import DriveConfiguration
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
-from .axis import Axis402, all_fresh, load_od
+from .axis import Axis402, all_fresh, load_od, log_emcy
 from .axis_control import SetPointNotAcknowledged, reenable, set_point
 from .configure import configure_drive, read_configuration
 from .identity import check_new, identify
@@ -299,6 +299,8 @@ class CanopenDrive(DriveLink):
         for number, tpdo in node.tpdo.items():
             if tpdo.enabled:
                 tpdo.add_callback(self._on_tpdo(axis, number))
+        axis.guard_tpdos(self._net, self.label)
+        node.emcy.add_callback(partial(log_emcy, self.label, int(node.id or 0)))
         node.nmt.add_heartbeat_callback(partial(self._heard, axis))
         if self.producer_heartbeat_ms:
             await self.sdo(
@@ -341,6 +343,9 @@ class CanopenDrive(DriveLink):
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""
         network = self.network
+        if network is not None:
+            for axis in self.axes:
+                axis.unguard(network)
         for node in self._added:  # only the nodes this drive added: the network is shared
             if network is None:
                 break

@@ -303,3 +303,74 @@ def test_a_malformed_slcan_line_is_dropped_and_the_drive_goes_on():
             adapter.bus.shutdown()
             link.close()
     assert st.axes[0].target_deg == pytest.approx(4.0)
+
+
+def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
+    """An audit's case: TPDO1 cut to 4 bytes updated the statusword, left the position
+    stale, and logged an error ten times a second naming no node."""
+    import can as python_can
+
+    with emulated(axes=one_axis(), node_id=9) as (_fw, _emu, ch):
+        other = python_can.Bus(interface="virtual", channel=ch)
+
+        async def scenario():
+            d = open_drive(can(ch), 9)
+            await d.connect()
+            try:
+                before = d.axes[0].node.tpdo_values.get(0x6041)
+                for _ in range(5):
+                    other.send(
+                        python_can.Message(
+                            arbitration_id=0x189, data=b"\xff\xff\x01\x02", is_extended_id=False
+                        )
+                    )
+                await asyncio.sleep(0.2)
+                return (
+                    before,
+                    d.axes[0].node.tpdo_values.get(0x6041),
+                    d.axes[0].bad_length,
+                    await d.read_state(),
+                )
+            finally:
+                await d.close()
+
+        try:
+            before, after, dropped, st = run(scenario())
+        finally:
+            other.shutdown()
+    assert dropped == 5 and after == before  # nothing of the short frames was taken
+    assert st.axes[0].actual_deg == pytest.approx(0.0, abs=0.01)
+    warned = [
+        r for r in caplog.records if "TPDO1 from node 9 has 4 bytes, its mapping needs 6" in r.getMessage()
+    ]
+    assert len(warned) == 1
+    assert not [r for r in caplog.records if r.name.startswith("canopen") and r.levelname == "ERROR"]
+
+
+def test_an_emcy_is_logged_with_its_node(caplog):
+    """A vendor EMCY (0xFF42, error register 0x81) had been neither logged nor used."""
+    import can as python_can
+
+    with emulated(axes=one_axis(), node_id=12) as (_fw, _emu, ch):
+        other = python_can.Bus(interface="virtual", channel=ch)
+
+        async def scenario():
+            d = open_drive(can(ch), 12)
+            await d.connect()
+            try:
+                other.send(
+                    python_can.Message(
+                        arbitration_id=0x80 + 12,
+                        data=bytes([0x42, 0xFF, 0x81, 0, 0, 0, 0, 0]),
+                        is_extended_id=False,
+                    )
+                )
+                await asyncio.sleep(0.2)
+            finally:
+                await d.close()
+
+        try:
+            run(scenario())
+        finally:
+            other.shutdown()
+    assert any("EMCY from node 12: 0xFF42 (error register 0x81)" in r.getMessage() for r in caplog.records)
