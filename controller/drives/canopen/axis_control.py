@@ -1,5 +1,6 @@
-"""The CiA 402 handshakes of one axis of a :class:`~.drive.CanopenDrive`: a new set-point
-(profile position), and bringing the axis back to OPERATION ENABLED after a command."""
+"""The CiA 402 handshakes of one axis of a :class:`~.drive.CanopenDrive`: enabling it at
+connect, a new set-point (profile position), and bringing the axis back to OPERATION
+ENABLED after a command."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import canopen
 
 from firmware_protocol.canopen import CW_ENABLE_OPERATION, CW_NEW_SET_POINT, State402, Statusword
 
-from ..base import DriveCommError
+from ..base import DriveCommError, DriveHeld
 from .axis import Axis402
 
 if TYPE_CHECKING:
@@ -22,6 +23,30 @@ log = logging.getLogger(__name__)
 
 class SetPointNotAcknowledged(Exception):
     """The drive did not raise statusword bit 12 for a new set-point in time."""
+
+
+async def enable(drive: CanopenDrive, axis: Axis402) -> None:
+    """Profile position mode and OPERATION ENABLED at connect (the 402 helper's blocking
+    calls); an axis someone put in QUICK STOP is held, not enabled."""
+    node = axis.node
+    if axis.state == State402.QUICK_STOP_ACTIVE:  # someone's stop: a restart lifts none
+        raise DriveHeld(
+            f"{drive.label}: node {node.id} is in QUICK STOP; not enabled (lift it there, or RESUME)"
+        )
+
+    def enable_operation() -> None:
+        node.op_mode = "PROFILED POSITION"
+        node.state = "OPERATION ENABLED"
+
+    try:
+        await drive.sdo("enable operation", enable_operation)
+    except DriveCommError:
+        if axis.state == State402.FAULT:
+            # A faulted drive still connects: read_state reports the fault and
+            # command(CLEAR_FAULT) recovers it.
+            log.warning("%s: node %d is in FAULT", drive.label, node.id)
+            return
+        raise
 
 
 def controlword(node: canopen.BaseNode402, cw: int) -> None:

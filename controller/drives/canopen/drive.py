@@ -57,7 +57,7 @@ from ..configuration import DriveConfiguration
 from ..links import CanopenLink, LinkConfig
 from ..retry import RetryPolicy
 from .axis import Axis402, all_fresh, load_od, log_emcy
-from .axis_control import SetPointNotAcknowledged, reenable, set_point
+from .axis_control import SetPointNotAcknowledged, enable, reenable, set_point
 from .configure import configure_drive, read_configuration
 from .identity import check_new, identify
 from .network import SharedNetwork, send_master_heartbeat
@@ -311,34 +311,20 @@ class CanopenDrive(DriveLink):
         # Every TPDO goes out once after NMT start; waiting for them means the state is
         # known before the 402 helper starts switching (a drive that stays silent fails
         # in _enable with a clear timeout).
-        await self.wait(lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()), self.timeout_s * 2)
+        # some TPDOs may wait for their event timer; none at all is a node that did not start
+        heard = await self.wait(
+            lambda: all(n in axis.tpdo_time for n in axis.enabled_tpdos()), self.timeout_s * 2
+        )
+        if not heard and not axis.tpdo_time:
+            raise DriveCommError(
+                f"{self.label}: node {node.id} sent no TPDO within {self.timeout_s * 2:g} s of NMT start "
+                "(it answers SDO: does it stay PRE-OPERATIONAL?)"
+            )
         actual = await self.sdo("position read", lambda: node.sdo[0x6064].raw)
         if 0x607A in node.rpdo_pointers:
             target: Any = node.rpdo_pointers[0x607A]
             target.raw = actual  # no jump if a set-point slips through
-        await self._enable(axis)
-
-    async def _enable(self, axis: Axis402) -> None:
-        """Profile position mode and OPERATION ENABLED (the 402 helper's blocking calls)."""
-        node = axis.node
-        if axis.state == State402.QUICK_STOP_ACTIVE:  # someone's stop: a restart lifts none
-            raise DriveHeld(
-                f"{self.label}: node {node.id} is in QUICK STOP; not enabled (lift it there, or RESUME)"
-            )
-
-        def enable() -> None:
-            node.op_mode = "PROFILED POSITION"
-            node.state = "OPERATION ENABLED"
-
-        try:
-            await self.sdo("enable operation", enable)
-        except DriveCommError:
-            if axis.state == State402.FAULT:
-                # A faulted drive still connects: read_state reports the fault and
-                # command(CLEAR_FAULT) recovers it.
-                log.warning("%s: node %d is in FAULT", self.label, node.id)
-                return
-            raise
+        await enable(self, axis)
 
     async def close(self) -> None:
         """Forget the drive's nodes (the drives keep their state: a tracker holds)."""

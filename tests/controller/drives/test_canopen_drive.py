@@ -374,3 +374,21 @@ def test_an_emcy_is_logged_with_its_node(caplog):
         finally:
             other.shutdown()
     assert any("EMCY from node 12: 0xFF42 (error register 0x81)" in r.getMessage() for r in caplog.records)
+
+
+def test_a_node_that_does_not_start_is_named():
+    """A node that stays PRE-OPERATIONAL after NMT start (it answers SDO) had been reported
+    as "Timeout when trying to change state", then "probed, no answer"."""
+    with emulated(axes=one_axis(), node_id=13) as (_fw, emu, ch):
+        node = emu.drives[0].nodes[0].node
+        node.network.unsubscribe(0, node.nmt.on_command)  # deaf to NMT commands
+        d = open_drive(can(ch, timeout_s=0.2, retries=0), 13)
+        try:
+            with pytest.raises(DriveCommError) as e:
+                run(d.connect())
+        finally:
+            node.network.subscribe(0, node.nmt.on_command)  # the emulator's stop takes it off
+    assert (
+        "node 13 sent no TPDO within 0.4 s of NMT start (it answers SDO: does it stay PRE-OPERATIONAL?)"
+        in str(e.value)
+    )
