@@ -456,6 +456,11 @@ async def go_safe(
             return await _safe_one(ctl, tr, deadline)
         except (DriveCommError, OSError, ValueError) as exc:
             return SafeOutcome(tr.cfg.name, tr.cfg.safe_position, False, f"no answer: {exc}")
+        except Exception as exc:  # noqa: BLE001 - one drive's surprise must not leave the others unsafe
+            log.error("%s: safe position failed: %s", tr.cfg.name, exc, exc_info=exc)
+            return SafeOutcome(
+                tr.cfg.name, tr.cfg.safe_position, False, f"failed: {type(exc).__name__}: {exc}"
+            )
 
     tasks = {tr.cfg.name: asyncio.ensure_future(one(tr)) for tr in ctl.trackers}
     await asyncio.wait(tasks.values(), timeout=max(deadline - time.monotonic(), 0.1))

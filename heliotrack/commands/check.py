@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,8 @@ from heliotrack.logs import add_log_options
 if TYPE_CHECKING:
     from controller.clock import Clock
     from controller.config import Config, TrackerConfig
+
+log = logging.getLogger("heliotrack.check")
 
 #: One device may take this long at most (a CANopen drive's start takes a few SDOs).
 DEVICE_TIMEOUT_S = 30.0
@@ -121,6 +124,9 @@ async def _guarded(device: str, where: str, check) -> Row:
         ok, detail = False, f"no answer on {where} within {DEVICE_TIMEOUT_S:g} s"
     except (DriveCommError, UserError, OSError) as exc:
         ok, detail = False, str(exc)
+    except Exception as exc:  # noqa: BLE001 - a library's surprise is this device's row, not the end of check
+        log.debug("%s: %s", device, exc, exc_info=exc)
+        ok, detail = False, f"unexpected {type(exc).__name__}: {exc}"
     return Row(device, where, ok, detail)
 
 

@@ -268,3 +268,50 @@ def test_an_output_path_that_cannot_be_written_is_one_line(tmp_path, capsys, arg
     err = capsys.readouterr().err.strip()
     assert needle in err and err.count("\n") == 0 and "Traceback" not in err
     assert (tmp_path / "afile").read_text() == "x"
+
+
+def test_check_names_a_port_that_refuses_its_parity_and_goes_on(tmp_path, capsys):
+    """An audit's case: ``parity = "E"`` on a pty (``termios.error``) printed a traceback
+    and no further row."""
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+
+    fws = {1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic)}
+    with (
+        PtyLink.open() as even,
+        PtyLink.open() as plain,
+        ModbusServerThread(fws, serial_url=even.url),
+        ModbusServerThread({2: DriveFirmware(two_axes(), time.time)}, serial_url=plain.url),
+    ):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "a"\nkind = "modbus-rtu"\n'
+            f'port = "{even.path}"\nparity = "E"\n[[links]]\nname = "b"\nkind = "modbus-rtu"\n'
+            f'port = "{plain.path}"\n'
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "dual-2"\ntype = "dual-axis"\nlink = "b"\ndevice_id = 2\n'
+        )
+        assert main(["check", "--config", str(p)]) == 1
+    out, err = capsys.readouterr()
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    assert set(rows) == {"dual-1", "dual-2"} and "Traceback" not in err, (out, err)
+    assert rows["dual-1"].endswith(
+        f"FAILED {even.path}: cannot configure the port (baudrate 115200, parity E, stopbits 1): "
+        "Invalid argument"
+    ), out
+    assert " ok " in rows["dual-2"] and out.splitlines()[-1] == "1 of 2 device(s) ok; 1 failed"
+
+
+def test_an_unexpected_error_of_one_device_is_its_row():
+    """Whatever a library raises, the row says so and the rows after it still print."""
+    import asyncio
+
+    from heliotrack.commands.check import _guarded
+
+    async def surprise():
+        raise KeyError("0x6041")
+
+    row = asyncio.run(_guarded("row-can", "slcan:/dev/ttyACM0 node 20", surprise()))
+    assert (row.ok, row.detail) == (False, "unexpected KeyError: '0x6041'")

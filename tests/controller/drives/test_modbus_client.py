@@ -193,3 +193,26 @@ def test_a_drive_closed_and_connected_again_rejoins_its_lines_client(sim_clock):
             assert pty.path not in SharedSerialClient._open
 
         run(scenario())
+
+
+def test_a_port_that_refuses_its_line_settings_is_named_and_left_free(sim_clock):
+    """An audit's case: Linux refuses a parity bit on a pty with ``termios.error`` (no
+    OSError), which went through check's and run's handlers as a traceback; and the
+    transport pymodbus had half made kept the port locked."""
+    fw = DriveFirmware(two_axes(), sim_clock.now)
+    with PtyLink.open() as pty, ModbusServerThread({1: fw}, serial_url=pty.url):
+
+        async def scenario():
+            d = open_drive(ModbusRtuLink(name="rs485", port=pty.path, parity="E"), 1)
+            with pytest.raises(DriveCommError) as e:
+                await d.connect()
+            await d.close()
+            assert str(e.value) == (
+                f"{pty.path}: cannot configure the port (baudrate 115200, parity E, stopbits 1): "
+                "Invalid argument"
+            )
+            ok = open_drive(ModbusRtuLink(name="rs485", port=pty.path), 1)  # the port is free again
+            await ok.connect()
+            await ok.close()
+
+        run(scenario())
