@@ -24,7 +24,7 @@ from pymodbus.exceptions import ModbusException
 from serial import SerialException
 
 from ..base import DriveCommError, LinkSettingsError
-from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink, serial_port_key
 from ..retry import RetryPolicy
 
 #: Exception responses that mean "not now" rather than "never": worth another attempt.
@@ -177,11 +177,6 @@ def port_error(port: str, exc: BaseException, settings: LineSettings | None = No
     return f"{port}: cannot open the port: {text or type(exc).__name__}"
 
 
-def _port_key(port: str) -> str:
-    """One key per physical port: ``/dev/serial/by-id/...`` and ``/dev/ttyUSB0`` agree."""
-    return port if "://" in port else os.path.realpath(port)
-
-
 class SharedSerialClient:
     """The pymodbus client of one serial port, shared by every device of every link on it.
 
@@ -203,7 +198,7 @@ class SharedSerialClient:
             reconnect_delay=0,
         )
         self.port = port
-        self.key = _port_key(port)
+        self.key = serial_port_key(port)
         self.settings = settings
         self.link_name = link_name
         self.users = 0
@@ -222,7 +217,7 @@ class SharedSerialClient:
         LinkSettingsError
             Another link already uses the port with other line settings.
         """
-        key = _port_key(link.port)
+        key = serial_port_key(link.port)
         settings = LineSettings.of(link)
         shared = cls._open.get(key)
         if shared is not None and shared.loop is not None and shared.loop.is_closed():
