@@ -132,7 +132,7 @@ async def _guarded(device: str, where: str, check) -> Row:
 
 async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
     from controller.drives.registry import open_drive
-    from firmware_protocol import PROTOCOL_VERSION, Fault, Status
+    from firmware_protocol import PROTOCOL_VERSION, Fault, Mode, Status
 
     drive = open_drive(link, tr.device_id)
     try:
@@ -144,8 +144,11 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
     finally:
         await drive.close()
     problems = []
-    if count < tr.axes:
-        problems.append(f"drive has {count} axis, a {tr.type} tracker needs {tr.axes}")
+    if count != tr.axes:
+        # another drive at that address, most likely: run would drive one of its axes (or refuse)
+        have = f"{count} axis" if count == 1 else f"{count} axes"
+        verb = "drives" if count > tr.axes else "needs"
+        problems.append(f"drive has {have}, a {tr.type} tracker {verb} {tr.axes}: wrong device_id?")
     parts = [f"{count} axis" if count == 1 else f"{count} axes"]
     if ident is None:
         parts.append("identity not reported by this link kind")
@@ -162,6 +165,11 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
         problems.append("fault " + ", ".join(faults))
     else:
         parts.append("no fault")
+    held_locally = [str(k) for k, a in enumerate(state.axes) if a.mode == Mode.MAINTENANCE]
+    if held_locally:  # run leaves MAINTENANCE to whoever set it: this drive would never track
+        problems.append(
+            f"axis {', '.join(held_locally)} in MAINTENANCE (local service mode): run will not move it"
+        )
     if any(a.fault != Fault.NONE and not a.status & Status.FAULT for a in state.axes):
         parts.append("a cleared fault code remains")
     pos = ", ".join(f"{a.actual_deg:.2f}" for a in state.axes)

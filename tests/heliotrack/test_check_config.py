@@ -315,3 +315,38 @@ def test_an_unexpected_error_of_one_device_is_its_row():
 
     row = asyncio.run(_guarded("row-can", "slcan:/dev/ttyACM0 node 20", surprise()))
     assert (row.ok, row.detail) == (False, "unexpected KeyError: '0x6041'")
+
+
+def test_check_fails_a_drive_in_maintenance_or_with_another_axis_count(tmp_path, capsys):
+    """An audit's cases: a drive left in MAINTENANCE (which run never moves) and a
+    single-axis row mapped to a two-axis drive (a wrong device_id) were both ok."""
+    from firmware_protocol import Mode
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+
+    fws = {i: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic) for i in (1, 2, 3)}
+    fws[1]._set_mode(0, Mode.MAINTENANCE)  # a service technician's panel
+    one_axis = DriveFirmware(two_axes()[:1], time.time, monotonic=time.monotonic)
+    with PtyLink.open() as link, ModbusServerThread({**fws, 4: one_axis}, serial_url=link.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
+            f'port = "{link.path}"\n'
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "row-2"\ntype = "single-axis"\nlink = "rs485"\ndevice_id = 2\n'
+            '[[trackers]]\nname = "dual-3"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 3\n'
+            '[[trackers]]\nname = "dual-4"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 4\n'
+        )
+        assert main(["check", "--config", str(p)]) == 1
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    detail = {name: row.split(" FAILED ", 1)[-1] for name, row in rows.items()}
+    assert detail["dual-1"].startswith(
+        "axis 0 in MAINTENANCE (local service mode): run will not move it (2 axes;"
+    ), out
+    assert detail["row-2"].startswith("drive has 2 axes, a single-axis tracker drives 1: wrong device_id?")
+    assert " ok " in rows["dual-3"], out
+    assert detail["dual-4"].startswith("drive has 1 axis, a dual-axis tracker needs 2: wrong device_id?")
+    assert out.splitlines()[-1] == "1 of 4 device(s) ok; 3 failed", out
