@@ -132,6 +132,9 @@ def test_check_names_a_port_that_is_not_there(tmp_path, capsys):
     out, err = capsys.readouterr()
     row = out.splitlines()[1]
     assert row.startswith("row-1") and "FAILED" in row and "ttyUSB9 id 3" in row, out
+    assert row.endswith(
+        f"{tmp_path / 'ttyUSB9'}: no such device (unplugged, or another name: see /dev/serial/by-id/)"
+    )
     assert out.splitlines()[-1] == "0 of 1 device(s) ok; 1 failed" and "Traceback" not in err
 
 

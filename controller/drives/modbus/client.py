@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
-from serial import SerialException
+from serial import SerialException, serial_for_url
 
 from ..base import DriveCommError, LinkSettingsError
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink, serial_port_key
@@ -177,6 +177,28 @@ def port_error(port: str, exc: BaseException, settings: LineSettings | None = No
     return f"{port}: cannot open the port: {text or type(exc).__name__}"
 
 
+def _why_not_open(port: str, settings: LineSettings) -> str:
+    """Open ``port`` as pymodbus does, for the reason it failed: pymodbus catches pyserial's
+    exception (an OSError) and only returns False.  Called after a failed open only; not
+    for a URL (``rfc2217://``), whose open may wait seconds on an unreachable server."""
+    if "://" in port:
+        return f"{port}: cannot open the port (is the serial device server reachable?)"
+    try:
+        serial = serial_for_url(
+            port,
+            exclusive=True,
+            baudrate=settings.baudrate,
+            parity=settings.parity,
+            stopbits=settings.stopbits,
+            bytesize=8,
+            timeout=0,
+        )
+    except (SerialException, OSError, termios.error, ValueError) as exc:
+        return port_error(port, exc, settings)
+    serial.close()
+    return f"{port}: cannot open the port (it opened when tried again: a passing fault?)"
+
+
 class SharedSerialClient:
     """The pymodbus client of one serial port, shared by every device of every link on it.
 
@@ -272,7 +294,7 @@ class SharedSerialClient:
                 gc.collect()
                 self.client.close()
                 raise DriveCommError(refused)
-            return False
+            raise DriveCommError(await asyncio.to_thread(_why_not_open, self.port, self.settings))
 
     def close(self) -> None:
         self.users -= 1
