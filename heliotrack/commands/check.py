@@ -17,7 +17,9 @@ import argparse
 import asyncio
 import logging
 import sys
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -60,7 +62,17 @@ def run(args: argparse.Namespace) -> int:
     from heliotrack.runtime import load_plant
 
     config = load_plant(args.config, "check")
-    rows = asyncio.run(check_plant(config, out=sys.stdout))
+    rows: list[Row] = []
+    try:
+        asyncio.run(check_plant(config, out=sys.stdout, rows=rows))
+    except (KeyboardInterrupt, asyncio.CancelledError):  # a second Ctrl-C: the rows so far
+        pass
+    from controller.clock import RealClock
+
+    total = len(_devices(config, RealClock()))
+    if len(rows) < total:  # Ctrl-C: not a verdict on the devices left out
+        print(f"check interrupted: {len(rows)} of {total} device(s) checked", flush=True)
+        return 130
     failed = [r for r in rows if not r.ok]
     print(
         f"{len(rows) - len(failed)} of {len(rows)} device(s) ok"
@@ -69,14 +81,42 @@ def run(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | None = None) -> list[Row]:
-    """Check every device of ``config`` in turn; rows are printed to ``out`` as they come."""
+def _devices(config: Config, clock: Clock) -> list[tuple[str, str, Callable[[], Awaitable]]]:
+    """(device, where, its check) for every device of ``config``, in the order of the rows."""
+    links = config.links_by_name
+    out: list[tuple[str, str, Callable[[], Awaitable]]] = []
+    for tr in config.trackers:
+        link = links[tr.link]
+        out.append((tr.name, _where(link, tr.device_id), partial(_drive, config, tr, link)))
+    if config.pyranometer is not None:
+        p = config.pyranometer
+        out.append(("pyranometer", _where(links[p.link], p.device_id), partial(_pyranometer, config, clock)))
+    if config.wind is not None:
+        w = config.wind
+        out.append(("anemometer", _where(links[w.link], w.device_id), partial(_anemometer, config, clock)))
+    cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
+    for name in cameras.get(config.control.sun_source, ()):
+        label = "camera" if name == "hotspot" else name
+        frames = getattr(config, name).frames
+        out.append((label, frames, partial(asyncio.to_thread, _camera, config, clock, name)))
+    return out
+
+
+async def check_plant(
+    config: Config, clock: Clock | None = None, out: TextIO | None = None, rows: list[Row] | None = None
+) -> list[Row]:
+    """Check every device of ``config`` in turn; rows are printed to ``out`` as they come
+    and appended to ``rows`` (the rows so far, when a second Ctrl-C cancels the check).
+
+    The first Ctrl-C (SIGINT) stops the check at once: the device being checked is given
+    up (its link closed), and the rows are those of the devices checked before.
+    """
     from controller.clock import RealClock
+    from heliotrack.interrupt import stop_on_sigint
 
     clock = clock or RealClock()
-    links = config.links_by_name
     width = max([len(t.name) for t in config.trackers] + [len("pyranometer"), len("anemometer")]) + 2
-    rows: list[Row] = []
+    rows = [] if rows is None else rows
 
     def emit(row: Row) -> None:
         rows.append(row)
@@ -86,21 +126,30 @@ async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | 
 
     if out is not None:
         print(f"{'DEVICE':<{width}}{'WHERE':<34} {'RESULT':<7}DETAIL", file=out, flush=True)
-    for tr in config.trackers:
-        link = links[tr.link]
-        emit(await _guarded(tr.name, _where(link, tr.device_id), _drive(config, tr, link)))
-    if config.pyranometer is not None:
-        p = config.pyranometer
-        emit(await _guarded("pyranometer", _where(links[p.link], p.device_id), _pyranometer(config, clock)))
-    if config.wind is not None:
-        w = config.wind
-        emit(await _guarded("anemometer", _where(links[w.link], w.device_id), _anemometer(config, clock)))
-    cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
-    for name in cameras.get(config.control.sun_source, ()):
-        frames = getattr(config, name).frames
-        label = "camera" if name == "hotspot" else name
-        emit(await _guarded(label, frames, asyncio.to_thread(_camera, config, clock, name)))
+    stop = asyncio.Event()
+    with stop_on_sigint(stop):
+        for device, where, check in _devices(config, clock):
+            if stop.is_set():
+                break
+            row = await _unless_stopped(stop, _guarded(device, where, check()))
+            if row is not None:
+                emit(row)
     return rows
+
+
+async def _unless_stopped(stop: asyncio.Event, check: Awaitable[Row]) -> Row | None:
+    """The row of ``check``, or None when ``stop`` is set first (the check is cancelled,
+    which closes its link: a drive's check holds a CANopen node enabled)."""
+    task = asyncio.ensure_future(check)
+    stopper = asyncio.ensure_future(stop.wait())
+    try:
+        await asyncio.wait({task, stopper}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        stopper.cancel()
+        if not task.done():
+            task.cancel()
+            await asyncio.wait({task})
+    return None if task.cancelled() else task.result()
 
 
 def _where(link, device_id: int) -> str:

@@ -353,3 +353,49 @@ def test_check_fails_a_drive_in_maintenance_or_with_another_axis_count(tmp_path,
     assert " ok " in rows["dual-3"], out
     assert detail["dual-4"].startswith("drive has 1 axis, a dual-axis tracker needs 2: wrong device_id?")
     assert out.splitlines()[-1] == "1 of 4 device(s) ok; 3 failed", out
+
+
+def test_ctrl_c_during_check_says_how_far_it_got(tmp_path):
+    """An audit's case: Ctrl-C exited 130 without a word; the drive being checked (here
+    one that does not answer, 5 s a try) is given up at once."""
+    import signal
+    import subprocess
+
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+    from tests.heliotrack.plant_emulators import HELIOTRACK, env
+
+    fws = {1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic)}
+    with PtyLink.open() as served, PtyLink.open() as silent, ModbusServerThread(fws, serial_url=served.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "a"\nkind = "modbus-rtu"\n'
+            f'port = "{served.path}"\n[[links]]\nname = "b"\nkind = "modbus-rtu"\nport = "{silent.path}"\n'
+            "timeout_s = 5.0\nretries = 0\n"
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "dual-2"\ntype = "dual-axis"\nlink = "b"\ndevice_id = 1\n'
+        )
+        proc = subprocess.Popen(
+            [*HELIOTRACK, "check", "--config", str(p)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env(),
+        )
+        try:
+            lines = [proc.stdout.readline(), proc.stdout.readline()]  # the header, dual-1's row
+            assert lines[1].startswith("dual-1") and " ok " in lines[1], lines
+            time.sleep(0.5)  # dual-2's first try under way
+            proc.send_signal(signal.SIGINT)
+            t = time.monotonic()
+            rc = proc.wait(10)
+            waited = time.monotonic() - t
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        rest, err = proc.communicate()
+    assert rc == 130 and waited < 3.0, (rc, waited, rest, err)
+    assert rest.splitlines() == ["check interrupted: 1 of 2 device(s) checked"], (rest, err)
+    assert "Traceback" not in err, err
