@@ -399,3 +399,29 @@ def test_ctrl_c_during_check_says_how_far_it_got(tmp_path):
     assert rc == 130 and waited < 3.0, (rc, waited, rest, err)
     assert rest.splitlines() == ["check interrupted: 1 of 2 device(s) checked"], (rest, err)
     assert "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("level, shown", [("WARNING", False), ("DEBUG", True)])
+def test_canopen_sdo_timeouts_are_debug_records_and_its_other_aborts_stay(tmp_path, level, shown):
+    """An audit's case: 'ERROR canopen.sdo.client: Transfer aborted by client with code
+    0x05040000' in the middle of check's table, for a drive whose row says it already."""
+    import canopen
+    from canopen.sdo import SdoCommunicationError
+
+    log_file = tmp_path / "check.log"
+    with logging_configured(level, "json", log_file):
+        network = canopen.Network()
+        network.connect(interface="virtual", channel="nobody-answers")
+        try:
+            node = canopen.RemoteNode(20, canopen.ObjectDictionary())
+            network.add_node(node)
+            node.sdo.RESPONSE_TIMEOUT = 0.05
+            with pytest.raises(SdoCommunicationError):
+                node.sdo.upload(0x1000, 0)  # nobody on the bus: the library's own timeout
+            node.sdo.abort(0x05040001)  # another abort: still an error
+        finally:
+            network.disconnect()
+    got = [json.loads(line)["message"] for line in log_file.read_text().splitlines()]
+    timeouts = [m for m in got if m.endswith("0x05040000")]
+    assert len(timeouts) == (1 if shown else 0), got
+    assert "Transfer aborted by client with code 0x05040001" in got
