@@ -1,9 +1,9 @@
 """``heliotrack check``: what a commissioning engineer runs first.
 
 Validates the plant file, opens every link and asks every configured device who it is: each
-drive its axis count, protocol and firmware versions, uptime, fault word and position; the
-pyranometer and the anemometer a reading; the camera a frame (its size against the
-calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
+drive its axis count, protocol and firmware versions, uptime, the round-trip time of its
+requests, fault word and position; the pyranometer and the anemometer a reading; the
+camera a frame (its size against the calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
 what the device said, or what failed.  Exit 0 only if every device answered, 1 otherwise
 (2 for a bad file).
 
@@ -190,6 +190,9 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
         ident = await drive.identify()
         state = await drive.read_state()
         held = await drive.read_configuration()
+        # every request answered so far (Modbus reads, CANopen SDOs; a CANopen state comes
+        # from TPDOs, no request): what the link's timeout_s and the period must allow
+        rtts = sorted(drive.stats.latencies_s)
     finally:
         await drive.close()
     problems = []
@@ -209,6 +212,8 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
             )
         parts.append(f"protocol {v(ident.protocol_version)}, firmware {v(ident.firmware_version)}")
         parts.append(f"up {_duration(ident.uptime_s)}")
+    if rtts:
+        parts.append(f"rtt {_ms(rtts[len(rtts) // 2])} (max {_ms(rtts[-1])})")
     faults = [f"axis {k} {a.fault.name}" for k, a in enumerate(state.axes) if a.status & Status.FAULT]
     if faults:
         problems.append("fault " + ", ".join(faults))
@@ -247,6 +252,11 @@ def _configuration(config: Config, tr: TrackerConfig, held) -> str:
     if not diffs:
         return held.describe() + " (as the plant file has it)"
     return held.describe() + "; run writes " + ", ".join(f"{what} {wanted}" for what, _, wanted in diffs)
+
+
+def _ms(s: float) -> str:
+    """A round-trip time: tenths below 10 ms (a pty or a LAN answers in well under one)."""
+    return f"{s * 1000:.1f} ms" if s < 0.01 else f"{s * 1000:.0f} ms"
 
 
 def _duration(s: float) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -251,6 +252,8 @@ def test_check_reads_the_sensors_on_a_line(tmp_path, capsys):
     assert f"{link.path} id 10" in rows["pyranometer"] and " W/m2" in rows["pyranometer"], out
     assert f"{link.path} id 11" in rows["anemometer"] and "m/s, gust" in rows["anemometer"], out
     assert "at 180.00, 90.00 deg (AUTO, AUTO)" in rows["dual-1"], out
+    # how long the drive takes to answer on this line (the median and the slowest request)
+    assert re.search(r"; up \d+ s; rtt \d+(\.\d)? ms \(max \d+(\.\d)? ms\); no fault;", rows["dual-1"]), out
 
 
 @pytest.mark.parametrize(
