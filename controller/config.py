@@ -207,24 +207,27 @@ class Config:
 
     def __schema_check__(self, at: Where) -> Config:
         links: dict[str, LinkConfig] = {}
-        serial: dict[tuple[str, ...], str] = {}
+        serial: dict[tuple[str, ...], ModbusRtuLink] = {}
         for i, link in enumerate(self.links):
             if link.name in links:
                 raise at.child("links").item(i).child("name").error("a unique link name", link.name)
             links[link.name] = link
-            if link.bus[0] == "serial":  # a serial port is opened by one link only
+            # a serial port is opened by one link only, whatever name (a symlink) it goes by
+            if isinstance(link, ModbusRtuLink) and link.bus[0] == "serial":
                 if link.bus in serial:
+                    other = serial[link.bus]
+                    same = "" if other.port == link.port else f" as {other.port}; both are {link.bus[1]}"
                     raise (
                         at.child("links")
                         .item(i)
                         .child("port")
                         .error(
-                            f"a port no other link opens (link {serial[link.bus]!r} has it: put "
+                            f"a port no other link opens (link {other.name!r} has it{same}: put "
                             "every device of one RS-485 line on one link)",
-                            link.bus[1],
+                            link.port,
                         )
                     )
-                serial[link.bus] = link.name
+                serial[link.bus] = link
         if not self.trackers:
             raise at.child("trackers").error("at least one [[trackers]] table")
         names: set[str] = set()

@@ -8,7 +8,8 @@ level: nothing is silenced, and a debug run is not drowned in a library's frames
 exception: pymodbus's ERROR for each timed-out request (with the frame dumped) counts as
 DEBUG, since the link retries it and reports the failure with the drive's name, and so
 does its ERROR for each request to a unit id the SunSpec server does not answer (the
-client gets exception 0x0B; a client could otherwise fill the log).
+client gets exception 0x0B; a client could otherwise fill the log); and so does
+canopen's ERROR for the abort it sends after an SDO timeout (the drive's error says it).
 
 ``json`` writes one object per line: ``time`` (ISO 8601 UTC), ``level``, ``logger``,
 ``message``, and the fields a caller passed as ``extra={"fields": {...}}``.
@@ -76,12 +77,19 @@ class _LevelFilter(logging.Filter):
             # sends to another unit id, which it is answered (exception 0x0B): a debug
             # record, not one line per request in the plant's log
             return self.level <= logging.DEBUG
+        if record.name.startswith("canopen.sdo") and record.getMessage() in _CANOPEN_ROUTINE:
+            # the same for an SDO timeout (canopen aborts the transfer and says so at ERROR,
+            # in the middle of check's table); other abort codes stay errors
+            return self.level <= logging.DEBUG
         return record.levelno >= max(self.level, LIBRARY_LEVEL)
 
 
 #: How pymodbus begins its messages for a request that timed out (a drive link), and for
 #: one to a unit id the server does not answer (the SunSpec server).
 _PYMODBUS_ROUTINE = ("No response received", "requested device id does not exist")
+#: canopen's messages for an SDO request that timed out: the abort it sends (SDO abort code
+#: 0x05040000, "SDO protocol timed out") and, with retries, each retry.
+_CANOPEN_ROUTINE = ("Transfer aborted by client with code 0x05040000", "No SDO response received")
 
 
 def _plain(value: Any) -> Any:

@@ -8,6 +8,8 @@ folder, and leaving every drive at its safe position.
   state lives (the SQLite store ``DIR/heliotrack.sqlite`` unless ``[store] path`` names
   one, the sun-path file ``DIR/sunpath.json`` unless ``[sunpath] state`` does, the record
   of the last shutdown).
+- :func:`claim_state_folder`: one ``run`` per state folder (an exclusive lock on
+  ``DIR/.lock``); a second is refused in one line naming the first's pid.
 - :func:`go_safe`: every drive commanded to its tracker's ``safe_position`` (``stow`` or
   ``hold``) and confirmed by reading it back; the trackers stowed so are recorded in the
   state folder, so that the next start resumes them (a stow it did not command the loop
@@ -17,10 +19,14 @@ folder, and leaving every drive at its safe position.
 from __future__ import annotations
 
 import asyncio
+import errno
+import fcntl
 import json
 import logging
 import os
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -28,7 +34,7 @@ from controller.atomic import atomic_write
 from controller.config import Config
 from controller.drives.base import DriveCommError, DriveNoAnswer
 from controller.drives.links import CanopenLink, LinkConfig, ModbusRtuLink, ModbusTcpLink
-from controller.errors import ConfigError
+from controller.errors import ConfigError, UserError
 from controller.health import implausible_axes
 from controller.loop import Controller
 from controller.records import TrackerRuntime
@@ -165,6 +171,11 @@ class StateFolder:
         that a start after ``kill -9`` or a power cut still knows whose stow it was."""
         return self.path / "foreign-stows.json"
 
+    @property
+    def lock(self) -> Path:
+        """Locked by the ``run`` using the folder, and holding its pid (:func:`claim_state_folder`)."""
+        return self.path / ".lock"
+
 
 def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, StateFolder | None]:
     """Create (if needed) and check the state folder; the config with its state files in it:
@@ -201,6 +212,52 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
     if config.sunpath.state is None:
         config = replace(config, sunpath=replace(config.sunpath, state=state.sunpath))
     return config, state
+
+
+@contextmanager
+def claim_state_folder(state: StateFolder | None) -> Iterator[None]:
+    """Hold an exclusive lock on ``state.lock`` for the block (``run``: its whole life).
+
+    Two ``run`` on one folder would both drive the plant's drives and overwrite each
+    other's records.  ``flock`` rather than a pid file: the kernel lets go when the process
+    dies however it dies (``kill -9``, a power cut), so a stale file never blocks a start.
+    The pid written into it is for the refusal's message only.
+
+    Raises
+    ------
+    UserError
+        Another process holds the lock (the message names its pid), or the lock file
+        cannot be created.
+    """
+    if state is None:
+        yield
+        return
+    try:
+        fd = os.open(state.lock, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise ConfigError(
+            None,
+            "--state",
+            f"a folder where {state.lock.name} can be created ({exc.strerror})",
+            str(state.path),
+        ) from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                # a file system without locks (some network mounts): run, but say so
+                log.warning("%s: not locked (%s): nothing stops a second run here", state.lock, exc.strerror)
+            else:
+                pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
+                raise UserError(
+                    f"--state {state.path}: in use by another heliotrack run (pid {pid})"
+                ) from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock; the file stays (removing it would race a new start)
 
 
 def note_foreign_stows(
@@ -399,6 +456,11 @@ async def go_safe(
             return await _safe_one(ctl, tr, deadline)
         except (DriveCommError, OSError, ValueError) as exc:
             return SafeOutcome(tr.cfg.name, tr.cfg.safe_position, False, f"no answer: {exc}")
+        except Exception as exc:  # noqa: BLE001 - one drive's surprise must not leave the others unsafe
+            log.error("%s: safe position failed: %s", tr.cfg.name, exc, exc_info=exc)
+            return SafeOutcome(
+                tr.cfg.name, tr.cfg.safe_position, False, f"failed: {type(exc).__name__}: {exc}"
+            )
 
     tasks = {tr.cfg.name: asyncio.ensure_future(one(tr)) for tr in ctl.trackers}
     await asyncio.wait(tasks.values(), timeout=max(deadline - time.monotonic(), 0.1))

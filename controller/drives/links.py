@@ -7,6 +7,7 @@ so a backend brings its own keys and a typo in any of them is an error.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import Literal
 
@@ -56,7 +57,14 @@ class ModbusRtuLink(LinkConfig):
 
     @property
     def bus(self) -> tuple[str, ...]:
-        return super().bus if self.is_hil else ("serial", self.port)
+        # the device, not its name: a symlink (/dev/serial/by-id/...) and its target are one line
+        return super().bus if self.is_hil else ("serial", serial_port_key(self.port))
+
+
+def serial_port_key(port: str) -> str:
+    """One key per physical serial port: ``/dev/serial/by-id/...`` and the ``/dev/ttyUSB0``
+    it links to agree; a pyserial URL (``rfc2217://...``) is its own key."""
+    return port if "://" in port else os.path.realpath(port)
 
 
 @dataclass(frozen=True, kw_only=True)

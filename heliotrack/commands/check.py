@@ -1,9 +1,9 @@
 """``heliotrack check``: what a commissioning engineer runs first.
 
 Validates the plant file, opens every link and asks every configured device who it is: each
-drive its axis count, protocol and firmware versions, uptime, fault word and position; the
-pyranometer and the anemometer a reading; the camera a frame (its size against the
-calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
+drive its axis count, protocol and firmware versions, uptime, the round-trip time of its
+requests, fault word and position; the pyranometer and the anemometer a reading; the
+camera a frame (its size against the calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
 what the device said, or what failed.  Exit 0 only if every device answered, 1 otherwise
 (2 for a bad file).
 
@@ -15,8 +15,11 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import logging
 import sys
+from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
@@ -25,6 +28,8 @@ from heliotrack.logs import add_log_options
 if TYPE_CHECKING:
     from controller.clock import Clock
     from controller.config import Config, TrackerConfig
+
+log = logging.getLogger("heliotrack.check")
 
 #: One device may take this long at most (a CANopen drive's start takes a few SDOs).
 DEVICE_TIMEOUT_S = 30.0
@@ -57,7 +62,17 @@ def run(args: argparse.Namespace) -> int:
     from heliotrack.runtime import load_plant
 
     config = load_plant(args.config, "check")
-    rows = asyncio.run(check_plant(config, out=sys.stdout))
+    rows: list[Row] = []
+    try:
+        asyncio.run(check_plant(config, out=sys.stdout, rows=rows))
+    except (KeyboardInterrupt, asyncio.CancelledError):  # a second Ctrl-C: the rows so far
+        pass
+    from controller.clock import RealClock
+
+    total = len(_devices(config, RealClock()))
+    if len(rows) < total:  # Ctrl-C: not a verdict on the devices left out
+        print(f"check interrupted: {len(rows)} of {total} device(s) checked", flush=True)
+        return 130
     failed = [r for r in rows if not r.ok]
     print(
         f"{len(rows) - len(failed)} of {len(rows)} device(s) ok"
@@ -66,14 +81,42 @@ def run(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
-async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | None = None) -> list[Row]:
-    """Check every device of ``config`` in turn; rows are printed to ``out`` as they come."""
+def _devices(config: Config, clock: Clock) -> list[tuple[str, str, Callable[[], Awaitable]]]:
+    """(device, where, its check) for every device of ``config``, in the order of the rows."""
+    links = config.links_by_name
+    out: list[tuple[str, str, Callable[[], Awaitable]]] = []
+    for tr in config.trackers:
+        link = links[tr.link]
+        out.append((tr.name, _where(link, tr.device_id), partial(_drive, config, tr, link)))
+    if config.pyranometer is not None:
+        p = config.pyranometer
+        out.append(("pyranometer", _where(links[p.link], p.device_id), partial(_pyranometer, config, clock)))
+    if config.wind is not None:
+        w = config.wind
+        out.append(("anemometer", _where(links[w.link], w.device_id), partial(_anemometer, config, clock)))
+    cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
+    for name in cameras.get(config.control.sun_source, ()):
+        label = "camera" if name == "hotspot" else name
+        frames = getattr(config, name).frames
+        out.append((label, frames, partial(asyncio.to_thread, _camera, config, clock, name)))
+    return out
+
+
+async def check_plant(
+    config: Config, clock: Clock | None = None, out: TextIO | None = None, rows: list[Row] | None = None
+) -> list[Row]:
+    """Check every device of ``config`` in turn; rows are printed to ``out`` as they come
+    and appended to ``rows`` (the rows so far, when a second Ctrl-C cancels the check).
+
+    The first Ctrl-C (SIGINT) stops the check at once: the device being checked is given
+    up (its link closed), and the rows are those of the devices checked before.
+    """
     from controller.clock import RealClock
+    from heliotrack.interrupt import stop_on_sigint
 
     clock = clock or RealClock()
-    links = config.links_by_name
     width = max([len(t.name) for t in config.trackers] + [len("pyranometer"), len("anemometer")]) + 2
-    rows: list[Row] = []
+    rows = [] if rows is None else rows
 
     def emit(row: Row) -> None:
         rows.append(row)
@@ -83,21 +126,30 @@ async def check_plant(config: Config, clock: Clock | None = None, out: TextIO | 
 
     if out is not None:
         print(f"{'DEVICE':<{width}}{'WHERE':<34} {'RESULT':<7}DETAIL", file=out, flush=True)
-    for tr in config.trackers:
-        link = links[tr.link]
-        emit(await _guarded(tr.name, _where(link, tr.device_id), _drive(config, tr, link)))
-    if config.pyranometer is not None:
-        p = config.pyranometer
-        emit(await _guarded("pyranometer", _where(links[p.link], p.device_id), _pyranometer(config, clock)))
-    if config.wind is not None:
-        w = config.wind
-        emit(await _guarded("anemometer", _where(links[w.link], w.device_id), _anemometer(config, clock)))
-    cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
-    for name in cameras.get(config.control.sun_source, ()):
-        frames = getattr(config, name).frames
-        label = "camera" if name == "hotspot" else name
-        emit(await _guarded(label, frames, asyncio.to_thread(_camera, config, clock, name)))
+    stop = asyncio.Event()
+    with stop_on_sigint(stop):
+        for device, where, check in _devices(config, clock):
+            if stop.is_set():
+                break
+            row = await _unless_stopped(stop, _guarded(device, where, check()))
+            if row is not None:
+                emit(row)
     return rows
+
+
+async def _unless_stopped(stop: asyncio.Event, check: Awaitable[Row]) -> Row | None:
+    """The row of ``check``, or None when ``stop`` is set first (the check is cancelled,
+    which closes its link: a drive's check holds a CANopen node enabled)."""
+    task = asyncio.ensure_future(check)
+    stopper = asyncio.ensure_future(stop.wait())
+    try:
+        await asyncio.wait({task, stopper}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        stopper.cancel()
+        if not task.done():
+            task.cancel()
+            await asyncio.wait({task})
+    return None if task.cancelled() else task.result()
 
 
 def _where(link, device_id: int) -> str:
@@ -121,12 +173,15 @@ async def _guarded(device: str, where: str, check) -> Row:
         ok, detail = False, f"no answer on {where} within {DEVICE_TIMEOUT_S:g} s"
     except (DriveCommError, UserError, OSError) as exc:
         ok, detail = False, str(exc)
+    except Exception as exc:  # noqa: BLE001 - a library's surprise is this device's row, not the end of check
+        log.debug("%s: %s", device, exc, exc_info=exc)
+        ok, detail = False, f"unexpected {type(exc).__name__}: {exc}"
     return Row(device, where, ok, detail)
 
 
 async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
     from controller.drives.registry import open_drive
-    from firmware_protocol import PROTOCOL_VERSION, Fault, Status
+    from firmware_protocol import PROTOCOL_VERSION, Fault, Mode, Status
 
     drive = open_drive(link, tr.device_id)
     try:
@@ -135,11 +190,17 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
         ident = await drive.identify()
         state = await drive.read_state()
         held = await drive.read_configuration()
+        # every request answered so far (Modbus reads, CANopen SDOs; a CANopen state comes
+        # from TPDOs, no request): what the link's timeout_s and the period must allow
+        rtts = sorted(drive.stats.latencies_s)
     finally:
         await drive.close()
     problems = []
-    if count < tr.axes:
-        problems.append(f"drive has {count} axis, a {tr.type} tracker needs {tr.axes}")
+    if count != tr.axes:
+        # another drive at that address, most likely: run would drive one of its axes (or refuse)
+        have = f"{count} axis" if count == 1 else f"{count} axes"
+        verb = "drives" if count > tr.axes else "needs"
+        problems.append(f"drive has {have}, a {tr.type} tracker {verb} {tr.axes}: wrong device_id?")
     parts = [f"{count} axis" if count == 1 else f"{count} axes"]
     if ident is None:
         parts.append("identity not reported by this link kind")
@@ -151,11 +212,18 @@ async def _drive(config: Config, tr: TrackerConfig, link) -> tuple[bool, str]:
             )
         parts.append(f"protocol {v(ident.protocol_version)}, firmware {v(ident.firmware_version)}")
         parts.append(f"up {_duration(ident.uptime_s)}")
+    if rtts:
+        parts.append(f"rtt {_ms(rtts[len(rtts) // 2])} (max {_ms(rtts[-1])})")
     faults = [f"axis {k} {a.fault.name}" for k, a in enumerate(state.axes) if a.status & Status.FAULT]
     if faults:
         problems.append("fault " + ", ".join(faults))
     else:
         parts.append("no fault")
+    held_locally = [str(k) for k, a in enumerate(state.axes) if a.mode == Mode.MAINTENANCE]
+    if held_locally:  # run leaves MAINTENANCE to whoever set it: this drive would never track
+        problems.append(
+            f"axis {', '.join(held_locally)} in MAINTENANCE (local service mode): run will not move it"
+        )
     if any(a.fault != Fault.NONE and not a.status & Status.FAULT for a in state.axes):
         parts.append("a cleared fault code remains")
     pos = ", ".join(f"{a.actual_deg:.2f}" for a in state.axes)
@@ -184,6 +252,11 @@ def _configuration(config: Config, tr: TrackerConfig, held) -> str:
     if not diffs:
         return held.describe() + " (as the plant file has it)"
     return held.describe() + "; run writes " + ", ".join(f"{what} {wanted}" for what, _, wanted in diffs)
+
+
+def _ms(s: float) -> str:
+    """A round-trip time: tenths below 10 ms (a pty or a LAN answers in well under one)."""
+    return f"{s * 1000:.1f} ms" if s < 0.01 else f"{s * 1000:.0f} ms"
 
 
 def _duration(s: float) -> str:

@@ -56,7 +56,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         metavar="DIR",
         help="folder for learned state and history: DIR/heliotrack.sqlite unless [store] path "
-        "names a file, DIR/sunpath.json unless [sunpath] state does",
+        "names a file, DIR/sunpath.json unless [sunpath] state does; one run per folder",
     )
     p.add_argument(
         "--duration",
@@ -72,7 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from controller.errors import ConfigError
     from heliotrack.allocator import bound_heap
-    from heliotrack.runtime import load_plant, use_state_folder
+    from heliotrack.runtime import claim_state_folder, load_plant, use_state_folder
 
     bound_heap()  # months of frames and arrays: no heap that keeps its high-water mark
 
@@ -80,7 +80,8 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(None, "--duration", "seconds > 0", args.duration)
     config, state = use_state_folder(config, args.state)
-    return asyncio.run(Service(config, state).serve(args.duration))
+    with claim_state_folder(state):  # one run per folder: two would fight over the drives
+        return asyncio.run(Service(config, state).serve(args.duration))
 
 
 class Service:

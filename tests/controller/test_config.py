@@ -410,3 +410,25 @@ def test_a_link_whose_retries_outlast_the_cycle_is_warned_about(tmp_path, capsys
         '[[trackers]]\nname = "t"\ntype = "dual-axis"\nlink = "lan"\ndevice_id = 1\n',
     )
     assert "one transaction with its retries may take 1 s" in err
+
+
+def test_two_links_on_one_port_through_a_symlink_are_refused(tmp_path):
+    """An audit's case: one drive as two trackers, link a on /dev/pts/N and link b on a
+    symlink to it (as /dev/serial/by-id/... is to /dev/ttyUSB0), passed validate, check and run."""
+    from hil.pty import PtyLink
+
+    with PtyLink.open() as pty:
+        alias = tmp_path / "by-id-port0"
+        alias.symlink_to(pty.path)
+        links = [
+            {"name": "a", "kind": "modbus-rtu", "port": pty.path},
+            {"name": "b", "kind": "modbus-rtu", "port": str(alias)},
+        ]
+        trackers = [
+            {"name": "t1", "type": "dual-axis", "link": "a", "device_id": 1},
+            {"name": "t2", "type": "dual-axis", "link": "b", "device_id": 1},
+        ]
+        with pytest.raises(ConfigError) as e:
+            parse_config(_plant(links, trackers))
+        assert e.value.key == "links[1].port" and e.value.got == str(alias)
+        assert f"link 'a' has it as {pty.path}; both are {pty.path}" in str(e.value)

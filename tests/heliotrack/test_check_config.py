@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -132,6 +133,9 @@ def test_check_names_a_port_that_is_not_there(tmp_path, capsys):
     out, err = capsys.readouterr()
     row = out.splitlines()[1]
     assert row.startswith("row-1") and "FAILED" in row and "ttyUSB9 id 3" in row, out
+    assert row.endswith(
+        f"{tmp_path / 'ttyUSB9'}: no such device (unplugged, or another name: see /dev/serial/by-id/)"
+    )
     assert out.splitlines()[-1] == "0 of 1 device(s) ok; 1 failed" and "Traceback" not in err
 
 
@@ -248,6 +252,8 @@ def test_check_reads_the_sensors_on_a_line(tmp_path, capsys):
     assert f"{link.path} id 10" in rows["pyranometer"] and " W/m2" in rows["pyranometer"], out
     assert f"{link.path} id 11" in rows["anemometer"] and "m/s, gust" in rows["anemometer"], out
     assert "at 180.00, 90.00 deg (AUTO, AUTO)" in rows["dual-1"], out
+    # how long the drive takes to answer on this line (the median and the slowest request)
+    assert re.search(r"; up \d+ s; rtt \d+(\.\d)? ms \(max \d+(\.\d)? ms\); no fault;", rows["dual-1"]), out
 
 
 @pytest.mark.parametrize(
@@ -268,3 +274,157 @@ def test_an_output_path_that_cannot_be_written_is_one_line(tmp_path, capsys, arg
     err = capsys.readouterr().err.strip()
     assert needle in err and err.count("\n") == 0 and "Traceback" not in err
     assert (tmp_path / "afile").read_text() == "x"
+
+
+def test_check_names_a_port_that_refuses_its_parity_and_goes_on(tmp_path, capsys):
+    """An audit's case: ``parity = "E"`` on a pty (``termios.error``) printed a traceback
+    and no further row."""
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+
+    fws = {1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic)}
+    with (
+        PtyLink.open() as even,
+        PtyLink.open() as plain,
+        ModbusServerThread(fws, serial_url=even.url),
+        ModbusServerThread({2: DriveFirmware(two_axes(), time.time)}, serial_url=plain.url),
+    ):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "a"\nkind = "modbus-rtu"\n'
+            f'port = "{even.path}"\nparity = "E"\n[[links]]\nname = "b"\nkind = "modbus-rtu"\n'
+            f'port = "{plain.path}"\n'
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "dual-2"\ntype = "dual-axis"\nlink = "b"\ndevice_id = 2\n'
+        )
+        assert main(["check", "--config", str(p)]) == 1
+    out, err = capsys.readouterr()
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    assert set(rows) == {"dual-1", "dual-2"} and "Traceback" not in err, (out, err)
+    assert rows["dual-1"].endswith(
+        f"FAILED {even.path}: cannot configure the port (baudrate 115200, parity E, stopbits 1): "
+        "Invalid argument"
+    ), out
+    assert " ok " in rows["dual-2"] and out.splitlines()[-1] == "1 of 2 device(s) ok; 1 failed"
+
+
+def test_an_unexpected_error_of_one_device_is_its_row():
+    """Whatever a library raises, the row says so and the rows after it still print."""
+    import asyncio
+
+    from heliotrack.commands.check import _guarded
+
+    async def surprise():
+        raise KeyError("0x6041")
+
+    row = asyncio.run(_guarded("row-can", "slcan:/dev/ttyACM0 node 20", surprise()))
+    assert (row.ok, row.detail) == (False, "unexpected KeyError: '0x6041'")
+
+
+def test_check_fails_a_drive_in_maintenance_or_with_another_axis_count(tmp_path, capsys):
+    """An audit's cases: a drive left in MAINTENANCE (which run never moves) and a
+    single-axis row mapped to a two-axis drive (a wrong device_id) were both ok."""
+    from firmware_protocol import Mode
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+
+    fws = {i: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic) for i in (1, 2, 3)}
+    fws[1]._set_mode(0, Mode.MAINTENANCE)  # a service technician's panel
+    one_axis = DriveFirmware(two_axes()[:1], time.time, monotonic=time.monotonic)
+    with PtyLink.open() as link, ModbusServerThread({**fws, 4: one_axis}, serial_url=link.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
+            f'port = "{link.path}"\n'
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "row-2"\ntype = "single-axis"\nlink = "rs485"\ndevice_id = 2\n'
+            '[[trackers]]\nname = "dual-3"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 3\n'
+            '[[trackers]]\nname = "dual-4"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 4\n'
+        )
+        assert main(["check", "--config", str(p)]) == 1
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln for ln in out.splitlines()[1:-1]}
+    detail = {name: row.split(" FAILED ", 1)[-1] for name, row in rows.items()}
+    assert detail["dual-1"].startswith(
+        "axis 0 in MAINTENANCE (local service mode): run will not move it (2 axes;"
+    ), out
+    assert detail["row-2"].startswith("drive has 2 axes, a single-axis tracker drives 1: wrong device_id?")
+    assert " ok " in rows["dual-3"], out
+    assert detail["dual-4"].startswith("drive has 1 axis, a dual-axis tracker needs 2: wrong device_id?")
+    assert out.splitlines()[-1] == "1 of 4 device(s) ok; 3 failed", out
+
+
+def test_ctrl_c_during_check_says_how_far_it_got(tmp_path):
+    """An audit's case: Ctrl-C exited 130 without a word; the drive being checked (here
+    one that does not answer, 5 s a try) is given up at once."""
+    import signal
+    import subprocess
+
+    from hil.drive import DriveFirmware
+    from hil.modbus_server import ModbusServerThread
+    from hil.pty import PtyLink
+    from tests.conftest import two_axes
+    from tests.heliotrack.plant_emulators import HELIOTRACK, env
+
+    fws = {1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic)}
+    with PtyLink.open() as served, PtyLink.open() as silent, ModbusServerThread(fws, serial_url=served.url):
+        p = tmp_path / "plant.toml"
+        p.write_text(
+            '[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "a"\nkind = "modbus-rtu"\n'
+            f'port = "{served.path}"\n[[links]]\nname = "b"\nkind = "modbus-rtu"\nport = "{silent.path}"\n'
+            "timeout_s = 5.0\nretries = 0\n"
+            '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
+            '[[trackers]]\nname = "dual-2"\ntype = "dual-axis"\nlink = "b"\ndevice_id = 1\n'
+        )
+        proc = subprocess.Popen(
+            [*HELIOTRACK, "check", "--config", str(p)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env(),
+        )
+        try:
+            lines = [proc.stdout.readline(), proc.stdout.readline()]  # the header, dual-1's row
+            assert lines[1].startswith("dual-1") and " ok " in lines[1], lines
+            time.sleep(0.5)  # dual-2's first try under way
+            proc.send_signal(signal.SIGINT)
+            t = time.monotonic()
+            rc = proc.wait(10)
+            waited = time.monotonic() - t
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+        rest, err = proc.communicate()
+    assert rc == 130 and waited < 3.0, (rc, waited, rest, err)
+    assert rest.splitlines() == ["check interrupted: 1 of 2 device(s) checked"], (rest, err)
+    assert "Traceback" not in err, err
+
+
+@pytest.mark.parametrize("level, shown", [("WARNING", False), ("DEBUG", True)])
+def test_canopen_sdo_timeouts_are_debug_records_and_its_other_aborts_stay(tmp_path, level, shown):
+    """An audit's case: 'ERROR canopen.sdo.client: Transfer aborted by client with code
+    0x05040000' in the middle of check's table, for a drive whose row says it already."""
+    import canopen
+    from canopen.sdo import SdoCommunicationError
+
+    log_file = tmp_path / "check.log"
+    with logging_configured(level, "json", log_file):
+        network = canopen.Network()
+        network.connect(interface="virtual", channel="nobody-answers")
+        try:
+            node = canopen.RemoteNode(20, canopen.ObjectDictionary())
+            network.add_node(node)
+            node.sdo.RESPONSE_TIMEOUT = 0.05
+            with pytest.raises(SdoCommunicationError):
+                node.sdo.upload(0x1000, 0)  # nobody on the bus: the library's own timeout
+            node.sdo.abort(0x05040001)  # another abort: still an error
+        finally:
+            network.disconnect()
+    got = [json.loads(line)["message"] for line in log_file.read_text().splitlines()]
+    timeouts = [m for m in got if m.endswith("0x05040000")]
+    assert len(timeouts) == (1 if shown else 0), got
+    assert "Transfer aborted by client with code 0x05040001" in got

@@ -103,3 +103,18 @@ def test_a_second_signal_exits_at_once(tmp_path, silent_line):
     err = proc.stderr.read()
     assert rc == 128 + signal.SIGINT, err
     assert "second signal (SIGINT): exiting at once" in err and "Traceback" not in err
+
+
+def test_a_port_that_refuses_its_settings_still_ends_in_a_safe_shutdown(tmp_path, silent_line, capsys):
+    """An audit's case: ``parity = "E"`` on a pty raised ``termios.error`` at start-up ("the
+    control loop failed") and again in the shutdown, which never wrote its record: exit 1,
+    learned state not saved."""
+    cfg = _silent_plant(tmp_path, silent_line)
+    cfg.write_text(cfg.read_text().replace("retries = 1\n", 'retries = 1\nparity = "E"\n'))
+    rc = main(["run", "--config", str(cfg), "--state", str(tmp_path / "state"), "--duration", "1.5"])
+    err = capsys.readouterr().err
+    assert rc == 0 and "Traceback" not in err and "the control loop failed" not in err, err
+    assert "cannot configure the port (baudrate 115200, parity E, stopbits 1): Invalid argument" in err
+    assert "stopped (end of --duration)" in err and "safe position confirmed for 0 of 1 drives" in err
+    # written: its watchdog stows it, and the next start resumes that stow
+    assert json.loads((tmp_path / "state" / "shutdown.json").read_text())["stowed"] == ["dual-1"]

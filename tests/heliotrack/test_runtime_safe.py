@@ -233,3 +233,23 @@ def test_a_drive_whose_state_cannot_be_trusted_is_sent_stow_anyway(default_plant
     assert out["dual-1"].detail.startswith("state unreadable (dual-1: implausible state")
     assert "STOW sent, not read back" in out["dual-1"].detail and not out["dual-1"].confirmed
     assert fws["dual-1"].modes[0] == Mode.STOW
+
+
+def test_one_drives_unexpected_error_leaves_the_others_safe_and_the_record_written(default_plant, tmp_path):
+    """An audit's case: one drive's exception outside the link's errors ended the shutdown:
+    no other drive stowed, no shutdown record, the links left open."""
+    run, ctl, fws, clock, cfg = default_plant
+    run(ctl.cycle())
+    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
+
+    async def broken():
+        raise RuntimeError("a library's surprise")
+
+    tr.drive.read_state = broken
+    state = StateFolder(tmp_path)
+    out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
+    assert not out["dual-1"].confirmed
+    assert out["dual-1"].detail.startswith("failed: RuntimeError: a library's surprise")
+    others = [name for name in out if name != "dual-1"]
+    assert others and all(out[name].confirmed for name in others)
+    assert fws[others[0]].modes[0] == Mode.STOW and state.shutdown.exists()

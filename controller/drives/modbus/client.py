@@ -10,7 +10,10 @@ must agree on its line settings, or the second is refused.
 from __future__ import annotations
 
 import asyncio
+import errno
+import gc
 import os
+import termios
 from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -18,9 +21,10 @@ from typing import Any, ClassVar
 from pymodbus.client import AsyncModbusSerialClient, AsyncModbusTcpClient
 from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ModbusException
+from serial import SerialException, serial_for_url
 
-from ..base import LinkSettingsError
-from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
+from ..base import DriveCommError, LinkSettingsError
+from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink, serial_port_key
 from ..retry import RetryPolicy
 
 #: Exception responses that mean "not now" rather than "never": worth another attempt.
@@ -132,10 +136,67 @@ class LineSettings:
     def __str__(self) -> str:
         return f"{self.baudrate} bit/s 8{self.parity}{self.stopbits}, timeout {self.timeout_s:g} s"
 
+    @property
+    def keys(self) -> str:
+        """The settings as the plant file names them, for a port that refuses them."""
+        return f"baudrate {self.baudrate}, parity {self.parity}, stopbits {self.stopbits}"
 
-def _port_key(port: str) -> str:
-    """One key per physical port: ``/dev/serial/by-id/...`` and ``/dev/ttyUSB0`` agree."""
-    return port if "://" in port else os.path.realpath(port)
+
+#: Why a serial port does not open, by errno, in the words of the one who must fix it.
+_OPEN_ERRORS = {
+    errno.ENOENT: "no such device (unplugged, or another name: see /dev/serial/by-id/)",
+    errno.ENODEV: "no such device (unplugged?)",
+    errno.ENXIO: "no such device (unplugged?)",
+    errno.EACCES: "permission denied (is the user in the dialout group?)",
+    errno.EPERM: "permission denied (is the user in the dialout group?)",
+    # pyserial's exclusive flock (pymodbus opens exclusively), or TIOCEXCL (EBUSY)
+    errno.EWOULDBLOCK: "in use by another program (is heliotrack run active?)",
+    errno.EBUSY: "in use by another program (is heliotrack run active?)",
+}
+
+
+def port_error(port: str, exc: BaseException, settings: LineSettings | None = None) -> str:
+    """One line saying why pyserial could not open or configure ``port``: a missing device,
+    a permission, a port another program holds, a file that is no serial port, line
+    settings the port refuses (``termios.error``, not an OSError), a bad URL."""
+    if isinstance(exc, termios.error):  # tcsetattr: the port exists but refuses a setting
+        args = exc.args
+        why = str(args[1]) if len(args) > 1 else str(exc)
+        if args and args[0] == errno.ENOTTY:
+            return f"{port}: not a serial port (not a tty)"
+        where = f" ({settings.keys})" if settings is not None else ""
+        return f"{port}: cannot configure the port{where}: {why}"
+    code = getattr(exc, "errno", None)
+    if code in _OPEN_ERRORS:
+        return f"{port}: {_OPEN_ERRORS[code]}"
+    text = str(exc)
+    if "Inappropriate ioctl" in text:  # pyserial's "Could not configure port: (25, ...)"
+        return f"{port}: not a serial port (not a tty)"
+    if isinstance(exc, OSError) and code is not None:
+        return f"{port}: cannot open the port: {os.strerror(code)}"
+    return f"{port}: cannot open the port: {text or type(exc).__name__}"
+
+
+def _why_not_open(port: str, settings: LineSettings) -> str:
+    """Open ``port`` as pymodbus does, for the reason it failed: pymodbus catches pyserial's
+    exception (an OSError) and only returns False.  Called after a failed open only; not
+    for a URL (``rfc2217://``), whose open may wait seconds on an unreachable server."""
+    if "://" in port:
+        return f"{port}: cannot open the port (is the serial device server reachable?)"
+    try:
+        serial = serial_for_url(
+            port,
+            exclusive=True,
+            baudrate=settings.baudrate,
+            parity=settings.parity,
+            stopbits=settings.stopbits,
+            bytesize=8,
+            timeout=0,
+        )
+    except (SerialException, OSError, termios.error, ValueError) as exc:
+        return port_error(port, exc, settings)
+    serial.close()
+    return f"{port}: cannot open the port (it opened when tried again: a passing fault?)"
 
 
 class SharedSerialClient:
@@ -159,7 +220,7 @@ class SharedSerialClient:
             reconnect_delay=0,
         )
         self.port = port
-        self.key = _port_key(port)
+        self.key = serial_port_key(port)
         self.settings = settings
         self.link_name = link_name
         self.users = 0
@@ -178,7 +239,7 @@ class SharedSerialClient:
         LinkSettingsError
             Another link already uses the port with other line settings.
         """
-        key = _port_key(link.port)
+        key = serial_port_key(link.port)
         settings = LineSettings.of(link)
         shared = cls._open.get(key)
         if shared is not None and shared.loop is not None and shared.loop.is_closed():
@@ -203,13 +264,37 @@ class SharedSerialClient:
 
     async def connect(self) -> bool:
         """Open the port (once, however many devices of the line ask at the same time: a
-        second concurrent open of one pymodbus client fails)."""
+        second concurrent open of one pymodbus client fails); True when it is open.
+
+        Raises
+        ------
+        DriveCommError
+            The port does not open or refuses the line settings; the message names the
+            port and why (``/dev/ttyUSB0: permission denied (...)``).
+        """
         if self.client.connected:
             return True
         if self._connecting is None:
             self._connecting = asyncio.Lock()
         async with self._connecting:
-            return self.client.connected or await self.client.connect()
+            if self.client.connected:
+                return True
+            refused = ""
+            try:
+                if await self.client.connect():
+                    return True
+            except (termios.error, SerialException, ValueError) as exc:
+                # what pymodbus does not catch: a setting the port refuses (termios.error is
+                # no OSError), a URL pyserial does not know (ValueError)
+                refused = port_error(self.port, exc, self.settings)
+            if refused:
+                # the transport pymodbus was making when the setting was refused holds the
+                # port open (and flocked) from a reference cycle: free it now, or the next
+                # open finds the port "in use"
+                gc.collect()
+                self.client.close()
+                raise DriveCommError(refused)
+            raise DriveCommError(await asyncio.to_thread(_why_not_open, self.port, self.settings))
 
     def close(self) -> None:
         self.users -= 1

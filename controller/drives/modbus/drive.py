@@ -101,8 +101,15 @@ class ModbusDrive(DriveLink):
         return await self.policy.run(attempt, what=what, label=self.label, stats=self.stats)
 
     async def _reopen(self) -> None:
-        """Open the client again if it lost its connection (an attempt fails if it cannot)."""
-        if not getattr(self.client, "connected", True) and not await self.client.connect():
+        """Open the client again if it lost its connection (an attempt fails if it cannot,
+        and is retried like a request without an answer)."""
+        if getattr(self.client, "connected", True):
+            return
+        try:
+            opened = await self.client.connect()
+        except DriveCommError as exc:  # a serial port: why it does not open
+            raise ConnectionException(f"{self.label}: the link is down and does not reopen: {exc}") from None
+        if not opened:
             raise ConnectionException(f"{self.label}: the link is down and does not reopen")
 
     async def _read(
@@ -126,6 +133,8 @@ class ModbusDrive(DriveLink):
             self._closed = False
             if self.reopen is not None:
                 self.client = self.reopen()
+        # a serial line's client raises DriveCommError naming the port and why it does not
+        # open; a TCP client returns False
         if not await self.client.connect():
             raise DriveCommError(f"{self.label}: cannot open the link")
         words = await self._read(

@@ -2,6 +2,7 @@
 exception response means for a retry."""
 
 import asyncio
+import os
 import termios
 
 import pytest
@@ -193,3 +194,105 @@ def test_a_drive_closed_and_connected_again_rejoins_its_lines_client(sim_clock):
             assert pty.path not in SharedSerialClient._open
 
         run(scenario())
+
+
+def test_a_port_that_refuses_its_line_settings_is_named_and_left_free(sim_clock):
+    """An audit's case: Linux refuses a parity bit on a pty with ``termios.error`` (no
+    OSError), which went through check's and run's handlers as a traceback; and the
+    transport pymodbus had half made kept the port locked."""
+    fw = DriveFirmware(two_axes(), sim_clock.now)
+    with PtyLink.open() as pty, ModbusServerThread({1: fw}, serial_url=pty.url):
+
+        async def scenario():
+            d = open_drive(ModbusRtuLink(name="rs485", port=pty.path, parity="E"), 1)
+            with pytest.raises(DriveCommError) as e:
+                await d.connect()
+            await d.close()
+            assert str(e.value) == (
+                f"{pty.path}: cannot configure the port (baudrate 115200, parity E, stopbits 1): "
+                "Invalid argument"
+            )
+            ok = open_drive(ModbusRtuLink(name="rs485", port=pty.path), 1)  # the port is free again
+            await ok.connect()
+            await ok.close()
+
+        run(scenario())
+
+
+@pytest.mark.parametrize("case", ["missing", "not a tty", "in use", "a folder"])
+def test_a_port_that_does_not_open_says_why(tmp_path, case):
+    """An audit's case: every one of these was "cannot open the link", the reason dropped
+    (pymodbus catches pyserial's exception and returns False)."""
+    import serial
+
+    with PtyLink.open() as pty:
+        port, holder = str(tmp_path / "ttyUSB9"), None
+        if case == "not a tty":
+            (tmp_path / "ttyUSB9").write_text("")
+        elif case == "a folder":
+            port = str(tmp_path)
+        elif case == "in use":  # another master holds the port (pymodbus and pyserial lock it)
+            port = pty.path
+            holder = serial.Serial(pty.path, exclusive=True)
+
+        async def scenario():
+            d = open_drive(ModbusRtuLink(name="rs485", port=port, timeout_s=0.1, retries=0), 1)
+            try:
+                with pytest.raises(DriveCommError) as e:
+                    await d.connect()
+            finally:
+                await d.close()
+            return str(e.value)
+
+        try:
+            said = run(scenario())
+        finally:
+            if holder is not None:
+                holder.close()
+    expected = {
+        "missing": f"{port}: no such device (unplugged, or another name: see /dev/serial/by-id/)",
+        "not a tty": f"{port}: not a serial port (not a tty)",
+        "in use": f"{port}: in use by another program (is heliotrack run active?)",
+        "a folder": f"{port}: cannot open the port: Is a directory",
+    }[case]
+    assert said == expected
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root opens any file: no EACCES to see")
+def test_a_port_this_user_may_not_open_names_the_dialout_group(tmp_path):
+    port = tmp_path / "ttyUSB0"
+    port.write_text("")
+    port.chmod(0)
+
+    async def scenario():
+        d = open_drive(ModbusRtuLink(name="rs485", port=str(port), timeout_s=0.1, retries=0), 1)
+        try:
+            with pytest.raises(
+                DriveCommError, match=r"permission denied \(is the user in the dialout group\?\)"
+            ):
+                await d.connect()
+        finally:
+            await d.close()
+
+    run(scenario())
+
+
+def test_the_reasons_a_port_does_not_open_in_the_users_words():
+    """What pyserial raises for each (the cases a test run as root cannot produce)."""
+    import errno
+
+    import serial
+
+    from controller.drives.modbus.client import port_error
+
+    tty = "/dev/ttyUSB0"
+    denied = serial.SerialException(errno.EACCES, f"could not open port {tty}: [Errno 13] Permission denied")
+    assert port_error(tty, denied) == f"{tty}: permission denied (is the user in the dialout group?)"
+    busy = serial.SerialException(
+        errno.EBUSY, f"could not open port {tty}: [Errno 16] Device or resource busy"
+    )
+    assert port_error(tty, busy) == f"{tty}: in use by another program (is heliotrack run active?)"
+    gone = serial.SerialException(
+        errno.ENXIO, f"could not open port {tty}: [Errno 6] No such device or address"
+    )
+    assert port_error(tty, gone) == f"{tty}: no such device (unplugged?)"
