@@ -46,8 +46,9 @@ def markdown() -> str:
         f"Protocol version {PROTOCOL_MAJOR}.{PROTOCOL_MINOR} (register 1 = "
         f"0x{PROTOCOL_VERSION:04X}). All registers are holding registers, 0-based addresses. "
         "32-bit values take two registers, high word first. Engineering value = raw x scale. "
-        "Function codes: 3 (read), 6 and 16 (write) and 23 (read/write multiple: the "
-        "controller's exchange each cycle, the write done before the read); see Behaviour.",
+        "Function codes: 3 (read), 6 and 16 (write), and 23 (read/write multiple: the "
+        "controller's exchange each cycle, the write done before the read) where the drive "
+        "has it; see Behaviour.",
         "",
         "## Global registers",
         "",
@@ -81,8 +82,10 @@ BEHAVIOUR = (
     "holds, and the registers of an axis the drive does not have, read as 0 (the "
     "controller reads the identification and the axes' blocks each in one request, "
     "across the gaps). Reads beyond are answered with exception 2.",
-    "- FC 23 (read/write multiple registers) is required: each cycle's exchange writes the "
-    "targets and reads the axes' state in one transaction, the write first.",
+    "- FC 23 (read/write multiple registers) is recommended: each cycle's exchange writes "
+    "the targets and reads the axes' state in one transaction, the write first. A drive that "
+    "answers it with exception 1 (illegal function) gets FC 16 and FC 3 from then on, one "
+    "more transaction a cycle.",
     "- A write is all or nothing, and its registers are applied in address order. It is "
     "refused with exception 2 (illegal data address) at an address no register holds, at "
     "a read-only register, at half of a 32-bit register, or at an axis the drive does not "

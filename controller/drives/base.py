@@ -35,6 +35,15 @@ class DriveNoAnswer(DriveCommError):
         super().__init__(f"{label}: {what} failed after {attempts} attempt(s): {last}")
 
 
+class DriveRefused(DriveCommError):
+    """The drive answered the transaction with a refusal another attempt would repeat (a
+    Modbus exception response, an SDO abort); ``refusal`` is the backend's exception."""
+
+    def __init__(self, message: str, refusal: BaseException):
+        super().__init__(message)
+        self.refusal = refusal
+
+
 class DriveHeld(DriveCommError):
     """The drive answers, but another party holds it where it is (a CANopen NMT stop, a CiA
     402 quick stop or disable by a service tool): reported, never overridden, and not a

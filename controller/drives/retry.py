@@ -14,7 +14,7 @@ from collections.abc import Awaitable, Callable
 from dataclasses import dataclass
 from typing import TypeVar
 
-from .base import DriveCommError, DriveNoAnswer, LinkStats
+from .base import DriveNoAnswer, DriveRefused, LinkStats
 
 T = TypeVar("T")
 Errors = tuple[type[BaseException], ...]
@@ -66,7 +66,7 @@ class RetryPolicy:
                 result = await attempt()
             except self.final as exc:
                 stats.errors += 1
-                raise DriveCommError(f"{label}: {what} refused by the drive: {exc}") from None
+                raise DriveRefused(f"{label}: {what} refused by the drive: {exc}", exc) from None
             except self.retry_on as exc:
                 stats.errors += 1
                 last = exc

@@ -40,7 +40,11 @@ _TRANSIENT_CODES = frozenset(
 
 class ModbusRefused(Exception):
     """The device answered with an exception response another attempt would repeat
-    (illegal function, address or value; device failure)."""
+    (illegal function, address or value; device failure); ``code`` is its exception code."""
+
+    def __init__(self, text: str, code: int | None = None):
+        super().__init__(text)
+        self.code = code
 
 
 class ModbusBusy(Exception):
@@ -115,7 +119,9 @@ async def checked(request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: 
             text = f"exception {int(code)} ({ExcCodes(code).name})" if code is not None else str(rr)
         except ValueError:
             text = f"exception {code}"
-        raise (ModbusBusy if code is None or code in _TRANSIENT_CODES else ModbusRefused)(text)
+        if code is None or code in _TRANSIENT_CODES:
+            raise ModbusBusy(text)
+        raise ModbusRefused(text, int(code))
     verify_reply(getattr(request, "__name__", ""), rr, args, kwargs)
     return rr
 

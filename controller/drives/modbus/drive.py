@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Awaitable, Callable, Sequence
 from typing import Any, Self
 
+from pymodbus.constants import ExcCodes
 from pymodbus.exceptions import ConnectionException, ModbusException
 
 from firmware_protocol import (
@@ -26,13 +28,14 @@ from ..base import (
     DriveCommError,
     DriveIdentity,
     DriveLink,
+    DriveRefused,
     DriveState,
     LinkStats,
     soft_limit_steps,
 )
 from ..configuration import DriveConfiguration, Tolerances, differences, not_taken
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
-from .client import checked, endpoint, modbus_client, retry_policy
+from .client import ModbusRefused, checked, endpoint, modbus_client, retry_policy
 
 _ID_WORDS = 3
 
@@ -42,6 +45,7 @@ class ShortAnswer(ModbusException):
 
 
 _TARGET = register("TARGET_ANGLE")
+log = logging.getLogger(__name__)
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
 #: a read-back within one register step of the value written is the value written
@@ -86,6 +90,8 @@ class ModbusDrive(DriveLink):
         self.stats = LinkStats()
         self._beat = 0
         self._closed = False
+        #: The drive answers FC 23 (read/write multiple registers); False once it refused it.
+        self.fc23 = True
 
     async def _call(
         self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
@@ -196,8 +202,13 @@ class ModbusDrive(DriveLink):
             )
 
     async def exchange(self, angles_deg: Sequence[float]) -> DriveState:
-        """Axis 1's target by FC16, then axis 0's target and the state read in one FC23."""
+        """Axis 1's target by FC16, then axis 0's target and the state read in one FC23; a
+        drive without FC23 (exception 1) gets FC16 and FC3 from then on, one more
+        transaction a cycle."""
         self._check(angles_deg)
+        if not self.fc23:
+            await self.write_targets(angles_deg)
+            return await self.read_state()
         for k in range(1, self.axis_count):
             await self._call(
                 "target write",
@@ -205,15 +216,24 @@ class ModbusDrive(DriveLink):
                 _TARGET.address(k),
                 encode(_TARGET, angles_deg[k]),
             )
-        words = await self._read(
-            "target write + state read",
-            AXIS_STRIDE * self.axis_count,
-            self.client.readwrite_registers,
-            read_address=axis_block_address(0),
-            read_count=AXIS_STRIDE * self.axis_count,
-            write_address=_TARGET.address(0),
-            values=encode(_TARGET, angles_deg[0]),
-        )
+        try:
+            words = await self._read(
+                "target write + state read",
+                AXIS_STRIDE * self.axis_count,
+                self.client.readwrite_registers,
+                read_address=axis_block_address(0),
+                read_count=AXIS_STRIDE * self.axis_count,
+                write_address=_TARGET.address(0),
+                values=encode(_TARGET, angles_deg[0]),
+            )
+        except DriveRefused as exc:
+            if not (isinstance(exc.refusal, ModbusRefused) and exc.refusal.code == ExcCodes.ILLEGAL_FUNCTION):
+                raise
+            self.fc23 = False
+            log.warning(
+                "%s: no FC 23 (read/write registers): targets by FC 16, state by FC 3 from now on", self.label
+            )
+            return await self.exchange(angles_deg)
         return self._decode_state(words)
 
     async def heartbeat(self) -> None:

@@ -164,3 +164,31 @@ def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
 
     with pytest.raises(DriveCommError, match=r"identity changed \(register 0 = 0xbeef"):
         run(scenario())
+
+
+def test_a_drive_without_fc23_is_driven_by_fc16_and_fc3(pty_drive, monkeypatch, caplog):
+    """A firmware-side audit's case: a drive implementing FC 3, 6 and 16 (all the register
+    map then listed) was refused every cycle with exception 1 after connecting fine."""
+    import hil.modbus_device
+
+    monkeypatch.setattr(hil.modbus_device, "_REGISTER_FCS", {3, 6, 16})
+    fw, path, _clock = pty_drive
+
+    async def scenario():
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        try:
+            first = await d.exchange([150.0, 30.0])
+            second = await d.exchange([151.0, 31.0])
+            return first, second, d.fc23
+        finally:
+            await d.close()
+
+    first, second, fc23 = run(scenario())
+    assert not fc23
+    assert first.axes[0].target_deg == pytest.approx(150.0) and second.axes[1].target_deg == pytest.approx(
+        31.0
+    )
+    assert fw.axes[0].target == pytest.approx(151.0)
+    warned = [r for r in caplog.records if "no FC 23" in r.getMessage()]
+    assert len(warned) == 1
