@@ -1,4 +1,6 @@
-"""``heliotrack protocol export DIR``: write every generated firmware_protocol artefact."""
+"""``heliotrack protocol export DIR``: write every generated firmware_protocol artefact;
+``heliotrack protocol conformance``: check a real Modbus drive against the register map's
+rules (:mod:`controller.drives.modbus.conformance`)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     e = ps.add_parser("export", help="write the register reference and the C header")
     e.add_argument("dir", type=Path)
     e.set_defaults(func=run_export)
+    c = ps.add_parser(
+        "conformance",
+        help="check a Modbus drive against the register map's rules (firmware bring-up)",
+        description="Connect to one tracker's drive of a plant file and check it against the rules "
+        "of the register map (firmware_protocol/generated/REGISTERS.md, 'Behaviour'): one row per "
+        "rule, pass, FAIL, warn or skip.  Without --may-move nothing moves: only values the drive "
+        "holds are written, or values it must refuse.  Exit 0 when nothing failed.",
+    )
+    c.add_argument("--config", type=Path, required=True, help="plant TOML")
+    c.add_argument("--tracker", required=True, help="the tracker whose drive to check")
+    c.add_argument(
+        "--may-move",
+        action="store_true",
+        help="also the checks that move axis 0 by a few degrees and stow the drive (watchdog, "
+        "STOW/RESUME, clamping): only with the tracker clear to move",
+    )
+    c.add_argument("--watchdog-s", type=float, default=2.0, help="the watchdog timeout its check sets (s)")
+    c.set_defaults(func=run_conformance)
 
 
 def run_export(args: argparse.Namespace) -> int:
@@ -26,3 +46,44 @@ def run_export(args: argparse.Namespace) -> int:
     for path in written:
         print(path)
     return 0
+
+
+def run_conformance(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from controller.drives.base import DriveCommError
+    from controller.drives.modbus.conformance import FAIL, run_checks
+    from controller.drives.modbus.drive import ModbusDrive
+    from controller.drives.registry import open_drive
+    from controller.errors import InputError
+    from heliotrack.runtime import load_plant
+
+    config = load_plant(args.config, "protocol conformance")
+    tracker = next((t for t in config.trackers if t.name == args.tracker), None)
+    if tracker is None:
+        names = ", ".join(t.name for t in config.trackers)
+        raise InputError(f"--tracker {args.tracker!r}: not in {args.config} (its trackers: {names})")
+    if not 0.5 <= args.watchdog_s <= 60:
+        raise InputError(f"--watchdog-s {args.watchdog_s:g}: expected 0.5 to 60 s")
+    link = config.links_by_name[tracker.link]
+    if link.kind not in ("modbus-rtu", "modbus-tcp"):
+        raise InputError(
+            f"--tracker {args.tracker}: its link {tracker.link!r} is {link.kind}; conformance checks Modbus drives only"
+        )
+
+    async def main() -> int:
+        drive = open_drive(link, tracker.device_id)  # the client wants the running loop
+        assert isinstance(drive, ModbusDrive)
+        failed = n = 0
+        async for check in run_checks(drive, may_move=args.may_move, watchdog_s=args.watchdog_s):
+            n += 1
+            failed += check.outcome == FAIL
+            print(f"{check.outcome:<5} {check.name}: {check.detail}", flush=True)
+        print(f"{n - failed} of {n} check(s) without a failure" + (f"; {failed} FAILED" if failed else ""))
+        return 1 if failed else 0
+
+    try:
+        return asyncio.run(main())
+    except DriveCommError as exc:
+        print(f"stopped: {exc}")
+        return 1
