@@ -3,8 +3,9 @@
 Each subcommand lives in its own module under :mod:`heliotrack.commands` and exposes
 ``register(subparsers)``; the module adds its parser and sets ``func`` to a callable taking
 the parsed namespace and returning an exit code.  Adding a command means adding one module
-and one name to :data:`COMMAND_MODULES`.  A command that logs at INFO by default (``run``,
-``check``) sets ``default_log_level`` in its parser's defaults.
+and one name to :data:`COMMAND_MODULES`.  A command whose default log level is not WARNING
+sets ``default_log_level`` in its parser's defaults: a level (``run``: INFO), or a function
+of the parsed arguments (``simulate``: INFO with ``--realtime``).
 
 The log options (:mod:`heliotrack.logs`) come before the command, and commands that serve
 for long (``run``) accept them after it too.
@@ -57,7 +58,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    level = args.log_level or getattr(args, "default_log_level", "WARNING")
+    default = getattr(args, "default_log_level", "WARNING")
+    level = args.log_level or (default(args) if callable(default) else default)
     try:
         with logging_configured(level, args.log_format or "text", args.log_file):
             return int(args.func(args) or 0)

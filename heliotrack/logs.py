@@ -47,7 +47,7 @@ def add_log_options(parser: argparse.ArgumentParser, *, top_level: bool) -> None
         choices=LEVELS,
         default=default,
         metavar="LEVEL",
-        help="DEBUG, INFO, WARNING or ERROR (default: INFO for run, else WARNING)",
+        help="DEBUG, INFO, WARNING or ERROR (default: INFO for run and simulate --realtime, else WARNING)",
     )
     g.add_argument(
         "--log-file", type=Path, default=default, metavar="FILE", help="append the log here (default stderr)"

@@ -63,7 +63,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="with --realtime: serve SunSpec (models 1 and 601) on this address; "
         "port 0 picks a free one (printed as 'SUNSPEC host:port')",
     )
-    p.set_defaults(func=run)
+    # realtime is an operator's session: SCADA's accepted writes (INFO) are seen as they come
+    p.set_defaults(func=run, default_log_level=lambda a: "INFO" if a.realtime else "WARNING")
 
 
 def run(args: argparse.Namespace) -> int:

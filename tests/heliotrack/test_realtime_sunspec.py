@@ -63,3 +63,6 @@ def test_sunspec_is_served_for_the_whole_duration_with_a_longer_period(tmp_path)
     assert "realtime: 1 cycles" in out, out  # one cycle at the start, none due before the end
     # the two drives and the pyranometer of one RS-485 line open its port once, not in a race
     assert "WARNING" not in err, err
+    # an operator's session logs at INFO by default, so SCADA's accepted writes are seen
+    # (an audit's finding: at WARNING nothing of SCADA's actions was kept)
+    assert "INFO    heliotrack.sunspec: SunSpec server on 127.0.0.1:" in err, err
