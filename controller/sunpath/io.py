@@ -80,10 +80,27 @@ def _read_json_lines(path: Path, text: str, sensor: str) -> list[SunObservation]
         frame = d.get("frame", "enu")
         if frame not in ("enu", "model"):
             raise InputError(f"{w}, key 'frame': expected enu or model, got {frame!r}")
+        if frame == "enu":
+            _seen(el, f"{w}, key 'el_deg'")
         out.append((SunObservation(t, az % 360.0, el, sig, frame=frame, sensor=sensor), line_no))
     if not out:
         raise InputError(f"{path}: no observations with found = true ({skipped} without)")
     return _time_ordered(out, path, "line")
+
+
+#: The lowest elevation a sighting of the sun can have (deg): refraction and a high site's
+#: dip of the horizon show it a little under 0, never further.
+MIN_SEEN_EL_DEG = -2.0
+
+
+def _seen(el: float, where: str) -> None:
+    """Refuse a sighting of the sun further below the horizon than it can be seen: a night
+    row, or another convention (a zenith angle, a sign)."""
+    if el < MIN_SEEN_EL_DEG:
+        raise InputError(
+            f"{where}: {el:g} deg, a sun seen below the horizon (at least {MIN_SEEN_EL_DEG:g}); "
+            "a night row, or a zenith angle or another sign convention?"
+        )
 
 
 def parse_time(text: str, where: str) -> float:
@@ -144,6 +161,7 @@ def read_observations(path: str | Path, sensor: str = "csv") -> list[SunObservat
                 90.0,
                 "an elevation in degrees between -90 and 90",
             )
+            _seen(el, f"{w}, column 'el_deg'")
             sig_text = (row.get("sigma_deg") or "").strip() if "sigma_deg" in header else ""
             sig = (
                 _number(sig_text, f"{w}, column 'sigma_deg'", 1e-6, 90.0, "a positive one-sigma in degrees")
