@@ -33,6 +33,13 @@ def env() -> dict:
     return e
 
 
+def heliotrack(*args: str, cwd: Path | None = None) -> subprocess.Popen:
+    """``heliotrack ARGS...`` in a process of its own, its output piped as text."""
+    return subprocess.Popen(
+        [*HELIOTRACK, *args], cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env()
+    )
+
+
 @dataclass
 class Drive:
     """One emulator process and how to reach it."""

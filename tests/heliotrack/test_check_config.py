@@ -362,13 +362,12 @@ def test_ctrl_c_during_check_says_how_far_it_got(tmp_path):
     """An audit's case: Ctrl-C exited 130 without a word; the drive being checked (here
     one that does not answer, 5 s a try) is given up at once."""
     import signal
-    import subprocess
 
     from hil.drive import DriveFirmware
     from hil.modbus_server import ModbusServerThread
     from hil.pty import PtyLink
     from tests.conftest import two_axes
-    from tests.heliotrack.plant_emulators import HELIOTRACK, env
+    from tests.heliotrack.plant_emulators import heliotrack
 
     fws = {1: DriveFirmware(two_axes(), time.time, monotonic=time.monotonic)}
     with PtyLink.open() as served, PtyLink.open() as silent, ModbusServerThread(fws, serial_url=served.url):
@@ -380,13 +379,7 @@ def test_ctrl_c_during_check_says_how_far_it_got(tmp_path):
             '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "a"\ndevice_id = 1\n'
             '[[trackers]]\nname = "dual-2"\ntype = "dual-axis"\nlink = "b"\ndevice_id = 1\n'
         )
-        proc = subprocess.Popen(
-            [*HELIOTRACK, "check", "--config", str(p)],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env(),
-        )
+        proc = heliotrack("check", "--config", str(p))
         try:
             lines = [proc.stdout.readline(), proc.stdout.readline()]  # the header, dual-1's row
             assert lines[1].startswith("dual-1") and " ok " in lines[1], lines

@@ -27,7 +27,6 @@ import re
 import shlex
 import shutil
 import signal
-import subprocess
 import threading
 import time
 import tomllib
@@ -37,7 +36,13 @@ import pytest
 
 from heliotrack.cli import build_parser, main
 from tests.conftest import REPO
-from tests.heliotrack.plant_emulators import HELIOTRACK, daytime_site, env, plant_toml, start_plant, wait_for
+from tests.heliotrack.plant_emulators import (
+    daytime_site,
+    heliotrack,
+    plant_toml,
+    start_plant,
+    wait_for,
+)
 
 DOCS = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]
 BLOCK = re.compile(
@@ -123,14 +128,7 @@ def run_on_emulators(lines: list[tuple[int, str]], where: str, folder) -> None:
             if words[1] != "run":
                 run_line(words, f"{where}+{offset}")
                 continue
-            proc = subprocess.Popen(
-                [*HELIOTRACK, *words[1:]],
-                cwd=folder,
-                stdout=subprocess.PIPE,
-                stderr=subprocess.PIPE,
-                text=True,
-                env=env(),
-            )
+            proc = heliotrack(*words[1:], cwd=folder)
             seen: list[str] = []
             threading.Thread(target=seen.extend, args=(proc.stderr,), daemon=True).start()
             try:

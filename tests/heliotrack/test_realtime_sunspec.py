@@ -4,12 +4,11 @@ first cycle boundary, or make it wait a whole period)."""
 
 from __future__ import annotations
 
-import subprocess
 import time
 
 from pymodbus.client import ModbusTcpClient
 
-from tests.heliotrack.plant_emulators import HELIOTRACK, env
+from tests.heliotrack.plant_emulators import heliotrack
 from tests.heliotrack.test_cli import short_config
 
 DURATION_S, PERIOD_S = 6.0, 30.0
@@ -31,13 +30,15 @@ def _suns(port: int) -> bool:
 
 def test_sunspec_is_served_for_the_whole_duration_with_a_longer_period(tmp_path):
     cfg = short_config(tmp_path, period=PERIOD_S)
-    proc = subprocess.Popen(
-        [*HELIOTRACK, "simulate", "--config", str(cfg), "--realtime", "--duration", str(DURATION_S)]
-        + ["--sunspec", "127.0.0.1:0"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env(),
+    proc = heliotrack(
+        "simulate",
+        "--config",
+        str(cfg),
+        "--realtime",
+        "--duration",
+        str(DURATION_S),
+        "--sunspec",
+        "127.0.0.1:0",
     )
     try:
         first = proc.stdout.readline().strip()

@@ -7,14 +7,13 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
 import time
 
 import pytest
 
 from heliotrack.cli import main
 from hil.pty import PtyLink
-from tests.heliotrack.plant_emulators import HELIOTRACK, env
+from tests.heliotrack.plant_emulators import heliotrack
 
 
 def _silent_plant(folder, port: str, timeout_s: float = 0.1, retries: int = 1):
@@ -80,13 +79,7 @@ def test_a_silent_plant_logs_each_fault_once_and_a_summary(tmp_path, silent_line
 def test_a_second_signal_exits_at_once(tmp_path, silent_line):
     # slow answers (3 attempts of 1 s): the drive's safe position takes seconds to give up on
     cfg = _silent_plant(tmp_path, silent_line, timeout_s=1.0, retries=2)
-    proc = subprocess.Popen(
-        [*HELIOTRACK, "run", "--config", str(cfg)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        env=env(),
-    )
+    proc = heliotrack("run", "--config", str(cfg))
     try:
         first = proc.stderr.readline()
         assert "heliotrack run:" in first, first

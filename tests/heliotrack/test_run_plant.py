@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import re
 import signal
-import subprocess
 import threading
 import time
 
@@ -20,10 +19,10 @@ from pymodbus.client import ModbusTcpClient
 
 from firmware_protocol import Mode, Status
 from heliotrack.cli import main
+from tests.heliotrack.plant_emulators import Plant as PlantProcs
 from tests.heliotrack.plant_emulators import (
-    HELIOTRACK,
     daytime_site,
-    env,
+    heliotrack,
     plant_toml,
     read_axes,
     ready,
@@ -31,7 +30,6 @@ from tests.heliotrack.plant_emulators import (
     start_drive,
     wait_for,
 )
-from tests.heliotrack.plant_emulators import Plant as PlantProcs
 
 PERIOD_S, HEARTBEAT_S = 1.0, 3.0
 
@@ -70,13 +68,7 @@ class Run:
     """``heliotrack run`` in a process of its own; its log lines collected as they come."""
 
     def __init__(self, cfg, state):
-        self.proc = subprocess.Popen(
-            [*HELIOTRACK, "run", "--config", str(cfg), "--state", str(state)],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env(),
-        )
+        self.proc = heliotrack("run", "--config", str(cfg), "--state", str(state))
         self.lines: list[str] = []
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()

@@ -5,14 +5,13 @@ first's pid (an audit's finding: both ran and fought over the drives)."""
 from __future__ import annotations
 
 import signal
-import subprocess
 
 import pytest
 
 from controller.errors import UserError
 from heliotrack.cli import main
 from hil.pty import PtyLink
-from tests.heliotrack.plant_emulators import HELIOTRACK, env
+from tests.heliotrack.plant_emulators import heliotrack
 from tests.heliotrack.test_run_faults import _silent_plant
 
 
@@ -20,13 +19,7 @@ def test_a_second_run_on_the_same_state_folder_is_refused(tmp_path, capsys):
     state = tmp_path / "state"
     with PtyLink.open() as link:
         cfg = _silent_plant(tmp_path, link.path)
-        first = subprocess.Popen(
-            [*HELIOTRACK, "run", "--config", str(cfg), "--state", str(state)],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=env(),
-        )
+        first = heliotrack("run", "--config", str(cfg), "--state", str(state))
         try:
             assert "heliotrack run:" in first.stderr.readline()  # started: the folder is its
             assert main(["run", "--config", str(cfg), "--state", str(state), "--duration", "1"]) == 2

@@ -222,13 +222,7 @@ def test_a_drive_whose_state_cannot_be_trusted_is_sent_stow_anyway(default_plant
     from controller.drives.base import DriveCommError
 
     run, ctl, fws, clock, cfg = default_plant
-    run(ctl.cycle())
-    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
-
-    async def implausible():
-        raise DriveCommError("dual-1: implausible state from the drive: 7 is not a valid Mode")
-
-    tr.drive.read_state = implausible
+    _reading_fails(run, ctl, DriveCommError("dual-1: implausible state from the drive: 7 is not a valid Mode"))
     out = {o.tracker: o for o in run(go_safe(ctl, state=StateFolder(tmp_path)))}
     assert out["dual-1"].detail.startswith("state unreadable (dual-1: implausible state")
     assert "STOW sent, not read back" in out["dual-1"].detail and not out["dual-1"].confirmed
@@ -239,13 +233,7 @@ def test_one_drives_unexpected_error_leaves_the_others_safe_and_the_record_writt
     """An audit's case: one drive's exception outside the link's errors ended the shutdown:
     no other drive stowed, no shutdown record, the links left open."""
     run, ctl, fws, clock, cfg = default_plant
-    run(ctl.cycle())
-    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
-
-    async def broken():
-        raise RuntimeError("a library's surprise")
-
-    tr.drive.read_state = broken
+    _reading_fails(run, ctl, RuntimeError("a library's surprise"))
     state = StateFolder(tmp_path)
     out = {o.tracker: o for o in run(go_safe(ctl, state=state))}
     assert not out["dual-1"].confirmed
@@ -253,3 +241,14 @@ def test_one_drives_unexpected_error_leaves_the_others_safe_and_the_record_writt
     others = [name for name in out if name != "dual-1"]
     assert others and all(out[name].confirmed for name in others)
     assert fws[others[0]].modes[0] == Mode.STOW and state.shutdown.exists()
+
+
+def _reading_fails(run, ctl, exc: Exception) -> None:
+    """After one cycle, dual-1's state reads raise ``exc``."""
+    run(ctl.cycle())
+    tr = next(t for t in ctl.trackers if t.cfg.name == "dual-1")
+
+    async def fails():
+        raise exc
+
+    tr.drive.read_state = fails

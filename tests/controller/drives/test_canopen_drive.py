@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
 
@@ -305,13 +306,24 @@ def test_a_malformed_slcan_line_is_dropped_and_the_drive_goes_on():
     assert st.axes[0].target_deg == pytest.approx(4.0)
 
 
+@contextlib.contextmanager
+def another_party(ch: str):
+    """``send(cob_id, data)``: frames on the bus from someone else (a raw python-can handle)."""
+    import can as python_can
+
+    bus = python_can.Bus(interface="virtual", channel=ch)
+    try:
+        yield lambda cob_id, data: bus.send(
+            python_can.Message(arbitration_id=cob_id, data=data, is_extended_id=False)
+        )
+    finally:
+        bus.shutdown()
+
+
 def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
     """An audit's case: TPDO1 cut to 4 bytes updated the statusword, left the position
     stale, and logged an error ten times a second naming no node."""
-    import can as python_can
-
-    with emulated(axes=one_axis(), node_id=9) as (_fw, _emu, ch):
-        other = python_can.Bus(interface="virtual", channel=ch)
+    with emulated(axes=one_axis(), node_id=9) as (_fw, _emu, ch), another_party(ch) as send:
 
         async def scenario():
             d = open_drive(can(ch), 9)
@@ -319,11 +331,7 @@ def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
             try:
                 before = d.axes[0].node.tpdo_values.get(0x6041)
                 for _ in range(5):
-                    other.send(
-                        python_can.Message(
-                            arbitration_id=0x189, data=b"\xff\xff\x01\x02", is_extended_id=False
-                        )
-                    )
+                    send(0x189, b"\xff\xff\x01\x02")
                 await asyncio.sleep(0.2)
                 return (
                     before,
@@ -334,10 +342,7 @@ def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
             finally:
                 await d.close()
 
-        try:
-            before, after, dropped, st = run(scenario())
-        finally:
-            other.shutdown()
+        before, after, dropped, st = run(scenario())
     assert dropped == 5 and after == before  # nothing of the short frames was taken
     assert st.axes[0].actual_deg == pytest.approx(0.0, abs=0.01)
     warned = [
@@ -349,30 +354,18 @@ def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
 
 def test_an_emcy_is_logged_with_its_node(caplog):
     """A vendor EMCY (0xFF42, error register 0x81) had been neither logged nor used."""
-    import can as python_can
-
-    with emulated(axes=one_axis(), node_id=12) as (_fw, _emu, ch):
-        other = python_can.Bus(interface="virtual", channel=ch)
+    with emulated(axes=one_axis(), node_id=12) as (_fw, _emu, ch), another_party(ch) as send:
 
         async def scenario():
             d = open_drive(can(ch), 12)
             await d.connect()
             try:
-                other.send(
-                    python_can.Message(
-                        arbitration_id=0x80 + 12,
-                        data=bytes([0x42, 0xFF, 0x81, 0, 0, 0, 0, 0]),
-                        is_extended_id=False,
-                    )
-                )
+                send(0x80 + 12, bytes([0x42, 0xFF, 0x81, 0, 0, 0, 0, 0]))
                 await asyncio.sleep(0.2)
             finally:
                 await d.close()
 
-        try:
-            run(scenario())
-        finally:
-            other.shutdown()
+        run(scenario())
     assert any("EMCY from node 12: 0xFF42 (error register 0x81)" in r.getMessage() for r in caplog.records)
 
 
