@@ -138,6 +138,11 @@ def write_tables(res: DayResults, out: Path) -> list[Path]:
         p = out / "excluded.csv"
         res.excluded.to_csv(p, index=False)
         written.append(p)
+    # the tables this run has not, from an earlier run into the same folder, would be read
+    # as this run's: gone (a reused --out had kept another station's agreement table)
+    for name in ("excluded.csv", "agreement.csv"):
+        if out / name not in written:
+            (out / name).unlink(missing_ok=True)
     md = [
         f"# Day types ({res.config.method} rule in `class`)\n",
         f"Grid step {res.step_s} s; {len(res.days)} days kept, {len(res.excluded)} excluded.\n",

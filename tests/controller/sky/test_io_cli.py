@@ -229,3 +229,17 @@ def test_files_of_two_stations_are_refused(tmp_path, monkeypatch):
     with pytest.raises(InputError, match=r"dra24080.dat: latitude 36.624, but bon24080.dat says 40.05"):
         read_records(["bon24080.dat", "dra24080.dat"], "surfrad")
     assert len(read_records(["dra24080.dat", "dra24081.dat"], "surfrad").times) == 6
+
+
+def test_a_reused_out_keeps_no_table_of_an_earlier_run(tmp_path, dataset_1min):
+    """An audit's case: a second run without DNI into the same --out left the first run's
+    agreement table there, read as the second's."""
+    out = tmp_path / "out"
+    site = ["--lat", str(SITE.latitude), "--lon", str(SITE.longitude), "--out", str(out)]
+    assert main(["classify", str(_write(tmp_path / "with_dni.csv", dataset_1min)), *site]) == 0
+    assert (out / "agreement.csv").exists()
+    ghi_only = tmp_path / "ghi_only.csv"
+    pd.read_csv(tmp_path / "with_dni.csv").drop(columns="DNI").to_csv(ghi_only, index=False)
+    assert main(["classify", str(ghi_only), *site]) == 0
+    assert not (out / "agreement.csv").exists()
+    assert (out / "days.csv").exists()
