@@ -117,3 +117,27 @@ class DayResult:
             if isinstance(v, float):
                 row[k] = None if not np.isfinite(v) else round(v, 6)
         return row
+
+
+def why_no_noon(times, el_deg, utc_offset_h: float | None = None, shown: int = 4) -> str:
+    """Why no day of these observations gives a noon, one phrase per day (the first
+    ``shown`` days): too few samples, or an elevation that only rises or only sets (a
+    morning's or an afternoon's samples: no maximum to fit), else unbalanced about it."""
+    t = np.asarray(times, dtype=float)
+    el = np.asarray(el_deg, dtype=float)
+    days = split_days(t, utc_offset_h)
+    parts = []
+    for day in days[:shown]:
+        e = el[day.index]
+        step = np.diff(e)
+        if e.size < 3:
+            why = f"{e.size} sample(s), 3 at least"
+        elif np.all(step > 0):
+            why = "the elevation only rises (a morning: no noon in it)"
+        elif np.all(step < 0):
+            why = "the elevation only sets (an afternoon: no noon in it)"
+        else:
+            why = "too few samples on one side of its maximum"
+        parts.append(f"{day.date}: {why}")
+    more = f"; {len(days) - shown} more day(s)" if len(days) > shown else ""
+    return "; ".join(parts) + more

@@ -227,7 +227,12 @@ def _fit(args, path: Path) -> int:
                 f"{kf.config.init_min_span_h} h, or --lat/--lon)",
                 file=sys.stderr,
             )
-    _write([r.as_row() for r in rows], args)
+    why = None
+    if args.method == "seed" and not rows:
+        from controller.sunpath.days import why_no_noon
+
+        why = why_no_noon([o.time for o in obs], [o.el_deg for o in obs], args.utc_offset)
+    _write([r.as_row() for r in rows], args, why)
     return 0
 
 
@@ -297,9 +302,10 @@ def _check_out(args) -> None:
         raise InputError(f"--out: {out.parent} is not a folder that exists")
 
 
-def _write(rows: list[dict], args) -> None:
+def _write(rows: list[dict], args, why: str | None = None) -> None:
     if not rows:  # an empty file written over the user's would say nothing, and lose it
-        print("heliotrack: warning: no row to write (no day could be fitted)", file=sys.stderr)
+        detail = f": {why}" if why else ""
+        print(f"heliotrack: warning: no row to write (no day could be fitted{detail})", file=sys.stderr)
         return
     fmt = args.format or (
         "jsonl" if args.out is not None and args.out.suffix.lower() in (".jsonl", ".json") else "csv"

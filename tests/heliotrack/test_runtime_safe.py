@@ -222,7 +222,9 @@ def test_a_drive_whose_state_cannot_be_trusted_is_sent_stow_anyway(default_plant
     from controller.drives.base import DriveCommError
 
     run, ctl, fws, clock, cfg = default_plant
-    _reading_fails(run, ctl, DriveCommError("dual-1: implausible state from the drive: 7 is not a valid Mode"))
+    _reading_fails(
+        run, ctl, DriveCommError("dual-1: implausible state from the drive: 7 is not a valid Mode")
+    )
     out = {o.tracker: o for o in run(go_safe(ctl, state=StateFolder(tmp_path)))}
     assert out["dual-1"].detail.startswith("state unreadable (dual-1: implausible state")
     assert "STOW sent, not read back" in out["dual-1"].detail and not out["dual-1"].confirmed

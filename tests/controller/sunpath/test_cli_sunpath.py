@@ -219,3 +219,19 @@ def test_a_file_fed_again_into_its_state_is_not_counted_twice(tmp_path, capsys):
     assert "skipped: the state has them already" in capsys.readouterr().err
     again = json.loads(st.read_text())
     assert again["filter"]["P"] == first["filter"]["P"]
+
+
+def test_the_seed_method_says_why_no_day_was_fitted(tmp_path, capsys):
+    """It had said only "no row to write (no day could be fitted)"."""
+    obs = tmp_path / "mornings.csv"
+    obs.write_text(
+        "time,az_deg,el_deg\n"
+        "2024-03-20T07:00:00Z,100,10\n2024-03-20T08:00:00Z,110,20\n2024-03-20T09:00:00Z,120,30\n"
+        "2024-03-21T08:00:00Z,110,20\n2024-03-21T09:00:00Z,120,30\n"
+    )
+    assert main(["sunpath", str(obs), "--method", "seed", "--utc-offset", "0"]) == 0
+    err = capsys.readouterr().err
+    assert "no day could be fitted: 2024-03-20: the elevation only rises (a morning: no noon in it)" in err, (
+        err
+    )
+    assert "2024-03-21: 2 sample(s), 3 at least" in err, err
