@@ -176,7 +176,15 @@ def c_header() -> str:
         f"#define HT_AXIS_STRIDE {AXIS_STRIDE}",
         f"#define HT_REGISTER_SPACE {REGISTER_SPACE}",
         "",
-        "/* Global registers: address, words, scale (engineering = raw * scale). */",
+        "/* Registers are Modbus holding registers (big-endian words); a 32-bit value takes",
+        " * two, high word first.  Per register: its address (or offset in the axis block),",
+        " * words, scale (engineering = raw * scale), counts per engineering unit (1 / scale,",
+        " * an integer), access (HT_ACCESS_R or HT_ACCESS_RW), the CANopen object that mirrors",
+        " * it (subindex 0), and its raw type.  Behaviour: REGISTERS.md. */",
+        "#define HT_ACCESS_R 1u",
+        "#define HT_ACCESS_RW 3u",
+        "",
+        "/* Global registers. */",
     ]
     for r in GLOBAL_REGISTERS:
         out += _c_reg(r, f"{r.offset}")
@@ -198,11 +206,18 @@ def c_header() -> str:
 
 
 def _c_reg(r: Register, addr: str, per_axis: bool = False) -> list[str]:
+    from .canopen import mirror_index
+
     kind = "OFS" if per_axis else "ADDR"
+    counts = round(1 / r.scale)
+    assert abs(counts * r.scale - 1) < 1e-9, f"{r.name}: scale {r.scale} is not 1 / an integer"
     return [
         f"#define HT_{r.name}_{kind} {addr}",
         f"#define HT_{r.name}_WORDS {r.words}",
         f"#define HT_{r.name}_SCALE {r.scale!r}",
+        f"#define HT_{r.name}_COUNTS_PER_UNIT {counts}",
+        f"#define HT_{r.name}_ACCESS HT_ACCESS_{'RW' if r.writable else 'R'}",
+        f"#define HT_{r.name}_CO_MIRROR 0x{mirror_index(r):04X}u",
         f"typedef {_C_TYPES[r.type]} ht_{r.name.lower()}_t;",
     ]
 

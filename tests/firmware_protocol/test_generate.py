@@ -24,8 +24,9 @@ def test_c_header_compiles_and_matches_python(tmp_path):
     for reg in REGISTER_MAP:
         kind = "OFS" if reg.per_axis else "ADDR"
         lines.append(
-            f'printf("{reg.name} %d %d %.9g\\n", HT_{reg.name}_{kind}, '
-            f"HT_{reg.name}_WORDS, (double)HT_{reg.name}_SCALE);"
+            f'printf("{reg.name} %d %d %.9g %d %u %u\\n", HT_{reg.name}_{kind}, '
+            f"HT_{reg.name}_WORDS, (double)HT_{reg.name}_SCALE, HT_{reg.name}_COUNTS_PER_UNIT, "
+            f"HT_{reg.name}_ACCESS, HT_{reg.name}_CO_MIRROR);"
         )
     for flag in Status:
         lines.append(f'printf("STATUS_{flag.name} %u\\n", HT_STATUS_{flag.name});')
@@ -39,10 +40,13 @@ def test_c_header_compiles_and_matches_python(tmp_path):
     )
     out = subprocess.run([str(exe)], check=True, capture_output=True, text=True).stdout
     got = {m[0]: m[1:] for m in (line.split() for line in out.splitlines())}
+    from firmware_protocol.canopen import mirror_index
+
     for reg in REGISTER_MAP:
-        addr, words, scale = got[reg.name]
+        addr, words, scale, counts, access, mirror = got[reg.name]
         assert int(addr) == reg.offset and int(words) == reg.words
-        assert float(scale) == pytest.approx(reg.scale)
+        assert float(scale) == pytest.approx(reg.scale) and int(counts) * reg.scale == pytest.approx(1.0)
+        assert int(access) == (3 if reg.writable else 1) and int(mirror) == mirror_index(reg)
     for flag in Status:
         assert int(got[f"STATUS_{flag.name}"][0]) == int(flag)
     from firmware_protocol import register
