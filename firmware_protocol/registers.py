@@ -234,6 +234,17 @@ BY_NAME: dict[str, Register] = {r.name: r for r in REGISTER_MAP}
 #: Number of registers that hold every defined address (the emulator's memory size).
 REGISTER_SPACE = AXIS_BASE + MAX_AXES * AXIS_STRIDE
 
+#: The reference drive's power-up values (the emulator's, ``hil.drive``), in engineering
+#: units: what the EDS gives as DefaultValue.  A real drive has its own; the controller
+#: writes the watchdog, the limits and the stow angle at start-up and reads them back.
+FACTORY: dict[str, float] = {
+    "HEARTBEAT_TIMEOUT": 10.0,
+    "SOFT_LIMIT_MIN": -180.0,
+    "SOFT_LIMIT_MAX": 180.0,
+    "MAX_SPEED": 1.0,
+    "STOW_ANGLE": 0.0,
+}
+
 ENUMS = {"Mode": Mode, "Command": Command, "Status": Status, "Fault": Fault}
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from firmware_protocol.registers import FACTORY
+
 
 @dataclass
 class AxisParams:
@@ -39,16 +41,16 @@ class AxisParams:
         Position at power-up, deg.
     """
 
-    max_speed: float = 1.0
+    max_speed: float = FACTORY["MAX_SPEED"]
     accel: float = 2.0
     backlash: float = 0.05
     encoder_resolution: float = 0.01
     deadband: float = 0.02
-    soft_min: float = -180.0
-    soft_max: float = 180.0
+    soft_min: float = FACTORY["SOFT_LIMIT_MIN"]
+    soft_max: float = FACTORY["SOFT_LIMIT_MAX"]
     hard_min: float = -185.0
     hard_max: float = 185.0
-    stow_angle: float = 0.0
+    stow_angle: float = FACTORY["STOW_ANGLE"]
     stall_time: float = 2.0
     initial_angle: float = 0.0
 

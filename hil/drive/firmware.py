@@ -24,7 +24,7 @@ from firmware_protocol import (
     decode,
     encode,
 )
-from firmware_protocol.registers import Register
+from firmware_protocol.registers import FACTORY, Register
 
 from .axis import AxisModel, AxisParams
 
@@ -92,7 +92,7 @@ class DriveFirmware:
         self,
         axes: Sequence[AxisParams],
         now: Callable[[], float],
-        heartbeat_timeout: float = 10.0,
+        heartbeat_timeout: float = FACTORY["HEARTBEAT_TIMEOUT"],
         monotonic: Callable[[], float] | None = None,
         audit_limits: Sequence[tuple[float, float]] | None = None,
     ):

@@ -96,6 +96,16 @@ def row():
         r.close()
 
 
+def seen(r: Row, nmt_state: str, timeout: float = 5.0) -> bool:
+    """The master has heard the node's heartbeat say ``nmt_state``."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if r.drive.axes and r.drive.axes[0].node.nmt.state == nmt_state:
+            return True
+        time.sleep(0.05)
+    return False
+
+
 def reboots(r: Row) -> int:
     return sum(1 for e in r.ctl.events if e.get("kind") == "drive_reboot")
 
@@ -104,7 +114,7 @@ def test_a_node_stopped_by_another_master_is_held_not_started_again(row):
     """It had been started again at once, logged as a reboot."""
     assert row.cycle().health == "ok"
     row.send(0x000, bytes([0x02, NODE]))  # NMT stop
-    time.sleep(1.0)  # its next heartbeat says STOPPED
+    assert seen(row, "STOPPED")  # its next heartbeat says so (one a second)
     for _ in range(4):
         rec = row.cycle()
         assert rec.health == "degraded", rec
@@ -113,7 +123,7 @@ def test_a_node_stopped_by_another_master_is_held_not_started_again(row):
     assert row.tr.health.state == Health.DEGRADED and row.tr.configured  # not lost, not reconnected
     assert reboots(row) == 0
     row.send(0x000, bytes([0x01, NODE]))  # the service tool's NMT start lifts it
-    time.sleep(1.0)
+    assert seen(row, "OPERATIONAL")
     assert row.cycle().health == "ok"
 
 
