@@ -3,11 +3,12 @@ registers read with the link's retries, on the link's shared client."""
 
 from __future__ import annotations
 
+import time
 from typing import Any, ClassVar, Self
 
 from ..drives.base import DriveCommError, LinkStats
 from ..drives.links import LinkConfig
-from ..drives.modbus.client import checked, endpoint, modbus_client, retry_policy
+from ..drives.modbus.client import checked, endpoint, modbus_client, retry_policy, why_tcp_not_open
 
 
 class ModbusSensor:
@@ -52,8 +53,12 @@ class ModbusSensor:
 
     async def connect(self) -> None:
         """Open the link if it is not open (reads do this by themselves)."""
-        if not self.client.connected and not await self.client.connect():
-            raise DriveCommError(f"{self.label}: cannot open the link")
+        if self.client.connected:
+            return
+        t0 = time.monotonic()
+        if not await self.client.connect():
+            why = await why_tcp_not_open(self.client, time.monotonic() - t0)
+            raise DriveCommError(f"{self.label}: cannot open the link{why}")
 
     async def read_block(self, first: int, count: int, what: str) -> list[int]:
         """Input registers ``first .. first+count-1`` (DriveCommError after the retries)."""

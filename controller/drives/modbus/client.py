@@ -351,3 +351,26 @@ def endpoint(link: LinkConfig) -> str:
     if isinstance(link, ModbusTcpLink):
         return f"{link.host}:{link.tcp_port}"
     return link.name
+
+
+async def why_tcp_not_open(client: Any, elapsed_s: float) -> str:
+    """Why a Modbus TCP client's ``connect()`` returned False (pymodbus logs the reason and
+    keeps none): a quick refusal is asked again for its words; a connection attempt that
+    took the whole timeout is a host that does not answer.  '' for a serial client."""
+    params = getattr(client, "comm_params", None)
+    host, port = getattr(params, "host", None), getattr(params, "port", None)
+    if not isinstance(host, str) or not isinstance(port, int) or host.startswith(("/", "ptyfd:", "rfc2217:")):
+        return ""
+    timeout = float(getattr(params, "timeout_connect", 0) or 0)
+    if timeout and elapsed_s >= 0.8 * timeout:
+        return f": {host}:{port} does not answer within {timeout:g} s (host down, or a firewall?)"
+    try:
+        _, writer = await asyncio.wait_for(asyncio.open_connection(host, port), min(timeout or 1.0, 1.0))
+    except TimeoutError:
+        return f": {host}:{port} does not answer (host down, or a firewall?)"
+    except OSError as exc:
+        why = (os.strerror(exc.errno) if exc.errno else str(exc)).lower()  # asyncio's strerror names no cause
+        hint = " (nothing listens there: the gateway's address or port?)" if "refused" in why else ""
+        return f": {host}:{port}: {why}{hint}"
+    writer.close()
+    return f": {host}:{port} accepted a connection, then pymodbus could not use it"

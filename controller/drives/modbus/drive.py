@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Awaitable, Callable, Sequence
 from typing import Any, Self
 
@@ -35,7 +36,7 @@ from ..base import (
 )
 from ..configuration import DriveConfiguration, Tolerances, differences, not_taken
 from ..links import LinkConfig, ModbusRtuLink, ModbusTcpLink
-from .client import ModbusRefused, checked, endpoint, modbus_client, retry_policy
+from .client import ModbusRefused, checked, endpoint, modbus_client, retry_policy, why_tcp_not_open
 
 _ID_WORDS = 3
 
@@ -141,8 +142,10 @@ class ModbusDrive(DriveLink):
                 self.client = self.reopen()
         # a serial line's client raises DriveCommError naming the port and why it does not
         # open; a TCP client returns False
+        t0 = time.monotonic()
         if not await self.client.connect():
-            raise DriveCommError(f"{self.label}: cannot open the link")
+            why = await why_tcp_not_open(self.client, time.monotonic() - t0)
+            raise DriveCommError(f"{self.label}: cannot open the link{why}")
         words = await self._read(
             "identification read", _ID_WORDS, self.client.read_holding_registers, 0, count=_ID_WORDS
         )

@@ -192,3 +192,22 @@ def test_a_drive_without_fc23_is_driven_by_fc16_and_fc3(pty_drive, monkeypatch, 
     assert fw.axes[0].target == pytest.approx(151.0)
     warned = [r for r in caplog.records if "no FC 23" in r.getMessage()]
     assert len(warned) == 1
+
+
+def test_a_tcp_endpoint_where_nothing_listens_says_so():
+    """An audit's case: the row said only "cannot open the link" (pymodbus logs the reason
+    on a line of its own and keeps none)."""
+    import socket
+
+    with socket.socket() as s:  # a port just free: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+
+    async def scenario():
+        d = open_drive(ModbusTcpLink(name="lan", host="127.0.0.1", tcp_port=port, timeout_s=0.5), 2)
+        with pytest.raises(DriveCommError) as e:
+            await d.connect()
+        return str(e.value)
+
+    msg = run(scenario())
+    assert f"cannot open the link: 127.0.0.1:{port}: connection refused (nothing listens there" in msg, msg
