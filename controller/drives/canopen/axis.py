@@ -52,46 +52,52 @@ class Axis402:
         self.booted = False
         #: TPDO frames of the wrong length, dropped whole (see :meth:`guard_tpdos`).
         self.bad_length = 0
-        self._guards: list[tuple[int, Callable[[int, bytearray, float], None]]] = []
+        self._guards: list[tuple[int, Callable[[int, bytearray, float], None], Callable[..., None]]] = []
         self._said = -float("inf")
 
     def guard_tpdos(self, network: canopen.Network, label: str) -> None:
-        """Put a length check in front of each enabled TPDO: a frame shorter or longer than
-        its mapping is dropped whole and counted, with a warning at most once a minute.
-        canopen had decoded it object by object, updating the statusword and leaving the
-        position stale, and logged an error for every frame (ten a second)."""
-        for number, pdo in self.node.tpdo.items():
-            if not (pdo.enabled and pdo.cob_id):
-                continue
-            need = (pdo.length + 7) // 8
+        """Put a length check in front of each enabled TPDO and of the node's EMCY: a frame
+        shorter or longer than its layout is dropped whole and counted, with a warning at
+        most once a minute.  canopen had decoded a short TPDO object by object, updating the
+        statusword and leaving the position stale, and logged an error for every frame (ten
+        a second); a short EMCY was an error naming no node."""
+        frames = [
+            (pdo.cob_id, pdo.on_message, (pdo.length + 7) // 8, f"TPDO{number}")
+            for number, pdo in self.node.tpdo.items()
+            if pdo.enabled and pdo.cob_id
+        ]
+        frames.append((0x80 + int(self.node.id or 0), self.node.emcy.on_emcy, 8, "EMCY"))
+        for cob_id, handler, need, what in frames:
 
             def guard(
-                can_id: int, data: bytearray, timestamp: float, pdo=pdo, need=need, number=number
+                can_id: int, data: bytearray, timestamp: float, handler=handler, need=need, what=what
             ) -> None:
                 if len(data) == need:
-                    pdo.on_message(can_id, data, timestamp)
+                    handler(can_id, data, timestamp)
                     return
                 self.bad_length += 1
                 if time.monotonic() - self._said >= 60.0:
                     self._said = time.monotonic()
                     log.warning(
-                        "%s: TPDO%d from node %d has %d bytes, its mapping needs %d: dropped (%d so far)",
+                        "%s: %s from node %d has %d bytes, its layout needs %d: dropped (%d so far)",
                         label,
-                        number,
+                        what,
                         self.node.id,
                         len(data),
                         need,
                         self.bad_length,
                     )
 
-            network.unsubscribe(pdo.cob_id, pdo.on_message)
-            network.subscribe(pdo.cob_id, guard)
-            self._guards.append((pdo.cob_id, guard))
+            network.unsubscribe(cob_id, handler)
+            network.subscribe(cob_id, guard)
+            self._guards.append((cob_id, guard, handler))
 
     def unguard(self, network: canopen.Network) -> None:
-        for cob_id, guard in self._guards:
+        """The guards off, canopen's own handlers back (its ``remove_network`` takes them off)."""
+        for cob_id, guard, handler in self._guards:
             with contextlib.suppress(KeyError, ValueError):
                 network.unsubscribe(cob_id, guard)
+            network.subscribe(cob_id, handler)
         self._guards = []
 
     @property

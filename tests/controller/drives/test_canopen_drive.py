@@ -346,7 +346,7 @@ def test_a_tpdo_of_the_wrong_length_is_dropped_whole(caplog):
     assert dropped == 5 and after == before  # nothing of the short frames was taken
     assert st.axes[0].actual_deg == pytest.approx(0.0, abs=0.01)
     warned = [
-        r for r in caplog.records if "TPDO1 from node 9 has 4 bytes, its mapping needs 6" in r.getMessage()
+        r for r in caplog.records if "TPDO1 from node 9 has 4 bytes, its layout needs 6" in r.getMessage()
     ]
     assert len(warned) == 1
     assert not [r for r in caplog.records if r.name.startswith("canopen") and r.levelname == "ERROR"]
@@ -361,12 +361,15 @@ def test_an_emcy_is_logged_with_its_node(caplog):
             await d.connect()
             try:
                 send(0x80 + 12, bytes([0x42, 0xFF, 0x81, 0, 0, 0, 0, 0]))
+                send(0x80 + 12, bytes([0x42, 0xFF, 0x81]))  # a short one: dropped, named
                 await asyncio.sleep(0.2)
             finally:
                 await d.close()
 
         run(scenario())
     assert any("EMCY from node 12: 0xFF42 (error register 0x81)" in r.getMessage() for r in caplog.records)
+    assert any("EMCY from node 12 has 3 bytes, its layout needs 8" in r.getMessage() for r in caplog.records)
+    assert not [r for r in caplog.records if r.name.startswith("canopen") and r.levelname == "ERROR"]
 
 
 def test_a_node_that_does_not_start_is_named():
