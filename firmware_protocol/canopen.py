@@ -83,6 +83,7 @@ MASTER_NODE_ID = 0x7F
 #: Highest node id a drive may use (the master takes 0x7F).
 MAX_NODE_ID = 0x7E
 PROFILE_POSITION = 1  # 0x6060 value: the only mode of operation supported
+QUICK_STOP_OPTION = 6  # 0x605A: stop, then stay in QUICK STOP ACTIVE
 SUPPORTED_DRIVE_MODES = 0x1  # 0x6502 bit 0: profile position
 
 #: Register name -> (index, subindex) of the standard object that is its write path.
@@ -313,6 +314,9 @@ def _standard_objects() -> list[OdObject]:
         _var(0x603F, "Error code", UNSIGNED16, "ro", 0, pdo=True, register="FAULT_CODE"),
         _var(0x6040, "Controlword", UNSIGNED16, "rw", 0, pdo=True),
         _var(0x6041, "Statusword", UNSIGNED16, "ro", 0, pdo=True, register="STATUS"),
+        # how a quick stop ends: option 6, stop and stay in QUICK STOP ACTIVE until enabled again
+        # (the halt is immediate: a tracker's slew is slow), which the emulator implements
+        _var(0x605A, "Quick stop option code", INTEGER16, "ro", QUICK_STOP_OPTION),
         _var(0x6060, "Modes of operation", INTEGER8, "rw", PROFILE_POSITION, pdo=True),
         _var(0x6061, "Modes of operation display", INTEGER8, "ro", PROFILE_POSITION, pdo=True),
         _var(

@@ -230,3 +230,16 @@ def test_many_drives_share_one_virtual_bus():
             _enable(n)
             assert _set_point(n, 0.5)
         assert all(f.axes[0].target == 0.5 for f in fws)
+
+
+def test_the_quick_stop_option_code_says_what_a_quick_stop_does():
+    """0x605A had been missing (abort 0x06020000): a master could not tell that a quick stop
+    stays in QUICK STOP ACTIVE (option 6) rather than ending in SWITCH ON DISABLED."""
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
+        node = node402(net, 5)
+        _enable(node)
+        assert node.sdo[0x605A].raw == 6
+        node.controlword = 0x02  # quick stop
+        assert wait_for(lambda: node.state == "QUICK STOP ACTIVE")
+        node.controlword = 0x0F  # enable operation: back, as option 6 allows
+        assert wait_for(lambda: node.state == "OPERATION ENABLED")
