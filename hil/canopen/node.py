@@ -45,6 +45,7 @@ log = logging.getLogger(__name__)
 
 ABORT_VALUE_RANGE = 0x06090030
 ABORT_READ_ONLY = 0x06010002
+ABORT_NO_SUBINDEX = 0x06090011
 ABORT_STATE = 0x08000022  # data cannot be transferred because of the device state
 EMCY_PDO_LENGTH = 0x8210  # PDO not processed due to length error
 _SNAPSHOT_WORDS = 8  # axis registers TARGET_ANGLE .. MODE (offsets 0-7)
@@ -245,10 +246,12 @@ class AxisNode:
 
     # -- SDO ----------------------------------------------------------------------------
     def _on_sdo_read(self, index: int, subindex: int, od, **_) -> int | None:
+        _subindex_exists(index, subindex)
         with self.drive.lock:
             return self.object_raw(index, subindex)
 
     def _on_sdo_write(self, index: int, subindex: int, od, data: bytes, **_) -> None:
+        _subindex_exists(index, subindex)
         if od.data_type not in canopen.objectdictionary.NUMBER_TYPES:
             return
         value = od.decode_raw(data)
@@ -467,6 +470,15 @@ class AxisNode:
             log.warning("node %d: TPDO%d not sent: %s", self.id, no, exc)
             return
         self._last_tx[no] = (values, t)
+
+
+def _subindex_exists(index: int, subindex: int) -> None:
+    """Abort 0x06090011 for a sub-index the object does not have: canopen's dictionary makes
+    up any sub-index of an array and takes any of a variable, which a real node refuses."""
+    try:
+        entry(index, subindex)
+    except KeyError:
+        raise SdoAbortedError(ABORT_NO_SUBINDEX) from None
 
 
 __all__ = ["AxisNode", "DriveBus", "object_dictionary"]

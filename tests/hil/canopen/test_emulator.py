@@ -243,3 +243,18 @@ def test_the_quick_stop_option_code_says_what_a_quick_stop_does():
         assert wait_for(lambda: node.state == "QUICK STOP ACTIVE")
         node.controlword = 0x0F  # enable operation: back, as option 6 allows
         assert wait_for(lambda: node.state == "OPERATION ENABLED")
+
+
+def test_a_sub_index_the_object_does_not_have_is_refused():
+    """canopen's dictionary had made up 0x607D:3 and 0x1016:2 and taken writes to them; a
+    real node aborts with 0x06090011."""
+    with emulated() as (_fw, _emu, ch), master(ch) as net:
+        node = node402(net, 5)
+        for index, sub in ((0x607D, 3), (0x1016, 2)):
+            with pytest.raises(SdoAbortedError) as e:
+                node.sdo.download(index, sub, b"\x01\x00\x00\x00")
+            assert e.value.code == 0x06090011
+        with pytest.raises(SdoAbortedError) as e:
+            node.sdo.upload(0x2000, 7)
+        assert e.value.code == 0x06090011
+        assert node.sdo.upload(0x607D, 2)  # what the object has still answers
