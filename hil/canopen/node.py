@@ -88,6 +88,7 @@ class AxisNode:
         self._listening: int | None = None  # producer whose heartbeat COB-ID we subscribe
         self._fault_seen = Fault.NONE
         self._pdo_dirty = False
+        self._halted_target: float | None = None  # the target a halt (bit 8) put off
         self._sync_count = 0
         self._last_tx: dict[int, tuple[list[int], float]] = {}  # TPDO no -> (values, t)
         self.network: canopen.Network | None = None
@@ -325,11 +326,17 @@ class AxisNode:
         if not cw & Controlword.NEW_SET_POINT:
             self.ack = False
         if new != State402.OPERATION_ENABLED:
+            self._halted_target = None  # leaving the state ends the motion: nothing to resume
             return
         if cw & Controlword.HALT:
             if not prev & Controlword.HALT:
+                self._halted_target = self._reg_raw("TARGET_ANGLE") * register("TARGET_ANGLE").scale
                 self._halt()
             return
+        if prev & Controlword.HALT and self._halted_target is not None:
+            # CiA 402 profile position: clearing the halt bit resumes the motion to the target
+            self.fw.halt(self.axis, self._halted_target)
+            self._halted_target = None
         if cw & Controlword.NEW_SET_POINT and not prev & Controlword.NEW_SET_POINT:
             self._new_set_point(cw)
 

@@ -258,3 +258,16 @@ def test_a_sub_index_the_object_does_not_have_is_refused():
             node.sdo.upload(0x2000, 7)
         assert e.value.code == 0x06090011
         assert node.sdo.upload(0x607D, 2)  # what the object has still answers
+
+
+def test_clearing_the_halt_bit_resumes_the_motion():
+    """CiA 402: halt (bit 8) stops the axis, clearing it goes on to the target; the
+    emulator had forgotten the target."""
+    with emulated() as (fw, _emu, ch), master(ch) as net:
+        node = node402(net, 5)
+        _enable(node)
+        assert _set_point(node, 30.0)
+        node.controlword = 0x010F  # halt
+        assert wait_for(lambda: fw.axes[0].target != 30.0)
+        node.controlword = 0x000F  # halt cleared
+        assert wait_for(lambda: fw.axes[0].target == pytest.approx(30.0))
