@@ -141,3 +141,27 @@ def why_no_noon(times, el_deg, utc_offset_h: float | None = None, shown: int = 4
         parts.append(f"{day.date}: {why}")
     more = f"; {len(days) - shown} more day(s)" if len(days) > shown else ""
     return "; ".join(parts) + more
+
+
+def misplaced_noon(times, el_deg, utc_offset_h: float) -> str | None:
+    """A warning when ``utc_offset_h`` puts the days' highest observations far from local
+    noon (more than 5 h: no zone or summer time is that far off the sun): the days are cut
+    at local midnight, so each day's noon would be split across two days.  None when the
+    offset looks right, or there are too few days to tell."""
+    t = np.asarray(times, dtype=float)
+    el = np.asarray(el_deg, dtype=float)
+    hours = []
+    for day in split_days(t, utc_offset_h):
+        if day.index.size >= 3:
+            top = day.index[int(np.argmax(el[day.index]))]
+            hours.append(((t[top] + utc_offset_h * 3600.0) % 86400.0) / 3600.0)
+    if not hours:
+        return None
+    h = float(np.median(hours))
+    if abs(h - 12.0) <= 5.0:
+        return None
+    return (
+        f"--utc-offset {utc_offset_h:g}: the days' highest sun falls at {int(h):02d}:{int(h % 1 * 60):02d} "
+        "local (median); days are cut at local midnight, so their noons are split: check the "
+        "offset's sign and value, or leave it out"
+    )

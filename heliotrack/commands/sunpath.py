@@ -206,6 +206,12 @@ def _fit(args, path: Path) -> int:
     from controller.sunpath.parabola import run_seed
 
     obs = read_observations(path)
+    if args.utc_offset is not None:
+        from controller.sunpath.days import misplaced_noon
+
+        warning = misplaced_noon([o.time for o in obs], [o.el_deg for o in obs], args.utc_offset)
+        if warning:
+            print(f"heliotrack: warning: {warning}", file=sys.stderr)
     if args.method == "seed":
         rows, _ = run_seed(
             [o.time for o in obs],

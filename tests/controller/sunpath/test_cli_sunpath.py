@@ -235,3 +235,19 @@ def test_the_seed_method_says_why_no_day_was_fitted(tmp_path, capsys):
         err
     )
     assert "2024-03-21: 2 sample(s), 3 at least" in err, err
+
+
+def test_an_offset_that_splits_the_noons_is_warned_about(tmp_path, capsys):
+    """An audit's case: --utc-offset 12 at a site on UTC cut every day at its noon, and the
+    fit went on without a word."""
+    rows = ["time,az_deg,el_deg"]
+    for day in (20, 21):
+        for h, el in ((9, 30), (10, 38), (11, 42), (12, 43), (13, 41), (14, 36), (15, 28)):
+            rows.append(f"2024-03-{day}T{h:02d}:00:00Z,{90 + 15 * (h - 6)},{el}")
+    obs = tmp_path / "obs.csv"
+    obs.write_text("\n".join(rows) + "\n")
+    assert main(["sunpath", str(obs), "--method", "seed", "--utc-offset", "12"]) == 0
+    err = capsys.readouterr().err
+    assert "--utc-offset 12: the days' highest sun falls at 00:00 local (median)" in err, err
+    assert main(["sunpath", str(obs), "--method", "seed", "--utc-offset", "0"]) == 0
+    assert "--utc-offset" not in capsys.readouterr().err
