@@ -95,8 +95,9 @@ class DriveHealth:
     resumes_unanswered: int = 0
     #: Per axis: (the reading it stands still at, since when) while away from its target.
     still: dict[int, tuple[float, float]] = field(default_factory=dict)
-    #: Per axis: (the last reading, when): a jump faster than the drive can move is a fault.
-    readings: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: Per axis: (the last reading, when, HOMED then): a jump faster than the drive can move
+    #: is a fault.
+    readings: dict[int, tuple[float, float, bool]] = field(default_factory=dict)
 
     # -- link -----------------------------------------------------------------------
     def comm_failed(self, now: float, why: str) -> bool:
@@ -206,14 +207,16 @@ class DriveHealth:
         """Axes whose reading moved further since the last one than their speed limit
         allows (with :data:`JUMP_FACTOR` and :data:`JUMP_SLACK_DEG` for timing and
         quantisation): an encoder or firmware fault, or a drive that reports another
-        axis's angle."""
+        axis's angle.  Not judged across homing (HOMED clear, or just set again): the
+        encoder is re-referenced, and its reading may jump by the correction."""
         out = []
         for k, (a, vmax) in enumerate(zip(st.axes, max_speeds, strict=False)):
-            x0, t0 = self.readings.get(k, (math.nan, now))
+            homed = bool(a.status & Status.HOMED)
+            x0, t0, homed0 = self.readings.get(k, (math.nan, now, homed))
             if math.isfinite(a.actual_deg):
-                self.readings[k] = (a.actual_deg, now)
+                self.readings[k] = (a.actual_deg, now, homed)
             moved, dt = abs(a.actual_deg - x0), now - t0
-            if moved > vmax * dt * JUMP_FACTOR + JUMP_SLACK_DEG:
+            if homed and homed0 and moved > vmax * dt * JUMP_FACTOR + JUMP_SLACK_DEG:
                 out.append(
                     f"axis {k} reading jumped {moved:.2f} deg in {dt:.1f} s, faster than its "
                     f"{vmax:g} deg/s (encoder or firmware fault)"

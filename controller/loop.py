@@ -339,6 +339,7 @@ class Controller(WindPolling, DriveSetup):
         await self._heartbeat(tr)
         if tr.index in self._home_requested and self._may_home(tr, order):
             await tr.drive.command(Command.HOME)
+            tr.health.readings.clear()  # homing re-references the encoder: its reading may jump
             self._home_requested.discard(tr.index)
         state = await tr.drive.exchange(targets)
         await self._check_restart(tr)

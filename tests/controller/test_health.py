@@ -48,24 +48,35 @@ def test_a_reading_that_moves_faster_than_the_drive_can_is_named():
     where its speed limit is 1 deg/s, had been ok."""
     h = DriveHealth()
     speeds = (1.0, 0.5)
-    h.assess(state(100.0, 20.0), 0.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
-    h.assess(state(101.0, 20.5), 1.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+
+    def see(t, *angles, status=Status.HOMED):
+        h.assess(state(*angles, status=status), t, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+
+    see(0.0, 100.0, 20.0)
+    see(1.0, 101.0, 20.5)
     assert h.state == Health.OK, h.reason  # at its speed limit: a slew
-    h.assess(state(221.0, 20.5), 2.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    see(2.0, 221.0, 20.5)
     assert h.state == Health.DEGRADED
     assert (
         h.reason
         == "axis 0 reading jumped 120.00 deg in 1.0 s, faster than its 1 deg/s (encoder or firmware fault)"
     )
-    h.assess(state(221.0, 20.5), 3.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    see(3.0, 221.0, 20.5)
     assert h.state == Health.OK  # it stays there: the new reading is the reference
-    # a long gap (a link lost for minutes) allows a long slew
-    h.assess(state(160.0, 50.0), 123.0, weather_stow=False, limits=LIMITS, max_speeds=speeds)
+    see(123.0, 160.0, 50.0)  # a long gap (a link lost for minutes) allows a long slew
     assert h.state == Health.OK, h.reason
+    # homing re-references the encoder: a jump while HOMED is clear, or as it comes back, is no fault
+    see(124.0, 165.0, 50.0, status=Status(0))
+    see(125.0, 172.0, 50.0, status=Status(0))
+    assert h.state == Health.OK, h.reason
+    see(126.0, 178.0, 50.0)
+    assert h.state == Health.OK, h.reason
+    see(127.0, 190.0, 50.0)  # referenced on both readings: judged again
+    assert h.state == Health.DEGRADED
     # without the drive's speed limit (a backend that cannot read it) nothing is judged
     h2 = DriveHealth()
-    h2.assess(state(100.0, 20.0), 0.0, weather_stow=False, limits=LIMITS)
-    h2.assess(state(221.0, 20.0), 1.0, weather_stow=False, limits=LIMITS)
+    h2.assess(state(100.0, 20.0, status=Status.HOMED), 0.0, weather_stow=False, limits=LIMITS)
+    h2.assess(state(221.0, 20.0, status=Status.HOMED), 1.0, weather_stow=False, limits=LIMITS)
     assert h2.state == Health.OK
 
 
