@@ -258,11 +258,13 @@ TARGET_TOLERANCE_DEG = 0.01
 
 def _other_targets(st: DriveState, targets: Sequence[float]) -> list[str]:
     """Axes in AUTO that work to another target than the one just commanded, without saying
-    they clamped it (TARGET_CLAMPED) or being faulted: a firmware that acknowledges
+    they clamped it (TARGET_CLAMPED), being faulted or homing: a firmware that acknowledges
     set-points and latches others, which the axis then follows as if told to."""
     out = []
     for k, (a, want) in enumerate(zip(st.axes, targets, strict=False)):
         if a.mode != Mode.AUTO or a.status & (Status.TARGET_CLAMPED | Status.FAULT):
+            continue
+        if not a.status & Status.HOMED:  # homing: the drive works to its index, not to ours
             continue
         if not abs(a.target_deg - want) <= TARGET_TOLERANCE_DEG:
             out.append(
