@@ -130,3 +130,13 @@ def test_a_drive_that_starts_a_slew_after_a_stow_is_not_flagged():
     axes = (AxisState(0.0, -9.87, 0.0, NO_STATUS, Fault.NONE, Mode.AUTO),) * 2
     h.assess(DriveState(2, axes), 60.0, weather_stow=False, limits=((-55.0, 55.0),) * 2)
     assert "does not follow" not in h.reason
+
+
+def test_another_target_latched_is_named_unless_the_drive_homes():
+    h = DriveHealth()
+    axes = (AxisState(100.0, 130.0, 0.0, Status.HOMED, Fault.NONE, Mode.AUTO),)
+    h.assess(DriveState(1, axes), 0.0, weather_stow=False, limits=LIMITS[:1], targets=(100.0,))
+    assert h.state == Health.DEGRADED and "axis 0 works to 130.000 deg, 100.000 commanded" in h.reason
+    homing = (AxisState(100.0, 130.0, 0.0, Status(0), Fault.NONE, Mode.AUTO),)  # to its index
+    h.assess(DriveState(1, homing), 1.0, weather_stow=False, limits=LIMITS[:1], targets=(100.0,))
+    assert h.state == Health.OK, h.reason
