@@ -31,7 +31,7 @@ async def enable(drive: CanopenDrive, axis: Axis402) -> None:
     node = axis.node
     if axis.state == State402.QUICK_STOP_ACTIVE:  # someone's stop: a restart lifts none
         raise DriveHeld(
-            f"{drive.label}: node {node.id} is in QUICK STOP; not enabled (lift it there, or RESUME)"
+            f"{drive.label}: node {node.id} is in QUICK STOP; not enabled (lift it where it was set; a reboot lifts it too)"
         )
 
     def enable_operation() -> None:

@@ -412,7 +412,7 @@ class CanopenDrive(DriveLink):
                 raise DriveHeld(
                     f"{self.label}: axis {k} (node {axis.node.id}) is "
                     f"{state.name if state else 'in an unknown state'}, not "
-                    "OPERATION ENABLED; not re-enabled automatically (lift it there, or RESUME)"
+                    "OPERATION ENABLED; not re-enabled automatically (lift it where it was set; a reboot lifts it too)"
                 )
             try:
                 await set_point(self, k, axis, raw)
