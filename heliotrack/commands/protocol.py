@@ -1,6 +1,6 @@
 """``heliotrack protocol export DIR``: write every generated firmware_protocol artefact;
-``heliotrack protocol conformance``: check a real Modbus drive against the register map's
-rules (:mod:`controller.drives.modbus.conformance`)."""
+``heliotrack protocol conformance``: check a real drive against the protocol's rules
+(:mod:`controller.drives.modbus.conformance`, :mod:`controller.drives.canopen.conformance`)."""
 
 from __future__ import annotations
 
@@ -17,9 +17,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     e.set_defaults(func=run_export)
     c = ps.add_parser(
         "conformance",
-        help="check a Modbus drive against the register map's rules (firmware bring-up)",
+        help="check a drive (Modbus or CANopen) against the protocol's rules (firmware bring-up)",
         description="Connect to one tracker's drive of a plant file and check it against the rules "
-        "of the register map (firmware_protocol/generated/REGISTERS.md, 'Behaviour'): one row per "
+        "of the protocol (firmware_protocol/generated/REGISTERS.md 'Behaviour', docs/canopen.md): one row per "
         "rule, pass, FAIL, warn or skip.  Without --may-move nothing moves: only values the drive "
         "holds are written, or values it must refuse.  Exit 0 when nothing failed.",
     )
@@ -52,8 +52,7 @@ def run_conformance(args: argparse.Namespace) -> int:
     import asyncio
 
     from controller.drives.base import DriveCommError
-    from controller.drives.modbus.conformance import FAIL, run_checks
-    from controller.drives.modbus.drive import ModbusDrive
+    from controller.drives.conformance import FAIL
     from controller.drives.registry import open_drive
     from controller.errors import InputError
     from heliotrack.runtime import load_plant
@@ -66,16 +65,19 @@ def run_conformance(args: argparse.Namespace) -> int:
     if not 0.5 <= args.watchdog_s <= 60:
         raise InputError(f"--watchdog-s {args.watchdog_s:g}: expected 0.5 to 60 s")
     link = config.links_by_name[tracker.link]
-    if link.kind not in ("modbus-rtu", "modbus-tcp"):
+    if link.kind == "canopen":
+        from controller.drives.canopen.conformance import run_checks
+    elif link.kind in ("modbus-rtu", "modbus-tcp"):
+        from controller.drives.modbus.conformance import run_checks  # type: ignore[assignment]
+    else:
         raise InputError(
-            f"--tracker {args.tracker}: its link {tracker.link!r} is {link.kind}; conformance checks Modbus drives only"
+            f"--tracker {args.tracker}: its link {tracker.link!r} is {link.kind}: no conformance checks for it"
         )
 
     async def main() -> int:
-        drive = open_drive(link, tracker.device_id)  # the client wants the running loop
-        assert isinstance(drive, ModbusDrive)
+        drive = open_drive(link, tracker.device_id)  # a Modbus client wants the running loop
         failed = n = 0
-        async for check in run_checks(drive, may_move=args.may_move, watchdog_s=args.watchdog_s):
+        async for check in run_checks(drive, may_move=args.may_move, watchdog_s=args.watchdog_s):  # type: ignore[arg-type]
             n += 1
             failed += check.outcome == FAIL
             print(f"{check.outcome:<5} {check.name}: {check.detail}", flush=True)

@@ -13,27 +13,15 @@ from __future__ import annotations
 
 import asyncio
 from collections.abc import AsyncIterator, Awaitable, Callable
-from dataclasses import dataclass
 from typing import Any
 
 from firmware_protocol import Command, Mode, Status, decode, encode, register
 from firmware_protocol.registers import AXIS_BASE, AXIS_STRIDE, REGISTER_MAP, REGISTER_SPACE
 
 from ..base import DriveCommError
+from ..conformance import FAIL, PASS, SKIP, WARN, Check, in_order, refused
 from .client import ModbusRefused, checked
 from .drive import ModbusDrive
-
-PASS, FAIL, WARN, SKIP = "pass", "FAIL", "warn", "skip"
-
-
-@dataclass(frozen=True)
-class Check:
-    """One rule's outcome: ``PASS``, ``FAIL``, ``WARN`` (works, not as recommended) or
-    ``SKIP`` (needs ``may_move``, or does not apply to this drive)."""
-
-    name: str
-    outcome: str
-    detail: str
 
 
 def gaps(axis_count: int) -> list[int]:
@@ -81,13 +69,6 @@ class _Probe:
         await self.d.heartbeat()
 
 
-def _refused(name: str, code: int | None, want: int) -> Check:
-    if code == want:
-        return Check(name, PASS, f"exception {want}")
-    got = "taken" if code is None else f"exception {code}"
-    return Check(name, FAIL, f"{got}, exception {want} expected")
-
-
 async def run_checks(
     drive: ModbusDrive, *, may_move: bool = False, watchdog_s: float = 2.0
 ) -> AsyncIterator[Check]:
@@ -117,15 +98,13 @@ async def run_checks(
             f"{drive.axis_count} axis/axes, protocol {ident.version_text(ident.protocol_version)}, "
             f"firmware {ident.version_text(ident.firmware_version)}",
         )
-        async for check in _static_checks(p, drive.axis_count):
+        async for check in in_order(
+            _static_checks(p, drive.axis_count),
+            lambda: _moving_checks(p, watchdog_s),
+            MOVING_CHECKS,
+            may_move,
+        ):
             yield check
-        moving = _moving_checks(p, watchdog_s)
-        if may_move:
-            async for check in moving:
-                yield check
-        else:
-            for name in MOVING_CHECKS:
-                yield Check(name, SKIP, "moves the axes: --may-move")
     finally:
         await drive.close()
 
@@ -142,7 +121,7 @@ async def _static_checks(p: _Probe, n: int) -> AsyncIterator[Check]:
     else:
         yield Check("reads across the gaps", PASS, f"{len(holes)} gap addresses read 0")
     _, code = await p.read(REGISTER_SPACE - 1, 2)
-    yield _refused("a read beyond the map refused", code, 2)
+    yield refused("a read beyond the map refused", code, 2)
 
     target = register("TARGET_ANGLE")
     now = await p.value("TARGET_ANGLE", 0)
@@ -167,23 +146,23 @@ async def _static_checks(p: _Probe, n: int) -> AsyncIterator[Check]:
     _, code = await p.ask(
         p.c.write_registers, actual.address(0), encode(actual, await p.value("ACTUAL_ANGLE", 0))
     )
-    yield _refused("a read-only register refused", code, 2)
+    yield refused("a read-only register refused", code, 2)
     _, code = await p.ask(p.c.write_register, target.address(0), encode(target, now)[0])
-    yield _refused("half of a 32-bit register refused", code, 2)
+    yield refused("half of a 32-bit register refused", code, 2)
     if code is None:  # it took the high word alone: put the whole target back
         await p.write("TARGET_ANGLE", now, 0)
     _, code = await p.ask(p.c.write_register, holes[0], 0)
-    yield _refused(f"a write to a gap ({holes[0]}) refused", code, 2)
-    yield _refused("MODE 9 refused", await p.write("MODE", 9, 0), 3)
+    yield refused(f"a write to a gap ({holes[0]}) refused", code, 2)
+    yield refused("MODE 9 refused", await p.write("MODE", 9, 0), 3)
     timeout = await p.value("HEARTBEAT_TIMEOUT")
     code = await p.write("HEARTBEAT_TIMEOUT", 0)
-    yield _refused("the watchdog off outside MAINTENANCE refused", code, 3)
+    yield refused("the watchdog off outside MAINTENANCE refused", code, 3)
     if code is None:
         await p.write("HEARTBEAT_TIMEOUT", timeout)
     await p.beat()
     if n == 1:
         _, code = await p.ask(p.c.write_registers, target.address(1), encode(target, 0.0))
-        yield _refused("an axis the drive does not have refused", code, 2)
+        yield refused("an axis the drive does not have refused", code, 2)
     limits = [(await p.value("SOFT_LIMIT_MIN", k), await p.value("SOFT_LIMIT_MAX", k)) for k in range(n)]
     try:  # what it holds, written again and read back
         await p.d.configure(heartbeat_timeout_s=timeout or None, soft_limits=limits)

@@ -15,14 +15,19 @@ from hil.pty import PtyLink
 from tests.conftest import two_axes
 
 
-def plant(tmp_path, port: str):
+def plant_file(tmp_path, body: str):
+    """A plant file of one link and one tracker (``body``) at a made-up site."""
     p = tmp_path / "plant.toml"
-    p.write_text(
-        f'[site]\nlatitude = 10.0\nlongitude = 20.0\n[[links]]\nname = "rs485"\nkind = "modbus-rtu"\n'
-        f'port = "{port}"\ntimeout_s = 0.3\n[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\n'
-        "device_id = 1\n"
-    )
+    p.write_text("[site]\nlatitude = 10.0\nlongitude = 20.0\n" + body)
     return p
+
+
+def plant(tmp_path, port: str):
+    return plant_file(
+        tmp_path,
+        f'[[links]]\nname = "rs485"\nkind = "modbus-rtu"\nport = "{port}"\ntimeout_s = 0.3\n'
+        '[[trackers]]\nname = "dual-1"\ntype = "dual-axis"\nlink = "rs485"\ndevice_id = 1\n',
+    )
 
 
 def rows(out: str) -> dict[str, str]:
