@@ -77,6 +77,8 @@ class AxisModel:
         #: Fault injection: an encoder glitch, deg added to the reading (the position loop
         #: closes on it, so the panel really moves off by this much while it lasts).
         self.encoder_offset = 0.0
+        self.hot = False  # fault injection: the motor's temperature over its limit
+        self.overheated = False  # latched OVERTEMPERATURE (the motor off until cleared)
 
     # -- measurements -------------------------------------------------------------
     @property
@@ -96,6 +98,8 @@ class AxisModel:
     # -- dynamics -----------------------------------------------------------------
     def advance(self, seconds: float) -> None:
         """Integrate ``seconds`` of motion (returns early once at rest)."""
+        if self.hot:  # the drive's thermal protection: the motor off, the fault latched
+            self.overheated = True
         remaining = seconds
         while remaining > 1e-12:
             if self._at_rest():
@@ -105,7 +109,7 @@ class AxisModel:
             remaining -= dt
 
     def _at_rest(self) -> bool:
-        if not self.enabled or self.stalled or self.hard_limit:
+        if not self.enabled or self.stalled or self.hard_limit or self.overheated:
             self.velocity = 0.0
             return True
         return self.at_target
@@ -158,4 +162,6 @@ class AxisModel:
         if self.hard_limit and not self.limit_stuck and self.p.soft_min <= self.target <= self.p.soft_max:
             # The switch is still pressed, but the new target leads back inside.
             self.hard_limit = False
-        return not (self.stalled or self.hard_limit)
+        if self.overheated and not self.hot:  # cooled down
+            self.overheated = False
+        return not (self.stalled or self.hard_limit or self.overheated)

@@ -205,6 +205,8 @@ class DriveFirmware:
             return Fault.HARD_LIMIT
         if ax.stalled:
             return Fault.STALL
+        if ax.overheated:
+            return Fault.OVERTEMPERATURE
         return Fault.NONE
 
     def value(self, reg: Register, k: int | None) -> float | int:

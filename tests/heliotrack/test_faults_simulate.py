@@ -70,3 +70,18 @@ def test_drives_cut_off_restarted_or_latched_come_back_within_two_periods():
     # the stall outlasted the quick clears: the slow retry cleared it within 2 more minutes
     assert worst["drive_stall"] is not None and worst["drive_stall"] <= 4.0
     assert s["modes"] == {"TRACK": 3 * 30}
+
+
+def test_an_overheated_drive_comes_back_once_it_has_cooled():
+    """The emulated drives had never raised OVERTEMPERATURE (a firmware-side audit): a CAN
+    row's and an RTU row's motors too hot for longer than the three quick clears."""
+    events = [
+        {"type": "drive_overtemperature", "at": at(2.5), "duration_s": 200, "target": "row-can"},
+        {"type": "drive_overtemperature", "at": at(4.5), "duration_s": 100, "target": "row-rtu"},
+    ]
+    s = run_simulation(plant(events), start=START, hours=0.25, progress=False)
+    f = s["faults"]
+    got = f["by_type"]["drive_overtemperature"]
+    assert got["injected"] == 2 and f["survived"] == f["injected"], f
+    # cleared by the next clear after it cooled: the quick ones (a minute apart), else the slow retry
+    assert got["recovery_worst_periods"] is not None and got["recovery_worst_periods"] <= 4.0, got

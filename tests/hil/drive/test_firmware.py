@@ -122,3 +122,19 @@ def test_single_axis_drive_reports_one_axis(sim_clock):
     assert fw.read(2, 1) == [1]
     with pytest.raises(FirmwareReject):
         write(fw, "TARGET_ANGLE", 1.0, 1)
+
+
+def test_an_overheated_motor_latches_overtemperature_until_it_has_cooled(sim_clock):
+    fw = DriveFirmware(two_axes(), sim_clock.now, heartbeat_timeout=0.0)
+    fw.axes[1].hot = True
+    sim_clock.sleep(1.0)
+    code = register("FAULT_CODE")
+    assert fw.read(code.address(1), 1)[0] == Fault.OVERTEMPERATURE
+    status = register("STATUS")
+    assert fw.read(status.address(1), 1)[0] & Status.FAULT
+    cmd = register("COMMAND")
+    fw.write(cmd.address(), encode(cmd, int(Command.CLEAR_FAULT)))
+    assert fw.read(code.address(1), 1)[0] == Fault.OVERTEMPERATURE  # still hot
+    fw.axes[1].hot = False
+    fw.write(cmd.address(), encode(cmd, int(Command.CLEAR_FAULT)))
+    assert fw.read(code.address(1), 1)[0] == Fault.NONE
