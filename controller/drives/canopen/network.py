@@ -83,10 +83,21 @@ class SharedNetwork:
         """
         with cls._lock:
             shared = cls._open.get((interface, channel))
+            if shared is not None and shared.dead:
+                # its reception stopped for good (an adapter unplugged, a pty gone): a new
+                # network; the drives still on the old one get it when they reconnect
+                del cls._open[(interface, channel)]
+                shared = None
             if shared is None:
                 shared = cls._open[(interface, channel)] = cls(interface, channel, bus_kwargs)
             shared.users += 1
             return shared
+
+    @property
+    def dead(self) -> bool:
+        """python-can's receive thread stopped on an error: nothing will be heard again."""
+        notifier = self.network.notifier
+        return notifier is not None and notifier.exception is not None
 
     def release(self) -> None:
         with self._lock:
@@ -94,7 +105,10 @@ class SharedNetwork:
             if self.users <= 0:
                 if self._open.get(self.key) is self:
                     del self._open[self.key]
-                self.network.disconnect()
+                try:
+                    self.network.disconnect()
+                except Exception as exc:  # noqa: BLE001 - a dead bus raises its old error on the way out
+                    log.debug("%s:%s: closed with %s", *self.key, exc)
 
 
 #: Networks whose master heartbeat went out in the current event-loop iteration.

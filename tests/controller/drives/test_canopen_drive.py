@@ -388,3 +388,25 @@ def test_a_node_that_does_not_start_is_named():
         "node 13 sent no TPDO within 0.4 s of NMT start (it answers SDO: does it stay PRE-OPERATIONAL?)"
         in str(e.value)
     )
+
+
+def test_a_bus_whose_reception_died_is_opened_afresh():
+    """A network whose receive thread had stopped (its adapter or pty gone) was handed to
+    the next drive on the same channel, which then failed at its first SDO: the full
+    suite's doc example once met a dead network left on a pty name the OS had reused."""
+    from tests.hil.canopen.rig import channel
+
+    ch = channel()
+    first = SharedNetwork.acquire("virtual", ch, {})
+    try:
+        first.network.notifier.exception = OSError("device disconnected")  # what the thread leaves
+        second = SharedNetwork.acquire("virtual", ch, {})
+        try:
+            assert second is not first and not second.dead
+            assert SharedNetwork.acquire("virtual", ch, {}) is second
+            second.release()
+        finally:
+            second.release()
+    finally:
+        first.release()
+    assert ("virtual", ch) not in SharedNetwork._open
