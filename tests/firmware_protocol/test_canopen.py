@@ -141,3 +141,29 @@ def test_entry_types_are_known():
             assert e.data_type in TYPE_BITS or e.data_type == 0x9
             if isinstance(e.default, int) and e.data_type in TYPE_BITS and e.data_type >= 0x5:
                 assert 0 <= e.default < 1 << TYPE_BITS[e.data_type]
+
+
+def test_eds_defaults_are_the_reference_drives_power_up_values(od):
+    """A firmware-side audit's case: the EDS gave 0 for the consumer heartbeat (the watchdog
+    off, refused outside MAINTENANCE), 0 / 0 for the position window (inverted, refused) and
+    0 for the profile velocity; a tool writing the defaults broke the drive's setup."""
+    from firmware_protocol.canopen import MASTER_NODE_ID
+    from firmware_protocol.registers import FACTORY
+    from hil.drive import AxisParams, DriveFirmware
+
+    assert od[0x1016][1].default == (MASTER_NODE_ID << 16) | round(FACTORY["HEARTBEAT_TIMEOUT"] * 1000)
+    lo, hi = od[0x607D][1].default, od[0x607D][2].default
+    assert lo < hi and (lo, hi) == (
+        round(FACTORY["SOFT_LIMIT_MIN"] * 1000),
+        round(FACTORY["SOFT_LIMIT_MAX"] * 1000),
+    )
+    assert od[0x6081].default == round(FACTORY["MAX_SPEED"] * 1000)
+    # what the emulated drive holds at power-up
+    fw = DriveFirmware([AxisParams()], lambda: 0.0)
+    assert fw.heartbeat_timeout == FACTORY["HEARTBEAT_TIMEOUT"]
+    p = fw.axes[0].p
+    assert (p.soft_min, p.soft_max, p.max_speed) == (
+        FACTORY["SOFT_LIMIT_MIN"],
+        FACTORY["SOFT_LIMIT_MAX"],
+        FACTORY["MAX_SPEED"],
+    )
