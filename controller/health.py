@@ -10,7 +10,10 @@ The loop reports every exchange to a :class:`DriveHealth`, which decides:
   ``max_fault_clears`` times, ``clear_interval_s`` apart; a fault that survives them leaves
   the drive ``lost`` ("needs service"), and CLEAR_FAULT is still tried every
   ``service_retry_s``, so that a drive whose cause went away (ice melted, a switch
-  released) is back within that time by itself (the count restarts once it clears).  A
+  released) is back within that time by itself.  The count restarts only once the drive
+  has shown no fault for ``fault_free_s`` (two readings at least): a fault that comes back
+  as soon as the drive moves (an over-current under a load that lasts) is one fault that
+  persists, not a new one each time, and ends in "needs service" too.  A
   stall's cause cannot be seen from outside: only a clear tells, and it costs the motor
   the drive's stall-detection time (2 s in the HIL) of stall current, about 3 % of a
   minute.  Gentler retries (a larger ``HealthPolicy.service_retry_s``, not a configuration
@@ -66,6 +69,7 @@ class HealthPolicy:
     max_fault_clears: int = 3
     clear_interval_s: float = 60.0
     service_retry_s: float = 60.0
+    fault_free_s: float = 150.0  # more than two periods at the default clear interval
     min_backoff_s: float = 60.0
     max_backoff_s: float = 960.0
 
@@ -78,6 +82,8 @@ class DriveHealth:
     errors_in_row: int = 0
     fault_clears: int = 0
     last_clear: float = -math.inf
+    #: Since when the drive has shown no fault (the clear count restarts after a while).
+    fault_free_since: float | None = None
     reconnect_at: float = -math.inf
     backoff_s: float = 0.0
     #: The controller commanded this drive into STOW (weather) and owns its resume.
@@ -142,6 +148,7 @@ class DriveHealth:
         faults = [(k, a) for k, a in enumerate(st.axes) if a.status & Status.FAULT]
         lost = False
         if faults:
+            self.fault_free_since = None
             names = ", ".join(f"axis {k} {_fault_text(a.fault, a.status)}" for k, a in faults)
             if self.fault_clears < self.policy.max_fault_clears:
                 if self._due(now, self.policy.clear_interval_s):
@@ -156,10 +163,12 @@ class DriveHealth:
                     self.fault_clears += 1
                     self.last_clear = now
                 problems.append(
-                    f"{names} persists after {self.fault_clears} clears: needs service "
+                    f"{names} persists or comes back after {self.fault_clears} clears: needs service "
                     f"(next clear in {max(self.last_clear + self.policy.service_retry_s - now, 0.0):.0f} s)"
                 )
-        else:
+        elif self.fault_free_since is None:
+            self.fault_free_since = now
+        elif now - self.fault_free_since >= self.policy.fault_free_s:
             self.fault_clears = 0
         modes = {a.mode for a in st.axes}
         # the watchdog's stow: still without heartbeat, or latched by the drive after it

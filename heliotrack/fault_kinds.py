@@ -11,6 +11,7 @@ from controller.schema import Where
 TimedFault = Literal[
     "drive_stall",
     "drive_overtemperature",
+    "drive_overcurrent",
     "limit_switch",
     "encoder_glitch",
     "emulator_restart",
@@ -46,6 +47,7 @@ FAULT_KINDS: tuple[str, ...] = (*WIRE_FAULTS, "can_frame_lost", *TIMED_FAULTS)
 FAULT_DEFAULTS: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
     "drive_stall": ((30.0, 300.0), (0.0, 0.0)),
     "drive_overtemperature": ((60.0, 900.0), (0.0, 0.0)),
+    "drive_overcurrent": ((30.0, 600.0), (0.0, 0.0)),
     "limit_switch": ((10.0, 120.0), (0.0, 0.0)),
     "encoder_glitch": ((1.0, 10.0), (0.5, 3.0)),
     "emulator_restart": ((5.0, 120.0), (0.0, 0.0)),

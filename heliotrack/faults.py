@@ -219,7 +219,13 @@ class FaultScheduler:
         kind = f.kind
         if kind in WIRE_FAULTS:
             self._force_wire(f)
-        elif kind in ("drive_stall", "drive_overtemperature", "limit_switch", "encoder_glitch"):
+        elif kind in (
+            "drive_stall",
+            "drive_overtemperature",
+            "drive_overcurrent",
+            "limit_switch",
+            "encoder_glitch",
+        ):
             ax = w.firmwares[f.target].axes[f.axis]
             if kind == "drive_stall":
                 ax.jammed = True
@@ -227,6 +233,9 @@ class FaultScheduler:
             elif kind == "drive_overtemperature":
                 ax.hot = True
                 f.undo = lambda: setattr(ax, "hot", False)
+            elif kind == "drive_overcurrent":
+                ax.overloaded = True
+                f.undo = lambda: setattr(ax, "overloaded", False)
             elif kind == "limit_switch":
                 ax.trip_limit()
                 f.undo = lambda: setattr(ax, "limit_stuck", False)

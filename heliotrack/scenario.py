@@ -381,7 +381,14 @@ def fault_targets(config: Config) -> dict[str, tuple[str, ...]]:
     )
     camera = ("camera",) if config.control.sun_source != "ephemeris" else ()  # fused: the hotspot's
     out: dict[str, tuple[str, ...]] = {}
-    for k in ("drive_stall", "drive_overtemperature", "limit_switch", "encoder_glitch", "emulator_restart"):
+    for k in (
+        "drive_stall",
+        "drive_overtemperature",
+        "drive_overcurrent",
+        "limit_switch",
+        "encoder_glitch",
+        "emulator_restart",
+    ):
         out[k] = trackers
     for k in ("can_error_passive", "can_bus_off"):
         out[k] = can

@@ -79,6 +79,10 @@ class AxisModel:
         self.encoder_offset = 0.0
         self.hot = False  # fault injection: the motor's temperature over its limit
         self.overheated = False  # latched OVERTEMPERATURE (the motor off until cleared)
+        #: Fault injection: a load over the motor's current limit (a seized bearing, a drift
+        #: of snow against the motion): the drive trips OVERCURRENT as soon as it drives.
+        self.overloaded = False
+        self.overcurrent = False  # latched OVERCURRENT (the motor off until cleared)
 
     # -- measurements -------------------------------------------------------------
     @property
@@ -109,7 +113,7 @@ class AxisModel:
             remaining -= dt
 
     def _at_rest(self) -> bool:
-        if not self.enabled or self.stalled or self.hard_limit or self.overheated:
+        if not self.enabled or self.stalled or self.hard_limit or self.overheated or self.overcurrent:
             self.velocity = 0.0
             return True
         return self.at_target
@@ -128,6 +132,11 @@ class AxisModel:
             v_cmd = math.copysign(min(p.max_speed, math.sqrt(2 * p.accel * abs(error))), error)
             dv = p.accel * dt
             self.velocity += max(-dv, min(dv, v_cmd - self.velocity))
+        if self.overloaded:
+            # The current limit trips within milliseconds of driving, long before a stall.
+            self.velocity = 0.0
+            self.overcurrent = True
+            return
         if self.jammed:
             # Current flows but nothing turns: the firmware notices after stall_time.
             self.velocity = 0.0
@@ -164,4 +173,6 @@ class AxisModel:
             self.hard_limit = False
         if self.overheated and not self.hot:  # cooled down
             self.overheated = False
+        # An over-current trip always clears: the next motion trips again while the load lasts.
+        self.overcurrent = False
         return not (self.stalled or self.hard_limit or self.overheated)

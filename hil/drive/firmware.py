@@ -207,6 +207,8 @@ class DriveFirmware:
             return Fault.STALL
         if ax.overheated:
             return Fault.OVERTEMPERATURE
+        if ax.overcurrent:
+            return Fault.OVERCURRENT
         return Fault.NONE
 
     def value(self, reg: Register, k: int | None) -> float | int:

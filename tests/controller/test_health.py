@@ -140,3 +140,26 @@ def test_another_target_latched_is_named_unless_the_drive_homes():
     homing = (AxisState(100.0, 130.0, 0.0, Status(0), Fault.NONE, Mode.AUTO),)  # to its index
     h.assess(DriveState(1, homing), 1.0, weather_stow=False, limits=LIMITS[:1], targets=(100.0,))
     assert h.state == Health.OK, h.reason
+
+
+def test_a_fault_that_comes_back_after_each_clear_needs_service():
+    """An over-current under a load that lasts: each clear works, and the next motion
+    trips it again, so every other reading is clean.  The clear count had restarted at
+    each clean reading, and the drive was cleared (and tripped) forever."""
+    h = DriveHealth()
+    tripped = state(180.0, 30.0, status=Status.FAULT, fault=Fault.OVERCURRENT)
+    clean = state(180.0, 30.0)
+    now = 0.0
+    for _ in range(4):
+        h.assess(tripped, now, weather_stow=False, limits=LIMITS)
+        h.assess(clean, now + 60.0, weather_stow=False, limits=LIMITS)
+        now += 120.0
+    cmds = h.assess(tripped, now, weather_stow=False, limits=LIMITS)
+    assert h.state == Health.LOST and "needs service" in h.reason, h.reason
+    assert "OVERCURRENT" in h.reason
+    assert cmds == [Command.CLEAR_FAULT]  # the slow retry goes on: the load may be gone
+    # a drive that then runs clean for a while starts a fresh count
+    for t in (60.0, 120.0, 180.0, 240.0):
+        h.assess(clean, now + t, weather_stow=False, limits=LIMITS)
+    h.assess(tripped, now + 300.0, weather_stow=False, limits=LIMITS)
+    assert h.state == Health.DEGRADED and "clear 1/3" in h.reason, h.reason

@@ -85,3 +85,17 @@ def test_an_overheated_drive_comes_back_once_it_has_cooled():
     assert got["injected"] == 2 and f["survived"] == f["injected"], f
     # cleared by the next clear after it cooled: the quick ones (a minute apart), else the slow retry
     assert got["recovery_worst_periods"] is not None and got["recovery_worst_periods"] <= 4.0, got
+
+
+def test_an_overloaded_drive_comes_back_once_the_load_is_gone():
+    """OVERCURRENT clears at once and trips again at the next motion while the load lasts:
+    the quick clears run out and the slow retry brings the row back after it."""
+    events = [
+        {"type": "drive_overcurrent", "at": at(2.5), "duration_s": 480, "target": "row-can"},
+        {"type": "drive_overcurrent", "at": at(4.5), "duration_s": 90, "target": "dual-tcp"},
+    ]
+    s = run_simulation(plant(events), start=START, hours=0.25, progress=False)
+    f = s["faults"]
+    got = f["by_type"]["drive_overcurrent"]
+    assert got["injected"] == 2 and f["survived"] == f["injected"], f
+    assert got["recovery_worst_periods"] is not None and got["recovery_worst_periods"] <= 4.0, got

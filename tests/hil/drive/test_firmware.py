@@ -138,3 +138,26 @@ def test_an_overheated_motor_latches_overtemperature_until_it_has_cooled(sim_clo
     fw.axes[1].hot = False
     fw.write(cmd.address(), encode(cmd, int(Command.CLEAR_FAULT)))
     assert fw.read(code.address(1), 1)[0] == Fault.NONE
+
+
+def test_an_overloaded_motor_trips_overcurrent_each_time_it_drives(sim_clock):
+    """The emulated drives had never raised OVERCURRENT (a firmware-side audit)."""
+    fw = DriveFirmware(two_axes(), sim_clock.now, heartbeat_timeout=0.0)
+    fw.axes[0].overloaded = True
+    start = read(fw, "ACTUAL_ANGLE", 0)
+    sim_clock.sleep(1.0)
+    assert read(fw, "FAULT_CODE", 0) == Fault.NONE  # at rest: no current, no trip
+    write(fw, "TARGET_ANGLE", start + 10.0, 0)
+    sim_clock.sleep(1.0)
+    assert read(fw, "FAULT_CODE", 0) == Fault.OVERCURRENT
+    assert Status(read(fw, "STATUS", 0)) & Status.FAULT
+    assert read(fw, "ACTUAL_ANGLE", 0) == pytest.approx(start, abs=0.01)  # it never turned
+    write(fw, "COMMAND", int(Command.CLEAR_FAULT))
+    assert read(fw, "FAULT_CODE", 0) == Fault.NONE  # the trip clears...
+    sim_clock.sleep(1.0)
+    assert read(fw, "FAULT_CODE", 0) == Fault.OVERCURRENT  # ...and the next motion trips again
+    fw.axes[0].overloaded = False
+    write(fw, "COMMAND", int(Command.CLEAR_FAULT))
+    sim_clock.sleep(30.0)
+    assert read(fw, "FAULT_CODE", 0) == Fault.NONE
+    assert read(fw, "ACTUAL_ANGLE", 0) == pytest.approx(start + 10.0, abs=0.03)
