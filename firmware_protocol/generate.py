@@ -112,8 +112,13 @@ BEHAVIOUR = (
     "- COMMAND acts on every axis of the drive and reads back NONE: STOW puts every axis "
     "not in MAINTENANCE in STOW; RESUME returns every axis in STOW to AUTO, holding where "
     "it stands (target = actual), and is ignored while COMM_LOST is set; CLEAR_FAULT "
-    "clears the latched faults whose cause is gone; HOME re-references the encoder at its "
-    "index.",
+    "clears the latched faults whose cause is gone; HOME starts a homing (below).",
+    "- HOME (axes in AUTO or MANUAL; ignored in STOW and MAINTENANCE): HOMED clears and the "
+    "axis drives at MAX_SPEED to its index (0 deg, or the soft limit nearest it), "
+    "re-references the encoder there, sets HOMED and drives on to TARGET_ANGLE. "
+    "TARGET_ANGLE writes meanwhile are taken (and read back) for afterwards. A STOW, a "
+    "watchdog stow, MAINTENANCE or a CiA 402 halt ends the homing: HOMED goes back to what "
+    "it was (the old reference stands).",
     "- FAULT_CODE latches one fault per axis (a hard limit before a stall), with FAULT "
     "(and STALLED for a stall) in STATUS until CLEAR_FAULT finds the cause gone.",
     "",

@@ -83,6 +83,12 @@ class AxisModel:
         #: of snow against the motion): the drive trips OVERCURRENT as soon as it drives.
         self.overloaded = False
         self.overcurrent = False  # latched OVERCURRENT (the motor off until cleared)
+        #: The encoder is referenced (STATUS HOMED); clear while a homing runs.
+        self.homed = True
+        #: A homing runs: the axis drives to its index, then on to ``_after_homing``.
+        self.homing = False
+        self._after_homing = 0.0
+        self._homed_before = True
 
     # -- measurements -------------------------------------------------------------
     @property
@@ -99,6 +105,49 @@ class AxisModel:
     def moving(self) -> bool:
         return self.velocity != 0.0
 
+    # -- the master's target, and homing ----------------------------------------------
+    @property
+    def commanded(self) -> float:
+        """The target the master set (deg): during a homing, where the axis goes after it."""
+        return self._after_homing if self.homing else self.target
+
+    def command(self, angle: float) -> None:
+        """A new target from the master; a homing under way keeps it for afterwards."""
+        if self.homing:
+            self._after_homing = angle
+        else:
+            self.target = angle
+
+    def index(self) -> float:
+        """Where the encoder's reference mark is: its zero, or the soft limit nearest it."""
+        return min(max(0.0, self.p.soft_min), self.p.soft_max)
+
+    def start_homing(self) -> None:
+        """HOME: drive to the index (HOMED clear meanwhile), reference the encoder there,
+        then drive on to the target the master set."""
+        if not self.homing:
+            self._after_homing, self._homed_before = self.target, self.homed
+            self.homing, self.homed = True, False
+        self.target = self.index()
+
+    def abort_homing(self) -> None:
+        """A stow, a halt or maintenance ends a homing: the old reference stands."""
+        if self.homing:
+            self.homing, self.homed = False, self._homed_before
+            self.target = self._after_homing
+
+    def _homing_done(self) -> bool:
+        """At rest on the index during a homing: referenced; True when there is more to do."""
+        if not (self.homing and self.at_target and self.enabled) or self.faulted:
+            return False
+        self.homing, self.homed = False, True
+        self.target = self._after_homing
+        return not self.at_target
+
+    @property
+    def faulted(self) -> bool:
+        return self.stalled or self.hard_limit or self.overheated or self.overcurrent
+
     # -- dynamics -----------------------------------------------------------------
     def advance(self, seconds: float) -> None:
         """Integrate ``seconds`` of motion (returns early once at rest)."""
@@ -106,14 +155,14 @@ class AxisModel:
             self.overheated = True
         remaining = seconds
         while remaining > 1e-12:
-            if self._at_rest():
+            if self._at_rest() and not self._homing_done():
                 return
             dt = min(self.DT, remaining)
             self._step(dt)
             remaining -= dt
 
     def _at_rest(self) -> bool:
-        if not self.enabled or self.stalled or self.hard_limit or self.overheated or self.overcurrent:
+        if not self.enabled or self.faulted:
             self.velocity = 0.0
             return True
         return self.at_target

@@ -109,7 +109,6 @@ class DriveFirmware:
         self.comm_lost = False
         #: The axis is in STOW because the watchdog fired (STATUS WATCHDOG_STOW).
         self.watchdog_stowed = [False for _ in axes]
-        self.homed = [True for _ in axes]
         self.heartbeat = 0
         self.heartbeat_timeout = heartbeat_timeout
         self._t0 = self.now()
@@ -135,6 +134,16 @@ class DriveFirmware:
         #: encoder offset of the row): the encoder and the position loop see the shaft,
         #: the sun sees the panel (:meth:`panel_angles`).
         self.mount_offsets: list[float] = [0.0 for _ in axes]
+
+    @property
+    def homed(self) -> list[bool]:
+        """Each axis's encoder referenced (STATUS HOMED)."""
+        return [ax.homed for ax in self.axes]
+
+    @homed.setter
+    def homed(self, value: list[bool]) -> None:
+        for ax, h in zip(self.axes, value, strict=True):
+            ax.homed = h
 
     # -- time ---------------------------------------------------------------------
     def update(self) -> None:
@@ -168,6 +177,8 @@ class DriveFirmware:
         self.modes[k] = mode
         self.watchdog_stowed[k] = False  # the stow's cause is whoever set the mode last
         ax.enabled = mode != Mode.MAINTENANCE
+        if mode in (Mode.STOW, Mode.MAINTENANCE):
+            ax.abort_homing()
         if mode == Mode.STOW:
             ax.target = ax.p.stow_angle
 
@@ -195,7 +206,7 @@ class DriveFirmware:
             s |= Status.WATCHDOG_STOW
         if self.clamped[k]:
             s |= Status.TARGET_CLAMPED
-        if self.homed[k]:
+        if ax.homed:
             s |= Status.HOMED
         return s
 
@@ -244,7 +255,7 @@ class DriveFirmware:
         ax = self.axes[k]
         match n:
             case "TARGET_ANGLE":
-                return ax.target
+                return ax.commanded
             case "ACTUAL_ANGLE":
                 return ax.encoder
             case "VELOCITY":
@@ -391,7 +402,7 @@ class DriveFirmware:
                 if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                     clamped = min(max(value, ax.p.soft_min), ax.p.soft_max)
                     self.clamped[k] = clamped != value
-                    ax.target = clamped
+                    ax.command(clamped)
             case "MODE":
                 leaving = self.modes[k] == Mode.MAINTENANCE and value in (Mode.AUTO, Mode.MANUAL)
                 self._set_mode(k, Mode(value))
@@ -404,10 +415,12 @@ class DriveFirmware:
                     ax.p.soft_max = value
                 if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                     # the target in force obeys the new limits at once (it had driven on outside them)
-                    clamped = min(max(ax.target, ax.p.soft_min), ax.p.soft_max)
-                    if clamped != ax.target:
+                    clamped = min(max(ax.commanded, ax.p.soft_min), ax.p.soft_max)
+                    if clamped != ax.commanded:
                         self.clamped[k] = True
-                        ax.target = clamped
+                        ax.command(clamped)
+                    if ax.homing:  # the index too obeys them
+                        ax.target = ax.index()
             case "MAX_SPEED":
                 ax.p.max_speed = value
             case "STOW_ANGLE":
@@ -424,6 +437,7 @@ class DriveFirmware:
             self.update()
             if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
                 ax = self.axes[k]
+                ax.abort_homing()
                 ax.target = min(max(angle_deg, ax.p.soft_min), ax.p.soft_max)
 
     def _audit_target(self, k: int, value: float) -> None:
@@ -452,7 +466,8 @@ class DriveFirmware:
                 case Command.CLEAR_FAULT:
                     ax.clear_faults()
                 case Command.HOME:
-                    self.homed[k] = True
+                    if self.modes[k] in (Mode.AUTO, Mode.MANUAL):
+                        ax.start_homing()
 
     # -- truth for the world (not visible on the wire) -------------------------------
     def true_angles(self) -> list[float]:

@@ -161,3 +161,40 @@ def test_an_overloaded_motor_trips_overcurrent_each_time_it_drives(sim_clock):
     sim_clock.sleep(30.0)
     assert read(fw, "FAULT_CODE", 0) == Fault.NONE
     assert read(fw, "ACTUAL_ANGLE", 0) == pytest.approx(start + 10.0, abs=0.03)
+
+
+def test_home_drives_to_the_index_then_on_to_the_target(sim_clock):
+    """Homing had been instant (a firmware-side audit): HOMED is clear while the axis
+    drives to its index, and a target written meanwhile is where it goes afterwards."""
+    fw = DriveFirmware(two_axes(), sim_clock.now, heartbeat_timeout=0.0)
+    write(fw, "TARGET_ANGLE", 30.0, 1)
+    sim_clock.sleep(90.0)
+    assert read(fw, "ACTUAL_ANGLE", 1) == pytest.approx(30.0, abs=0.03)
+    write(fw, "COMMAND", int(Command.HOME))
+    sim_clock.sleep(5.0)
+    status = Status(read(fw, "STATUS", 1))
+    assert not status & Status.HOMED and status & Status.MOVING
+    assert read(fw, "ACTUAL_ANGLE", 1) < 30.0  # on its way to the index, 0 deg
+    write(fw, "TARGET_ANGLE", 20.0, 1)
+    assert read(fw, "TARGET_ANGLE", 1) == pytest.approx(20.0)  # the master's target reads back
+    lowest = 30.0
+    for _ in range(120):
+        sim_clock.sleep(0.5)
+        lowest = min(lowest, read(fw, "ACTUAL_ANGLE", 1))
+    assert lowest == pytest.approx(0.0, abs=0.03)  # it reached the index
+    assert Status(read(fw, "STATUS", 1)) & Status.HOMED
+    assert read(fw, "ACTUAL_ANGLE", 1) == pytest.approx(20.0, abs=0.03)
+
+
+def test_a_stow_ends_a_homing_and_a_home_in_stow_is_ignored(sim_clock):
+    fw = DriveFirmware(two_axes(), sim_clock.now, heartbeat_timeout=0.0)
+    write(fw, "TARGET_ANGLE", 30.0, 1)
+    sim_clock.sleep(90.0)
+    write(fw, "COMMAND", int(Command.HOME))
+    sim_clock.sleep(5.0)
+    write(fw, "COMMAND", int(Command.STOW))
+    status = Status(read(fw, "STATUS", 1))
+    assert status & Status.HOMED  # the old reference stands
+    assert read(fw, "TARGET_ANGLE", 1) == pytest.approx(fw.axes[1].p.stow_angle)
+    write(fw, "COMMAND", int(Command.HOME))
+    assert not fw.axes[1].homing and Status(read(fw, "STATUS", 1)) & Status.HOMED
