@@ -7,14 +7,15 @@ from typing import Literal, get_args
 
 from controller.schema import Where
 
+#: Faults in one axis of a drive (the HIL's ``AxisModel``).
+AxisFault = Literal[
+    "drive_stall", "drive_overtemperature", "drive_overcurrent", "limit_switch", "encoder_glitch"
+]
+#: Faults that hit a tracker's drive.
+TrackerFault = Literal[AxisFault, "emulator_restart"]
 #: Faults that last a while: switched on and off on the simulated clock.
 TimedFault = Literal[
-    "drive_stall",
-    "drive_overtemperature",
-    "drive_overcurrent",
-    "limit_switch",
-    "encoder_glitch",
-    "emulator_restart",
+    TrackerFault,
     "can_error_passive",
     "can_bus_off",
     "pyranometer_out_of_range",
@@ -36,7 +37,9 @@ WireFault = Literal[
 ]
 #: Any fault a scheduled event may be.
 EventFault = Literal[TimedFault, WireFault]
-TIMED_FAULTS: tuple[str, ...] = get_args(TimedFault)
+AXIS_FAULTS: tuple[str, ...] = get_args(AxisFault)
+TRACKER_FAULTS: tuple[str, ...] = get_args(TrackerFault)
+TIMED_FAULTS: tuple[str, ...] = get_args(TimedFault)  # nested Literals come out flat
 WIRE_FAULTS: tuple[str, ...] = get_args(WireFault)
 #: Every fault kind, as counted in summary.json.
 FAULT_KINDS: tuple[str, ...] = (*WIRE_FAULTS, "can_frame_lost", *TIMED_FAULTS)

@@ -28,7 +28,7 @@ from controller.sun.camera import CameraFrame, FrameSource
 from firmware_protocol import Mode, Status
 from hil.camera.faults import damage
 
-from .fault_kinds import FAULT_DEFAULTS, FAULT_KINDS, WIRE_FAULTS
+from .fault_kinds import AXIS_FAULTS, FAULT_DEFAULTS, FAULT_KINDS, WIRE_FAULTS
 from .fault_ledger import FaultLedger
 from .scenario import ScenarioConfig, fault_targets
 from .world import World
@@ -219,13 +219,7 @@ class FaultScheduler:
         kind = f.kind
         if kind in WIRE_FAULTS:
             self._force_wire(f)
-        elif kind in (
-            "drive_stall",
-            "drive_overtemperature",
-            "drive_overcurrent",
-            "limit_switch",
-            "encoder_glitch",
-        ):
+        elif kind in AXIS_FAULTS:
             ax = w.firmwares[f.target].axes[f.axis]
             if kind == "drive_stall":
                 ax.jammed = True

@@ -16,6 +16,7 @@ from hil.drive import AxisParams
 from .fault_kinds import (
     FAULT_DEFAULTS,
     FAULT_KINDS,
+    TRACKER_FAULTS,
     WIRE_FAULTS,
     EventFault,
     TimedFault,
@@ -381,14 +382,7 @@ def fault_targets(config: Config) -> dict[str, tuple[str, ...]]:
     )
     camera = ("camera",) if config.control.sun_source != "ephemeris" else ()  # fused: the hotspot's
     out: dict[str, tuple[str, ...]] = {}
-    for k in (
-        "drive_stall",
-        "drive_overtemperature",
-        "drive_overcurrent",
-        "limit_switch",
-        "encoder_glitch",
-        "emulator_restart",
-    ):
+    for k in TRACKER_FAULTS:
         out[k] = trackers
     for k in ("can_error_passive", "can_bus_off"):
         out[k] = can

@@ -9,6 +9,8 @@ stayed "not connected", a stall outlasting three clears was never cleared again.
 
 from datetime import UTC, datetime
 
+import pytest
+
 from heliotrack.scenario import parse_scenario
 from heliotrack.simulate import run_simulation
 
@@ -72,30 +74,25 @@ def test_drives_cut_off_restarted_or_latched_come_back_within_two_periods():
     assert s["modes"] == {"TRACK": 3 * 30}
 
 
-def test_an_overheated_drive_comes_back_once_it_has_cooled():
-    """The emulated drives had never raised OVERTEMPERATURE (a firmware-side audit): a CAN
-    row's and an RTU row's motors too hot for longer than the three quick clears."""
+@pytest.mark.parametrize(
+    ("kind", "durations"),
+    [
+        # The emulated drives had never raised OVERTEMPERATURE (a firmware-side audit): a
+        # CAN row's and an RTU row's motors too hot for longer than the three quick clears.
+        ("drive_overtemperature", {"row-can": 200, "row-rtu": 100}),
+        # OVERCURRENT clears at once and trips again at the next motion while the load
+        # lasts: the quick clears run out, and the slow retry brings the row back after it.
+        ("drive_overcurrent", {"row-can": 480, "dual-tcp": 90}),
+    ],
+)
+def test_a_drive_whose_fault_outlasts_the_clears_comes_back_once_it_is_over(kind, durations):
     events = [
-        {"type": "drive_overtemperature", "at": at(2.5), "duration_s": 200, "target": "row-can"},
-        {"type": "drive_overtemperature", "at": at(4.5), "duration_s": 100, "target": "row-rtu"},
+        {"type": kind, "at": at(2.5 + 2 * i), "duration_s": d, "target": target}
+        for i, (target, d) in enumerate(durations.items())
     ]
     s = run_simulation(plant(events), start=START, hours=0.25, progress=False)
     f = s["faults"]
-    got = f["by_type"]["drive_overtemperature"]
+    got = f["by_type"][kind]
     assert got["injected"] == 2 and f["survived"] == f["injected"], f
-    # cleared by the next clear after it cooled: the quick ones (a minute apart), else the slow retry
-    assert got["recovery_worst_periods"] is not None and got["recovery_worst_periods"] <= 4.0, got
-
-
-def test_an_overloaded_drive_comes_back_once_the_load_is_gone():
-    """OVERCURRENT clears at once and trips again at the next motion while the load lasts:
-    the quick clears run out and the slow retry brings the row back after it."""
-    events = [
-        {"type": "drive_overcurrent", "at": at(2.5), "duration_s": 480, "target": "row-can"},
-        {"type": "drive_overcurrent", "at": at(4.5), "duration_s": 90, "target": "dual-tcp"},
-    ]
-    s = run_simulation(plant(events), start=START, hours=0.25, progress=False)
-    f = s["faults"]
-    got = f["by_type"]["drive_overcurrent"]
-    assert got["injected"] == 2 and f["survived"] == f["injected"], f
+    # cleared by the next clear after it is over: the quick ones (a minute apart), else the slow retry
     assert got["recovery_worst_periods"] is not None and got["recovery_worst_periods"] <= 4.0, got
