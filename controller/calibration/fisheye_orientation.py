@@ -51,6 +51,56 @@ class OrientationFit:
     horizon_disagreement_deg: float | None = None
 
 
+#: The pixel residual of a sun the fit puts behind the camera (the lens does not image it).
+BEHIND_PX = 1000.0
+
+#: What ``check_plausible`` allows by default: a sky camera stands near level, and a day of
+#: the sun's own sights fits a rotation within a few hundredths of a degree.
+MAX_TILT_DEG = 30.0
+MAX_RESIDUAL_DEG = 0.5
+MAX_HORIZON_DISAGREEMENT_DEG = 1.0
+
+#: What makes a day of the sun fit a wrong rotation well: the sun's daily path has the same
+#: shape at every site and hour, so these turn the camera instead of failing the fit.
+_WRONG_SITE_OR_CLOCK = (
+    "a wrong --lat sign (the sun passes on the other side at noon), a wrong --lon sign, or "
+    "frames named in local time without a zone (each hour turns the fit 15 deg)"
+)
+
+
+def check_plausible(
+    fit: OrientationFit,
+    *,
+    max_tilt_deg: float = MAX_TILT_DEG,
+    max_residual_deg: float = MAX_RESIDUAL_DEG,
+    max_horizon_deg: float = MAX_HORIZON_DISAGREEMENT_DEG,
+) -> None:
+    """Refuse an orientation a sky camera cannot have (:class:`InputError`, naming the
+    likely mistake): no rotation fits the sun's path, the camera tilted more than
+    ``max_tilt_deg`` from the zenith, or the horizon's zenith that far from the sun's."""
+    dis = fit.horizon_disagreement_deg
+    if dis is not None and dis > max_horizon_deg:
+        raise InputError(
+            f"orientation: the horizon puts the zenith {dis:.2f} deg from where the sun's path "
+            f"puts it (over {max_horizon_deg:g}): {_WRONG_SITE_OR_CLOCK}; or the --horizon frame "
+            "shows no clear horizon (leave it out to calibrate from the sun alone)."
+        )
+    if fit.residual_deg > max_residual_deg:
+        raise InputError(
+            f"orientation: no rotation fits the sun's path: residual {fit.residual_deg:.2f} deg "
+            f"(over {max_residual_deg:g}; {fit.used} detections used, {fit.rejected} rejected). "
+            "Are the frames mirrored (rows written bottom-up, or flipped left-right)? Is the lens "
+            "the camera's, and are the frames' times UTC?"
+        )
+    if fit.tilt_deg > max_tilt_deg:
+        raise InputError(
+            f"orientation: the fit tilts the camera {fit.tilt_deg:.1f} deg from the zenith "
+            f"(over --max-tilt {max_tilt_deg:g}). A sky camera stands near level, so this is "
+            f"almost always {_WRONG_SITE_OR_CLOCK}. If the camera really is tilted, give a "
+            "larger --max-tilt."
+        )
+
+
 def kabsch(d_cam: np.ndarray, s_enu: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
     """Rotation ``R`` (enu_from_camera) minimising ``sum w |R d - s|^2``."""
     w = np.ones(len(d_cam)) if w is None else np.asarray(w, float)
@@ -163,7 +213,11 @@ def _refine(
         pr, _ = cv2.fisheye.projectPoints(
             np.where(ok[:, None], dc, [0, 0, 1.0]).reshape(-1, 1, 3), np.zeros(3), np.zeros(3), K, D
         )
-        r = (pr.reshape(-1, 2) - uv) * ok[:, None]
+        r = pr.reshape(-1, 2) - uv
+        # A sun behind the camera has no pixel: it costs its angle past 90 deg (a zero
+        # residual there had let the fit turn the whole day behind the lens, 0 px).
+        behind = BEHIND_PX * (1.0 + np.arcsin(np.clip(-dc[:, 2], 0.0, 1.0)))
+        r = np.where(ok[:, None], r, behind[:, None])
         out = [r.ravel()]
         if lens_free:
             out.append((p - p0) / prior_sigma)

@@ -10,6 +10,10 @@ bundle from images.
   rotation, and the scale of the sky's correction of the glare's rim is fitted with it
   (``[orientation] sky_scale``; ``--sky-scale none`` leaves it at 1).
   ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
+  A fit that cannot be the camera's is refused before anything is written: no rotation
+  within 0.5 deg of the sun's path (mirrored frames), a camera tilted more than
+  ``--max-tilt`` (30 deg), or a horizon more than 1 deg from the sun's zenith; a wrong
+  latitude or longitude sign or a clock zone turns the fit rather than failing it.
 * ``level``: the zenith from the horizon in one clear frame; prints the tilt and residual,
   and the disagreement with the bundle's orientation when it has one.
 * ``response``: brackets of one still scene at several exposures -> ``[radiometry]``'s
@@ -31,7 +35,9 @@ from pathlib import Path
 import numpy as np
 
 from controller.errors import InputError
-from heliotrack.argtypes import SQUARE_M, board_pattern
+from heliotrack.argtypes import SQUARE_M, board_pattern, number_in
+
+TILT_DEG = number_in(0.0, 180.0)
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
@@ -70,6 +76,14 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
         default="fit",
         help="fit the scale of the sky's correction of the rim with the rotation (default; "
         "kept at 1 unless it cuts the residual by 15 %%), or leave it at 1",
+    )
+    o.add_argument(
+        "--max-tilt",
+        type=TILT_DEG,
+        metavar="DEG",
+        help="refuse a fit that tilts the camera more than this from the zenith (default 30: "
+        "a sky camera stands near level, and a wrong site sign or clock zone turns the fit "
+        "instead of failing it)",
     )
     o.add_argument("--bundle", type=Path, required=True)
     o.add_argument("images", nargs="+", type=Path, help="sky frames named with their UTC time")
@@ -190,7 +204,7 @@ def _site(args, bundle):
 
 def _orientation(args) -> int:
     from controller.calibration.fisheye_bundle import load_fisheye_bundle, save_fisheye_bundle
-    from controller.calibration.fisheye_orientation import level_from_horizon
+    from controller.calibration.fisheye_orientation import check_plausible, level_from_horizon
     from controller.calibration.fisheye_sun_calibration import calibrate_from_sun
 
     from .estimate_fisheye import frame_times
@@ -213,6 +227,8 @@ def _orientation(args) -> int:
         horizon_zenith_cam=zen,
         fit_scale=args.sky_scale == "fit",
     )
+    tilt = {} if args.max_tilt is None else {"max_tilt_deg": args.max_tilt}
+    check_plausible(cal.fit, **tilt)  # before anything is written
     save_fisheye_bundle(cal.bundle, args.bundle)
     fit, o = cal.fit, cal.bundle.orientation
     assert o is not None

@@ -104,6 +104,23 @@ def test_an_impossible_site_is_refused_before_the_bundle_is_touched(
     assert message in err and err.count("\n") == 1 and copy.read_text() == text
 
 
+def test_a_wrong_latitude_sign_is_refused_not_written(installed, capsys, tmp_path):
+    """The sun's path has one shape at every latitude: with the sign wrong the fit had
+    turned the camera over (tilt 82 deg in an audit), exited 0 and written the bundle."""
+    out, bundle, truth = installed
+    copy = tmp_path / "b.toml"
+    shutil.copy(bundle, copy)
+    text = copy.read_text()
+    site = truth["site"]
+    capsys.readouterr()
+    flags = ["--lat", str(-site["latitude"]), "--lon", str(site["longitude"])]
+    day = map(str, sorted((out / "day").glob("*.png")))
+    assert main(["calibrate", "fisheye", "orientation", *flags, "--bundle", str(copy), *day]) == 2
+    err = capsys.readouterr().err
+    assert "tilts the camera" in err and "wrong --lat sign" in err and err.count("\n") == 1, err
+    assert copy.read_text() == text
+
+
 @pytest.mark.parametrize("square", ["-1", "0", "nan"])
 def test_a_checkerboard_square_must_have_a_size(tmp_path, capsys, square):
     bundle = tmp_path / "lens.toml"

@@ -13,6 +13,7 @@ from controller.calibration.fisheye_bundle import (
 )
 from controller.calibration.fisheye_lens import calibrate_fisheye
 from controller.calibration.fisheye_orientation import (
+    check_plausible,
     fit_orientation,
     kabsch,
     level_from_horizon,
@@ -180,6 +181,50 @@ def test_orientation_refined_on_pixels_from_rendered_frames():
     fit = fit_orientation(ts, np.array(dirs), site, uv=np.array(uvs), camera=b.camera, refine="rotation")
     assert len(ts) >= 15 and fit.residual_px < 0.3
     assert rot_deg(fit.enu_from_camera, scn.R_enu_from_cam) < 0.05
+
+
+def test_a_mirrored_day_leaves_its_pixel_residual_and_is_refused():
+    """Frames written bottom-up: no rotation fits.  The pixel refinement had turned the
+    whole day behind the lens, where a sun had cost nothing (0 px), and the bundle was
+    written with the camera looking 29 deg below the horizon."""
+    from controller.vision.fisheye.lens import FisheyeLens
+
+    scn = small_scene()
+    b = truth_bundle(scn, orientation=False, site=False)
+    site = Site(latitude=scn.site.latitude, longitude=scn.site.longitude, altitude=scn.site.altitude)
+    ts = utc(2025, 6, 21, 3, 0) + np.arange(0, 10 * 3600, 900.0)  # not an equinox's great circle
+    lens = FisheyeLens.from_camera(b.camera)
+    uv, ok = lens.project(sun_vectors(site, ts) @ scn.R_enu_from_cam)
+    assert ok.all()
+    uv[:, 1] = b.camera.height - 1 - uv[:, 1]  # mirrored top to bottom
+    d, ok = lens.rays(uv)
+    fit = fit_orientation(ts, d, site, uv=uv, camera=b.camera, refine="rotation")
+    assert fit.residual_deg > 5.0 and fit.residual_px > 10.0, (fit.residual_deg, fit.residual_px)
+    with pytest.raises(InputError, match="mirrored"):
+        check_plausible(fit)
+    # Started from a rotation that puts the whole day behind the lens, the refinement must
+    # not stay there: a sun the lens cannot image is not a perfect fit.
+    from controller.calibration.fisheye_orientation import _refine
+
+    flip = np.diag([1.0, -1.0, -1.0])  # the camera turned upside down
+    R, _, px = _refine(scn.R_enu_from_cam @ flip, uv, sun_vectors(site, ts), b.camera, "rotation", None, 0.1)
+    assert px > 10.0
+
+
+def test_an_orientation_a_sky_camera_cannot_have_is_refused():
+    """A wrong latitude sign fits a day of the sun as well as the right one, with the
+    camera turned over on its side."""
+    scn = small_scene()
+    site = Site(latitude=scn.site.latitude, longitude=scn.site.longitude, altitude=scn.site.altitude)
+    ts = utc(2025, 3, 20, 4, 0) + np.arange(0, 9 * 3600, 900.0)
+    d = sun_vectors(site, ts) @ scn.R_enu_from_cam
+    right = fit_orientation(ts, d, site, refine=None)
+    check_plausible(right)
+    wrong = fit_orientation(ts, d, Site(latitude=-site.latitude, longitude=site.longitude), refine=None)
+    assert wrong.residual_deg < 0.1 and wrong.tilt_deg > 50.0  # a good fit of a wrong camera
+    with pytest.raises(InputError, match="wrong --lat sign"):
+        check_plausible(wrong)
+    check_plausible(wrong, max_tilt_deg=90.0)  # a camera said to be tilted that much
 
 
 def test_level_from_the_horizon():
