@@ -17,20 +17,58 @@ def _unwrap_around(az, ref):
 MAX_SPREAD_DEG = 5.0
 
 
+#: The noon method refuses a day whose sun goes this far round the horizon: a midnight-sun
+#: day has a second extremum, its lowest, that bends the parabola (2.2 deg in an audit), and
+#: any cut of it unbalances the fit.
+NOON_MAX_SPAN_DEG = 330.0
+
+
+def _apex_unwrapped(az: np.ndarray, el: np.ndarray) -> tuple[np.ndarray, float]:
+    """The azimuths unwrapped about the highest observation's, and that azimuth (deg)."""
+    ref = float(az[int(el.argmax())])
+    return _unwrap_around(az, ref), ref
+
+
+def culmination(az_levelled, el_levelled, times) -> str | None:
+    """Where the sun culminates, ``"south"`` or ``"north"``, from the sense of its motion.
+
+    Azimuths run clockwise from north, so a sun that culminates in the south moves to
+    larger azimuths through its highest point (east, south, west) and one that culminates
+    in the north to smaller ones (east, north, west).  That holds at any latitude, the
+    tropics included, whatever the azimuth offset; the sun's motion in the 3 h about the
+    highest observation decides.  None without times (POSIX s) or with fewer than 3."""
+    if times is None:
+        return None
+    t = np.asarray([np.nan if x is None else x for x in times], float)
+    az, el = np.asarray(az_levelled, float), np.asarray(el_levelled, float)
+    if t.size < 3 or t.size != az.size or not np.isfinite(t).all():
+        return None
+    a, _ = _apex_unwrapped(az, el)
+    near = np.abs(t - t[int(el.argmax())]) <= 1.5 * 3600.0
+    if near.sum() < 3:
+        near = np.ones(t.size, bool)
+    if np.ptp(t[near]) <= 0:
+        return None
+    slope = np.polyfit(t[near] - t[near].mean(), a[near], 1)[0]
+    return "south" if slope > 0 else "north"
+
+
 def noon_offset(az_levelled, el_levelled, culminates: str = "south") -> float:
-    """Fit el = c0 + c1 az + c2 az^2 to a day; its extremum is the true south (180) or north (0)."""
+    """Fit el = c0 + c1 az + c2 az^2 to a day; its extremum is the true south (180) or north (0).
+
+    ``culminates``: where the sun's highest point lies (:func:`culmination` tells it from
+    the observations' times)."""
     az = np.asarray(az_levelled, float)
     el = np.asarray(el_levelled, float)
     if az.size < 3:
         raise InputError(f"the noon method needs >= 3 observations over a day, got {az.size}")
-    ref = float(
-        np.degrees(
-            np.arctan2(
-                np.mean(np.sin(np.radians(az[el.argmax()]))), np.mean(np.cos(np.radians(az[el.argmax()])))
-            )
+    a, _ = _apex_unwrapped(az, el)
+    if np.ptp(a) > NOON_MAX_SPAN_DEG:
+        raise InputError(
+            f"the noon method: the observations go {np.ptp(a):.0f} deg round the horizon (a "
+            "midnight-sun day), where elevation against azimuth is no parabola; give only the "
+            "frames from about 6 h before to 6 h after noon, or use --method ephemeris"
         )
-    )
-    a = _unwrap_around(az, ref)
     c2, c1, _ = np.polyfit(a, el, 2)
     if c2 >= 0:
         raise InputError("elevation vs azimuth has no maximum: observations do not span noon")

@@ -34,7 +34,7 @@ def calibrate_folder(
 ) -> CalibrationBundle:
     from ..vision.estimator import HotspotEstimator
     from ..vision.imageio import load_grey
-    from .azimuth import ephemeris_offset, noon_offset
+    from .azimuth import culmination, ephemeris_offset, noon_offset
     from .intrinsics import calibrate_intrinsics
     from .level import detect_plumb_lines, zenith_from_lines
     from .pose import detect_markers, read_marker_survey, solve_pose
@@ -128,8 +128,8 @@ def calibrate_folder(
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
     else:
         asked, method = method, "noon"
-        south = site is None or site.latitude > 0
-        off = noon_offset(az, el, "south" if south else "north")
+        culminates = culmination(az, el, ts) or ("south" if site is None or site.latitude > 0 else "north")
+        off = noon_offset(az, el, culminates)
         if asked != "noon":  # said, not silently swapped: the ephemeris needs the site and times
             why = "no --lat/--lon" if site is None else "fewer than 3 timed frames found"
             log({"step": "azimuth", "note": f"{asked} asked, {why}: the paper's noon culmination instead"})

@@ -62,7 +62,13 @@ def add_subcommands(p: argparse.ArgumentParser) -> None:
         "--observations", type=Path, required=True, help="JSON lines from `heliotrack estimate` (with times)"
     )
     az.add_argument("--method", choices=("noon", "ephemeris"), default="noon")
-    az.add_argument("--culminates", choices=("south", "north"), default="south")
+    az.add_argument(
+        "--culminates",
+        choices=("south", "north"),
+        help="where the sun's highest point lies (noon method; default: from the sense of the "
+        "sun's motion when the observations have times, else from --lat outside the tropics, "
+        "else south, the paper's assumption)",
+    )
     az.add_argument("--lat", type=LATITUDE)
     az.add_argument("--lon", type=LONGITUDE)
     az.add_argument("--bundle", type=Path, required=True)
@@ -270,15 +276,20 @@ def _azimuth(args) -> int:
         az.append(a)
         el.append(e)
         ts.append(d.get("time"))
+    from controller.timestamps import parse_timestamp
+
+    timed = bool(ts) and all(t is not None for t in ts)
+    tt = [parse_timestamp(str(t), f"{args.observations}: time") for t in ts] if timed else None
+    extra: dict[str, str] = {}
     if args.method == "noon":
-        off = noon_offset(az, el, args.culminates)
+        culminates, extra["culminates_from"] = _culmination(args, az, el, tt)
+        extra["culminates"] = culminates
+        off = noon_offset(az, el, culminates)
     else:
-        if args.lat is None or args.lon is None or any(t is None for t in ts):
+        if args.lat is None or args.lon is None or tt is None:
             raise InputError("the ephemeris method needs --lat, --lon and times in the observations")
         from controller.sun.source import Site, solar_position
-        from controller.timestamps import parse_timestamp
 
-        tt = [parse_timestamp(str(t), f"{args.observations}: time") for t in ts]
         sp = solar_position(Site(args.lat, args.lon), tt)
         off = ephemeris_offset(az, el, sp["azimuth"].to_numpy(), sp["apparent_elevation"].to_numpy())
     update_bundle(args.bundle, azimuth=AzimuthCal(off))
@@ -288,12 +299,43 @@ def _azimuth(args) -> int:
                 "step": "azimuth",
                 "method": args.method,
                 "observations": len(az),
+                **extra,
                 "offset_deg": round(off, 4),
                 "bundle": str(args.bundle),
             }
         )
     )
     return 0
+
+
+#: Outside these latitudes (deg) the sun culminates on the equator's side all year.
+TROPIC_DEG = 23.45
+
+
+def _culmination(args, az, el, times) -> tuple[str, str]:
+    """Where the sun culminates for the noon method, and what said so.  The paper assumed
+    the south: south of the equator that put the offset 180 deg off (an audit at -33.9)."""
+    from controller.calibration.azimuth import culmination
+
+    moving = culmination(az, el, times)
+    if moving is not None:
+        if args.culminates is not None and args.culminates != moving:
+            way = "east, south, west" if moving == "south" else "east, north, west"
+            raise InputError(
+                f"--culminates {args.culminates}: the observations' sun culminates in the {moving} "
+                f"(it moves {way}); check --culminates, or the observations' times"
+            )
+        return moving, "the sun's motion"
+    if args.culminates is not None:
+        return args.culminates, "--culminates"
+    if args.lat is not None and abs(args.lat) >= TROPIC_DEG:
+        return ("south" if args.lat > 0 else "north"), "--lat"
+    if args.lat is not None:
+        raise InputError(
+            f"the noon method at latitude {args.lat:g}: between the tropics the sun culminates "
+            "north or south by season; give the observations' times or --culminates"
+        )
+    return "south", "assumed (no times, no --lat, no --culminates)"
 
 
 def _all(args) -> int:

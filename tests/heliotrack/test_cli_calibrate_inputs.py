@@ -240,6 +240,62 @@ def test_a_bundle_whose_camera_cannot_see_the_surface_is_named_at_load(
     assert message in error_of(capsys, ["estimate", "--calib", str(bundle), str(frame)])
 
 
+def day_of_observations(path, lat, lon, start, hours, step_s=1800.0, min_el=5.0):
+    """``heliotrack estimate``'s lines for a day of the sun at a site, levelled 23 deg off."""
+    import json as _json
+
+    from controller.sun.source import Site, solar_position
+    from controller.timestamps import to_iso
+
+    ts = [start + step_s * k for k in range(int(hours * 3600 / step_s))]
+    sp = solar_position(Site(lat, lon), ts)
+    path.write_text(
+        "".join(
+            _json.dumps(
+                {"found": True, "time": to_iso(t), "levelled_az_deg": (a + 23.0) % 360, "levelled_el_deg": e}
+            )
+            + "\n"
+            for t, a, e in zip(ts, sp["azimuth"], sp["apparent_elevation"])
+            if e > min_el
+        )
+    )
+    return path
+
+
+@pytest.mark.parametrize(
+    "lat, lon, start, culminates",
+    [
+        (-33.9, 18.4, 1750481160.0, "north"),  # Cape Town, 21 Jun 2025: the paper's south was 180 deg off
+        (10.0, 77.0, 1750467120.0, "north"),  # 10 N in June: north of the zenith
+        (32.4835, 48.3364, 1742439000.0, "south"),  # 20 Mar 2025; each from 6 h before noon
+    ],
+)
+def test_the_noon_method_finds_where_the_sun_culminates_from_its_motion(
+    tmp_path, capsys, bundle, lat, lon, start, culminates
+):
+    import json as _json
+
+    obs = day_of_observations(tmp_path / "obs.jsonl", lat, lon, start, 12.0)
+    capsys.readouterr()
+    assert main(["calibrate", "azimuth", "--observations", str(obs), "--bundle", str(bundle)]) == 0
+    out = _json.loads(capsys.readouterr().out)
+    assert out["culminates"] == culminates and out["culminates_from"] == "the sun's motion"
+    assert out["offset_deg"] == pytest.approx(23.0, abs=0.5)  # the parabola's own error, not 180 deg
+    before = bundle.read_text()
+    other = "south" if culminates == "north" else "north"
+    argv = ["calibrate", "azimuth", "--observations", str(obs), "--culminates", other]
+    err = error_of(capsys, [*argv, "--bundle", str(bundle)])
+    assert f"--culminates {other}: the observations' sun culminates in the {culminates}" in err
+    assert bundle.read_text() == before
+
+
+def test_the_noon_method_refuses_a_midnight_sun_day(tmp_path, capsys, bundle):
+    obs = day_of_observations(tmp_path / "obs.jsonl", 69.6, 18.9, 1750464000.0, 24.0, min_el=3.0)  # 21 Jun
+    before = bundle.read_text()
+    err = error_of(capsys, ["calibrate", "azimuth", "--observations", str(obs), "--bundle", str(bundle)])
+    assert "round the horizon (a midnight-sun day)" in err and bundle.read_text() == before
+
+
 @pytest.mark.parametrize("lon, ok", [("48.3364", True), ("-131.6636", False), ("-48.3364", False)])
 def test_the_ephemeris_method_refuses_a_site_that_does_not_fit_the_day(tmp_path, capsys, bundle, lon, ok):
     import json as _json
