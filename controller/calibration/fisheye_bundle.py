@@ -234,7 +234,15 @@ def load_fisheye_bundle(path: str | Path) -> FisheyeBundle:
 
 
 def fisheye_bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> FisheyeBundle:
-    """Validate an already parsed bundle (``path``: where relative paths resolve)."""
+    """Validate an already parsed bundle (``path``: where relative paths resolve).
+
+    ``camera.dist`` may be given as ``cv2.fisheye.calibrate`` returns D, a 4 x 1 array
+    (``D.tolist()``: ``[[k1], [k2], [k3], [k4]]``)."""
+    cam = doc.get("camera")
+    if isinstance(cam, dict):
+        dist = cam.get("dist")
+        if isinstance(dist, list) and dist and all(isinstance(d, list) and len(d) == 1 for d in dist):
+            doc = {**doc, "camera": {**cam, "dist": [d[0] for d in dist]}}
     return replace(load(FisheyeBundle, doc, str(path) if path is not None else None), path=path)
 
 

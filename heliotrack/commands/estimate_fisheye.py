@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
 
 from controller.errors import InputError
+
+log = logging.getLogger("heliotrack.estimate")
 
 
 def frame_times(images: list[Path], t_cli: float | None) -> list[tuple[float | None, Path]]:
@@ -50,10 +53,68 @@ def run(args: argparse.Namespace) -> int:
         raise InputError("--time stamps a single image; several images take their times from their names")
     est = make_estimator(args.calib, args.algorithm)
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
-    for t, path in frame_times(list(args.images), t_cli):
+    order = frame_times(list(args.images), t_cli)
+    untimed = [p for t, p in order if t is None]
+    if untimed and len(order) > 1:
+        log.warning(
+            "%d of %d frames have no time in their names (%s%s): they are measured after the "
+            "timed ones, in the order given, without the ephemeris and sequence gates; name them "
+            "like 2026-03-20T10-15-00Z.png",
+            len(untimed),
+            len(order),
+            untimed[0].name,
+            ", ..." if len(untimed) > 1 else "",
+        )
+    seen = GateTally()
+    for t, path in order:
         d = est.estimate_file(path, t).to_json()
         if t is not None:
             d["time"] = to_iso(t)
+        seen.add(d)
         sys.stdout.write(json.dumps(d) + "\n")
         sys.stdout.flush()
+    if seen.says_the_bundle_is_wrong():
+        log.warning(seen.warning())
     return 0
+
+
+class GateTally:
+    """Frames whose glare the ephemeris gate refused, and by how far.
+
+    A glare found frame after frame, always several degrees from where the sun must be, is
+    the sun seen through a wrong bundle or clock, not a distractor: a transposed
+    ``enu_from_camera``, a wrong ``[site]``, or frames named in local time.  Each frame
+    then reads only ``gate_rejected``, which names none of these."""
+
+    MIN_FRAMES = 3
+    MIN_BEYOND_DEG = 2.0
+
+    def __init__(self) -> None:
+        self.glare = 0  # frames with a sun-like glare: found, or refused by a gate
+        self.beyond: list[float] = []
+
+    def add(self, d: dict) -> None:
+        if d.get("found"):
+            self.glare += 1
+        elif d.get("reason") == "gate_rejected":
+            self.glare += 1
+            far = d.get("beyond_gate_deg")
+            if (
+                "ephemeris" in d.get("gates", ())
+                and isinstance(far, (int, float))
+                and far > self.MIN_BEYOND_DEG
+            ):
+                self.beyond.append(float(far))
+
+    def says_the_bundle_is_wrong(self) -> bool:
+        return len(self.beyond) >= self.MIN_FRAMES and 2 * len(self.beyond) >= self.glare
+
+    def warning(self) -> str:
+        far = sorted(self.beyond)[len(self.beyond) // 2]
+        return (
+            f"{len(self.beyond)} of the {self.glare} frames with a sun-like glare were refused by "
+            f"the ephemeris gate, the glare a median {far:.1f} deg beyond it: the sun seen through "
+            "a wrong bundle or clock. Check enu_from_camera (its columns are the camera's x, y, z "
+            "axes in ENU: a transposed matrix?), the bundle's [site], and the frames' times (UTC, "
+            "or with a zone in the name)"
+        )

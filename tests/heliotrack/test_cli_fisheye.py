@@ -5,6 +5,7 @@ import math
 import shutil
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
@@ -146,6 +147,42 @@ def test_estimate_prints_one_line_per_image_in_time_order(installed, capsys):
         )
         assert err < 0.1
         assert {"quality", "sigma_deg", "offset_px", "radius_deg"} <= set(g)
+
+
+def test_frames_named_in_local_time_are_said_to_miss_the_sun(installed, capsys, tmp_path, caplog):
+    """Named two hours ahead (a local zone written as UTC): every glare had been refused by
+    the ephemeris gate and each line said only gate_rejected (an audit)."""
+    from controller.timestamps import time_from_name
+
+    out, bundle, _ = installed
+    local = tmp_path / "local"
+    local.mkdir()
+    for p in sorted((out / "day").glob("*.png"))[4:12]:
+        t = time_from_name(p.name) + 7200
+        shutil.copy(p, local / time.strftime("%Y-%m-%d_%H-%M-%S.png", time.gmtime(t)))
+    frames = sorted(local.glob("*.png"))
+    caplog.set_level("WARNING", logger="heliotrack.estimate")
+    assert main(["estimate", "--sensor", "fisheye", "--calib", str(bundle), *map(str, frames)]) == 0
+    got = lines(capsys)
+    assert not any(g["found"] for g in got) and any(g.get("reason") == "gate_rejected" for g in got)
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "refused by the ephemeris gate" in said and "transposed matrix" in said, said
+
+
+def test_frames_without_a_time_are_said_to_be_ungated(installed, capsys, tmp_path, caplog):
+    out, bundle, _ = installed
+    day = sorted((out / "day").glob("*.png"))
+    shutil.copy(day[5], tmp_path / "sky-a.png")
+    shutil.copy(day[6], tmp_path / "sky-b.png")
+    caplog.set_level("WARNING", logger="heliotrack.estimate")
+    argv = ["estimate", "--sensor", "fisheye", "--calib", str(bundle), str(day[4])]
+    assert main([*argv, str(tmp_path / "sky-a.png"), str(tmp_path / "sky-b.png")]) == 0
+    assert len(lines(capsys)) == 3
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "2 of 3 frames have no time in their names (sky-a.png, ...)" in said, said
+    caplog.clear()
+    assert main(["estimate", "--sensor", "fisheye", "--calib", str(bundle), *map(str, day[4:7])]) == 0
+    assert not caplog.records  # timed frames of a right bundle: nothing to say
 
 
 def test_one_time_for_a_sequence_of_images_is_refused(installed, capsys):

@@ -35,16 +35,34 @@ def load_frame(path: str | Path) -> tuple[np.ndarray | None, str | None]:
     return as_bgr8(img)
 
 
+#: The full scales of the 8-, 10-, 12- and 14-bit sensors whose frames come in 16-bit files
+#: (machine-vision PNG and TIFF): a frame whose brightest pixel is exactly one of them is
+#: taken as that sensor's, the sun saturating it.  Other 16-bit frames keep their top byte.
+SENSOR_FULL_SCALES = (255, 1023, 4095, 16383)
+
+
 def as_bgr8(img: np.ndarray | None) -> tuple[np.ndarray | None, str | None]:
-    """Normalise an in-memory image to contiguous BGR uint8, or (None, reason)."""
+    """Normalise an in-memory image to contiguous BGR uint8, or (None, reason).
+
+    16-bit: the top byte, or scaled from a smaller sensor's full scale (``SENSOR_FULL_SCALES``);
+    float: 0..1 when its maximum is at most 2 (a pixel a hair over 1 after processing), else
+    0..255, and refused over 256 (linear HDR, whose exposure is not known here)."""
     if img is None or not isinstance(img, np.ndarray) or img.size == 0:
         return None, "no_image"
     if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
+        full = int(img.max())
+        if full in SENSOR_FULL_SCALES:  # a 10-, 12- or 14-bit sensor's data, its sun clipped there
+            img = cv2.convertScaleAbs(img, alpha=255.0 / full)
+        else:
+            img = (img >> 8).astype(np.uint8)
     elif img.dtype in (np.float32, np.float64):
         if not np.all(np.isfinite(img)):
             return None, "non_finite_pixels"
-        img = np.clip(np.rint(img * (255.0 if img.max() <= 1.0 else 1.0)), 0, 255).astype(np.uint8)
+        top = float(img.max())
+        if top > 256.0:  # linear HDR: its exposure is not known here
+            return None, "unsupported_image_format"
+        scale = 255.0 if top <= 2.0 else 1.0  # 0..1 (a pixel a hair over 1 too), else 0..255
+        img = np.clip(np.rint(img * scale), 0, 255).astype(np.uint8)
     if img.dtype != np.uint8:
         return None, "unsupported_image_format"
     if img.ndim == 2:

@@ -103,6 +103,13 @@ def test_bundle_errors_name_the_key(patch, key):
     assert exc.value.key == key
 
 
+def test_dist_as_opencv_returns_it_is_taken():
+    """``D.tolist()`` of cv2.fisheye.calibrate is 4 x 1; it had been refused (an audit)."""
+    D = np.array([[-0.042], [0.001], [-0.0005], [0.0]])
+    b = fisheye_bundle_from_dict({**DOC, "camera": {**DOC["camera"], "dist": D.tolist()}})
+    assert b.camera.dist == (-0.042, 0.001, -0.0005, 0.0)
+
+
 def test_radiometry_round_trip(tmp_path):
     table = [(i / 255) ** 2.2 for i in range(256)]
     for rad in (

@@ -222,6 +222,40 @@ def test_bad_files_are_reasons_not_tracebacks(scn, tmp_path):
     assert est.estimate_file(good, T).found
 
 
+@pytest.mark.parametrize(
+    "convert",
+    [
+        pytest.param(lambda im: im.astype(np.uint16) * 257, id="16-bit"),
+        pytest.param(lambda im: np.rint(im * (4095 / 255)).astype(np.uint16), id="12-bit-in-16"),
+        pytest.param(lambda im: np.rint(im * (1023 / 255)).astype(np.uint16), id="10-bit-in-16"),
+        pytest.param(lambda im: im.astype(np.uint16), id="8-bit-in-16"),
+        pytest.param(
+            lambda im: np.where(im == 255, 1.004, im / 255.0).astype(np.float32), id="float-overshoot"
+        ),
+        pytest.param(lambda im: im.astype(np.float64), id="float-0-255"),
+    ],
+)
+def test_frames_of_other_depths_give_the_8_bit_frames_sun(scn, convert):
+    """A 12-bit camera's 16-bit file had read as a black frame (its top byte at most 15), and
+    a 0..1 float frame with one pixel at 1.004 as 0..255 (an audit)."""
+    t = utc(2025, 6, 21, 8, 0)
+    fr = render_sky(scn, t)
+    want = FisheyeEstimator(truth_bundle(scn)).estimate_image(fr.image, t)
+    got = FisheyeEstimator(truth_bundle(scn)).estimate_image(convert(fr.image), t)
+    assert want.found and got.found, got.reason
+    assert (
+        float(angle_between_deg(azel_to_enu(got.az_deg, got.el_deg), azel_to_enu(want.az_deg, want.el_deg)))
+        < 0.01
+    )
+
+
+def test_linear_hdr_float_is_refused(scn):
+    t = utc(2025, 6, 21, 8, 0)
+    hdr = render_sky(scn, t).image.astype(np.float32) * 100.0  # a linear frame's sun far over full scale
+    res = FisheyeEstimator(truth_bundle(scn)).estimate_image(hdr, t)
+    assert not res.found and res.reason == "unsupported_image_format"
+
+
 def test_a_mask_hides_what_it_covers(scn, tmp_path):
     import cv2
 
