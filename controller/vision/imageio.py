@@ -81,21 +81,55 @@ def read_image(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.nd
     return img, None
 
 
+#: The full scales of the 8-, 10-, 12- and 14-bit sensors whose frames come in 16-bit files
+#: (machine-vision PNG and TIFF): a frame whose brightest pixel is exactly one of them is
+#: taken as that sensor's, the sun (or its glint) saturating it.  Other 16-bit frames keep
+#: their top byte.
+SENSOR_FULL_SCALES = (255, 1023, 4095, 16383)
+
+
+def to_uint8(img: np.ndarray) -> tuple[np.ndarray | None, str | None]:
+    """The image's samples as 8 bits, or (None, reason).
+
+    16-bit: the top byte, or scaled from a smaller sensor's full scale (``SENSOR_FULL_SCALES``;
+    a 12-bit PNG had read as a black frame); float: 0..1 when its maximum is at most 2 (a
+    pixel a hair over 1 after a denoiser), else 0..255, and ``unsupported_image_format``
+    over 256 (linear HDR, whose exposure is not known here), ``non_finite_pixels`` for a NaN
+    or an infinity; any other sample type ``unsupported_image_format``."""
+    if img.dtype == np.uint8:
+        return img, None
+    if img.dtype == np.uint16:
+        full = int(img.max()) if img.size else 0
+        if full in SENSOR_FULL_SCALES:
+            return cv2.convertScaleAbs(img, alpha=255.0 / full), None
+        return (img >> 8).astype(np.uint8), None
+    if img.dtype in (np.float32, np.float64):
+        if not np.all(np.isfinite(img)):
+            return None, "non_finite_pixels"
+        top = float(img.max()) if img.size else 0.0
+        if top > 256.0:
+            return None, "unsupported_image_format"
+        scale = 255.0 if top <= 2.0 else 1.0
+        return np.clip(np.rint(img * scale), 0, 255).astype(np.uint8), None
+    return None, "unsupported_image_format"
+
+
 def load_grey(path: str | Path, *, max_pixels: int = MAX_PIXELS) -> tuple[np.ndarray | None, str | None]:
     """8-bit grey image, or (None, reason) (see :func:`read_image`; also
     ``unsupported_image_format``)."""
     img, reason = read_image(path, max_pixels=max_pixels)
     if img is None:
         return None, reason
-    # 8 or 16 bit, grey, BGR or BGRA only: a TIFF of signed or 64-bit samples, or with two
-    # or five channels, decodes but cv2.cvtColor raises on it
-    if img.dtype not in (np.uint8, np.uint16) or img.ndim == 3 and img.shape[2] not in (3, 4):
+    # grey, BGR or BGRA only: a TIFF with two or five channels decodes but cv2.cvtColor
+    # raises on it; signed or 64-bit integer samples are refused by to_uint8
+    if img.ndim == 3 and img.shape[2] not in (3, 4):
         return None, "unsupported_image_format"
+    img, why = to_uint8(img)
+    if img is None:
+        return None, why
     if img.ndim == 3:
         code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
         img = cv2.cvtColor(img, code)
-    if img.dtype == np.uint16:
-        img = (img.astype(np.uint16) >> 8).astype(np.uint8)
-    if img.dtype != np.uint8 or img.ndim != 2:
+    if img.ndim != 2:
         return None, "unsupported_image_format"
     return np.ascontiguousarray(img), None

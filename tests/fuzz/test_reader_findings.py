@@ -40,14 +40,19 @@ def test_an_observation_with_a_decimal_comma_is_refused(tmp_path):
 
 @pytest.mark.parametrize("dtype", [np.int8, np.int16, np.int32, np.float64])
 def test_a_colour_tiff_of_samples_cv_cannot_convert_is_a_reason(tmp_path, dtype):
-    """load_grey raised cv2.error ("Unsupported depth of input image") from cvtColor."""
+    """load_grey raised cv2.error ("Unsupported depth of input image") from cvtColor.  Float
+    samples are read since (0..1 when at most 2), the signed integers stay refused."""
     ok, buf = cv2.imencode(".tif", np.ones((4, 4, 3), dtype))
     assert ok
     path = tmp_path / "frame.tif"
     path.write_bytes(buf.tobytes())
     img, reason = read_image(path)
     assert img is not None and img.dtype == dtype  # read_image gives what OpenCV decodes
-    assert load_grey(path) == (None, "unsupported_image_format")
+    grey, reason = load_grey(path)
+    if dtype == np.float64:
+        assert grey is not None and grey.dtype == np.uint8 and (grey == 255).all()
+    else:
+        assert (grey, reason) == (None, "unsupported_image_format")
 
 
 def test_a_path_with_a_nul_is_unreadable_not_an_exception():

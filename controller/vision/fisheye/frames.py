@@ -16,7 +16,7 @@ import numpy as np
 
 from ...calibration.fisheye_bundle import FisheyeBundle, OrientationCal
 from ...errors import ConfigError
-from ..imageio import read_image
+from ..imageio import read_image, to_uint8
 
 if TYPE_CHECKING:
     from .default import FisheyeOptions
@@ -35,36 +35,14 @@ def load_frame(path: str | Path) -> tuple[np.ndarray | None, str | None]:
     return as_bgr8(img)
 
 
-#: The full scales of the 8-, 10-, 12- and 14-bit sensors whose frames come in 16-bit files
-#: (machine-vision PNG and TIFF): a frame whose brightest pixel is exactly one of them is
-#: taken as that sensor's, the sun saturating it.  Other 16-bit frames keep their top byte.
-SENSOR_FULL_SCALES = (255, 1023, 4095, 16383)
-
-
 def as_bgr8(img: np.ndarray | None) -> tuple[np.ndarray | None, str | None]:
-    """Normalise an in-memory image to contiguous BGR uint8, or (None, reason).
-
-    16-bit: the top byte, or scaled from a smaller sensor's full scale (``SENSOR_FULL_SCALES``);
-    float: 0..1 when its maximum is at most 2 (a pixel a hair over 1 after processing), else
-    0..255, and refused over 256 (linear HDR, whose exposure is not known here)."""
+    """Normalise an in-memory image to contiguous BGR uint8, or (None, reason); samples of
+    other depths as :func:`controller.vision.imageio.to_uint8` reads them."""
     if img is None or not isinstance(img, np.ndarray) or img.size == 0:
         return None, "no_image"
-    if img.dtype == np.uint16:
-        full = int(img.max())
-        if full in SENSOR_FULL_SCALES:  # a 10-, 12- or 14-bit sensor's data, its sun clipped there
-            img = cv2.convertScaleAbs(img, alpha=255.0 / full)
-        else:
-            img = (img >> 8).astype(np.uint8)
-    elif img.dtype in (np.float32, np.float64):
-        if not np.all(np.isfinite(img)):
-            return None, "non_finite_pixels"
-        top = float(img.max())
-        if top > 256.0:  # linear HDR: its exposure is not known here
-            return None, "unsupported_image_format"
-        scale = 255.0 if top <= 2.0 else 1.0  # 0..1 (a pixel a hair over 1 too), else 0..255
-        img = np.clip(np.rint(img * scale), 0, 255).astype(np.uint8)
-    if img.dtype != np.uint8:
-        return None, "unsupported_image_format"
+    img, why = to_uint8(img)
+    if img is None:
+        return None, why
     if img.ndim == 2:
         img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
     elif img.ndim == 3 and img.shape[2] == 4:

@@ -56,3 +56,23 @@ def test_colour_is_kept_by_read_image_and_greyed_by_load_grey(tmp_path):
     img, _ = read_image(p)
     grey, _ = load_grey(p)
     assert img.shape == (5, 7, 3) and grey.shape == (5, 7) and grey.dtype == np.uint8
+
+
+@pytest.mark.parametrize(
+    "write, want",
+    [
+        (lambda im: im.astype(np.uint16) * 257, 1),  # 16-bit: the top byte
+        (lambda im: np.rint(im * (4095 / 255)).astype(np.uint16), 1),  # a 12-bit sensor's
+        (lambda im: im.astype(np.float32) / 255.0, 1),  # float 0..1
+    ],
+)
+def test_other_depths_read_as_the_8_bit_frame(tmp_path, write, want):
+    """The hotspot's reader had kept a 16-bit file's top byte only (a 12-bit camera's glint
+    read at 15 of 255) and refused float frames."""
+    img = np.zeros((20, 30), np.uint8)
+    img[8:12, 10:14] = 255  # a saturated glint
+    img[0, :] = 40
+    p = tmp_path / "f.tif"
+    assert cv2.imwrite(str(p), write(img))
+    grey, reason = load_grey(p)
+    assert reason is None and np.abs(grey.astype(int) - img).max() <= want
