@@ -218,6 +218,27 @@ def test_a_mirrored_day_leaves_its_pixel_residual_and_is_refused():
     assert px > 10.0
 
 
+def test_a_horizon_a_tenth_of_a_degree_off_does_not_pull_a_day_of_the_sun():
+    """Terrain and an arc cut by the frame put a tilted camera's horizon zenith 0.17 deg off
+    (an audit); trusted to 0.1 deg it had pulled the day's rotation 0.12 deg off."""
+    from controller.vision.fisheye.lens import FisheyeLens
+
+    scn = small_scene()
+    b = truth_bundle(scn, orientation=False, site=False)
+    site = Site(latitude=scn.site.latitude, longitude=scn.site.longitude, altitude=scn.site.altitude)
+    ts = utc(2025, 6, 21, 3, 0) + np.arange(0, 10 * 3600, 1200.0)
+    lens = FisheyeLens.from_camera(b.camera)
+    uv, ok = lens.project(sun_vectors(site, ts) @ scn.R_enu_from_cam)
+    uv += np.random.default_rng(3).normal(0, 0.03, uv.shape)
+    d, _ = lens.rays(uv)
+    zen = scn.R_enu_from_cam.T @ np.array([0.0, 0.0, 1.0])
+    tip = np.cross(zen, [1.0, 0.0, 0.0])
+    off = zen + math.radians(0.2) * tip / np.linalg.norm(tip)  # the horizon's zenith, 0.2 deg off
+    fit = fit_orientation(ts, d, site, uv=uv, camera=b.camera, refine="rotation", horizon_zenith_cam=off)
+    assert rot_deg(fit.enu_from_camera, scn.R_enu_from_cam) < 0.03
+    assert fit.horizon_disagreement_deg == pytest.approx(0.2, abs=0.03)  # still reported
+
+
 def test_an_orientation_a_sky_camera_cannot_have_is_refused():
     """A wrong latitude sign fits a day of the sun as well as the right one, with the
     camera turned over on its side."""
