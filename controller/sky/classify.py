@@ -24,11 +24,21 @@ from .baselines import classify_by_fraction, classify_by_kt, detect_clearsky_fra
 from .clearness import clearness_index_rows
 from .fractal import variation_dimension_rows
 from .grid import DayGrid, build_day_grid, to_posix_seconds
+from .plausibility import (
+    EDGE_GHI_W_M2,
+    NIGHT_ELEVATION_DEG,
+    NIGHT_GHI_W_M2,
+    light_centre_rows,
+    light_edge_rows,
+)
 from .settings import Method, SkyConfig, ThresholdRule
 from .solar import cos_zenith_rows, daily_extraterrestrial_irradiation, row_geometry
 from .sunshine import pyranometric_sunshine_fraction, sunshine_fraction
 
 CLASS_NAMES = {0: "", 1: "I", 2: "II", 3: "III"}
+
+#: Per-day columns of :attr:`DayResults.rows`; the last five are not in ``days``.
+ROW_CHECK_COLUMNS = ("K_T", "H0_MJ", "valid_s", "ghi_max", "lit_night_s", "noon_offset_h", "edge_offset_h")
 
 
 # --------------------------------------------------------------------------- rules
@@ -104,6 +114,7 @@ def _row_features(
         else None
     )
     kt = clearness_index_rows(np.where(has, ghi, 0.0), has, cz, step_s, geo["e0"], h0)
+    lit_night = has & (cz < np.sin(np.radians(NIGHT_ELEVATION_DEG))) & (ghi > NIGHT_GHI_W_M2)
     out = {
         "daylight_s": step_s * np.count_nonzero(up, axis=1).astype(float),
         "missing_daylight_s": missing_s.astype(float),
@@ -116,6 +127,12 @@ def _row_features(
         "sun_fraction_est": pyranometric_sunshine_fraction(
             np.where(has, ghi, 0.0), has, cz, step_s, geo["doy"]
         ),
+        # for the plausibility checks (controller.sky.plausibility), not the classes
+        "valid_s": step_s * np.count_nonzero(has, axis=1).astype(float),
+        "ghi_max": np.max(np.where(has, ghi, -np.inf), axis=1, initial=-np.inf).astype(float),
+        "lit_night_s": step_s * np.count_nonzero(lit_night, axis=1).astype(float),
+        "noon_offset_h": light_centre_rows(ghi, has, t0, step_s, site.longitude, geo["eot_s"]),
+        "edge_offset_h": light_edge_rows(has & (ghi > EDGE_GHI_W_M2), up, step_s),
     }
     if with_clearsky:
         month = pd.to_datetime(np.asarray(t0, float) + 43200, unit="s").month
@@ -156,6 +173,14 @@ class DayResults:
     step_s : int
         Grid spacing used, s.
     config : SkyConfig
+    rows : pandas.DataFrame
+        Every day of the grid, kept or not, with what the plausibility checks
+        (:mod:`controller.sky.plausibility`) judge: ``date``, ``kept``, ``daylight_s``,
+        ``valid_s`` (s of samples), ``ghi_max`` (W/m2), ``K_T``, ``H0_MJ``, ``lit_night_s``
+        (s of GHI over 20 W/m2 with the sun computed more than 3 deg below the horizon) and
+        ``noon_offset_h`` (the GHI-weighted circular mean time, h after solar noon) and
+        ``edge_offset_h`` (how far both edges of the lit period moved from the computed
+        sunrise and sunset, h; see :func:`~controller.sky.plausibility.light_edge_rows`).
     """
 
     days: pd.DataFrame
@@ -163,6 +188,7 @@ class DayResults:
     thresholds: pd.DataFrame
     step_s: int
     config: SkyConfig = field(default_factory=SkyConfig)
+    rows: pd.DataFrame = field(default_factory=pd.DataFrame)
 
 
 def analyse_grid(
@@ -234,6 +260,8 @@ def analyse_grid(
             f"more than {config.max_missing_s:g} s of daylight missing"
         )
     keep = reason == ""
+    rows_table = table.reindex(columns=["date", "daylight_s", *ROW_CHECK_COLUMNS]).assign(kept=keep)
+    table = table.drop(columns=list(ROW_CHECK_COLUMNS[2:]), errors="ignore")
     excluded = pd.DataFrame(
         {
             "date": table["date"][~keep],
@@ -243,7 +271,9 @@ def analyse_grid(
         }
     ).reset_index(drop=True)
     days = table[keep].reset_index(drop=True)
-    return _classify_table(days, excluded, grid.step_s, config)
+    res = _classify_table(days, excluded, grid.step_s, config)
+    res.rows = rows_table.reset_index(drop=True)
+    return res
 
 
 def _classify_table(days: pd.DataFrame, excluded: pd.DataFrame, step_s: int, config: SkyConfig) -> DayResults:

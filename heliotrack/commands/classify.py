@@ -27,6 +27,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--ghi-col", help="GHI column; guessed if omitted")
     p.add_argument("--dni-col", help="DNI column (adds the sunshine-duration truth)")
     p.add_argument(
+        "--irradiance-unit",
+        choices=("W/m2", "kW/m2"),
+        default="W/m2",
+        help="unit of the GHI and DNI values (default W/m2; values that look like kW/m2 are "
+        "refused unless this says so)",
+    )
+    p.add_argument(
         "--settings",
         type=Path,
         default=None,
@@ -70,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from controller.sky.classify import analyse_grid
     from controller.sky.grid import build_day_grid
     from controller.sky.io import read_records
+    from controller.sky.plausibility import check_record
     from controller.sky.settings import SkyConfig, SkySettings
     from controller.sun.source import Site
     from heliotrack.output import check_out_dir
@@ -86,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     if not (-90 <= lat <= 90 and -180 <= lon <= 360):
         raise InputError(f"--lat/--lon out of range: {lat}, {lon}")
     alt = args.alt if args.alt is not None else (rec.altitude or 0.0)
+    if args.irradiance_unit == "kW/m2":
+        rec = _from_kw(rec)
     config = load_file(SkySettings, args.settings).sky if args.settings else SkyConfig()
     overrides: dict = {}
     if args.method is not None:
@@ -112,10 +122,17 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"{', '.join(rec.sources)}: {exc}") from None
     site = Site(lat, lon, alt)
     res = analyse_grid(grid, site, config, with_clearsky=rec.dni is not None, progress=progress)
+    findings = check_record(res, site)  # before anything is written
+    errors = [f.message for f in findings if f.error]
+    if errors:
+        raise InputError(f"{', '.join(rec.sources)}: " + "; and ".join(errors))
+    for f in findings:
+        print(f"heliotrack: warning: {', '.join(rec.sources)}: {f.message}", file=sys.stderr)
     if len(res.days) == 0:
         raise InputError(
             f"{', '.join(rec.sources)}: no day could be classified "
             f"({len(res.excluded)} excluded, e.g. {res.excluded['reason'].iloc[0] if len(res.excluded) else 'no data'})"
+            + _contradiction(res)
         )
     written = write_tables(res, args.out) + write_figures(res, grid, args.out)
     counts = res.days["class"].value_counts()
@@ -134,3 +151,39 @@ def run(args: argparse.Namespace) -> int:
                 )
     print(f"wrote {len(written)} files to {args.out}")
     return 0
+
+
+def _from_kw(rec):
+    """The record with its irradiances in W/m2 (``--irradiance-unit kW/m2``)."""
+    from dataclasses import replace
+
+    import numpy as np
+
+    from controller.errors import InputError
+
+    top = float(np.nanmax(rec.ghi))
+    if top > 2.0:  # 2 kW/m2 is more than the sun gives; the reader's W/m2 bound, scaled
+        raise InputError(
+            f"{', '.join(rec.sources)}: --irradiance-unit kW/m2, but GHI reaches {top:g}: "
+            "these values look like W/m2 (leave the option out)"
+        )
+    return replace(rec, ghi=rec.ghi * 1000.0, dni=None if rec.dni is None else rec.dni * 1000.0)
+
+
+def _contradiction(res) -> str:
+    """Why a "no day" reason may be wrong: the site's night or missing daylight has light."""
+    rows = res.rows
+    if rows.empty:
+        return ""
+    from controller.sky.plausibility import LIT_NIGHT_S, NIGHT_GHI_W_M2
+
+    # light on a day the site has none (polar night), or for half an hour where its sun is down
+    dark = (rows["daylight_s"] <= 0) | (rows["lit_night_s"] >= LIT_NIGHT_S)
+    lit = rows[~rows["kept"] & dark & (rows["ghi_max"] > NIGHT_GHI_W_M2)]
+    if lit.empty:
+        return ""
+    return (
+        f"; yet GHI reaches {lit['ghi_max'].max():.0f} W/m2 on {len(lit)} of those days where the "
+        "computed sun is down: check the --lat/--lon signs and the stamps' zone (naive stamps "
+        "are read as UTC)"
+    )
