@@ -20,13 +20,17 @@ def run_kalman(
     """Run the filter over observations (any order) and summarise each local day.
 
     Each day's row is the filter's state after that day's last observation (a filtered,
-    not smoothed, estimate); days before the filter could start give no row.
+    not smoothed, estimate); days before the filter could start give no row.  Without
+    ``utc_offset_h`` days are cut at the solar midnight (:func:`.days.local_offset_s`:
+    the site's longitude when known, else the observations' own).
     """
     kf = kf or SunPathKalman(config, site)
     obs = sorted(observations, key=lambda o: o.time)
     times = np.array([o.time for o in obs])
     results = []
-    for day in split_days(times, utc_offset_h):
+    known = site or kf.site
+    lon = known.longitude if known is not None else None
+    for day in split_days(times, utc_offset_h, [o.el_deg for o in obs], lon):
         rej0 = kf.n_rejected
         for i in day.index:
             kf.update(obs[i])

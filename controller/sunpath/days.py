@@ -1,7 +1,11 @@
 """Grouping observations into observing days, and the per-day result record.
 
-Without a time zone the "local" clock is a pseudo solar clock: the first day's median
-observation time is put at 12:00, so no day straddles local midnight anywhere on Earth.
+Without a time zone the "local" clock is a pseudo solar clock, so that days are cut at the
+sun's lowest, the solar midnight, anywhere on Earth: mean solar time when the longitude is
+known; else, when the first day's observations leave a night (a gap of
+:data:`NIGHT_GAP_S` or more), the first day's median observation time is put at 12:00;
+else (the sun seen round the clock: a midnight sun) the noon of the elevation's daily
+harmonic is, i.e. the cut falls at the data's own lowest elevations.
 """
 
 from __future__ import annotations
@@ -34,26 +38,59 @@ class Day:
     index: np.ndarray
 
 
-def local_offset_s(times, utc_offset_h: float | None) -> float:
+#: A gap in a day's observations at least this long (s) is its night; a day without one
+#: (the sun seen round the clock) is cut at its lowest elevation instead.
+NIGHT_GAP_S = 6 * 3600.0
+_DAY_S = 86400.0
+
+
+def local_offset_s(times, utc_offset_h: float | None, el_deg=None, lon_deg: float | None = None) -> float:
     """Seconds to add to UTC to get the local clock used for day boundaries.
 
-    With ``utc_offset_h`` that is the civil offset; otherwise the offset that puts the
-    median of the first 20 hours of observations at 12:00.
+    With ``utc_offset_h`` that is the civil offset; otherwise the offset of mean solar time
+    at ``lon_deg`` (deg east) when given; else, for observations (their elevations
+    ``el_deg``, deg) that leave no night in their first 24 hours, the offset that puts the
+    noon of the elevation's daily harmonic ``c0 + c1 cos(wt) + c2 sin(wt)`` at 12:00;
+    otherwise the offset that puts the median of the first 20 hours of observations at
+    12:00.  Either way midnight falls at the sun's lowest, within minutes (the equation of
+    time, at most 16.5 min; the fit).  The median of a 24-hour day had put 12:00 at
+    09:45 at Tromso (18.9 E, noon 10:46 UTC), and a day's last four observations into a
+    second day that repeated its noon.
     """
     if utc_offset_h is not None:
         return float(utc_offset_h) * 3600.0
-    t = np.sort(np.asarray(times, dtype=float))
+    if lon_deg is not None:
+        return _noon_at_12(43200.0 - float(lon_deg) * 240.0)
+    t = np.asarray(times, dtype=float)
+    order = np.argsort(t)
+    t = t[order]
+    if el_deg is not None:
+        day = t < t[0] + _DAY_S
+        tod = np.sort(t[day] % _DAY_S)
+        gaps = np.diff(np.concatenate([tod, [tod[0] + _DAY_S]]))
+        if gaps.max() < NIGHT_GAP_S:
+            el = np.asarray(el_deg, dtype=float)[order][day]
+            w = 2.0 * np.pi / _DAY_S
+            A = np.column_stack([np.ones(tod.size), np.cos(w * t[day]), np.sin(w * t[day])])
+            c = np.linalg.lstsq(A, el, rcond=None)[0]
+            return _noon_at_12(float(np.arctan2(c[2], c[1])) / w)
     first = t[t < t[0] + 20 * 3600.0]
-    med = float(np.median(first)) % 86400.0
-    return (12 * 3600.0 - med + 43200.0) % 86400.0 - 43200.0
+    return _noon_at_12(float(np.median(first)))
 
 
-def split_days(times, utc_offset_h: float | None = None) -> list[Day]:
+def _noon_at_12(noon_s: float) -> float:
+    """The offset (s, in [-12 h, 12 h)) that puts UTC ``noon_s`` (mod a day) at 12:00."""
+    return (12 * 3600.0 - noon_s % _DAY_S + 43200.0) % _DAY_S - 43200.0
+
+
+def split_days(
+    times, utc_offset_h: float | None = None, el_deg=None, lon_deg: float | None = None
+) -> list[Day]:
     """Group POSIX ``times`` (s) into local days; see :func:`local_offset_s`."""
     t = np.asarray(times, dtype=float)
     if t.size == 0:
         return []
-    off = local_offset_s(t, utc_offset_h)
+    off = local_offset_s(t, utc_offset_h, el_deg, lon_deg)
     num = np.floor((t + off) / 86400.0).astype(int)
     days = []
     for n in np.unique(num):
@@ -125,7 +162,7 @@ def why_no_noon(times, el_deg, utc_offset_h: float | None = None, shown: int = 4
     morning's or an afternoon's samples: no maximum to fit), else unbalanced about it."""
     t = np.asarray(times, dtype=float)
     el = np.asarray(el_deg, dtype=float)
-    days = split_days(t, utc_offset_h)
+    days = split_days(t, utc_offset_h, el)
     parts = []
     for day in days[:shown]:
         e = el[day.index]

@@ -19,6 +19,9 @@ import pvlib
 
 #: SPA's default apparent sun-set refraction allowance (deg), used only by its switch.
 _ATMOS_REFRACT = 0.5667
+#: True elevation (deg) below which SPA applies no refraction: its sun-set switch, where
+#: the apparent elevation steps by 0.616 deg (from -0.833 to -0.217 at 1013 hPa, 12 C).
+REFRACTION_SWITCH_DEG = -(0.26667 + _ATMOS_REFRACT)
 
 
 @dataclass(frozen=True)
@@ -90,9 +93,18 @@ def transit_time(t_guess, lon_deg) -> np.ndarray:
     return t
 
 
-def refraction_deg(el0_deg, pressure_hpa: float = 1013.25, temp_c: float = 12.0):
-    """SPA atmospheric refraction (deg) for true (airless) elevation ``el0_deg``."""
+def refraction_deg(el0_deg, pressure_hpa: float = 1013.25, temp_c: float = 12.0, continuous: bool = False):
+    """SPA atmospheric refraction (deg) for true (airless) elevation ``el0_deg``.
+
+    SPA applies none below :data:`REFRACTION_SWITCH_DEG`, a step of 0.616 deg there.
+    ``continuous=True`` holds the value at the switch below it instead: not SPA's value
+    there, but a continuous function with SPA's slope everywhere except the step itself,
+    for numeric derivatives (a difference across the step is 0.616 deg over the step
+    size: a near-infinite slope, and a covariance collapsed by orders of magnitude).
+    """
     el0 = np.asarray(el0_deg, dtype=float)
+    if continuous:
+        el0 = np.maximum(el0, REFRACTION_SWITCH_DEG)
     return pvlib.spa.atmospheric_refraction_correction(pressure_hpa, temp_c, el0, _ATMOS_REFRACT)
 
 
@@ -103,12 +115,15 @@ def azel_from_hour_angle(
     refraction_scale=1.0,
     pressure_hpa: float = 1013.25,
     temp_c: float = 12.0,
+    continuous_refraction: bool = False,
 ):
     """Apparent azimuth and elevation (deg) of the sun from hour angle and declination.
 
     ``el0 = asin(sin(lat) sin(dec) + cos(lat) cos(dec) cos(H))``;
     ``az = atan2(sin H, cos H sin(lat) - tan(dec) cos(lat)) + 180`` (clockwise from north);
     refraction (SPA formula times ``refraction_scale``) is added to the elevation.
+    ``continuous_refraction``: without SPA's step at the horizon (:func:`refraction_deg`),
+    for the numeric Jacobians of the geometry only; the model itself is SPA's.
 
     Returns
     -------
@@ -120,5 +135,5 @@ def azel_from_hour_angle(
     s = np.sin(p) * np.sin(d) + np.cos(p) * np.cos(d) * np.cos(h)
     el0 = np.degrees(np.arcsin(np.clip(s, -1.0, 1.0)))
     az = (np.degrees(np.arctan2(np.sin(h), np.cos(h) * np.sin(p) - np.tan(d) * np.cos(p))) + 180.0) % 360.0
-    el = el0 + refraction_scale * refraction_deg(el0, pressure_hpa, temp_c)
+    el = el0 + refraction_scale * refraction_deg(el0, pressure_hpa, temp_c, continuous_refraction)
     return az, el

@@ -104,27 +104,30 @@ def initial_fit(
     if known:
         free = [AZOFF] + ([DEC] if mode == "free" else [])
 
-    def model(p, fixed):
+    def model(p, fixed, continuous=False):
         x = fixed.copy()
         x[free] = p
         h = wrap180(geo.sidereal_deg + x[LON] - geo.ra_deg)
         d = x[DEC] + (geo.dec_deg if mode == "ephemeris" else 0.0)
-        m_az, m_el = azel_from_hour_angle(h, d, x[LAT], x[REFR], c.pressure_hpa, c.temp_c)
+        m_az, m_el = azel_from_hour_angle(h, d, x[LAT], x[REFR], c.pressure_hpa, c.temp_c, continuous)
         return m_az + x[AZOFF], m_el
 
-    def resid(p, fixed):
-        m_az, m_el = model(p, fixed)
+    def resid(p, fixed, continuous=False):
+        m_az, m_el = model(p, fixed, continuous)
         r = np.concatenate([wrap180(az - m_az) * np.cos(np.radians(el)) / sig, (el - m_el) / sig])
         x = fixed.copy()
         x[free] = p
         pri = [(x[k] - x0[k]) / s0[k] for k in free if s0[k] < 1.0]
         return np.concatenate([r, pri])
 
+    def jac(p, fixed):  # refraction without SPA's step: see central_jacobian
+        return central_jacobian(lambda q: resid(q, fixed, True), p)
+
     fixed = x0.copy()
     starts = grid_starts(geo, az, el, fixed, free, known, config, mode)
     best = None
     for p in starts:
-        sol = optimize.least_squares(resid, p, args=(fixed,), loss="soft_l1", f_scale=3.0)
+        sol = optimize.least_squares(resid, p, jac=jac, args=(fixed,), loss="soft_l1", f_scale=3.0)
         if best is None or sol.cost < best.cost:
             best = sol
     assert best is not None  # grid_starts always gives at least one start
@@ -162,6 +165,24 @@ def initial_fit(
     return InitialFit(
         x, 0.5 * (P + P.T), t_ref if not known else float(t[0]), int(ok.sum()), float(np.sqrt(np.mean(r**2)))
     )
+
+
+def central_jacobian(f, p: np.ndarray, step: float = 1e-5) -> np.ndarray:
+    """Central-difference Jacobian of the vector function ``f`` at ``p`` (steps in deg).
+
+    The fit differentiates its residuals with the refraction held continuous across SPA's
+    0.616-deg step at the horizon (:func:`.ephemeris.refraction_deg`): scipy's own
+    differences straddled the step whenever a model elevation sat on it (where the fit
+    puts an observation that falls in the step's gap), a slope of 1e5 that made the
+    latitude's one-sigma 5e-7 deg.
+    """
+    p = np.asarray(p, dtype=float)
+    cols = []
+    for k in range(p.size):
+        dp = np.zeros_like(p)
+        dp[k] = step
+        cols.append((f(p + dp) - f(p - dp)) / (2.0 * step))
+    return np.stack(cols, axis=1)
 
 
 def grid_starts(

@@ -150,16 +150,22 @@ class SunPathKalman:
             return float(np.degrees(np.arcsin(np.clip(x[DEC], -1.0, 1.0))))
         return x[DEC] + geo.dec_deg[i]
 
-    def _azel(self, x, geo: GeocentricSun, i=0):
-        """Model (sensor azimuth, elevation) for state ``x`` at the time of ``geo[i]``."""
+    def _azel(self, x, geo: GeocentricSun, i=0, continuous=False):
+        """Model (sensor azimuth, elevation) for state ``x`` at the time of ``geo[i]``
+        (``continuous``: refraction without SPA's step, for derivatives only)."""
         h = wrap180(geo.sidereal_deg[i] + x[LON] - geo.ra_deg[i])
+        c = self.config
         az, el = azel_from_hour_angle(
-            h, self._dec(x, geo, i), x[LAT], x[REFR], self.config.pressure_hpa, self.config.temp_c
+            h, self._dec(x, geo, i), x[LAT], x[REFR], c.pressure_hpa, c.temp_c, continuous
         )
         return float(az) + x[AZOFF], float(el)
 
     def _jacobian(self, x, geo, i=0, scaled=True):
-        """Numeric Jacobian of ``(az cos(el), el)`` (``scaled``) or ``(az, el)`` w.r.t. x."""
+        """Numeric Jacobian of ``(az cos(el), el)`` (``scaled``) or ``(az, el)`` w.r.t. x.
+
+        The geometry's columns ignore SPA's refraction step at the horizon (a difference
+        across it was a slope of 3000); the refraction scale's column is SPA's own.
+        """
         _, el0 = self._azel(x, geo, i)
         c = np.cos(np.radians(el0)) if scaled else 1.0
         J = np.zeros((2, 6))
@@ -167,8 +173,9 @@ class SunPathKalman:
             xp, xm = x.copy(), x.copy()
             xp[k] += step
             xm[k] -= step
-            azp, elp = self._azel(xp, geo, i)
-            azm, elm = self._azel(xm, geo, i)
+            smooth = k != REFR
+            azp, elp = self._azel(xp, geo, i, smooth)
+            azm, elm = self._azel(xm, geo, i, smooth)
             J[0, k] = float(wrap180(azp - azm)) / (2 * step) * c
             J[1, k] = (elp - elm) / (2 * step)
         return J

@@ -320,7 +320,7 @@ def run_seed(
     fitted: list[tuple[Day, ParabolaFit]] = []
     prev_fit: ParabolaFit | None = None
     prev_num: int | None = None
-    for day in split_days(t, utc_offset_h):
+    for day in split_days(t, utc_offset_h, el):
         prior = prev_fit if (use_prior and prev_num == day.day_number - 1) else None
         day_fit = _day_fit(
             (t[day.index] - day.midnight) / 3600.0, el[day.index], prior, day.midnight, fit, window_h

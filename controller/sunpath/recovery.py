@@ -65,6 +65,37 @@ class SiteMismatch:
     lon_offset_deg: float
     time: float
 
+    def likely_cause(self, site: Site, tol_deg: float = 1.0) -> str:
+        """The mistake that would make this offset from ``site``, as a phrase.
+
+        A latitude's sign when the sky's latitude is the given one negated, a longitude's
+        sign likewise, and time stamps in another zone when the rest of the longitude's
+        offset is a whole or half number of hours (within ``tol_deg / 2``; 15 deg an hour,
+        the stamps reading ``-lon_offset / 15`` h from UTC, or 24 h less or more); else all
+        three to check.
+        """
+        lat, lon = site.latitude, site.longitude
+        sky_lat = lat + self.lat_offset_deg
+        sky_lon = float(wrap180(lon + self.lon_offset_deg))
+        lat_off = abs(self.lat_offset_deg) > tol_deg
+        causes = []
+        if lat_off and abs(sky_lat + lat) <= tol_deg:
+            causes.append(f"the latitude's sign (the sky's is {sky_lat:+.2f}: north is positive)")
+        if abs(self.lon_offset_deg) > tol_deg:
+            hours = -self.lon_offset_deg / 15.0
+            zone = round(2.0 * hours) / 2.0
+            if abs(float(wrap180(sky_lon + lon))) <= tol_deg:
+                causes.append(f"the longitude's sign (the sky's is {sky_lon:+.2f}: east is positive)")
+            elif (causes or not lat_off) and abs(hours - zone) * 15.0 <= tol_deg / 2.0:
+                reads = " or ".join(f"{h:+g} h" for h in (zone, zone - 24, zone + 24) if -12 <= h <= 14)
+                causes.append(
+                    f"the time stamps' zone (they read {reads} from UTC: local times written "
+                    "without their offset, or with the wrong one)"
+                )
+        if not causes:
+            return "check the latitude's and the longitude's signs (north and east positive) and the time stamps' zone"
+        return "likely " + ", and ".join(causes)
+
 
 @dataclass(frozen=True)
 class RunVerdict:

@@ -29,6 +29,9 @@ from heliotrack.argtypes import LATITUDE, LONGITUDE, number_in
 
 #: The most times ``predict --start/--end`` writes (a year at one-minute steps).
 MAX_STEPS = 600_000
+#: More than this share of the observations rejected is warned about (clouds, reflections
+#: and a sensor's distractors reject some: normal).
+REJECTED_WARN_FRACTION = 0.5
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -149,7 +152,7 @@ def _site(args):
     return None if args.lat is None else Site(args.lat, ((args.lon + 180) % 360) - 180)
 
 
-def _kalman(args, obs):
+def _kalman(args, obs, source: str):
     from controller.sunpath.batch import run_kalman
     from controller.sunpath.kalman import KalmanConfig, SunPathKalman
     from controller.sunpath.state import load_state, save_state
@@ -160,10 +163,41 @@ def _kalman(args, obs):
     else:
         _same_site(kf, args)
         obs = _not_yet_absorbed(kf, obs or [], args.state)
+    rejected = kf.n_rejected
     rows, kf = run_kalman(obs or [], utc_offset_h=args.utc_offset, kf=kf)
+    _sky_fits_site(kf, args, source, len(obs or []), kf.n_rejected - rejected)
     if args.state is not None and (obs or args.state.exists()):  # nothing learned: no new file
         save_state(args.state, kf)
     return rows, kf
+
+
+def _sky_fits_site(kf, args, source: str, n_obs: int, n_rejected: int) -> None:
+    """A sky that fits a site far from --lat/--lon is an error, before anything is written
+    (it had exited 0 with every observation rejected and the given site's ephemeris as
+    its rows); most observations rejected without a measured offset is a warning."""
+    from controller.errors import InputError
+    from controller.sunpath.ephemeris import wrap180
+
+    site, m = _site(args), kf.site_mismatch
+    if site is not None and m is not None:
+        sky_lat, sky_lon = site.latitude + m.lat_offset_deg, float(wrap180(site.longitude + m.lon_offset_deg))
+        raise InputError(
+            f"{source}: the sky does not fit --lat {args.lat:g} --lon {args.lon:g}: {n_rejected} of "
+            f"{n_obs} observations rejected, and they fit a site at lat {sky_lat:.2f}, lon {sky_lon:.2f} "
+            f"(offset {m.lat_offset_deg:+.2f} deg in latitude, {m.lon_offset_deg:+.2f} deg in longitude): "
+            f"{m.likely_cause(site, kf.config.site_mismatch_deg)}; nothing written"
+        )
+    if n_obs and n_rejected > REJECTED_WARN_FRACTION * n_obs:
+        why = (
+            "the sky may not fit --lat/--lon (too few in a row to measure how far off): check their "
+            "signs (north and east positive) and the time stamps' zone"
+            if site is not None
+            else "not one sun's path: check the times' zone and the sensor"
+        )
+        print(
+            f"heliotrack: warning: {source}: {n_rejected} of {n_obs} observations rejected: {why}",
+            file=sys.stderr,
+        )
 
 
 def _not_yet_absorbed(kf, obs: list, state: Path) -> list:
@@ -225,7 +259,7 @@ def _fit(args, path: Path) -> int:
             use_prior=args.chain_prior,
         )
     else:
-        rows, kf = _kalman(args, obs)
+        rows, kf = _kalman(args, obs, str(path))
         if not kf.initialised:
             print(
                 "heliotrack: warning: the Kalman filter could not start from these "
@@ -265,7 +299,7 @@ def _predict(args, path: Path | None) -> int:
     obs = read_observations(path) if path is not None else []
     kf = None
     if obs or args.state is not None:
-        _, kf = _kalman(args, obs)
+        _, kf = _kalman(args, obs, str(path) if path is not None else str(args.state))
     rows = []
     eph = EphemerisSource(_site(args)) if args.lat is not None else None
     if (kf is None or not kf.initialised) and eph is None:

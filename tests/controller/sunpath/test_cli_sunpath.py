@@ -10,7 +10,7 @@ from controller.errors import InputError
 from controller.sunpath.io import read_observations
 from heliotrack.cli import main
 
-from ._synth import ANDIMESHK, observations, sample_times
+from ._synth import ANDIMESHK, SANTIAGO, observations, sample_times
 
 
 def _write_csv(p, obs):
@@ -251,3 +251,58 @@ def test_an_offset_that_splits_the_noons_is_warned_about(tmp_path, capsys):
     assert "--utc-offset 12: the days' highest sun falls at 00:00 local (median)" in err, err
     assert main(["sunpath", str(obs), "--method", "seed", "--utc-offset", "0"]) == 0
     assert "--utc-offset" not in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def southern_csv(tmp_path_factory):
+    """Two days at Santiago (33.45 S, 70.67 W)."""
+    obs, _, _ = observations(SANTIAGO, sample_times("2024-04-10", 2, -4.0), seed=23)
+    return _write_csv(tmp_path_factory.mktemp("cli") / "south.csv", obs)
+
+
+@pytest.mark.parametrize(
+    ("lat", "lon", "cause"),
+    [
+        ("33.4489", "-70.6693", "likely the latitude's sign (the sky's is -33."),
+        ("-33.4489", "70.6693", "likely the longitude's sign (the sky's is -70."),
+    ],
+)
+def test_a_sky_that_does_not_fit_the_site_is_refused(southern_csv, tmp_path, capsys, lat, lon, cause):
+    """An audit's case: Cape Town data with --lat 33.9 exited 0, every observation
+    rejected, and wrote the given site's ephemeris (noon elevation 79.5 where the sky
+    says 32.7), without a word."""
+    out, state = tmp_path / "days.csv", tmp_path / "st.json"
+    out.write_text("precious")
+    argv = ["sunpath", str(southern_csv), "--lat", lat, "--lon", lon]
+    assert main([*argv, "--out", str(out), "--state", str(state)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the sky does not fit --lat" in err and cause in err, err
+    assert "observations rejected" in err and "nothing written" in err, err
+    assert out.read_text() == "precious" and not state.exists()
+    assert main(["sunpath", "predict", str(southern_csv), *argv[2:], "--at", "2024-04-12T12:00Z"]) == 2
+
+
+def test_a_sky_that_fits_the_site_gives_no_alarm_despite_distractors(southern_csv, tmp_path, capsys):
+    """Rejecting some observations (reflections, clouds' edges) is normal: no error, no
+    warning, the site kept."""
+    rows = southern_csv.read_text().splitlines()
+    for i in range(3, len(rows), 4):  # every 4th observation a random point of the sky
+        t = rows[i].split(",")[0]
+        rows[i] = f"{t},{(97 * i) % 360},{(13 * i) % 60},0.3"
+    noisy = tmp_path / "noisy.csv"
+    noisy.write_text("\n".join(rows) + "\n")
+    assert main(["sunpath", str(noisy), "--lat", "-33.4489", "--lon", "-70.6693"]) == 0
+    cap = capsys.readouterr()
+    got = list(csv.DictReader(io.StringIO(cap.out)))
+    assert cap.err == "" and sum(int(r["n_rejected"]) for r in got) > 0
+
+
+def test_most_observations_rejected_without_a_measured_offset_is_warned_about(southern_csv, tmp_path, capsys):
+    """Two hours of sky (too few to measure the offset) with the latitude's sign wrong."""
+    short = tmp_path / "short.csv"
+    short.write_text("\n".join(southern_csv.read_text().splitlines()[:9]) + "\n")
+    assert main(["sunpath", str(short), "--lat", "33.4489", "--lon", "-70.6693"]) == 0
+    err = capsys.readouterr().err
+    assert "7 of 8 observations rejected: the sky may not fit --lat/--lon" in err, err
+    assert main(["sunpath", str(short), "--lat", "-33.4489", "--lon", "-70.6693"]) == 0
+    assert capsys.readouterr().err == ""

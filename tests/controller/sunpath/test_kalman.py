@@ -88,3 +88,28 @@ def test_unstarted_filter_cannot_predict_and_state_round_trips(learnt):
     t = kf.t + 3600.0
     assert kf2.predict(t).az_deg == pytest.approx(kf.predict(t).az_deg, abs=1e-9)
     assert np.allclose(kf2.P, kf.P)
+
+
+def test_the_jacobian_does_not_straddle_the_refraction_step():
+    """An audit's case: SPA's refraction steps by 0.616 deg at true elevation -0.833 deg; a
+    central difference across it made d(el)/d(lat) about 3000 and the update collapsed the
+    latitude's sigma.  The slope is now the geometry's (about 1 there)."""
+    from scipy.optimize import brentq
+
+    from controller.sun.source import Site
+    from controller.sunpath.ephemeris import azel_from_hour_angle
+    from controller.sunpath.kalman import LAT
+
+    switch = -(0.26667 + 0.5667)  # SPA: no refraction below this true elevation
+
+    kf = SunPathKalman(KalmanConfig(), site=Site(69.6, 18.9))
+    t = 1737194400.0  # 2025-01-18 10:00 UTC, the polar-winter sun near the horizon
+    geo = geocentric_sun(t)
+    h = geo.hour_angle_deg(18.9)
+
+    def el0(lat):  # true (airless) elevation
+        return float(azel_from_hour_angle(h, geo.dec_deg, lat, 0.0)[1][0]) - switch
+
+    x = np.array([brentq(el0, 60.0, 75.0) + 2e-5, 18.9, 0.0, 0.0, 0.0, 1.0])
+    J = kf._jacobian(x, geo)
+    assert 0.5 < abs(J[1, LAT]) < 2.0, J

@@ -271,3 +271,26 @@ def test_an_invalid_observation_before_the_filter_starts_is_not_the_sun_either()
     src.observe(SunObservation(t0 + 70.0, 120.0, 140.0, 0.3))  # past the zenith
     e = src.estimate(t0 + 80.0)
     assert e is not None and (e.az_deg, e.el_deg) == (120.0, 40.0)
+
+
+@pytest.mark.parametrize(
+    ("site", "dlat", "dlon", "cause"),
+    [
+        ((33.9, 18.4), -67.8, 0.0, "likely the latitude's sign (the sky's is -33.90"),
+        ((-33.9, -18.4), 0.0, 36.8, "likely the longitude's sign (the sky's is +18.40"),
+        ((-33.9, 18.4), 0.0, -30.0, "likely the time stamps' zone (they read +2 h from UTC"),
+        ((-45.0, 170.0), 0.2, 165.0, "the time stamps' zone (they read -11 h or +13 h from UTC"),
+        (
+            (33.9, 18.4),
+            -67.8,
+            -30.0,
+            "latitude's sign (the sky's is -33.90: north is positive), and the time",
+        ),
+        ((33.9, 18.4), 5.0, 7.0, "check the latitude's and the longitude's signs"),
+    ],
+)
+def test_a_site_mismatch_names_its_likely_cause(site, dlat, dlon, cause):
+    from controller.sun.source import Site
+    from controller.sunpath.recovery import SiteMismatch
+
+    assert cause in SiteMismatch(dlat, dlon, 0.0).likely_cause(Site(*site))
