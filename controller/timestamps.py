@@ -34,7 +34,15 @@ from datetime import UTC, datetime, timedelta
 
 from .errors import InputError
 
-__all__ = ["CANONICAL_EXAMPLE", "format_name_time", "parse_timestamp", "time_from_name", "to_iso"]
+__all__ = [
+    "CANONICAL_EXAMPLE",
+    "format_name_time",
+    "names_without_zone",
+    "parse_timestamp",
+    "time_from_name",
+    "to_iso",
+    "zone_warning",
+]
 
 #: An example of the canonical form, for messages and docs.
 CANONICAL_EXAMPLE = "2026-03-20T10-15-00Z"
@@ -102,14 +110,43 @@ def time_from_name(name: str) -> float | None:
     >>> time_from_name("IMG_0001.png") is None
     True
     """
+    found = _stamp_in_name(name)
+    return None if found is None else found[0]
+
+
+def _stamp_in_name(name: str) -> tuple[float, bool] | None:
+    """(POSIX s, whether the stamp names its zone) of the first timestamp in a file name."""
     base = re.split(r"[\\/]", name)[-1]
     pos = 0
     while (m := _TIMESTAMP.search(base, pos)) is not None:
         t = _from_match(m)
         if t is not None:
-            return t
+            return t, bool(m.group("tz"))
         pos = m.start() + 1  # not past the refused match: a timestamp may start inside it
     return None
+
+
+def names_without_zone(names) -> list[str]:
+    """The names whose timestamp carries no zone (read as UTC by :func:`time_from_name`):
+    a camera that writes local time without its offset puts the sun hours off."""
+    out = []
+    for n in names:
+        found = _stamp_in_name(str(n))
+        if found is not None and not found[1]:
+            out.append(str(n))
+    return out
+
+
+def zone_warning(naive: list[str], total: int) -> str:
+    """One line for :func:`names_without_zone`'s finding ("" when there is none)."""
+    if not naive:
+        return ""
+    name = re.split(r"[\\/]", naive[0])[-1]
+    return (
+        f"{len(naive)} of {total} frame names carry no zone ({name}{', ...' if len(naive) > 1 else ''}): "
+        f"read as UTC; if they are local times, name them with their offset (e.g. +03-30) or in UTC "
+        f"with Z, as in {CANONICAL_EXAMPLE}.png"
+    )
 
 
 def parse_timestamp(text: str, where: str = "time", *, require_zone: bool = False) -> float:

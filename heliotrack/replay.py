@@ -28,10 +28,11 @@ from controller.config import Config
 from controller.errors import ConfigError, InputError
 from controller.sun.camera import IMAGE_SUFFIXES, CameraFrame, FolderFrameSource, FrameSource
 from controller.sun.source import Site
-from controller.timestamps import parse_timestamp, time_from_name, to_iso
+from controller.timestamps import names_without_zone, parse_timestamp, time_from_name, to_iso, zone_warning
 from hil import truth
 from hil.sky import SkySeries
 
+from .output import check_out_dir, write_summary
 from .renderers import camera_sensor
 from .scenario import as_scenario
 from .scoring import WorldTruth
@@ -83,6 +84,7 @@ class RecordedFrames(FrameSource):
     def __init__(self, source: Path):
         self.source = source
         self.last_time = -math.inf
+        self.names: list[str] = []  # the frames' file names, when they are files
 
     def fresh(self, frame: CameraFrame | None) -> CameraFrame | None:
         if frame is None or frame.time <= self.last_time:
@@ -107,6 +109,7 @@ class FolderFrames(RecordedFrames):
         except ConfigError as exc:
             raise InputError(f"{folder}: expected {exc.expected}, got {exc.got}") from None
         self.times = self.inner.times
+        self.names = [p.name for _, p in self.inner.frames]
         if self.times.size == 0:
             suffixes = ", ".join(sorted(IMAGE_SUFFIXES))
             raise InputError(
@@ -346,12 +349,14 @@ def plan(frames: RecordedFrames, period_s: float, start: float | None, hours: fl
     sun-path filter's prediction or the ephemeris, which the user must be told."""
     first, last = float(frames.times[0]), float(frames.times[-1])
     t0 = first if start is None else start
-    end = t0 + hours * 3600.0 if hours is not None else last + period_s
-    if end <= t0:
+    if hours is not None:
+        n = max(1, round(hours * 3600.0 / period_s))
+    elif last < t0:
         raise InputError(
             f"--start: after the last frame ({to_iso(last)}); the frames cover {_span_text(first, last)}"
         )
-    n = max(1, round((end - t0) / period_s))
+    else:  # to the last frame: the first cycle at or after it (a frame off the grid had been left out)
+        n = 1 + max(0, math.ceil((last - t0 - TOLERANCE_S) / period_s))
     if n * period_s > MAX_SPAN_DAYS * 86400.0:  # a wrong --start or --fps: days of wall time
         raise InputError(
             f"the run would span {_span_text(t0, t0 + n * period_s)}, over {MAX_SPAN_DAYS} days "
@@ -371,6 +376,16 @@ def plan(frames: RecordedFrames, period_s: float, start: float | None, hours: fl
             f"{gaps.size} gap(s) in the frames (the first {_span_text(float(a), float(b))}): "
             "no camera there, the controller falls back on prediction or the ephemeris"
         )
+    used = min(n, frames.times.size)
+    if frames.times.size > 1.5 * n:  # a cycle takes one frame: the rest are never looked at
+        warnings.append(
+            f"{frames.times.size} frames, one every {frames.cadence_s:g} s, for {n} cycles of "
+            f"{period_s:g} s: at most {used} of them are used (a video's --fps, or the "
+            "configuration's control.period_s?)"
+        )
+    naive = zone_warning(names_without_zone(getattr(frames, "names", [])), frames.times.size)
+    if naive:
+        warnings.append(naive)
     label = to_iso(t0)
     return ReplayPlan(Span(t0, n, label), warnings)
 
@@ -399,12 +414,15 @@ def run_replay(
     speed: float | None = None,
     truth_file: Path | None = None,
     out_dir: Path | None = None,
+    report: bool = False,
     progress: bool = False,
     warn=None,
 ) -> dict:
     """Replay ``source`` through the controller; return (and write) the summary.
 
-    ``warn(text)`` is told what the frames and the truth do not cover.
+    ``warn(text)`` is told what the frames and the truth do not cover, and what the run
+    could not use of them; both go into the summary's ``warnings``.  ``out_dir`` is made
+    only once the frames are open (``report``: check that its ``report/`` can be written).
     """
     scenario = as_scenario(replay_config(config))
     frames = open_frames(Path(source), start if not Path(source).is_dir() else None, fps)
@@ -433,6 +451,8 @@ def run_replay(
     for w in warnings:
         if warn is not None:
             warn(w)
+    if out_dir is not None:
+        out_dir = check_out_dir(Path(out_dir), folders=("report",) if report else ())
     extra = {
         "replay": {
             "source": str(source),
@@ -455,9 +475,14 @@ def run_replay(
         extra=extra,
     )
     summary = run.execute(out_dir)
-    for w in _frame_warnings(frames, summary):
+    after = _frame_warnings(frames, summary)
+    for w in after:
         if warn is not None:
             warn(w)
+    if after:
+        summary["warnings"] = [*summary.get("warnings", []), *after]
+        if out_dir is not None and summary["cycles"]:  # the report, built from it, says them too
+            write_summary(Path(out_dir), summary)
     return summary
 
 

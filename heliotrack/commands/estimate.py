@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import sys
 from pathlib import Path
 
@@ -62,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     bundle = load_bundle(args.calib)
     est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method or "subpixel")
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
+    if t_cli is None:
+        warn_names_without_zone(args.images)
     for path in args.images:
         t = t_cli if t_cli is not None else time_from_name(str(path))
         res = est.estimate_file(path, t)
@@ -71,3 +74,12 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(d) + "\n")
         sys.stdout.flush()
     return 0
+
+
+def warn_names_without_zone(images) -> None:
+    """Say once when frames are dated by names without a zone (read as UTC)."""
+    from controller.timestamps import names_without_zone, zone_warning
+
+    text = zone_warning(names_without_zone(str(p) for p in images), len(images))
+    if text:
+        logging.getLogger("heliotrack.estimate").warning(text)

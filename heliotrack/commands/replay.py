@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from controller.errors import ConfigError, InputError
     from controller.timestamps import parse_timestamp
     from heliotrack.commands.simulate import finish
-    from heliotrack.output import check_out_dir, summary_table
+    from heliotrack.output import summary_table
     from heliotrack.replay import run_replay
     from heliotrack.runtime import require_hil
     from heliotrack.scenario import load_scenario
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     replay_config(config)  # a camera to feed: refused before --out is made
     if not args.source.exists():
         raise InputError(f"{args.source}: no such folder or video file")
-    out = check_out_dir(args.out, folders=() if args.no_report else ("report",))
+    out = args.out  # made by run_replay once the frames are open: a refused input leaves none
     summary = run_replay(
         config,
         args.source,
@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         speed=args.speed,
         truth_file=args.truth,
         out_dir=out,
+        report=not args.no_report,
         progress=not args.no_progress and sys.stderr.isatty(),
         warn=lambda text: print(f"heliotrack: warning: {text}", file=sys.stderr),
     )

@@ -99,3 +99,14 @@ def test_a_basic_date_before_a_stamp_does_not_take_its_zone():
 def test_a_year_outside_the_range_is_named():
     with pytest.raises(InputError, match=r"--start: year 2924 is outside 1900-2200"):
         parse_timestamp("2924-03-20T00:00:00Z", "--start")
+
+
+def test_names_without_a_zone_are_found():
+    from controller.timestamps import names_without_zone, zone_warning
+
+    names = ["a/2026-03-20T10-15-00Z.png", "cam_2026-03-20_10-15-00.png", "x.png", "2026-03-20T10-15-00+03-30.png"]
+    assert names_without_zone(names) == ["cam_2026-03-20_10-15-00.png"]
+    assert zone_warning([], 3) == ""
+    assert zone_warning(["d/cam_2026-03-20_10-15-00.png"], 4).startswith(
+        "1 of 4 frame names carry no zone (cam_2026-03-20_10-15-00.png): read as UTC"
+    )

@@ -167,6 +167,7 @@ def test_frames_named_in_local_time_are_said_to_miss_the_sun(installed, capsys, 
     assert not any(g["found"] for g in got) and any(g.get("reason") == "gate_rejected" for g in got)
     said = " ".join(r.getMessage() for r in caplog.records)
     assert "refused by the ephemeris gate" in said and "transposed matrix" in said, said
+    assert "8 of 8 frame names carry no zone" in said, said
 
 
 def test_frames_without_a_time_are_said_to_be_ungated(installed, capsys, tmp_path, caplog):

@@ -151,8 +151,7 @@ def test_replay_refuses_what_it_cannot_read(recorded, tmp_path, capsys):
         assert main(args) == 2
         err = capsys.readouterr().err.strip()
         assert expect in err and len(err.splitlines()) == 1, err
-        if expect == "no such folder":  # refused before --out is made
-            assert not (tmp_path / "o").exists()
+        assert not (tmp_path / "o").exists()  # refused before --out is made (it had been left empty)
     args = [
         "replay",
         str(empty),
@@ -235,8 +234,58 @@ def test_frames_that_cannot_be_read_are_named_after_the_run(recorded, tmp_path, 
         p.write_bytes(b"")  # a camera that died mid-write
     s = replay(tmp_path, cfg, src)
     err = capsys.readouterr().err
-    assert f"2 frame(s) could not be read (empty, truncated or not an image): {victims[0].name}" in err
+    said = f"2 frame(s) could not be read (empty, truncated or not an image): {victims[0].name}"
+    assert said in err
     assert s["camera_frames"]["found"] == 4
+    assert any(said in w for w in s["warnings"])  # printed only, before: summary.json had none
+
+
+def _renamed(frames: Path, folder: Path, name) -> Path:
+    """The frames (without truth.csv) under the names ``name(k, path)`` gives."""
+    folder.mkdir()
+    for k, p in enumerate(sorted(frames.glob("*.png"))):
+        (folder / name(k, p)).symlink_to(p)
+    return folder
+
+
+def test_a_last_frame_off_the_control_grid_gets_its_cycle():
+    """Frames at 09:00:00, 09:01:29 and 09:02:29 under a 60-s period: the run had stopped at
+    the 09:02 cycle, and the last frame (for 09:03) was never used (an audit)."""
+    from heliotrack.replay import plan
+
+    class Frames:
+        times = 1710925200.0 + np.array([0.0, 89.0, 149.0])
+        cadence_s = 74.5
+        names: list = []
+
+    assert plan(Frames(), 60.0, None, None).span.n_cycles == 4
+    Frames.times = 1710925200.0 + np.array([0.0, 60.0, 120.0])  # on the grid: a cycle each
+    assert plan(Frames(), 60.0, None, None).span.n_cycles == 3
+
+
+def test_frame_names_without_a_zone_are_warned_about(recorded, tmp_path, capsys):
+    cfg, frames, _, _ = recorded
+    s = replay(
+        tmp_path, cfg, _renamed(frames, tmp_path / "src", lambda k, p: p.name.replace("Z.png", ".png"))
+    )
+    assert (
+        "6 of 6 frame names carry no zone (2024-03-20T05-00-00.png, ...): read as UTC"
+        in capsys.readouterr().err
+    )
+    assert any("carry no zone" in w for w in s["warnings"])
+
+
+def test_frames_denser_than_the_control_period_are_warned_about(recorded, tmp_path, capsys):
+    """Frames every 10 s under a 600-s period: one is used a cycle, and the run had said nothing."""
+    cfg, frames, _, _ = recorded
+    s = replay(
+        tmp_path, cfg, _renamed(frames, tmp_path / "src", lambda k, p: f"2024-03-20T05-00-{10 * k:02d}Z.png")
+    )
+    assert (
+        "6 frames, one every 10 s, for 2 cycles of 600 s: at most 2 of them are used"
+        in capsys.readouterr().err
+    )
+    assert s["cycles"] == 2
 
 
 def test_a_replay_over_a_year_is_refused(recorded, tmp_path, capsys):
