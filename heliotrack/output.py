@@ -193,12 +193,12 @@ def write_summary(out: Path, summary: dict) -> Path:
     return atomic_write(Path(out) / "summary.json", json.dumps(summary, indent=2) + "\n")
 
 
-def _span(summary: dict) -> str:
+def span_text(summary: dict) -> str:
     """The run's span: whole days, or hours when it ran less than a day."""
     hours = summary.get("hours")
     if hours is not None and hours < 24:
         return f"{hours:g} hour(s)"
-    return f"{summary['days']} day(s)"
+    return f"{summary.get('days', '?')} day(s)"
 
 
 def summary_table(summary: dict) -> str:
@@ -211,7 +211,7 @@ def summary_table(summary: dict) -> str:
     sky = summary.get("sky") or []
     lines = [
         (
-            f"heliotrack {command}: {_span(summary)} from {summary['start']}"
+            f"heliotrack {command}: {span_text(summary)} from {summary['start']}"
             + (f" ({', '.join(sky)})" if sky else "")
             + f", {summary['cycles']} cycles of {summary['control_period_s']:g} s, {summary['wall_s']} s wall"
             + (" -- INTERRUPTED, partial figures" if summary.get("interrupted") else "")

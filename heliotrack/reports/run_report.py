@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 from controller.atomic import atomic_write
 from controller.errors import InputError
 
+from ..output import span_text
 from . import figures
 
 log = logging.getLogger(__name__)
@@ -145,12 +146,18 @@ def write_report(run_dir: Path, out_dir: Path | None = None) -> Path:
             f"{Path(run_dir) / 'summary.json'} and cycles.csv: not the outputs of a heliotrack run "
             f"({type(exc).__name__}: {exc})"
         ) from None
-    for name, data in pngs.items():
-        atomic_write(out / f"{name}.png", data)
-    for stale in out.glob("*.png"):
-        if stale.stem in CAPTIONS and stale.stem not in pngs:
-            stale.unlink()
-    return atomic_write(out / "index.html", index)
+    try:
+        for name, data in pngs.items():
+            atomic_write(out / f"{name}.png", data)
+        for stale in out.glob("*.png"):
+            if stale.stem in CAPTIONS and stale.stem not in pngs:
+                stale.unlink()
+        return atomic_write(out / "index.html", index)
+    except OSError as exc:  # a read-only report folder, a full disk: the run's files stand
+        raise InputError(
+            f"{out}: cannot write the report ({exc.strerror or exc}); the run's summary.json and "
+            f"cycles.csv are kept: `heliotrack report {run_dir}` writes it again"
+        ) from None
 
 
 # -- the page ------------------------------------------------------------------------------
@@ -246,7 +253,7 @@ def page(summary: dict, pngs: dict[str, bytes], n_rows: int) -> str:
     title = f"heliotrack {command}: {summary.get('start', '')}"
     sky = ", ".join(summary.get("sky") or [])
     lead = (
-        f"{summary.get('days', '?')} day(s) from {summary.get('start', '?')}"
+        f"{span_text(summary)} from {summary.get('start', '?')}"
         + (f" ({sky})" if sky else "")
         + f", {summary.get('cycles', '?')} cycles of {summary.get('control_period_s', '?')} s, "
         f"{n_rows} rows in cycles.csv, {summary.get('wall_s', '?')} s wall"

@@ -104,7 +104,12 @@ def test_a_year_outside_the_range_is_named():
 def test_names_without_a_zone_are_found():
     from controller.timestamps import names_without_zone, zone_warning
 
-    names = ["a/2026-03-20T10-15-00Z.png", "cam_2026-03-20_10-15-00.png", "x.png", "2026-03-20T10-15-00+03-30.png"]
+    names = [
+        "a/2026-03-20T10-15-00Z.png",
+        "cam_2026-03-20_10-15-00.png",
+        "x.png",
+        "2026-03-20T10-15-00+03-30.png",
+    ]
     assert names_without_zone(names) == ["cam_2026-03-20_10-15-00.png"]
     assert zone_warning([], 3) == ""
     assert zone_warning(["d/cam_2026-03-20_10-15-00.png"], 4).startswith(

@@ -12,7 +12,7 @@ import pytest
 
 from firmware_protocol import Mode, Status, register
 from heliotrack.cli import main
-from tests.conftest import DEFAULT_CONFIG
+from tests.conftest import DEFAULT_CONFIG, REPO
 
 HELIOTRACK = [sys.executable, "-m", "heliotrack.cli"]
 
@@ -223,7 +223,20 @@ def test_simulate_refuses_options_it_would_ignore(tmp_path, capsys, argv, messag
 
 
 def test_a_run_of_some_hours_says_hours_not_days():
-    from heliotrack.output import _span
+    from heliotrack.output import span_text
 
-    assert _span({"days": 1, "hours": 1.0}) == "1 hour(s)"
-    assert _span({"days": 2, "hours": 48.0}) == "2 day(s)"
+    assert span_text({"days": 1, "hours": 1.0}) == "1 hour(s)"
+    assert span_text({"days": 2, "hours": 48.0}) == "2 day(s)"
+
+
+def test_output_piped_into_head_is_no_traceback(tmp_path):
+    """`simulate | head -1` had ended in a BrokenPipeError traceback, exit 1 (`true` reads
+    nothing, so that the pipe is closed before the first line whatever the timing)."""
+    import subprocess
+
+    cmd = f"{sys.executable} -m heliotrack.cli simulate --hours 1 --no-report --out {tmp_path / 'o'} | true"
+    r = subprocess.run(
+        ["bash", "-c", cmd + "; echo rc=${PIPESTATUS[0]}"], capture_output=True, text=True, cwd=REPO
+    )
+    assert "Traceback" not in r.stderr and "rc=141" in r.stdout, (r.stdout, r.stderr)
+    assert (tmp_path / "o" / "summary.json").is_file()

@@ -53,6 +53,21 @@ def test_simulate_writes_a_self_contained_report(run_dir):
         assert (run_dir / "report" / f"{name}.png").read_bytes().startswith(PNG_MAGIC)
 
 
+def test_a_short_run_is_said_in_hours(run_dir):
+    """The page had said "1 day(s)" of a half-hour run, where the terminal said hours."""
+    assert "0.5 hour(s) from 2024-03-20T05:00:00" in (run_dir / "report" / "index.html").read_text()
+
+
+def test_a_report_that_cannot_be_written_is_one_line(run_dir, tmp_path, capsys):
+    """A read-only or full report folder had given a traceback (the tests run as root,
+    so a folder where a figure should go stands for it)."""
+    out = tmp_path / "report"
+    (out / "sky_dome.png").mkdir(parents=True)
+    assert main(["report", str(run_dir), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot write the report" in err and len(err.splitlines()) == 1, err
+
+
 def test_report_rebuilds_from_the_run_outputs(run_dir, tmp_path, capsys):
     out = tmp_path / "again"
     assert main(["report", str(run_dir), "--out", str(out)]) == 0
