@@ -60,9 +60,11 @@ def _validate(args: argparse.Namespace) -> int:
                 "a plant file, with no [hil] table (a [hil] table makes a scenario: validate it with --scenario)",
             ) from None
         raise
-    if not args.scenario:  # what run and check will say, said now
-        from heliotrack.runtime import refuse_hil
+    from heliotrack.runtime import refuse_hil, require_hil
 
+    if args.scenario:  # what simulate will say, said now
+        require_hil(cfg)
+    else:  # what run and check will say
         refuse_hil(cfg, "run")
     bundles = 0
     for name, load in (("hotspot", load_bundle), ("fisheye", load_fisheye_bundle)):

@@ -24,7 +24,7 @@ def test_reference_documents_every_key_of_every_table():
 
 
 def test_config_validate_command(tmp_path, capsys):
-    from tests.conftest import DEFAULT_CONFIG
+    from tests.conftest import DEFAULT_CONFIG, REPO
 
     assert main(["config", "validate", "--scenario", str(DEFAULT_CONFIG)]) == 0
     assert "ok (1 link(s), 2 tracker(s))" in capsys.readouterr().out
@@ -34,6 +34,9 @@ def test_config_validate_command(tmp_path, capsys):
     plant.write_text(DEFAULT_CONFIG.read_text().split("[hil]")[0])
     assert main(["config", "validate", str(plant)]) == 2
     assert "links[0].port: expected a real device for heliotrack run" in capsys.readouterr().err
+    # a plant's real devices in a scenario: what simulate says (validate had said ok)
+    assert main(["config", "validate", "--scenario", str(REPO / "config" / "plant-example.toml")]) == 2
+    assert 'links[0].port: expected "hil" in a simulation' in capsys.readouterr().err
 
 
 def test_a_choice_or_array_of_choices_names_its_choices(tmp_path, capsys):
