@@ -18,6 +18,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from controller.atomic import atomic_write
+from heliotrack.resources import writable_home
 
 #: Registered benchmarks (module names under ``benchmarks``).
 BENCHMARKS: tuple[str, ...] = (
@@ -35,7 +36,7 @@ BENCHMARKS: tuple[str, ...] = (
     "soak",
 )
 
-RESULTS_DIR = Path(__file__).resolve().parent / "results"
+RESULTS_DIR = writable_home("benchmarks/results")  # the checkout's, or under the working directory
 
 
 def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = None, **options: object) -> dict:

@@ -11,13 +11,15 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+from heliotrack.resources import writable_home
+
 from .summary_fisheye import fisheye as _fisheye
 from .summary_fisheye import fisheye_selfcal as _fisheye_selfcal
 from .summary_fisheye import fisheye_third as _fisheye_third
 from .summary_fisheye import fisheye_third_clouds as _fisheye_third_clouds
 from .summary_rows import Headline, fmt
 
-RESULTS_DIR = Path(__file__).resolve().parent / "results"
+RESULTS_DIR = writable_home("benchmarks/results")  # the checkout's, or under the working directory
 
 
 _f = fmt

@@ -2,15 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from controller.calibration.bundle import CalibrationBundle
 from controller.schema import markdown
 from controller.sky.settings import SkySettings
 
+from .resources import writable_home
 from .scenario import ScenarioConfig
 
-DOCS_PATH = Path(__file__).resolve().parents[1] / "docs" / "config.md"
+DOCS_PATH = writable_home("docs/config.md")
 
 DOCUMENTS: dict[str, tuple[type, str]] = {
     "Plant and scenario files": (

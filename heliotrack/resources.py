@@ -15,3 +15,14 @@ from pathlib import Path
 def bundled_config(name: str = "hil-default.toml") -> Path:
     """The path of a shipped configuration file (``config/<name>`` in the repository)."""
     return Path(str(resources.files("heliotrack") / "data" / "config" / name))
+
+
+def writable_home(relative: str) -> Path:
+    """Where ``relative`` (a folder or file the project writes: ``docs/config.md``,
+    ``benchmarks/results``) goes: in the source checkout this package runs from, or, when
+    it runs from an installed wheel, under the working directory (site-packages is no place
+    to write, and a deployed venv may be read-only)."""
+    root = Path(__file__).resolve().parents[1]
+    if (root / "pyproject.toml").is_file():
+        return root / relative
+    return Path.cwd() / relative
