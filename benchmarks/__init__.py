@@ -65,12 +65,13 @@ def run_benchmark(name: str, quick: bool = False, results_dir: Path | None = Non
     }
     out_dir = results_dir or RESULTS_DIR
     out_dir.mkdir(parents=True, exist_ok=True)
+
     # a size other than the default is another result, not the benchmark's (soak-10d.json)
-    sizes = "".join(
-        _SIZE_NAMES.get(k, f"-{k}{{}}").format(v)
-        for k, v in kwargs.items()
-        if v != getattr(module, k.upper(), accepted[k].default)
-    )
+    def default(k: str) -> object:  # the size the run takes without the option, quick or not
+        full = getattr(module, k.upper(), accepted[k].default)
+        return getattr(module, f"QUICK_{k.upper()}", full) if quick else full
+
+    sizes = "".join(_SIZE_NAMES.get(k, f"-{k}{{}}").format(v) for k, v in kwargs.items() if v != default(k))
     path = out_dir / f"{name}{sizes}{'-quick' if quick else ''}.json"
     atomic_write(path, json.dumps(record, indent=2, default=_json_default) + "\n")
     record["path"] = str(path)

@@ -69,12 +69,13 @@ def one_kill(path: Path, rng: np.random.Generator, committed: int = 0) -> dict:
     }
 
 
-#: Kills of a full run (``--kills`` changes it; a quick run makes 20).
+#: Kills of a full run and of a quick one (``--kills`` changes either).
 KILLS = 1000
+QUICK_KILLS = 20
 
 
 def run(quick: bool = False, kills: int | None = None) -> dict:
-    n = kills if kills is not None else (20 if quick else KILLS)
+    n = kills if kills is not None else (QUICK_KILLS if quick else KILLS)
     rng = np.random.default_rng(1)
     outcomes = []
     t0 = time.perf_counter()

@@ -116,8 +116,9 @@ def soak_config(days: int, state_dir: Path, seed: int = 29):
     )
 
 
-#: Simulated days of a full run (``--days`` changes it; a quick run makes 1).
+#: Simulated days of a full run and of a quick one (``--days`` changes either).
 DAYS = 30
+QUICK_DAYS = 1
 
 
 def run(quick: bool = False, days: int | None = None) -> dict:
@@ -126,7 +127,7 @@ def run(quick: bool = False, days: int | None = None) -> dict:
 
     bound_heap()  # as `heliotrack run` does: the soak stands for a month of it
 
-    days = days or (1 if quick else DAYS)
+    days = days or (QUICK_DAYS if quick else DAYS)
     with tempfile.TemporaryDirectory(prefix="heliotrack-soak-") as tmp:
         cfg = soak_config(days, Path(tmp))
         soak = SoakRun(cfg, simulation_span(cfg, days), progress=False)

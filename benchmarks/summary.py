@@ -327,13 +327,16 @@ def headlines(name: str, result: dict) -> list[Headline]:
 
 
 def load_results(names: list[str], results_dir: Path = RESULTS_DIR) -> dict[str, dict | None]:
+    """Each benchmark's full result, else its quick one (the summary marks it quick), else None."""
     out: dict[str, dict | None] = {}
     for name in names:
-        path = results_dir / f"{name}.json"
-        try:
-            out[name] = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError):
-            out[name] = None
+        out[name] = None
+        for path in (results_dir / f"{name}.json", results_dir / f"{name}-quick.json"):
+            try:
+                out[name] = json.loads(path.read_text())
+                break
+            except (OSError, json.JSONDecodeError):
+                continue
     return out
 
 

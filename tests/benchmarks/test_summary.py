@@ -44,3 +44,16 @@ def test_a_size_other_than_the_default_is_its_own_result(tmp_path, capsys):
     blocker.write_text("x")
     assert main(["bench", "persistence", "--kills", "3", "--results-dir", str(blocker)]) == 2
     assert "--results-dir: cannot write to" in capsys.readouterr().err
+
+
+def test_a_quick_run_is_named_by_its_own_size_and_summarised(tmp_path, capsys):
+    """--quick --kills 20 (the quick size) had been named persistence-kills20-quick.json and
+    --quick --kills 1000 persistence-quick.json; quick results never reached summary.md."""
+    argv = ["bench", "persistence", "--quick", "--results-dir", str(tmp_path)]
+    assert main([*argv, "--kills", "20"]) == 0
+    assert main([*argv, "--kills", "3"]) == 0
+    names = sorted(p.name for p in tmp_path.glob("persistence*.json"))
+    assert names == ["persistence-kills3-quick.json", "persistence-quick.json"]
+    assert main(["bench", "--summary-only", "--results-dir", str(tmp_path)]) in (0, 1)
+    md = (tmp_path / "summary.md").read_text()
+    assert "| persistence (" in md and ", quick)" in md
