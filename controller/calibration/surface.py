@@ -151,12 +151,13 @@ def _monomials(degree: int) -> list[tuple[int, int, int]]:
     return [(a, b, d - a - b) for d in range(degree + 1) for a in range(d + 1) for b in range(d - a + 1)]
 
 
-def radial_poly_eval(u: np.ndarray, coeffs, degree: int):
-    """h(u) = sum c_k x^a y^b z^c on unit directions u (...,3) and its 3-D gradient."""
+def radial_poly_eval(u: np.ndarray, coeffs, degree: int, grad: bool = True):
+    """h(u) = sum c_k x^a y^b z^c on unit directions u (...,3) and its 3-D gradient (None
+    with ``grad=False``: the surface map's first passes need the height only)."""
     u = np.asarray(u, float)
     x, y, z = u[..., 0], u[..., 1], u[..., 2]
     h = np.zeros(u.shape[:-1])
-    g = np.zeros(u.shape)
+    g = np.zeros(u.shape) if grad else None
     pw = {}
 
     def p(v, k, key):
@@ -169,6 +170,8 @@ def radial_poly_eval(u: np.ndarray, coeffs, degree: int):
             continue
         xa, yb, zd = p(x, a, "x"), p(y, b, "y"), p(z, d, "z")
         h += c * xa * yb * zd
+        if g is None:
+            continue
         if a:
             g[..., 0] += c * a * p(x, a - 1, "x") * yb * zd
         if b:

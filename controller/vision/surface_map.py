@@ -62,7 +62,8 @@ class SurfaceMap:
             bb = d @ oc
             rho = np.full(len(d), r)
             poly = srf.radial_poly
-            for _ in range(4 if poly is not None else 1):
+            passes = 4 if poly is not None else 1
+            for step in range(passes):
                 disc = bb * bb - (oc @ oc - rho * rho)
                 with np.errstate(invalid="ignore"):
                     t = -bb - np.sqrt(disc)
@@ -72,7 +73,8 @@ class SurfaceMap:
                 from ..calibration.surface import radial_poly_eval
 
                 u = np.nan_to_num((p - c) / np.linalg.norm(p - c, axis=1, keepdims=True))
-                hh, gg = radial_poly_eval(u, poly, int(srf.radial_poly_degree or 0))
+                # the gradient (the normal) of the last pass only: the others place the point
+                hh, gg = radial_poly_eval(u, poly, int(srf.radial_poly_degree or 0), grad=step == passes - 1)
                 rho = r + hh
             valid = (disc > 0) & (t > 0) & (p[:, 2] >= min_z)
             n = (p - c) / r
