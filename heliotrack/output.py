@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import math
 import os
 from collections.abc import Iterable, Sequence
@@ -300,3 +301,12 @@ def closedloop_lines(summary: dict) -> list[str]:
             f"setpoints: {setpoints}; frames: {frames}"
         )
     return lines
+
+
+def warn_names_without_zone(images) -> None:
+    """Say once when frames are dated by names without a zone (read as UTC)."""
+    from controller.timestamps import names_without_zone, zone_warning
+
+    text = zone_warning(names_without_zone(str(p) for p in images), len(images))
+    if text:
+        logging.getLogger("heliotrack.estimate").warning(text)

@@ -21,8 +21,8 @@ from controller.errors import ConfigError, InputError
 from controller.sun.camera import IMAGE_SUFFIXES
 from controller.timestamps import format_name_time, to_iso
 
+from .recorded_truth import SKY_COLUMNS, TRUTH_COLUMNS, TRUTH_FILE, truth_row
 from .renderers import camera_sensor, world_renderer
-from .replay import SKY_COLUMNS, TRUTH_COLUMNS, TRUTH_FILE, truth_row
 from .scenario import as_scenario
 from .scoring import truth_grid
 from .simulate import Span, cycles_per_day, day_samples, world_truth

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import logging
 import sys
 from pathlib import Path
 
@@ -64,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     est = HotspotEstimator(bundle, algorithm=args.algorithm, method=args.method or "subpixel")
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
     if t_cli is None:
+        from heliotrack.output import warn_names_without_zone
+
         warn_names_without_zone(args.images)
     for path in args.images:
         t = t_cli if t_cli is not None else time_from_name(str(path))
@@ -74,12 +75,3 @@ def run(args: argparse.Namespace) -> int:
         sys.stdout.write(json.dumps(d) + "\n")
         sys.stdout.flush()
     return 0
-
-
-def warn_names_without_zone(images) -> None:
-    """Say once when frames are dated by names without a zone (read as UTC)."""
-    from controller.timestamps import names_without_zone, zone_warning
-
-    text = zone_warning(names_without_zone(str(p) for p in images), len(images))
-    if text:
-        logging.getLogger("heliotrack.estimate").warning(text)

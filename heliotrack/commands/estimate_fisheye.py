@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
     order = frame_times(list(args.images), t_cli)
     if t_cli is None:
-        from .estimate import warn_names_without_zone
+        from heliotrack.output import warn_names_without_zone
 
         warn_names_without_zone(args.images)
     untimed = [p for t, p in order if t is None]
