@@ -69,15 +69,19 @@ def judge_frame(image: np.ndarray) -> str | None:
 
 
 def grey8(image: np.ndarray) -> np.ndarray | None:
-    """An 8-bit single-channel copy of a frame as OpenCV delivers it (BGR, BGRA, 16 bit)."""
-    if image.ndim == 3:
-        code = cv2.COLOR_BGRA2GRAY if image.shape[2] == 4 else cv2.COLOR_BGR2GRAY
-        image = cv2.cvtColor(image, code)
-    if image.dtype == np.uint16:
-        image = (image >> 8).astype(np.uint8)
-    if image.dtype != np.uint8 or image.ndim != 2:
+    """An 8-bit single-channel copy of a frame as OpenCV delivers it (BGR, BGRA; 16-bit or
+    float samples read as :func:`controller.vision.imageio.to_uint8` reads them)."""
+    from ..vision.imageio import to_uint8
+
+    image8, _ = to_uint8(image)
+    if image8 is None:
         return None
-    return np.ascontiguousarray(image)
+    if image8.ndim == 3 and image8.shape[2] in (3, 4):
+        code = cv2.COLOR_BGRA2GRAY if image8.shape[2] == 4 else cv2.COLOR_BGR2GRAY
+        image8 = cv2.cvtColor(image8, code)
+    if image8.ndim != 2:
+        return None
+    return np.ascontiguousarray(image8)
 
 
 class CallableFrameSource(FrameSource):

@@ -76,3 +76,13 @@ def test_other_depths_read_as_the_8_bit_frame(tmp_path, write, want):
     assert cv2.imwrite(str(p), write(img))
     grey, reason = load_grey(p)
     assert reason is None and np.abs(grey.astype(int) - img).max() <= want
+
+
+def test_the_loops_camera_reads_a_12_bit_frame_as_the_estimators_do():
+    """The loop's camera path (grey8) had its own 16-bit rule: the top byte only."""
+    from controller.sun.camera import grey8
+
+    img = np.zeros((20, 30), np.uint16)
+    img[8:12, 10:14] = 4095  # a 12-bit sensor's saturated glint
+    got = grey8(np.dstack([img] * 3))
+    assert got is not None and got.dtype == np.uint8 and got.max() == 255 and got.shape == (20, 30)
