@@ -291,11 +291,11 @@ def run_replay(
         out_dir = check_out_dir(Path(out_dir), folders=("report",) if report else ())
     extra = {
         "replay": {
-            "source": str(source),
+            "source": str(Path(source).resolve()),
             "frames": int(frames.times.size),
             "first_frame_utc": to_iso(float(frames.times[0])),
             "last_frame_utc": to_iso(float(frames.times[-1])),
-            "truth": str(truth_file) if truth_file is not None else "ephemeris",
+            "truth": str(Path(truth_file).resolve()) if truth_file is not None else "ephemeris",
             "speed": speed,
         },
         **({"warnings": warnings} if warnings else {}),

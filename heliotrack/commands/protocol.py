@@ -12,7 +12,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("protocol", help="the drive wire contract")
     ps = p.add_subparsers(dest="protocol_command", metavar="WHAT")
     ps.required = True
-    e = ps.add_parser("export", help="write the register reference and the C header")
+    e = ps.add_parser("export", help="write the register reference, the C header and the CANopen EDS")
     e.add_argument("dir", type=Path)
     e.set_defaults(func=run_export)
     c = ps.add_parser(

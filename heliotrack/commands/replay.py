@@ -46,7 +46,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="pace the simulated clock at X times real time (default: as fast as it goes)",
     )
     p.add_argument("--truth", type=Path, default=None, help="truth CSV (default: SOURCE's truth.csv)")
-    p.add_argument("--out", type=Path, default=Path("out/replay"), help="output folder")
+    p.add_argument("--out", type=Path, default=Path("out/replay"), help="output folder (default out/replay)")
     p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     p.add_argument("--no-report", action="store_true", help="do not write OUT/report/")
     p.set_defaults(func=run)
