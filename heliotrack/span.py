@@ -12,10 +12,30 @@ from controller.errors import ConfigError
 
 from .scenario import as_scenario
 
-__all__ = ["MAX_DAYS", "Span", "cycles_per_day", "day_samples", "day_start", "simulation_span"]
+__all__ = [
+    "MAX_DAYS",
+    "Span",
+    "checked_length",
+    "cycles_per_day",
+    "day_samples",
+    "day_start",
+    "simulation_span",
+]
 
 #: The longest run ``simulate`` accepts (days): about ten years.
 MAX_DAYS = 3660
+
+
+def checked_length(days: int | None, hours: float | None) -> tuple[int, float | None]:
+    """A run's length as the command line gives it: whole ``days`` (1 when neither is given)
+    or ``hours``, not both (``--hours`` had won silently over ``--days``)."""
+    if days is not None and hours is not None:
+        raise ConfigError(None, "--days", "--days or --hours, not both", f"--days {days} --hours {hours:g}")
+    if days is not None and not 1 <= days <= MAX_DAYS:
+        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", days)
+    if hours is not None and not 0 < hours <= 24 * 366:
+        raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", hours)
+    return (1 if days is None else days), hours
 
 
 def day_start(d: date, longitude: float) -> float:

@@ -35,7 +35,7 @@ def add_record_parser(hil_subparsers: argparse._SubParsersAction) -> None:
         default=bundled_config("hil-hotspot.toml"),
         help="scenario TOML with a camera sun source (default: the embedded config/hil-hotspot.toml)",
     )
-    r.add_argument("--days", type=int, default=1, help="days to record (default 1)")
+    r.add_argument("--days", type=int, default=None, help="days to record (default 1)")
     r.add_argument(
         "--start",
         type=str,
@@ -84,17 +84,15 @@ def run_record(args: argparse.Namespace) -> int:
     from heliotrack.output import check_out_dir
     from heliotrack.recording import record_frames
     from heliotrack.scenario import load_scenario
-    from heliotrack.simulate import MAX_DAYS, simulation_span
+    from heliotrack.simulate import simulation_span
+    from heliotrack.span import checked_length
 
     config = load_scenario(args.config)
-    if not 1 <= args.days <= MAX_DAYS:
-        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", args.days)
-    if args.hours is not None and not 0 < args.hours <= 24 * 366:
-        raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
+    days, hours = checked_length(args.days, args.hours)
     if args.every is not None and not (math.isfinite(args.every) and 0.01 <= args.every <= 86400):
         raise ConfigError(None, "--every", "seconds in [0.01, 86400]", args.every)
     start = parse_start(args.start) if args.start else None
-    span = simulation_span(config, args.days, start, args.hours)
+    span = simulation_span(config, days, start, hours)
     every = args.every or config.control.period_s
     if span.n_cycles * config.control.period_s / every > MAX_FRAMES:  # the times alone took GiB
         raise ConfigError(

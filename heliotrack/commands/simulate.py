@@ -27,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=DEFAULT_CONFIG,
         help="scenario TOML (default: the embedded config/hil-default.toml)",
     )
-    p.add_argument("--days", type=int, default=1, help="days to simulate (default 1, at most 3660)")
+    p.add_argument("--days", type=int, default=None, help="days to simulate (default 1, at most 3660)")
     p.add_argument(
         "--start",
         type=str,
@@ -71,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
     from heliotrack.output import check_out_dir
     from heliotrack.runtime import require_hil
     from heliotrack.scenario import load_scenario
-    from heliotrack.simulate import MAX_DAYS, ScenarioRun, simulation_span, summary_table
+    from heliotrack.simulate import ScenarioRun, simulation_span, summary_table
+    from heliotrack.span import checked_length
 
     config = load_scenario(args.config)
     require_hil(config)
@@ -85,18 +86,15 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(
             None, "--sunspec", "--realtime as well (SCADA polls on the wall clock)", args.sunspec
         )
-    if not 1 <= args.days <= MAX_DAYS:
-        raise ConfigError(None, "--days", f"a whole number of days in [1, {MAX_DAYS}]", args.days)
+    days, hours = checked_length(args.days, args.hours)
     start = parse_start(args.start) if args.start else None
-    if args.hours is not None and not 0 < args.hours <= 24 * 366:
-        raise ConfigError(None, "--hours", "a number of hours in (0, 8784]", args.hours)
     out = check_out_dir(
         args.out if args.out is not None else Path("out/simulate"),
         folders=() if args.no_report else ("report",),
     )
     run = ScenarioRun(
         config,
-        simulation_span(config, args.days, start, args.hours),
+        simulation_span(config, days, start, hours),
         progress=not args.no_progress and sys.stderr.isatty(),
     )
     from controller.geometry.travel import travel_warnings

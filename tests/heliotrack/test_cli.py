@@ -240,3 +240,13 @@ def test_output_piped_into_head_is_no_traceback(tmp_path):
     )
     assert "Traceback" not in r.stderr and "rc=141" in r.stdout, (r.stdout, r.stderr)
     assert (tmp_path / "o" / "summary.json").is_file()
+
+
+@pytest.mark.parametrize("command", [["simulate"], ["hil", "record"]])
+def test_days_and_hours_together_are_refused(tmp_path, capsys, command):
+    """`hil record --days 2 --hours 0.1` had recorded 0.1 h without a word."""
+    argv = [*command, "--days", "2", "--hours", "0.1", "--out", str(tmp_path / "o")]
+    if command == ["hil", "record"]:
+        argv += ["--config", str(REPO / "config" / "hil-hotspot.toml")]
+    assert main(argv) == 2
+    assert "--days: expected --days or --hours, not both" in capsys.readouterr().err
