@@ -300,22 +300,8 @@ def test_the_noon_method_refuses_a_midnight_sun_day(tmp_path, capsys, bundle):
 def test_the_ephemeris_method_refuses_a_site_that_does_not_fit_the_day(tmp_path, capsys, bundle, lon, ok):
     import json as _json
 
-    from controller.sun.source import Site, solar_position
-    from controller.timestamps import to_iso
-
-    ts = [1742450400.0 + 1800.0 * k for k in range(16)]  # 20 Mar 2025, 06:00-13:30 UTC
-    sp = solar_position(Site(32.4835, 48.3364), ts)
-    obs = tmp_path / "obs.jsonl"
-    obs.write_text(
-        "".join(
-            _json.dumps(
-                {"found": True, "time": to_iso(t), "levelled_az_deg": (a + 23.0) % 360, "levelled_el_deg": e}
-            )
-            + "\n"
-            for t, a, e in zip(ts, sp["azimuth"], sp["apparent_elevation"])
-            if e > 5
-        )
-    )
+    # 20 Mar 2025, 06:00-13:30 UTC
+    obs = day_of_observations(tmp_path / "obs.jsonl", 32.4835, 48.3364, 1742450400.0, 8.0)
     argv = [
         "calibrate",
         "azimuth",
