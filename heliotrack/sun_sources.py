@@ -7,6 +7,7 @@ itself does not know about (it is a leaf package).  One builder per ``control.su
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
@@ -26,6 +27,8 @@ from controller.sun.source import EphemerisSource, SunSource
 Frames = FrameSource | Mapping[str, FrameSource] | None
 Built = tuple[SunSource, CameraSunSensor | CameraGroup | None]
 Builder = Callable[[Config, Frames, float | None, Clock | None], Built]
+
+log = logging.getLogger(__name__)
 
 
 def open_frame_source(spec: str, clock: Clock | None = None, key: str = "hotspot.frames") -> FrameSource:
@@ -86,7 +89,7 @@ def _camera(config: Config, name: str, frames: Frames, clock: Clock | None, sun)
             from controller.calibration.fisheye_bundle import load_fisheye_bundle
             from controller.vision.fisheye import FisheyeEstimator, SeedEstimator
 
-            bundle = load_fisheye_bundle(table.calibration)
+            bundle = plant_site_bundle(config, load_fisheye_bundle(table.calibration))
             fe = SeedEstimator(bundle) if table.algorithm == "seed" else FisheyeEstimator(bundle)
             prior = getattr(sun, "prediction", None)
             return CameraSunSensor(source, fe, name, interval_s=table.interval_s, colour=True, prior=prior)
@@ -98,6 +101,43 @@ def _camera(config: Config, name: str, frames: Frames, clock: Clock | None, sun)
     except BaseException:
         source.close()
         raise
+
+
+#: A fisheye bundle's [site] further than this (deg) from the plant's is said.
+SITE_TOLERANCE_DEG = 0.05
+
+
+def plant_site_bundle(config: Config, bundle):
+    """The fisheye bundle with the plant's ``[site]`` for its ephemeris gate, when the plant's
+    site is known (``sunpath.site_known``): the plant file is where the site is set.  A
+    bundle calibrated elsewhere (the shipped one, at Andimeshk) had put the gate there, and
+    at another site the loop's sky camera refused every frame (0 of 639 at Cape Town,
+    reading the ephemeris instead, without a word).  A bundle's own site over 0.05 deg away
+    is said once."""
+    from dataclasses import replace
+
+    from controller.calibration.fisheye_bundle import SiteCal
+
+    if not config.sunpath.site_known:
+        return bundle  # the site is learned: the bundle's, if any, stays the camera's own
+    site = config.site
+    own = bundle.site
+    if own is not None and max(abs(own.latitude - site.latitude), abs(own.longitude - site.longitude)) > (
+        SITE_TOLERANCE_DEG
+    ):
+        log.warning(
+            "%s: [site] %.4f, %.4f is not the plant's %.4f, %.4f: the plant's is used for the "
+            "fisheye's ephemeris gate (a bundle calibrated elsewhere? calibrate its orientation "
+            "on site: heliotrack calibrate fisheye orientation)",
+            bundle.path,
+            own.latitude,
+            own.longitude,
+            site.latitude,
+            site.longitude,
+        )
+    return replace(
+        bundle, site=SiteCal(latitude=site.latitude, longitude=site.longitude, altitude=site.altitude)
+    )
 
 
 def _cameras(*names: str) -> Builder:

@@ -70,8 +70,12 @@ def _validate(args: argparse.Namespace) -> int:
     for name, load in (("hotspot", load_bundle), ("fisheye", load_fisheye_bundle)):
         cam = getattr(cfg, name, None)
         if cam is not None and getattr(cam, "calibration", None) is not None:
-            load(cam.calibration)  # a bad bundle is the plant file's error too (raises with its key)
+            bundle = load(cam.calibration)  # a bad bundle is the plant file's error too (raises with its key)
             bundles += 1
+            if name == "fisheye":  # a bundle calibrated at another site: said now, as run will
+                from heliotrack.sun_sources import plant_site_bundle
+
+                plant_site_bundle(cfg, bundle)
     extra = f", {bundles} calibration bundle(s)" if bundles else ""
     from controller.drives.links import link_timing_warnings
     from controller.geometry.travel import travel_warnings

@@ -96,3 +96,21 @@ def test_hil_record_writes_the_fisheye_frames(tmp_path):
     assert names[0] == "2024-03-20T06-00-00Z.png" and len(names) == 3  # a frame per 2-min cycle
     img = cv2.imread(str(out / names[0]), cv2.IMREAD_UNCHANGED)
     assert img.shape == (480, 640, 3) and img.dtype == np.uint8
+
+
+def test_a_bundle_calibrated_at_another_site_does_not_blind_the_loops_camera(tmp_path, caplog):
+    """The shipped bundle's [site] is Andimeshk: at Cape Town its ephemeris gate had refused
+    every frame (0 of 639 over a day) and the loop had tracked on the ephemeris without a
+    word (an audit).  The plant's site is the gate's now, and the mismatch is said."""
+    text = scenario(tmp_path).read_text()
+    text = text.replace("latitude = 32.4835", "latitude = -33.9").replace(
+        "longitude = 48.3364", "longitude = 18.4"
+    )
+    text = text.replace("azimuth_limits = [0.0, 360.0]", "azimuth_limits = [-180.0, 180.0]")
+    cfg = tmp_path / "capetown.toml"
+    cfg.write_text(text)
+    caplog.set_level("WARNING", logger="heliotrack.sun_sources")
+    s = simulate(tmp_path, cfg, start="2024-06-21T09:46:00+00:00", hours=0.5)
+    assert s["camera_frames"].get("found", 0) >= 14, s["camera_frames"]
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "is not the plant's -33.9000, 18.4000: the plant's is used" in said, said
