@@ -83,3 +83,26 @@ def test_the_papers_setpoint_is_held_inside_the_limits():
         _, out = base_targets(ctl)
     assert out[1][0][0] <= lim
     assert row.axes[0].setpoint is not None and row.axes[0].setpoint <= lim
+
+
+def test_the_assisted_correction_does_not_wind_up_against_a_limit():
+    """A reference just inside the row's limit and a panel 1.5 deg off: reference + offset
+    lies past the limit, the clamp holds the row there, and the camera's residual had been
+    integrated without bound (an audit: the row 1.6 deg off through the next cloud gap)."""
+    from dataclasses import replace
+
+    ctl = controller()
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    est = ctl.sun.estimate(T)
+    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[1][0][0]
+    side = 1.0 if ref > 0 else -1.0  # the row's limits are +-max_angle: the one on ref's side
+    row.runtime.cfg = replace(row.runtime.cfg, max_angle=abs(ref) + 0.7)
+    pos = ref
+    for k in range(60):  # ten minutes of frames; the panel sits 1.5 deg behind its shaft
+        row.measured = Measurement(T + 10 * k, [pos], [ref - pos + 1.5 * side], [ref])
+        ctl._t = T + 10 * k
+        _, out = base_targets(ctl)
+        pos = out[1][0][0]
+        assert side * pos <= abs(ref) + 0.7 + 1e-9
+    assert row.axes[0].learner.estimate_deg == pytest.approx(1.5 * side, abs=0.05)
+    assert abs(row.axes[0].correction) < 0.5, row.axes[0].correction
