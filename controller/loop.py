@@ -40,6 +40,19 @@ log = logging.getLogger("heliotrack.controller")
 __all__ = ["Controller", "CycleRecord", "TrackerRuntime"]
 
 
+def sun_alarm_text(learned: dict) -> str:
+    """The SUN ALARM's text from a sun source's ``summary()`` that reports a site mismatch:
+    the sky's offset from the configured site and, when the filter names one, the likely
+    mistake (a sign, or time stamps in another zone)."""
+    cause = learned.get("site_mismatch_cause") or "check the site and the clock"
+    return (
+        f"sky and configured site disagree (latitude "
+        f"{learned.get('site_mismatch_lat_deg', learned.get('site_offset_lat_deg', 0.0)):+.2f} deg, "
+        f"longitude {learned.get('site_mismatch_lon_deg', learned.get('site_offset_lon_deg', 0.0)):+.2f} "
+        f"deg): {cause}"
+    )
+
+
 class LinkDownError(DriveCommError):
     """The drive's link is closed and waits for its reconnection time: nothing was tried, so
     nothing failed again (the backoff does not grow, the reason is not wrapped anew)."""
@@ -214,12 +227,7 @@ class Controller(WindPolling, DriveSetup):
         learned = self.sun.summary()
         mismatch = bool(learned.get("site_mismatch"))
         if mismatch and not self.sun_alarm:
-            self.sun_alarm = (
-                f"sky and configured site disagree (latitude "
-                f"{learned.get('site_mismatch_lat_deg', 0.0):+.2f} deg, longitude "
-                f"{learned.get('site_mismatch_lon_deg', 0.0):+.2f} deg): check "
-                f"the site and the clock"
-            )
+            self.sun_alarm = sun_alarm_text(learned)
             log.warning("SUN ALARM: %s", self.sun_alarm)
             self._event("sun_alarm", reason=self.sun_alarm)
         elif not mismatch:

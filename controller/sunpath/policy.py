@@ -359,7 +359,8 @@ class SunPathSource(SunSource):
         after a clock step back (``rebased``).  With a site given: the learned site's
         offset from it and ``site_mismatch``, true when the learned site or a
         self-consistent sky lies more than ``site_mismatch_deg`` from it (then
-        ``site_mismatch_lat_deg`` / ``site_mismatch_lon_deg`` give the sky's offset): the
+        ``site_mismatch_lat_deg`` / ``site_mismatch_lon_deg`` give the sky's offset and
+        ``site_mismatch_cause`` the likely mistake, :meth:`.SiteMismatch.likely_cause`): the
         loop should raise an alarm, as the site or the clock is wrong.  ``state_note``: why
         the state file was not used, when it was not.
         """
@@ -400,7 +401,11 @@ class SunPathSource(SunSource):
             out["site_mismatch"] = far or m is not None
             if m is not None:
                 out.update(
-                    {"site_mismatch_lat_deg": m.lat_offset_deg, "site_mismatch_lon_deg": m.lon_offset_deg}
+                    {
+                        "site_mismatch_lat_deg": m.lat_offset_deg,
+                        "site_mismatch_lon_deg": m.lon_offset_deg,
+                        "site_mismatch_cause": m.likely_cause(self.site, limit),
+                    }
                 )
         return out
 

@@ -89,3 +89,20 @@ def test_manual_override_outranks_night_stow(plant):
     recs = run(ctl.cycle())
     assert recs[1].mode == "MANUAL" and recs[1].targets_deg == (30.0,)
     assert recs[0].mode == "STOW"
+
+
+def test_the_sun_alarm_names_the_offset_and_the_likely_mistake():
+    from controller.loop import sun_alarm_text
+
+    stamped_an_hour_off = {
+        "site_mismatch": True,
+        "site_mismatch_lat_deg": 0.1,
+        "site_mismatch_lon_deg": 15.02,
+        "site_mismatch_cause": "likely the time stamps' zone (they read -1 h from UTC: ...)",
+    }
+    text = sun_alarm_text(stamped_an_hour_off)
+    assert "latitude +0.10 deg, longitude +15.02 deg" in text and "time stamps' zone" in text
+    # a learned site that drifted away with no run to judge: its own offset, not zeros
+    drifted = {"site_mismatch": True, "site_offset_lat_deg": -1.4, "site_offset_lon_deg": 0.3}
+    text = sun_alarm_text(drifted)
+    assert "latitude -1.40 deg, longitude +0.30 deg" in text and "check the site and the clock" in text

@@ -81,6 +81,8 @@ def test_one_hour_step_back_site_known_keeps_the_site_and_reports_it(k, mode):
     assert s["site_mismatch"] is True
     assert abs(s["site_mismatch_lon_deg"] - 15.0) < 0.5
     assert abs(s["site_mismatch_lat_deg"]) < 1.0
+    # the loop's SUN ALARM names the likely mistake: stamps an hour off UTC
+    assert "time stamps' zone" in s["site_mismatch_cause"] and "-1 h" in s["site_mismatch_cause"]
 
 
 @pytest.mark.parametrize("known", [False, True], ids=["site-unknown", "site-known"])
