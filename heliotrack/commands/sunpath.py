@@ -32,6 +32,9 @@ MAX_STEPS = 600_000
 #: More than this share of the observations rejected is warned about (clouds, reflections
 #: and a sensor's distractors reject some: normal).
 REJECTED_WARN_FRACTION = 0.5
+#: The seed's ``--noon-elevation vertex`` reads noon 1-6 deg low, and its latitude as far
+#: off: only a latitude further than this from --lat is a mistake there.
+VERTEX_LAT_TOL_DEG = 10.0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -200,6 +203,38 @@ def _sky_fits_site(kf, args, source: str, n_obs: int, n_rejected: int) -> None:
         )
 
 
+def _seed_fits_site(rows, args, source: str) -> None:
+    """The seed method's own site (latitude from each day's noon elevation, longitude from
+    its noon time) far from --lat/--lon is an error, before anything is written, as for the
+    Kalman filter: it had printed a declination of 75 deg for a latitude given with the
+    wrong sign, without a word."""
+    import numpy as np
+
+    from controller.errors import InputError
+    from controller.sunpath.ephemeris import wrap180
+    from controller.sunpath.kalman_config import KalmanConfig
+    from controller.sunpath.recovery import SiteMismatch
+
+    site = _site(args)
+    lats = [r.lat_deg for r in rows if np.isfinite(r.lat_deg)]
+    lons = [r.lon_deg for r in rows if np.isfinite(r.lon_deg)]
+    if site is None or not lats or not lons:
+        return
+    dlat = float(np.median(lats)) - site.latitude
+    dlon = float(wrap180(float(np.median(lons)) - site.longitude))
+    tol = KalmanConfig().site_mismatch_deg
+    if args.noon_elevation == "vertex" and abs(dlat) <= VERTEX_LAT_TOL_DEG:
+        dlat = 0.0  # that variant's latitude is biased by its design, not by a mistake
+    if max(abs(dlat), abs(dlon)) > tol:
+        m = SiteMismatch(dlat, dlon, rows[-1].noon_utc)
+        raise InputError(
+            f"{source}: the sky does not fit --lat {args.lat:g} --lon {args.lon:g}: its {len(rows)} "
+            f"day(s) put the site at lat {site.latitude + dlat:.2f}, lon "
+            f"{float(wrap180(site.longitude + dlon)):.2f} (median; offset {dlat:+.2f} deg in latitude, "
+            f"{dlon:+.2f} deg in longitude): {m.likely_cause(site, tol)}; nothing written"
+        )
+
+
 def _not_yet_absorbed(kf, obs: list, state: Path) -> list:
     """The observations after the time the state refers to: one fed again (the same file
     run twice into one --state) would count twice and shrink the sigmas each time."""
@@ -258,6 +293,7 @@ def _fit(args, path: Path) -> int:
             fit=args.fit,
             use_prior=args.chain_prior,
         )
+        _seed_fits_site(rows, args, str(path))
     else:
         rows, kf = _kalman(args, obs, str(path))
         if not kf.initialised:

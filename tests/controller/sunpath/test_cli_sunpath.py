@@ -282,6 +282,46 @@ def test_a_sky_that_does_not_fit_the_site_is_refused(southern_csv, tmp_path, cap
     assert main(["sunpath", "predict", str(southern_csv), *argv[2:], "--at", "2024-04-12T12:00Z"]) == 2
 
 
+@pytest.mark.parametrize(
+    ("lat", "lon", "shift_h", "cause"),
+    [
+        ("33.4489", "-70.6693", 0, "likely the latitude's sign (the sky's is -33."),
+        ("-33.4489", "70.6693", 0, "likely the longitude's sign (the sky's is -70."),
+        ("-33.4489", "-70.6693", -4, "likely the time stamps' zone (they read -4 h from UTC"),
+    ],
+)
+def test_the_seed_method_refuses_a_sky_that_does_not_fit_the_site(
+    southern_csv, tmp_path, capsys, lat, lon, shift_h, cause
+):
+    """The seed method had used --lat only for its declination: with the latitude's sign
+    wrong it printed a declination of 75 deg and exited 0."""
+    src = southern_csv
+    if shift_h:  # Santiago's local times (UTC-4) written as if UTC
+        rows = southern_csv.read_text().splitlines()
+        src = tmp_path / "local.csv"
+        src.write_text("\n".join([rows[0], *(_shifted(r, shift_h) for r in rows[1:])]) + "\n")
+    out = tmp_path / "days.csv"
+    out.write_text("precious")
+    argv = ["sunpath", str(src), "--method", "seed", "--lat", lat, "--lon", lon, "--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "the sky does not fit --lat" in err and cause in err, err
+    assert out.read_text() == "precious"
+    assert (
+        main(["sunpath", str(southern_csv), "--method", "seed", "--lat", "-33.4489", "--lon", "-70.6693"])
+        == 0
+    )
+    assert capsys.readouterr().err == ""
+
+
+def _shifted(row: str, hours: float) -> str:
+    from datetime import datetime, timedelta
+
+    t, rest = row.split(",", 1)
+    when = datetime.fromisoformat(t.replace("Z", "+00:00")) + timedelta(hours=hours)
+    return f"{when.isoformat()},{rest}"
+
+
 def test_a_sky_that_fits_the_site_gives_no_alarm_despite_distractors(southern_csv, tmp_path, capsys):
     """Rejecting some observations (reflections, clouds' edges) is normal: no error, no
     warning, the site kept."""
