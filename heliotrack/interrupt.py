@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import asyncio
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
+
+_noted = threading.Event()
 
 
 @contextmanager
@@ -49,3 +52,36 @@ async def sleep_unless(stop: asyncio.Event, seconds: float) -> None:
             await stop.wait()
     except TimeoutError:
         pass
+
+
+@contextmanager
+def sigint_noted() -> Iterator[None]:
+    """Within the block, SIGINT raises KeyboardInterrupt as by default and is also noted, so
+    that :func:`raise_if_interrupted` raises it again where Python swallowed it: one that
+    lands in a finaliser or a garbage-collector callback (matplotlib's figures have them)
+    is printed as "Exception ignored" and the program runs on, so Ctrl-C during a report
+    had now and then been lost.  Only in the main thread with the default handler in place;
+    elsewhere the block changes nothing."""
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield
+        return
+
+    def on_sigint(signum, frame):
+        _noted.set()
+        raise KeyboardInterrupt
+
+    _noted.clear()
+    signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _noted.clear()
+
+
+def raise_if_interrupted() -> None:
+    """Raise KeyboardInterrupt if a SIGINT was noted by :func:`sigint_noted`."""
+    if _noted.is_set():
+        raise KeyboardInterrupt

@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 from controller.atomic import atomic_write
 from controller.errors import InputError
 
+from ..interrupt import raise_if_interrupted, sigint_noted
 from ..output import span_text
 from . import figures
 
@@ -120,10 +121,12 @@ def build_figures(df: pd.DataFrame, summary: dict) -> dict[str, bytes]:
         "sky_classes": lambda: figures.sky_classes(df, summary),
     }
     out = {}
-    for name, make in makers.items():
-        fig = make()
-        if fig is not None:
-            out[name] = _png(fig)
+    with sigint_noted():
+        for name, make in makers.items():
+            fig = make()
+            if fig is not None:
+                out[name] = _png(fig)
+            raise_if_interrupted()
     return out
 
 
