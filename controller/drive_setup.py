@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from firmware_protocol import Mode, Status
 
-from .drives.base import DriveCommError, DriveHeld, DriveState
+from .drives.base import DriveCommError, DriveHeld, DriveIdentity, DriveState
 from .safety import drive_stow_angles
 
 if TYPE_CHECKING:
@@ -108,9 +108,10 @@ class DriveSetup:
         t = self.clock.monotonic()
         timeout = self.config.control.heartbeat_timeout_s
         if force or t - tr.last_heartbeat >= timeout / 3 - 1e-9:
-            await tr.drive.heartbeat()
+            # the identity and uptime read with the heartbeat (one Modbus transaction)
+            ident = await tr.drive.heartbeat_identify()
             tr.last_heartbeat = t
-            await self._check_reboot(tr)
+            await self._check_reboot(tr, ident)
 
     async def _check_restart(self, tr: TrackerRuntime) -> None:
         """A drive its backend started again after a boot-up message (a CANopen reboot or NMT
@@ -121,10 +122,9 @@ class DriveSetup:
             tr.uptime_s = None
             await self._configure(tr, rebooted=True, connected=True)
 
-    async def _check_reboot(self, tr: TrackerRuntime) -> None:
+    async def _check_reboot(self, tr: TrackerRuntime, ident: DriveIdentity | None) -> None:
         """A drive whose uptime went back has rebooted: it forgot its configuration (limits,
         stow angle, watchdog), so it is configured again before the next exchange."""
-        ident = await tr.drive.identify()
         if ident is None:
             return
         now = self.clock.monotonic()

@@ -47,8 +47,8 @@ def markdown() -> str:
         f"0x{PROTOCOL_VERSION:04X}). All registers are holding registers, 0-based addresses. "
         "32-bit values take two registers, high word first. Engineering value = raw x scale. "
         "Function codes: 3 (read), 6 and 16 (write), and 23 (read/write multiple: the "
-        "controller's exchange each cycle, the write done before the read) where the drive "
-        "has it; see Behaviour.",
+        "controller's exchange each cycle and its heartbeat round, the write done before the "
+        "read) where the drive has it; see Behaviour.",
         "",
         "## Global registers",
         "",
@@ -83,9 +83,12 @@ BEHAVIOUR = (
     "controller reads the identification and the axes' blocks each in one request, "
     "across the gaps). Reads beyond are answered with exception 2.",
     "- FC 23 (read/write multiple registers) is recommended: each cycle's exchange writes "
-    "the targets and reads the axes' state in one transaction, the write first. A drive that "
-    "answers it with exception 1 (illegal function) gets FC 16 and FC 3 from then on, one "
-    "more transaction a cycle.",
+    "the targets and reads the axes' state in one transaction, the write first, and each "
+    "heartbeat round writes HEARTBEAT and reads the identification (registers 0..13, "
+    "HEARTBEAT among them) in one. A drive that answers it with exception 1 (illegal "
+    "function) gets FC 16, FC 6 and FC 3 from then on, one more transaction a cycle and "
+    "one more a heartbeat round; one that refuses only the heartbeat round's FC 23 "
+    "(exception 2 or 3) gets FC 6 and FC 3 for it.",
     "- A write is all or nothing, and its registers are applied in address order. It is "
     "refused with exception 2 (illegal data address) at an address no register holds, at "
     "a read-only register, at half of a 32-bit register, or at an axis the drive does not "

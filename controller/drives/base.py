@@ -189,6 +189,12 @@ class DriveLink(abc.ABC):
         None from a backend that cannot tell (no reboot detection, ``check`` says so)."""
         return None
 
+    async def heartbeat_identify(self) -> DriveIdentity | None:
+        """A heartbeat, then :meth:`identify`: the loop's heartbeat round.  A backend may put
+        both in one transaction (Modbus: one FC 23)."""
+        await self.heartbeat()
+        return await self.identify()
+
     async def read_configuration(self) -> DriveConfiguration | None:
         """The watchdog, soft limits and stow angles the drive holds now (None from a
         backend that cannot read them)."""

@@ -106,3 +106,33 @@ def test_the_sun_alarm_names_the_offset_and_the_likely_mistake():
     drifted = {"site_mismatch": True, "site_offset_lat_deg": -1.4, "site_offset_lon_deg": 0.3}
     text = sun_alarm_text(drifted)
     assert "latitude -1.40 deg, longitude +0.30 deg" in text and "check the site and the clock" in text
+
+
+def test_modbus_transactions_per_tracker_cycle_in_steady_state(plant):
+    """The bus load of one cycle, counted through the real stack (pymodbus and pyserial on
+    a pty): an RS-485 line at 9600-19200 baud pays tens of ms per transaction, so one more
+    per row and cycle is fewer rows on a line.  With the default watchdog (three periods,
+    a heartbeat round every cycle) a dual-axis drive costs three transactions a cycle
+    (heartbeat + identification in one FC 23, axis 1's target by FC 16, axis 0's target +
+    state in one FC 23) and a row two.  The identification read alone, added after each
+    heartbeat, had made it four and three (the 5-day loop benchmark: 36010 -> 50420)."""
+    run, ctl, fws, clock, cfg = plant
+    for _ in range(3):  # past the start-up (configuration, first heartbeats)
+        run(ctl.cycle())
+        clock.sleep(cfg.control.period_s)
+    assert 3 * cfg.control.period_s >= cfg.control.heartbeat_timeout_s  # a round every cycle
+    before = {tr.cfg.name: tr.drive.stats.transactions for tr in ctl.trackers}
+    beats = {name: fw.heartbeat for name, fw in fws.items()}
+    cycles = 10
+    for _ in range(cycles):
+        recs = run(ctl.cycle())
+        assert not any(r.error for r in recs), [r.error for r in recs]
+        clock.sleep(cfg.control.period_s)
+    per_cycle = {
+        tr.cfg.name: (tr.drive.stats.transactions - before[tr.cfg.name]) / cycles for tr in ctl.trackers
+    }
+    assert per_cycle == {"dual-1": 3.0, "row-1": 2.0}
+    assert all(tr.drive.stats.errors == 0 for tr in ctl.trackers)
+    # the heartbeats still reach the drives, and the identity is still read every round
+    assert all(fw.heartbeat != beats[name] for name, fw in fws.items())
+    assert all(tr.uptime_at == clock.monotonic() - cfg.control.period_s for tr in ctl.trackers)

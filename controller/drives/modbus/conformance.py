@@ -15,7 +15,7 @@ import asyncio
 from collections.abc import AsyncIterator, Awaitable, Callable
 from typing import Any
 
-from firmware_protocol import Command, Mode, Status, decode, encode, register
+from firmware_protocol import MAGIC, Command, Mode, Status, decode, encode, register
 from firmware_protocol.registers import AXIS_BASE, AXIS_STRIDE, REGISTER_MAP, REGISTER_SPACE
 
 from ..base import DriveCommError
@@ -140,6 +140,28 @@ async def _static_checks(p: _Probe, n: int) -> AsyncIterator[Check]:
             "FC 23 exchange",
             WARN,
             f"exception {code}: the controller uses FC 16 + FC 3 (one more transaction a cycle)",
+        )
+    )
+    # the heartbeat round: HEARTBEAT written (a new value, far from the link's own counter)
+    # and the identification read back in one FC 23
+    beat, uptime = register("HEARTBEAT"), register("UPTIME")
+    n_id = uptime.address() + uptime.words
+    rr, code = await p.ask(
+        p.c.readwrite_registers,
+        read_address=0,
+        read_count=n_id,
+        write_address=beat.address(),
+        values=[(int(await p.value("HEARTBEAT")) + 0x8000) & 0xFFFF],
+    )
+    regs = list(getattr(rr, "registers", None) or ())
+    yield (
+        Check("FC 23 heartbeat round", PASS, "heartbeat written, identification read in one transaction")
+        if rr is not None and len(regs) >= n_id and regs[0] == MAGIC
+        else Check(
+            "FC 23 heartbeat round",
+            WARN,
+            (f"exception {code}" if rr is None else f"answer {regs[:3]}...")
+            + ": the controller uses FC 6 + FC 3 for its heartbeat round (one more transaction a round)",
         )
     )
     actual = register("ACTUAL_ANGLE")

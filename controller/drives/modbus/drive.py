@@ -45,7 +45,13 @@ class ShortAnswer(ModbusException):
     """A read answered with fewer registers than asked (retried like a garbled frame)."""
 
 
+def _refusal_code(exc: DriveRefused) -> int | None:
+    """The Modbus exception code a drive refused a request with (None: not a Modbus one)."""
+    return exc.refusal.code if isinstance(exc.refusal, ModbusRefused) else None
+
+
 _TARGET = register("TARGET_ANGLE")
+_HEARTBEAT = register("HEARTBEAT")
 log = logging.getLogger(__name__)
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
@@ -93,6 +99,8 @@ class ModbusDrive(DriveLink):
         self._closed = False
         #: The drive answers FC 23 (read/write multiple registers); False once it refused it.
         self.fc23 = True
+        #: ... and takes it for the heartbeat with the identification read; False once refused.
+        self.fc23_heartbeat = True
 
     async def _call(
         self, what: str, request: Callable[..., Awaitable[Any]], *args: Any, **kwargs: Any
@@ -230,18 +238,62 @@ class ModbusDrive(DriveLink):
                 values=encode(_TARGET, angles_deg[0]),
             )
         except DriveRefused as exc:
-            if not (isinstance(exc.refusal, ModbusRefused) and exc.refusal.code == ExcCodes.ILLEGAL_FUNCTION):
+            if _refusal_code(exc) != ExcCodes.ILLEGAL_FUNCTION:
                 raise
-            self.fc23 = False
-            log.warning(
-                "%s: no FC 23 (read/write registers): targets by FC 16, state by FC 3 from now on", self.label
-            )
+            self._without_fc23()
             return await self.exchange(angles_deg)
         return self._decode_state(words)
 
+    def _without_fc23(self) -> None:
+        self.fc23 = False
+        log.warning(
+            "%s: no FC 23 (read/write registers): targets by FC 16, heartbeats by FC 6, state and "
+            "identification by FC 3 from now on",
+            self.label,
+        )
+
     async def heartbeat(self) -> None:
         self._beat = (self._beat + 1) & 0xFFFF
-        await self._call("heartbeat", self.client.write_register, register("HEARTBEAT").address(), self._beat)
+        await self._call("heartbeat", self.client.write_register, _HEARTBEAT.address(), self._beat)
+
+    async def heartbeat_identify(self) -> DriveIdentity:
+        """The heartbeat written and the identification read back in one FC 23: HEARTBEAT
+        (register 9) lies inside the identification block (0-13), and FC 23 writes before
+        it reads, so the round costs the line one transaction, not two.  A drive without
+        FC 23 (exception 1), or whose FC 23 refuses this request (exception 2 or 3: one
+        that takes it only for the exchange), gets FC 6 and FC 3 from then on."""
+        if not (self.fc23 and self.fc23_heartbeat):
+            await self.heartbeat()
+            return await self.identify()
+        first, last = register("MAGIC"), register("UPTIME")
+        n = last.address() + last.words - first.address()
+        self._beat = (self._beat + 1) & 0xFFFF
+        try:
+            words = await self._read(
+                "heartbeat + identification read",
+                n,
+                self.client.readwrite_registers,
+                read_address=first.address(),
+                read_count=n,
+                write_address=_HEARTBEAT.address(),
+                values=[self._beat],
+            )
+        except DriveRefused as exc:
+            code = _refusal_code(exc)
+            if code == ExcCodes.ILLEGAL_FUNCTION:
+                self._without_fc23()
+            elif code in (ExcCodes.ILLEGAL_ADDRESS, ExcCodes.ILLEGAL_VALUE):
+                self.fc23_heartbeat = False
+                log.warning(
+                    "%s: FC 23 refused for the heartbeat and identification (%s): by FC 6 and FC 3 "
+                    "from now on, one more transaction a heartbeat round",
+                    self.label,
+                    exc,
+                )
+            else:
+                raise
+            return await self.heartbeat_identify()
+        return self._identity(words)
 
     async def command(self, cmd: Command) -> None:
         await self._call(
@@ -330,6 +382,11 @@ class ModbusDrive(DriveLink):
         w = await self._read(
             "identification read", n, self.client.read_holding_registers, first.address(), count=n
         )
+        return self._identity(w)
+
+    def _identity(self, w: Sequence[int]) -> DriveIdentity:
+        """The identification block (registers 0-13), checked against the drive connected to."""
+        first = register("MAGIC")
 
         def val(name: str) -> float:
             reg = register(name)

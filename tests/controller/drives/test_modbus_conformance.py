@@ -57,7 +57,8 @@ def test_the_emulated_drive_passes_every_rule(tmp_path, capsys):
     got = rows(out)
     assert rc == 0, out
     assert set(got.values()) == {"pass"}, out
-    assert len(got) == 14 and out.splitlines()[-1] == "14 of 14 check(s) without a failure", out
+    assert len(got) == 15 and out.splitlines()[-1] == "15 of 15 check(s) without a failure", out
+    assert got["FC 23 heartbeat round"] == "pass", out
     assert fw.heartbeat_timeout == pytest.approx(5.0)  # put back
     assert fw.modes == [fw.modes[0].AUTO] * 2
 
@@ -106,6 +107,7 @@ def test_a_drive_breaking_the_rules_is_named(tmp_path, capsys, monkeypatch):
     got = rows(out)
     assert rc == 1, out
     assert got["FC 23 exchange"] == "warn" and "the controller uses FC 16 + FC 3" in out, out
+    assert got["FC 23 heartbeat round"] == "warn" and "FC 6 + FC 3 for its heartbeat round" in out, out
     assert got["new soft limits clamp the target in force"] == "FAIL", out
     assert [k for k, v in got.items() if v == "FAIL"] == ["new soft limits clamp the target in force"], out
 

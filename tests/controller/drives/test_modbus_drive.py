@@ -4,9 +4,10 @@ import asyncio
 
 import pytest
 
+from controller.clock import SimClock
 from controller.drives import DriveCommError, open_drive
 from controller.drives.links import ModbusRtuLink, ModbusTcpLink
-from firmware_protocol import Command, Mode, Status
+from firmware_protocol import Command, Mode, Status, register
 from hil.drive import DriveFirmware
 from hil.modbus_server import ModbusServerThread
 from hil.pty import PtyLink
@@ -211,3 +212,114 @@ def test_a_tcp_endpoint_where_nothing_listens_says_so():
 
     msg = run(scenario())
     assert f"cannot open the link: 127.0.0.1:{port}: connection refused (nothing listens there" in msg, msg
+
+
+def test_the_heartbeat_and_the_identification_read_are_one_transaction(pty_drive):
+    """HEARTBEAT (register 9) lies inside the identification block (0-13): one FC 23 writes
+    the heartbeat and reads the identity back.  The identification read after every
+    heartbeat, as a transaction of its own, had cost every drive one more transaction a
+    cycle with the default watchdog (the 5-day loop benchmark: 36010 -> 50420)."""
+    fw, path, clock = pty_drive
+    read = fw.read
+
+    def other_device(address, count):
+        words = read(address, count)
+        return [0xBEEF, *words[1:]] if address == 0 else words
+
+    async def scenario():
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        try:
+            beats, uptimes = [], []
+            before = d.stats.transactions
+            for _ in range(3):
+                ident = await d.heartbeat_identify()
+                beats.append(fw.heartbeat)
+                uptimes.append(ident.uptime_s)
+                clock.sleep(10)
+            rounds = d.stats.transactions - before
+            assert (ident.axis_count, d.fc23, d.fc23_heartbeat) == (2, True, True)
+            fw.read = other_device  # the identity is still checked every round
+            with pytest.raises(DriveCommError, match=r"identity changed \(register 0 = 0xbeef"):
+                await d.heartbeat_identify()
+            return beats, uptimes, rounds
+        finally:
+            fw.read = read
+            await d.close()
+
+    beats, uptimes, rounds = run(scenario())
+    assert rounds == 3
+    assert len(set(beats)) == 3  # each round a new heartbeat: the watchdog is fed
+    assert uptimes[1] - uptimes[0] == pytest.approx(10, abs=1) and uptimes[2] > uptimes[1]
+
+
+def test_a_drive_without_fc23_gets_its_heartbeat_and_identification_by_fc6_and_fc3(
+    pty_drive, monkeypatch, caplog
+):
+    import hil.modbus_device
+
+    monkeypatch.setattr(hil.modbus_device, "_REGISTER_FCS", {3, 6, 16})
+    fw, path, _clock = pty_drive
+
+    async def scenario():
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        try:
+            first = await d.heartbeat_identify()
+            beat = fw.heartbeat
+            before = d.stats.transactions
+            second = await d.heartbeat_identify()
+            await d.exchange([150.0, 30.0])
+            return first, second, beat, d.stats.transactions - before, d.fc23
+        finally:
+            await d.close()
+
+    first, second, beat, used, fc23 = run(scenario())
+    assert not fc23 and first.axis_count == second.axis_count == 2
+    assert fw.heartbeat != beat and fw.heartbeat != 0
+    assert used == 2 + 3  # heartbeat + identification, then two targets + the state
+    assert len([r for r in caplog.records if "no FC 23" in r.getMessage()]) == 1
+
+
+def test_a_drive_whose_fc23_takes_only_the_exchange_gets_fc6_and_fc3_for_the_heartbeat(monkeypatch, caplog):
+    """A firmware whose FC 23 refuses anything but the exchange (exception 2) is still fed
+    its heartbeat and identified, and keeps its FC 23 exchange."""
+    from pymodbus.constants import ExcCodes
+    from pymodbus.simulator import SimDevice
+
+    import hil.modbus_server
+
+    real = hil.modbus_server.sim_device
+    heartbeat = register("HEARTBEAT").address()
+
+    def narrow_fc23(device_id, device, *args):
+        sim = real(device_id, device, *args)
+
+        async def action(fc, start, address, count, registers, set_values):
+            if fc == 23 and set_values is not None and address == heartbeat:
+                return ExcCodes.ILLEGAL_ADDRESS
+            return await sim.action(fc, start, address, count, registers, set_values)
+
+        return SimDevice(id=sim.id, simdata=sim.simdata, action=action)
+
+    monkeypatch.setattr(hil.modbus_server, "sim_device", narrow_fc23)
+    clock = SimClock(1_710_900_000.0)
+    fw = DriveFirmware(two_axes(), clock.now, heartbeat_timeout=30.0)
+
+    async def scenario(path):
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        try:
+            ident = await d.heartbeat_identify()
+            beat = fw.heartbeat
+            await d.heartbeat_identify()
+            st = await d.exchange([150.0, 30.0])
+            return ident, beat, st, d.fc23, d.fc23_heartbeat
+        finally:
+            await d.close()
+
+    with PtyLink.open() as link, ModbusServerThread({1: fw}, serial_url=link.url):
+        ident, beat, st, fc23, fc23_heartbeat = run(scenario(link.path))
+    assert ident.axis_count == 2 and fw.heartbeat not in (0, beat)
+    assert fc23 and not fc23_heartbeat and st.axes[1].target_deg == pytest.approx(30.0)
+    assert len([r for r in caplog.records if "FC 23 refused for the heartbeat" in r.getMessage()]) == 1
