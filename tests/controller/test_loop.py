@@ -136,3 +136,26 @@ def test_modbus_transactions_per_tracker_cycle_in_steady_state(plant):
     # the heartbeats still reach the drives, and the identity is still read every round
     assert all(fw.heartbeat != beats[name] for name, fw in fws.items())
     assert all(tr.uptime_at == clock.monotonic() - cfg.control.period_s for tr in ctl.trackers)
+
+
+def test_a_modbus_drive_whose_reading_jumps_faster_than_its_speed_limit_is_named(plant):
+    """The speed-limit check had never run on Modbus drives: their configuration read-back
+    did not read MAX_SPEED, so only CANopen drives had limits to judge a reading by."""
+    run, ctl, fws, clock, cfg = plant
+    for _ in range(3):
+        run(ctl.cycle())
+        clock.sleep(cfg.control.period_s)
+    dual = ctl.trackers[0]
+    axes = fws["dual-1"].axes
+    assert dual.drive.configuration.max_speeds == tuple(pytest.approx(a.p.max_speed) for a in axes)
+    assert "speed" in dual.drive.configuration.describe()
+    # the azimuth encoder reports another place 200 deg on; the firmware drives back at its
+    # 1 deg/s through the next 60-s cycle, so the reading has moved 140 deg where the axis
+    # can move 60 (the audit's "instant 120-deg slew")
+    axes[0].motor += 200.0
+    axes[0].output += 200.0
+    run(ctl.cycle())
+    assert (
+        "axis 0 reading jumped 14" in dual.health.reason and "faster than its 1 deg/s" in dual.health.reason
+    )
+    assert ctl.trackers[1].health.reason == ""

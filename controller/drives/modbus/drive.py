@@ -23,6 +23,7 @@ from firmware_protocol import (
     register,
 )
 from firmware_protocol.codec import axis_block_address, decode_axis
+from firmware_protocol.registers import Register
 
 from ..base import (
     AxisState,
@@ -54,7 +55,15 @@ _TARGET = register("TARGET_ANGLE")
 _HEARTBEAT = register("HEARTBEAT")
 log = logging.getLogger(__name__)
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
-_STOW = register("STOW_ANGLE")
+_STOW, _SPEED = register("STOW_ANGLE"), register("MAX_SPEED")
+
+
+def _field(reg: Register, words: list[int], first: int, k: int) -> float:
+    """Axis ``k``'s register ``reg`` decoded from ``words`` read from address ``first``."""
+    at = reg.address(k) - first
+    return float(decode(reg, words[at : at + reg.words]))
+
+
 #: a read-back within one register step of the value written is the value written
 _TOLERANCES = Tolerances(register("HEARTBEAT_TIMEOUT").scale, _LIMIT_MIN.scale, _STOW.scale)
 
@@ -352,18 +361,20 @@ class ModbusDrive(DriveLink):
             reg.address(),
             count=reg.words,
         )
-        limits, stows = [], []
+        limits, speeds, stows = [], [], []
         for k in range(self.axis_count):
-            limits.append(await self._soft_limits(k))
+            # SOFT_LIMIT_MIN, SOFT_LIMIT_MAX, MAX_SPEED and STOW_ANGLE are adjacent: one read
+            first = _LIMIT_MIN.address(k)
+            n = _STOW.address(k) + _STOW.words - first
             w = await self._read(
-                "stow angle read",
-                _STOW.words,
-                self.client.read_holding_registers,
-                _STOW.address(k),
-                count=_STOW.words,
+                "axis configuration read", n, self.client.read_holding_registers, first, count=n
             )
-            stows.append(float(decode(_STOW, w)))
-        return DriveConfiguration(float(decode(reg, words)), tuple(limits), tuple(stows))
+            limits.append((_field(_LIMIT_MIN, w, first, k), _field(_LIMIT_MAX, w, first, k)))
+            speeds.append(_field(_SPEED, w, first, k))
+            stows.append(_field(_STOW, w, first, k))
+        return DriveConfiguration(
+            float(decode(reg, words)), tuple(limits), tuple(stows), max_speeds=tuple(speeds)
+        )
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
