@@ -49,6 +49,8 @@ _TARGET = register("TARGET_ANGLE")
 log = logging.getLogger(__name__)
 _LIMIT_MIN, _LIMIT_MAX = register("SOFT_LIMIT_MIN"), register("SOFT_LIMIT_MAX")
 _STOW = register("STOW_ANGLE")
+_SPEED = register("MAX_SPEED")
+assert _SPEED.address(0) + _SPEED.words == _STOW.address(0)  # read together
 #: a read-back within one register step of the value written is the value written
 _TOLERANCES = Tolerances(register("HEARTBEAT_TIMEOUT").scale, _LIMIT_MIN.scale, _STOW.scale)
 
@@ -300,18 +302,22 @@ class ModbusDrive(DriveLink):
             reg.address(),
             count=reg.words,
         )
-        limits, stows = [], []
+        limits, stows, speeds = [], [], []
+        n = _SPEED.words + _STOW.words  # adjacent: one read for both
         for k in range(self.axis_count):
             limits.append(await self._soft_limits(k))
             w = await self._read(
-                "stow angle read",
-                _STOW.words,
+                "speed and stow angle read",
+                n,
                 self.client.read_holding_registers,
-                _STOW.address(k),
-                count=_STOW.words,
+                _SPEED.address(k),
+                count=n,
             )
-            stows.append(float(decode(_STOW, w)))
-        return DriveConfiguration(float(decode(reg, words)), tuple(limits), tuple(stows))
+            speeds.append(float(decode(_SPEED, w[: _SPEED.words])))
+            stows.append(float(decode(_STOW, w[_SPEED.words :])))
+        return DriveConfiguration(
+            float(decode(reg, words)), tuple(limits), tuple(stows), max_speeds=tuple(speeds)
+        )
 
     async def _soft_limits(self, k: int) -> tuple[float, float]:
         """Axis ``k``'s soft limits now (deg), in one read (the registers are adjacent)."""
