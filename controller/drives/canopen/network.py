@@ -4,6 +4,7 @@ heartbeat."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import fcntl
 import logging
 import os
@@ -54,8 +55,17 @@ class TolerantBus(can.BusABC):
             return None, False
 
     def shutdown(self) -> None:
-        self.inner.shutdown()
-        super().shutdown()
+        try:
+            self.inner.shutdown()
+        finally:
+            # slcan's shutdown writes its close command first: on an adapter unplugged that
+            # raises, and the port stayed open, holding the vanished device's name (the
+            # adapter plugged back came up as /dev/ttyACM1, and the link never found it)
+            port = getattr(self.inner, "serialPortOrig", None)
+            if port is not None:
+                with contextlib.suppress(Exception):
+                    port.close()
+            super().shutdown()
 
 
 class SharedNetwork:
@@ -117,6 +127,8 @@ class SharedNetwork:
                     self.network.disconnect()
                 except Exception as exc:  # noqa: BLE001 - a dead bus raises its old error on the way out
                     log.debug("%s:%s: closed with %s", *self.key, exc)
+                    with contextlib.suppress(Exception):  # closed even if the network's close stopped early
+                        self.bus.shutdown()
                 self._unlock()
 
     def _unlock(self) -> None:

@@ -467,3 +467,44 @@ def test_an_slcan_adapter_is_held_exclusively():
             adapter.stop()
             adapter.bus.shutdown()
             link.close()
+
+
+def _held(path: str) -> list[str]:
+    """This process's file descriptors on ``path`` (also once the device is gone)."""
+    out = []
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):
+            if os.readlink(f"/proc/self/fd/{fd}") in (path, f"{path} (deleted)"):
+                out.append(fd)
+    return out
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # python-can's reader
+def test_an_unplugged_slcan_adapter_is_let_go():
+    """A walk of docs/deploy.md: with the USB-CAN adapter gone (its emulator killed),
+    python-can's slcan shutdown wrote its close command first, which raised, and never
+    closed the port: the controller kept the vanished device open, so the adapter plugged
+    back came up under another name (/dev/ttyACM1 for /dev/ttyACM0; here another pty) and
+    the row stayed lost until a restart."""
+    from hil.canopen.slcan import open_slcan_pty
+
+    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
+        link, adapter = open_slcan_pty(ch)
+        path = link.path
+
+        async def scenario():
+            d = open_drive(CanopenLink(name="usb", interface="slcan", channel=path), 8)
+            await d.connect()
+            shared = SharedNetwork._open[("slcan", path)]
+            adapter.stop()
+            adapter.bus.shutdown()
+            link.close()  # unplugged
+            for _ in range(50):
+                if shared.dead:
+                    break
+                await asyncio.sleep(0.05)
+            assert shared.dead
+            await d.close()  # as the loop closes a lost link
+
+        run(scenario())
+    assert _held(path) == []
