@@ -9,7 +9,10 @@ exception: pymodbus's ERROR for each timed-out request (with the frame dumped) c
 DEBUG, since the link retries it and reports the failure with the drive's name, and so
 does its ERROR for each request to a unit id the SunSpec server does not answer (the
 client gets exception 0x0B; a client could otherwise fill the log); and so does
-canopen's ERROR for the abort it sends after an SDO timeout (the drive's error says it).
+canopen's ERROR for the abort it sends after an SDO timeout (the drive's error says it),
+pymodbus's ERROR for a reply from another unit id or transaction that it skips (frames
+dumped; the link retries), its "Repeating....", and the traceback asyncio logs when
+pymodbus cannot decode a Modbus TCP header (the connection closes; the link reconnects).
 
 ``json`` writes one object per line: ``time`` (ISO 8601 UTC), ``level``, ``logger``,
 ``message``, and the fields a caller passed as ``extra={"fields": {...}}``.
@@ -72,10 +75,18 @@ class _LevelFilter(logging.Filter):
         if is_ours(record.name):
             return record.levelno >= self.level
         if record.name.startswith("pymodbus") and str(record.msg).startswith(_PYMODBUS_ROUTINE):
+            # (also a reply from another id or transaction, which pymodbus skips with the
+            # frames dumped: a late reply on a shared line, which our links retry; and its
+            # "Repeating....", which stands for a record already let through or not)
             # an ERROR, with the frame dumped, for every timed-out request, which our links
             # retry and report with the drive's name; or for every request a SCADA client
             # sends to another unit id, which it is answered (exception 0x0B): a debug
             # record, not one line per request in the plant's log
+            return self.level <= logging.DEBUG
+        if record.name == "asyncio" and _pymodbus_frame_error(record):
+            # pymodbus raising in its protocol callback for a frame it cannot decode (a
+            # damaged Modbus TCP header): asyncio logs a traceback and closes the
+            # connection; the link reconnects and reports the failed exchange itself
             return self.level <= logging.DEBUG
         if record.name.startswith("canopen.sdo") and record.getMessage() in _CANOPEN_ROUTINE:
             # the same for an SDO timeout (canopen aborts the transfer and says so at ERROR,
@@ -86,7 +97,23 @@ class _LevelFilter(logging.Filter):
 
 #: How pymodbus begins its messages for a request that timed out (a drive link), and for
 #: one to a unit id the server does not answer (the SunSpec server).
-_PYMODBUS_ROUTINE = ("No response received", "requested device id does not exist")
+_PYMODBUS_ROUTINE = (
+    "No response received",
+    "requested device id does not exist",
+    "ERROR: request ask for ",
+    "Repeating....",
+)
+
+
+def _pymodbus_frame_error(record: logging.LogRecord) -> bool:
+    exc = record.exc_info[1] if record.exc_info else None
+    return (
+        str(record.msg).startswith("Fatal error: protocol.data_received() call failed")
+        and exc is not None
+        and type(exc).__module__.startswith("pymodbus")
+    )
+
+
 #: canopen's messages for an SDO request that timed out: the abort it sends (SDO abort code
 #: 0x05040000, "SDO protocol timed out") and, with retries, each retry.
 _CANOPEN_ROUTINE = ("Transfer aborted by client with code 0x05040000", "No SDO response received")

@@ -27,9 +27,11 @@ from __future__ import annotations
 
 import contextvars
 import copy
+import errno
 import ipaddress
 import logging
 import math
+import socket
 import time
 from collections.abc import Callable, Iterable
 from typing import Self
@@ -124,6 +126,27 @@ def peer_allowed(peer: str | None, networks: tuple) -> bool:
     return any(ip in net for net in networks if net.version == ip.version)
 
 
+_BIND_ERRORS = {
+    errno.EADDRINUSE: "the port is in use by another program (another heliotrack run or simulate --realtime?)",
+    errno.EADDRNOTAVAIL: "not an address of this machine",
+    errno.EACCES: "permission denied (a port below 1024 needs privileges)",
+}
+
+
+def _why_not_bound(host: str, port: int) -> str | None:
+    """Why ``host:port`` cannot be listened on, by trying it: pymodbus logs the bind's
+    error and raises only "Could not start listen, please check address."; None when
+    the bind works now or fails otherwise."""
+    try:
+        family = socket.AF_INET6 if ":" in host else socket.AF_INET
+        with socket.socket(family, socket.SOCK_STREAM) as s:
+            s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as asyncio's server
+            s.bind((host, port))
+    except OSError as exc:
+        return _BIND_ERRORS.get(exc.errno or 0, exc.strerror or str(exc))
+    return None
+
+
 class SunSpecServer:
     """SunSpec (model 1 + model 601) Modbus TCP server in a daemon thread.
 
@@ -213,8 +236,9 @@ class SunSpecServer:
         try:
             self._thread.start()
         except ServerThreadError as exc:
+            why = _why_not_bound(self.host, self.requested_port) or str(exc)
             raise SunSpecServerError(
-                f"SunSpec server failed to start on {self.host}:{self.requested_port}: {exc}"
+                f"SunSpec server failed to start on {self.host}:{self.requested_port}: {why}"
             ) from exc
         self.port = self._thread.port
         log.info(

@@ -103,8 +103,8 @@ def test_check_prints_a_row_per_device_all_ok(plant, capsys):
     # what the drives hold now, and what run will write over it (an audit's finding: the
     # integrator saw neither the watchdog nor the limits)
     assert (
-        "watchdog 10 s; limits [0, 360] / [0, 90] deg; stow 180 / 90 deg; run writes watchdog 3 s"
-        in rows["dual-1"]
+        "watchdog 10 s; limits [0, 360] / [0, 90] deg; stow 180 / 90 deg; speed 10 / 10 deg/s;"
+        " run writes watchdog 3 s" in rows["dual-1"]
     )
     assert "watchdog 10 s on node 127; limits [-60, 60] deg" in rows["row-can"]
     assert rows["row-tcp"].endswith("run writes watchdog 3 s, axis 0 soft limits [-55, 55]"), out

@@ -4,7 +4,10 @@ heartbeat."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
+import fcntl
 import logging
+import os
 import struct
 import threading
 import time
@@ -52,8 +55,17 @@ class TolerantBus(can.BusABC):
             return None, False
 
     def shutdown(self) -> None:
-        self.inner.shutdown()
-        super().shutdown()
+        try:
+            self.inner.shutdown()
+        finally:
+            # slcan's shutdown writes its close command first: on an adapter unplugged that
+            # raises, and the port stayed open, holding the vanished device's name (the
+            # adapter plugged back came up as /dev/ttyACM1, and the link never found it)
+            port = getattr(self.inner, "serialPortOrig", None)
+            if port is not None:
+                with contextlib.suppress(Exception):
+                    port.close()
+            super().shutdown()
 
 
 class SharedNetwork:
@@ -69,7 +81,12 @@ class SharedNetwork:
 
     def __init__(self, interface: str, channel: str, bus_kwargs: dict[str, Any]):
         self.key = (interface, channel)
-        self.bus = TolerantBus(can.Bus(interface=interface, channel=channel, **bus_kwargs))
+        self._lock_fd = lock_serial_adapter(interface, channel)
+        try:
+            self.bus = TolerantBus(can.Bus(interface=interface, channel=channel, **bus_kwargs))
+        except BaseException:
+            self._unlock()
+            raise
         self.network = canopen.Network(self.bus)
         self.network.NOTIFIER_CYCLE = 0.1  # closing waits for one notifier cycle
         self.network.connect()  # the notifier, on the bus given
@@ -87,6 +104,7 @@ class SharedNetwork:
                 # its reception stopped for good (an adapter unplugged, a pty gone): a new
                 # network; the drives still on the old one get it when they reconnect
                 del cls._open[(interface, channel)]
+                shared._unlock()  # the new network takes the adapter's lock
                 shared = None
             if shared is None:
                 shared = cls._open[(interface, channel)] = cls(interface, channel, bus_kwargs)
@@ -109,6 +127,47 @@ class SharedNetwork:
                     self.network.disconnect()
                 except Exception as exc:  # noqa: BLE001 - a dead bus raises its old error on the way out
                     log.debug("%s:%s: closed with %s", *self.key, exc)
+                    with contextlib.suppress(Exception):  # closed even if the network's close stopped early
+                        self.bus.shutdown()
+                self._unlock()
+
+    def _unlock(self) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+
+def lock_serial_adapter(interface: str, channel: str) -> int | None:
+    """Hold a serial-line CAN adapter (slcan: ``/dev/ttyACM0``, ``/dev/serial/by-id/...``,
+    optionally ``@baud``) exclusively, as pyserial's ``exclusive`` does for a Modbus port:
+    the file descriptor holding the lock, or None for another interface or a port that
+    does not open (python-can then says why).
+
+    python-can opens an slcan port without a lock, so ``heliotrack check`` beside a
+    running ``run`` opened the same adapter: each took the other's bytes, and the
+    running controller's reception stopped with a traceback, its CAN rows lost for a
+    minute, while ``check`` called them ok.
+
+    Raises
+    ------
+    can.CanInitializationError
+        Another program holds the port.
+    """
+    if interface != "slcan" or "://" in channel:
+        return None
+    path = channel.split("@", 1)[0]
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise can.CanInitializationError(
+            f"{path}: in use by another program (is heliotrack run active?)"
+        ) from None
+    return fd
 
 
 #: Networks whose master heartbeat went out in the current event-loop iteration.

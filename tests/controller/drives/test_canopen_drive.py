@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import fcntl
 import math
+import os
 import time
 
 import pytest
@@ -410,3 +412,99 @@ def test_a_bus_whose_reception_died_is_opened_afresh():
     finally:
         first.release()
     assert ("virtual", ch) not in SharedNetwork._open
+
+
+def _flock(path: str) -> int | None:
+    """Another program's exclusive hold on ``path`` (pyserial's ``exclusive``): its file
+    descriptor, or None when someone holds the port already."""
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        os.close(fd)
+        return None
+    return fd
+
+
+def test_an_slcan_adapter_is_held_exclusively():
+    """An audit's case: ``heliotrack check`` beside a running ``run`` opened the same slcan
+    adapter (python-can opens it without a lock); each took the other's bytes, ``run``'s
+    reception stopped with a traceback and its CAN row was lost for a minute, while
+    ``check`` called the drive ok.  The adapter is now held as a Modbus port is: a second
+    opener is told it is in use, and a network opened afresh after a dead one still gets it."""
+    from hil.canopen.slcan import open_slcan_pty
+
+    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
+        link, adapter = open_slcan_pty(ch)
+        try:
+            usb = CanopenLink(name="usb", interface="slcan", channel=link.path)
+
+            async def scenario():
+                d = open_drive(usb, 8)
+                await d.connect()
+                try:
+                    assert _flock(link.path) is None  # held while the drive is open
+                    shared = SharedNetwork._open[("slcan", link.path)]
+                    shared.network.notifier.exception = OSError("device disconnected")  # dead
+                    fresh = await asyncio.to_thread(SharedNetwork.acquire, "slcan", link.path, d.bus_kwargs)
+                    assert fresh is not shared  # it could take the port over
+                    fresh.release()
+                finally:
+                    await d.close()
+                # the other way round: a port another program holds is refused, saying so
+                other = _flock(link.path)
+                assert other is not None  # released with the last drive
+                try:
+                    d = open_drive(usb, 8)
+                    with pytest.raises(DriveCommError, match=f"{link.path}: in use by another program"):
+                        await d.connect()
+                    await d.close()
+                finally:
+                    os.close(other)
+
+            run(scenario())
+        finally:
+            adapter.stop()
+            adapter.bus.shutdown()
+            link.close()
+
+
+def _held(path: str) -> list[str]:
+    """This process's file descriptors on ``path`` (also once the device is gone)."""
+    out = []
+    for fd in os.listdir("/proc/self/fd"):
+        with contextlib.suppress(OSError):
+            if os.readlink(f"/proc/self/fd/{fd}") in (path, f"{path} (deleted)"):
+                out.append(fd)
+    return out
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # python-can's reader
+def test_an_unplugged_slcan_adapter_is_let_go():
+    """A walk of docs/deploy.md: with the USB-CAN adapter gone (its emulator killed),
+    python-can's slcan shutdown wrote its close command first, which raised, and never
+    closed the port: the controller kept the vanished device open, so the adapter plugged
+    back came up under another name (/dev/ttyACM1 for /dev/ttyACM0; here another pty) and
+    the row stayed lost until a restart."""
+    from hil.canopen.slcan import open_slcan_pty
+
+    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
+        link, adapter = open_slcan_pty(ch)
+        path = link.path
+
+        async def scenario():
+            d = open_drive(CanopenLink(name="usb", interface="slcan", channel=path), 8)
+            await d.connect()
+            shared = SharedNetwork._open[("slcan", path)]
+            adapter.stop()
+            adapter.bus.shutdown()
+            link.close()  # unplugged
+            for _ in range(50):
+                if shared.dead:
+                    break
+                await asyncio.sleep(0.05)
+            assert shared.dead
+            await d.close()  # as the loop closes a lost link
+
+        run(scenario())
+    assert _held(path) == []

@@ -53,6 +53,25 @@ def test_connect_targets_state_and_configuration(pty_drive):
     run(scenario())
 
 
+def test_the_configuration_read_has_each_axis_speed_limit(sim_clock):
+    """``check`` prints the speed limit each drive holds (docs/deploy.md's example): a
+    Modbus drive's read-back had none, only a CANopen drive's did."""
+    fw = DriveFirmware(two_axes(max_speed=2.5), sim_clock.now, heartbeat_timeout=30.0)
+    fw.axes[1].p.max_speed = 4.0
+
+    async def scenario(path):
+        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+        await d.connect()
+        got = await d.read_configuration()
+        await d.close()
+        assert got.max_speeds == (2.5, 4.0)
+        assert got.stow_angles == (180.0, 90.0)
+        assert "speed 2.5 / 4 deg/s" in got.describe()
+
+    with PtyLink.open() as link, ModbusServerThread({1: fw}, serial_url=link.url):
+        run(scenario(link.path))
+
+
 def test_timeouts_become_drive_comm_errors_with_counts(pty_drive):
     _fw, path, _ = pty_drive
 

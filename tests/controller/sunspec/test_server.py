@@ -379,3 +379,20 @@ def test_a_client_that_writes_in_a_loop_does_not_fill_the_log(serve, caplog):
     srv._log_budget._open = {k: (v[0] - 60.0, v[1], v[2]) for k, v in srv._log_budget._open.items()}
     assert srv._log_budget.allows(HOST)  # the next window opens with the count of the rest
     assert "SunSpec: 180 more writes from 127.0.0.1 in 10 s were not logged" in caplog.text
+
+
+def test_a_port_in_use_is_named_as_such():
+    """A walk of docs/deploy.md: a second ``run`` (or ``simulate --realtime``) on the
+    plant's SunSpec port said only pymodbus's "Could not start listen, please check
+    address." for an address that was right."""
+    import socket
+
+    from controller.sunspec.server import SunSpecServerError
+
+    with socket.socket() as busy:
+        busy.bind((HOST, 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        plant = Plant(1)
+        with pytest.raises(SunSpecServerError, match=f"{HOST}:{port}: the port is in use by another program"):
+            SunSpecServer(plant, plant.on_override, host=HOST, port=port).start().stop()
