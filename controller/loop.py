@@ -30,6 +30,7 @@ from .history import History
 from .modes import ControlMode, ModeDecision, decide_mode
 from .records import CycleRecord, TrackerRuntime
 from .safety import SafetyState, StowOrder, clamp_targets
+from .sky.daylight import DaylightCheck
 from .store import Store
 from .sun.source import SunSource
 from .sun.types import SunEstimate
@@ -106,6 +107,7 @@ class Controller(WindPolling, DriveSetup):
         #: Sensors not answering now, by name, with why (one warning per outage).
         self.sensors_down: dict[str, str] = {}
         self.sun_alarm = ""
+        self.daylight = DaylightCheck(config.site)
         self.safety = SafetyState(config.wind, config.stow, clock.now(), warn=log.warning)
         #: Operator overrides by tracker index: manual axis targets (deg) in force.
         self.overrides: dict[int, tuple[float, ...]] = {}
@@ -137,7 +139,7 @@ class Controller(WindPolling, DriveSetup):
         decision = self.decide(est, overcast, order)
         targets = self.targets(est, decision, order)
         t_wall = time.perf_counter()
-        alarms = tuple(self.safety.alarms) + ((self.sun_alarm,) if self.sun_alarm else ())
+        alarms = tuple(self.safety.alarms) + tuple(a for a in (self.sun_alarm, self.daylight.alarm) if a)
         records = [self._record(tr, t, est, decision, s, alarms) for tr, s in zip(self.trackers, targets)]
         if order is None:
             for i, manual in self.overrides.items():
@@ -233,6 +235,14 @@ class Controller(WindPolling, DriveSetup):
         elif not mismatch:
             self.sun_alarm = ""
 
+    def _check_daylight(self, t: float, ghi_w_m2: float) -> None:
+        """Alarm once when the pyranometer sees daylight while the configured site and clock
+        put the sun below the horizon (:mod:`controller.sky.daylight`)."""
+        before = self.daylight.alarm
+        if self.daylight.add(t, ghi_w_m2) and not before:
+            log.warning("SITE ALARM: %s", self.daylight.alarm)
+            self._event("site_alarm", reason=self.daylight.alarm)
+
     async def _sky(self, t: float) -> bool:
         """Sample the pyranometer and ask the DIFFUSE switch; a bad sample is skipped."""
         if self.pyranometer is None or not self.config.diffuse.enabled:
@@ -241,6 +251,7 @@ class Controller(WindPolling, DriveSetup):
             sample = await asyncio.wait_for(self.pyranometer.read(t), self._deadline())
             self.diffuse.add(sample.time, sample.ghi_w_m2)
             self._sensor_status("pyranometer", None)
+            self._check_daylight(sample.time, sample.ghi_w_m2)
         except (TimeoutError, DriveCommError) as exc:
             self._sensor_status("pyranometer", exc)
         return self.diffuse.update(t)
