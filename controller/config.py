@@ -210,7 +210,9 @@ class Config:
         serial: dict[tuple[str, ...], ModbusRtuLink] = {}
         for i, link in enumerate(self.links):
             if link.name in links:
-                raise at.child("links").item(i).child("name").error("a unique link name", link.name)
+                raise (
+                    at.child("links").item(i, link.name).child("name").error("a unique link name", link.name)
+                )
             links[link.name] = link
             # a serial port is opened by one link only, whatever name (a symlink) it goes by
             if isinstance(link, ModbusRtuLink) and link.bus[0] == "serial":
@@ -219,7 +221,7 @@ class Config:
                     same = "" if other.port == link.port else f" as {other.port}; both are {link.bus[1]}"
                     raise (
                         at.child("links")
-                        .item(i)
+                        .item(i, link.name)
                         .child("port")
                         .error(
                             f"a port no other link opens (link {other.name!r} has it{same}: put "
@@ -234,7 +236,7 @@ class Config:
         # device ids are unique per physical bus (two links may reach one gateway or CAN bus)
         used: dict[tuple[tuple[str, ...], int], str] = {}
         for i, tr in enumerate(self.trackers):
-            here = at.child("trackers").item(i)
+            here = at.child("trackers").item(i, tr.name)
             if tr.name in names:
                 raise here.child("name").error("a unique tracker name", tr.name)
             names.add(tr.name)

@@ -16,7 +16,14 @@ class ConfigError(UserError):
     was expected, so the user can fix it without reading code.
     """
 
-    def __init__(self, file: str | Path | None, key: str, expected: str, got: object = None):
+    def __init__(
+        self,
+        file: str | Path | None,
+        key: str,
+        expected: str,
+        got: object = None,
+        notes: tuple[str, ...] = (),
+    ):
         self.file = str(file) if file is not None else "<config>"
         self.key = key
         self.expected = expected
@@ -26,6 +33,8 @@ class ConfigError(UserError):
         detail = f"expected {expected}"
         if got is not None:
             detail += f", got {got!r}"
+        if notes:  # which item an index means: "(trackers[1] is 'row-1')"
+            detail += f" ({'; '.join(notes)})"
         super().__init__(f"{where}: {detail}")
 
 

@@ -132,16 +132,22 @@ class Where:
 
     file: str | None
     key: str = ""
+    #: what the indexes on the way mean to a reader (``trackers[1] is 'row-1'``)
+    notes: tuple[str, ...] = ()
 
     def child(self, name: str) -> Where:
-        return Where(self.file, f"{self.key}.{name}" if self.key else name)
+        return Where(self.file, f"{self.key}.{name}" if self.key else name, self.notes)
 
-    def item(self, i: int) -> Where:
-        return Where(self.file, f"{self.key}[{i}]")
+    def item(self, i: int, name: object = None) -> Where:
+        """Item ``i`` of a list; ``name``: the item's own name, said in the message (the
+        index counts from 0, which a reader of the file does not)."""
+        key = f"{self.key}[{i}]"
+        note = (f"{key} is {name!r}",) if isinstance(name, str) and name else ()
+        return Where(self.file, key, self.notes + note)
 
     def error(self, expected: str, got: Any = None) -> ConfigError:
         """The error to raise here (``raise at.error("a positive number", value)``)."""
-        return ConfigError(self.file, self.key, expected, got)
+        return ConfigError(self.file, self.key, expected, got, notes=self.notes)
 
     @property
     def folder(self) -> Path:

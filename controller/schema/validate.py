@@ -179,8 +179,13 @@ def _sequence(tp: Any, v: Any, at: Where, spec: Spec) -> tuple[Any, ...]:
         item = args[0] if args else Any
         if spec.nonempty and not v:
             raise at.error(expected_text(tp, spec), v)
-        items = [_value(item, x, at.item(i), spec) for i, x in enumerate(v)]
+        items = [_value(item, x, at.item(i, _name(x)), spec) for i, x in enumerate(v)]
     return tuple(items)
+
+
+def _name(item: Any) -> object:
+    """A table's ``name`` (trackers, links), to say which one an index means."""
+    return item.get("name") if isinstance(item, dict) else None
 
 
 def _variant(v: Any, at: Where, spec: Spec) -> Any:

@@ -432,3 +432,26 @@ def test_two_links_on_one_port_through_a_symlink_are_refused(tmp_path):
             parse_config(_plant(links, trackers))
         assert e.value.key == "links[1].port" and e.value.got == str(alias)
         assert f"link 'a' has it as {pty.path}; both are {pty.path}" in str(e.value)
+
+
+def test_an_index_in_an_error_says_which_tracker_or_link_it_means():
+    """`trackers[1]` counts from 0, which a reader of the file does not: an installer's walk
+    read `trackers[1].gcrr` as the first tracker.  The item's own name is said with it."""
+    doc = {
+        "site": {"latitude": 10, "longitude": 20},
+        "links": [{"name": "rs485-1", "kind": "modbus-rtu", "port": "/dev/ttyUSB0"}],
+        "trackers": [
+            {"name": "dual-1", "type": "dual-axis", "link": "rs485-1", "device_id": 1},
+            {"name": "row-1", "type": "single-axis", "link": "rs485-1", "device_id": 2, "gcrr": 0.4},
+        ],
+    }
+    with pytest.raises(ConfigError, match=r"trackers\[1\]\.gcrr: .* \(trackers\[1\] is 'row-1'\)$"):
+        parse_config(doc)
+    del doc["trackers"][1]["gcrr"]
+    doc["trackers"][1]["link"] = "rs485-2"
+    with pytest.raises(ConfigError, match=r"trackers\[1\]\.link: .* \(trackers\[1\] is 'row-1'\)$"):
+        parse_config(doc)
+    doc["trackers"][1]["link"] = "rs485-1"
+    doc["links"].append({"name": "rs485-1", "kind": "modbus-tcp", "host": "127.0.0.1"})
+    with pytest.raises(ConfigError, match=r"links\[1\]\.name: .* \(links\[1\] is 'rs485-1'\)$"):
+        parse_config(doc)
