@@ -19,8 +19,6 @@ folder, and leaving every drive at its safe position.
 from __future__ import annotations
 
 import asyncio
-import errno
-import fcntl
 import json
 import logging
 import os
@@ -40,6 +38,8 @@ from controller.loop import Controller
 from controller.records import TrackerRuntime
 from controller.safety import clamp_targets
 from firmware_protocol import Command, Mode, Status
+
+from .bus_claims import Held, hold
 
 log = logging.getLogger("heliotrack.run")
 
@@ -243,18 +243,11 @@ def claim_state_folder(state: StateFolder | None) -> Iterator[None]:
         ) from None
     try:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                # a file system without locks (some network mounts): run, but say so
-                log.warning("%s: not locked (%s): nothing stops a second run here", state.lock, exc.strerror)
-            else:
-                pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip() or "unknown"
-                raise UserError(
-                    f"--state {state.path}: in use by another heliotrack run (pid {pid})"
-                ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            hold(fd, str(state.lock))
+        except Held as held:
+            raise UserError(
+                f"--state {state.path}: in use by another heliotrack run (pid {held.pid})"
+            ) from None
         yield
     finally:
         os.close(fd)  # releases the lock; the file stays (removing it would race a new start)

@@ -59,12 +59,14 @@ class Row:
 
 
 def run(args: argparse.Namespace) -> int:
+    from heliotrack.bus_claims import claim_buses
     from heliotrack.runtime import load_plant
 
     config = load_plant(args.config, "check")
     rows: list[Row] = []
     try:
-        asyncio.run(check_plant(config, out=sys.stdout, rows=rows))
+        with claim_buses(config.links):  # check writes each drive's configuration: not beside a run
+            asyncio.run(check_plant(config, out=sys.stdout, rows=rows))
     except (KeyboardInterrupt, asyncio.CancelledError):  # a second Ctrl-C: the rows so far
         pass
     from controller.clock import RealClock

@@ -72,6 +72,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from controller.errors import ConfigError
     from heliotrack.allocator import bound_heap
+    from heliotrack.bus_claims import claim_buses
     from heliotrack.runtime import claim_state_folder, load_plant, use_state_folder
 
     bound_heap()  # months of frames and arrays: no heap that keeps its high-water mark
@@ -80,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None and not args.duration > 0:
         raise ConfigError(None, "--duration", "seconds > 0", args.duration)
     config, state = use_state_folder(config, args.state)
-    with claim_state_folder(state):  # one run per folder: two would fight over the drives
+    # one run per folder, and one process per shared bus: two would fight over the drives
+    with claim_state_folder(state), claim_buses(config.links):
         return asyncio.run(Service(config, state).serve(args.duration))
 
 

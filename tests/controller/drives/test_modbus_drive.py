@@ -162,19 +162,32 @@ def test_a_configuration_the_drive_does_not_take_is_refused(pty_drive):
     assert "axis 1 stow angle reads" in msg and "80 written" in msg
 
 
-def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
-    """An audit's case: every other identification read said MAGIC 0xBEEF, protocol 7, one
-    axis; run went on, 0 errors."""
-    fw, path, clock = pty_drive
-    read = fw.read
+async def connected(path: str):
+    """Drive 1 on the pty, connected (0.3-s timeout, one retry)."""
+    d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
+    await d.connect()
+    return d
+
+
+def another_magic(read):
+    """``read`` as a drive that answers the identification with MAGIC 0xBEEF."""
 
     def other_device(address, count):
         words = read(address, count)
         return [0xBEEF, *words[1:]] if address == 0 else words
 
+    return other_device
+
+
+def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
+    """An audit's case: every other identification read said MAGIC 0xBEEF, protocol 7, one
+    axis; run went on, 0 errors."""
+    fw, path, clock = pty_drive
+    read = fw.read
+    other_device = another_magic(read)
+
     async def scenario():
-        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
-        await d.connect()
+        d = await connected(path)
         await d.identify()  # the drive it connected to
         fw.read = other_device
         try:
@@ -186,13 +199,19 @@ def test_an_identity_that_changes_after_connect_is_an_error(pty_drive):
         run(scenario())
 
 
-def test_a_drive_without_fc23_is_driven_by_fc16_and_fc3(pty_drive, monkeypatch, caplog):
-    """A firmware-side audit's case: a drive implementing FC 3, 6 and 16 (all the register
-    map then listed) was refused every cycle with exception 1 after connecting fine."""
+@pytest.fixture
+def no_fc23(pty_drive, monkeypatch):
+    """The pty drive as a firmware implementing FC 3, 6 and 16 only: (firmware, pty path)."""
     import hil.modbus_device
 
     monkeypatch.setattr(hil.modbus_device, "_REGISTER_FCS", {3, 6, 16})
-    fw, path, _clock = pty_drive
+    return pty_drive[0], pty_drive[1]
+
+
+def test_a_drive_without_fc23_is_driven_by_fc16_and_fc3(no_fc23, caplog):
+    """A firmware-side audit's case: a drive implementing FC 3, 6 and 16 (all the register
+    map then listed) was refused every cycle with exception 1 after connecting fine."""
+    fw, path = no_fc23
 
     async def scenario():
         d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
@@ -240,14 +259,10 @@ def test_the_heartbeat_and_the_identification_read_are_one_transaction(pty_drive
     cycle with the default watchdog (the 5-day loop benchmark: 36010 -> 50420)."""
     fw, path, clock = pty_drive
     read = fw.read
-
-    def other_device(address, count):
-        words = read(address, count)
-        return [0xBEEF, *words[1:]] if address == 0 else words
+    other_device = another_magic(read)
 
     async def scenario():
-        d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
-        await d.connect()
+        d = await connected(path)
         try:
             beats, uptimes = [], []
             before = d.stats.transactions
@@ -272,13 +287,8 @@ def test_the_heartbeat_and_the_identification_read_are_one_transaction(pty_drive
     assert uptimes[1] - uptimes[0] == pytest.approx(10, abs=1) and uptimes[2] > uptimes[1]
 
 
-def test_a_drive_without_fc23_gets_its_heartbeat_and_identification_by_fc6_and_fc3(
-    pty_drive, monkeypatch, caplog
-):
-    import hil.modbus_device
-
-    monkeypatch.setattr(hil.modbus_device, "_REGISTER_FCS", {3, 6, 16})
-    fw, path, _clock = pty_drive
+def test_a_drive_without_fc23_gets_its_heartbeat_and_identification_by_fc6_and_fc3(no_fc23, caplog):
+    fw, path = no_fc23
 
     async def scenario():
         d = open_drive(rtu(path, timeout_s=0.3, retries=1), 1)
