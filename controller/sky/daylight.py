@@ -36,8 +36,9 @@ LIT_NIGHT_ALARM_S = 1200.0
 
 
 def elevation_deg(site: Site, t: float) -> float:
-    """The sun's geometric elevation at ``site`` and POSIX time ``t`` (deg, to about 0.5: the declination is the day's;
-    refraction left out, as it only lifts the sun near the horizon)."""
+    """The sun's geometric elevation at ``site`` and POSIX time ``t`` (deg, to about 0.5: the
+    declination is the day's, and refraction, which only lifts the sun near the horizon, is
+    left out)."""
     cz = cos_zenith_rows(np.array([t]), 60.0, 1, site.latitude, site.longitude, row_geometry(np.array([t])))
     return float(np.degrees(np.arcsin(np.clip(cz[0, 0], -1.0, 1.0))))
 
