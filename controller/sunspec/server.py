@@ -56,6 +56,8 @@ from .snapshot import OverrideCommand, PlantSnapshot, StowRequest
 log = logging.getLogger("heliotrack.sunspec")
 
 _PEER: contextvars.ContextVar[str | None] = contextvars.ContextVar("sunspec_peer", default=None)
+# set by the SimDevice action when it handles a write itself (and logs a refusal)
+_WRITE_SEEN: contextvars.ContextVar[bool] = contextvars.ContextVar("sunspec_write_seen", default=False)
 _READ_FCS = {3, 4}
 _WRITE_FCS = {6, 16}
 _SERVED_FCS = _READ_FCS | _WRITE_FCS
@@ -121,8 +123,8 @@ class _SingleUnitCore(SimCore):
     stock SimCore answers a coil function at an address without coils with exception
     2); a write of one goes to ``on_unserved`` to be logged.  Writes pass ``guard``
     first (writes disabled, client not allowed: exception 1 wherever they point, so a
-    refused client cannot map the registers), and a write the map refuses (outside it:
-    exception 2) is logged as the others are."""
+    refused client cannot map the registers), and a write the map refuses before our
+    action sees it (outside the map: exception 2) is logged as the others are."""
 
     guard: Callable[[int], ExcCodes | None] | None = None
     on_outside: Callable[[int], object] | None = None
@@ -145,8 +147,9 @@ class _SingleUnitCore(SimCore):
         refused = self.guard(address) if self.guard is not None else None
         if refused is not None:
             return refused
+        _WRITE_SEEN.set(False)
         result = await super().async_setValues(device_id, func_code, address, values)
-        if result == ExcCodes.ILLEGAL_ADDRESS and self.on_outside is not None:
+        if result == ExcCodes.ILLEGAL_ADDRESS and not _WRITE_SEEN.get() and self.on_outside is not None:
             self.on_outside(address)  # the map refused it before our action saw it
         return result
 
@@ -340,6 +343,7 @@ class SunSpecServer:
                 return None
             if fc not in _WRITE_FCS:
                 return ExcCodes.ILLEGAL_FUNCTION
+            _WRITE_SEEN.set(True)
             return self._write(address, [int(v) for v in set_values])
         except Exception:  # a bad snapshot must not kill the server; the client gets exc 4
             self.stats["errors"] += 1

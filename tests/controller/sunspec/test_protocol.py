@@ -1,8 +1,9 @@
 """Modbus protocol answers a SCADA integrator checks with a raw client: unserved function
-codes and malformed requests."""
+codes, malformed requests, and how each refused write is logged."""
 
 from __future__ import annotations
 
+import logging
 import socket
 import struct
 from contextlib import closing
@@ -84,6 +85,20 @@ def test_coil_functions_are_answered_exception_1(serve, writes_enabled, address)
         ]
     assert [(r.isError(), getattr(r, "exception_code", None)) for r in answers] == [(True, 1)] * 4
     assert srv.stats["writes_accepted"] == 0
+
+
+def test_each_refused_write_is_logged_once_with_its_reason(serve, caplog):
+    srv = serve(Plant(2), writes_enabled=True)
+    caplog.set_level(logging.WARNING, logger="heliotrack.sunspec")
+    with closing(ModbusTcpClient(HOST, port=srv.port, timeout=2)) as c:
+        assert c.connect()
+        da = srv.map.slot("DA", model=1).address
+        r = c.write_register(da, 2, device_id=1)
+    assert r.isError() and r.exception_code == 2
+    lines = [rec.getMessage() for rec in caplog.records if rec.name == "heliotrack.sunspec"]
+    assert len(lines) == 1, lines
+    assert "DA is read-only" in lines[0]
+    assert srv.stats["writes_refused"] == 1
 
 
 def test_a_malformed_request_to_another_unit_is_answered_as_another_unit(serve):
