@@ -1,8 +1,13 @@
 """``heliotrack simulate --realtime``: the default scenario on the wall clock.
 
-The emulated drives, pyranometer and sky run in real time; the controller cycles on its
-configured period, and (with ``--sunspec``) a SunSpec model 601 server publishes the
-plant to any SCADA client and takes operator overrides as configured.
+The emulated drives, pyranometer, anemometer (with ``[wind]``) and sky run in real time;
+the controller cycles on its configured period and polls the anemometer between cycles,
+and (with ``--sunspec``) a SunSpec model 601 server publishes the plant to any SCADA
+client and takes operator overrides as configured.
+
+The emulated wind is ``[hil.wind]``'s, its days counted from the start of the run (the
+anemometer emulator reads the monotonic clock): a storm day's storm comes 13 h into the
+run, and storms at absolute times never.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from controller.northbound import Northbound
 from controller.sunspec import SunSpecServer
 from hil.sky import sky_series
 
-from .devices import open_drives, open_pyranometer
+from .devices import open_anemometer, open_drives, open_pyranometer
 from .panel_loop import make_controller
 from .scenario import as_scenario
 from .sun_sources import build_sun_source
@@ -56,7 +61,10 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
 
     counts = {"cycles": 0, "row_errors": 0, "overrides": 0}
     with ExitStack() as stack:
-        world = build_world(config, hil, clock, stack, ghi_at)
+        # without the wind script the world has no anemometer, the controller none to poll,
+        # and a [wind] plant ran unprotected with model 64601 empty (no reading, no alarm)
+        wind = hil.wind.script(clock.monotonic()) if config.wind is not None else None
+        world = build_world(config, hil, clock, stack, ghi_at, wind)
         sun, sensor = build_sun_source(config)
         controller = make_controller(
             as_scenario(config),
@@ -68,6 +76,7 @@ async def _run(config: Config, duration_s: float, sunspec, out) -> dict:
             realtime=True,
             sensor=sensor,
             pyranometer=open_pyranometer(config, world.links),
+            anemometer=open_anemometer(config, world.links),
         )
         bridge = Northbound(controller, name=config.site.name or "heliotrack")
         if sunspec is not None:

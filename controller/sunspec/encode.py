@@ -243,9 +243,12 @@ class Encoder:
             "Wind_SF": WIND_SF,
         }.get(name)
 
-    def _angle(self, plant: PlantSnapshot, axis: str, deg: float | None) -> int:
-        # single-axis: the azimuth points are unimplemented (model 601 descriptions)
-        if axis == "az" and plant.type == "single-axis":
+    def _angle(
+        self, plant: PlantSnapshot, axis: str, deg: float | None, tr: TrackerSnapshot | None = None
+    ) -> int:
+        # single-axis: the azimuth points are unimplemented (model 601 descriptions), for
+        # a single-axis plant and for a row of a mixed one (whose Typ is Dual)
+        if axis == "az" and (plant.type == "single-axis" or (tr is not None and tr.single_axis)):
             return INT32_UNIMPLEMENTED
         return deg_to_raw(deg)
 
@@ -288,17 +291,17 @@ class Encoder:
         if name == "Id":
             return tr.name
         if name == "ElTrgt":
-            return self._angle(plant, "el", tr.el_target_deg)
+            return self._angle(plant, "el", tr.el_target_deg, tr)
         if name == "AzTrgt":
-            return self._angle(plant, "az", tr.az_target_deg)
+            return self._angle(plant, "az", tr.az_target_deg, tr)
         if name == "ElPos":
-            return self._angle(plant, "el", tr.el_pos_deg)
+            return self._angle(plant, "el", tr.el_pos_deg, tr)
         if name == "AzPos":
-            return self._angle(plant, "az", tr.az_pos_deg)
+            return self._angle(plant, "az", tr.az_pos_deg, tr)
         if name == "ElCtl":
-            return self._angle(plant, "el", ctl.el_deg)
+            return self._angle(plant, "el", ctl.el_deg, tr)
         if name == "AzCtl":
-            return self._angle(plant, "az", ctl.az_deg)
+            return self._angle(plant, "az", ctl.az_deg, tr)
         if name == "Ctl":
             return point.symbol_value(ctl.ctl)
         if name == "Alm":

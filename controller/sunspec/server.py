@@ -37,11 +37,13 @@ from collections.abc import Callable, Iterable
 from typing import Self
 
 from pymodbus.constants import ExcCodes
-from pymodbus.exceptions import NoSuchIdException
+from pymodbus.exceptions import ModbusIOException, NoSuchIdException
+from pymodbus.pdu import ExceptionResponse
 from pymodbus.server import ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 from pymodbus.simulator.simcore import SimCore
+from pymodbus.transaction import TransactionManager
 
 from firmware_protocol.server_thread import ServerThread, ServerThreadError
 
@@ -54,8 +56,11 @@ from .snapshot import OverrideCommand, PlantSnapshot, StowRequest
 log = logging.getLogger("heliotrack.sunspec")
 
 _PEER: contextvars.ContextVar[str | None] = contextvars.ContextVar("sunspec_peer", default=None)
+# set by the SimDevice action when it handles a write itself (and logs a refusal)
+_WRITE_SEEN: contextvars.ContextVar[bool] = contextvars.ContextVar("sunspec_write_seen", default=False)
 _READ_FCS = {3, 4}
 _WRITE_FCS = {6, 16}
+_SERVED_FCS = _READ_FCS | _WRITE_FCS
 
 SnapshotFn = Callable[[], PlantSnapshot]
 OverrideFn = Callable[[OverrideCommand | StowRequest], None]
@@ -66,7 +71,23 @@ class SunSpecServerError(RuntimeError):
 
 
 class _PeerAwareHandler(ServerRequestHandler):
-    """Request handler that exposes the client's IP address to the datastore."""
+    """Request handler that exposes the client's IP address to the datastore, and
+    answers a request pymodbus cannot decode with the request's own function code."""
+
+    def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
+        # ServerRequestHandler.callback_data answers an undecodable request (FC 3 with a
+        # quantity outside 1..125, an unknown function) with function code 0x80 and
+        # exception 1, which no client can match to its request.  Modbus: the request's
+        # function code + 0x80, exception 3 for a bad quantity of a served function,
+        # exception 1 for a function not served.
+        try:
+            used_len = TransactionManager.callback_data(self, data, addr)
+        except ModbusIOException as exc:
+            self.server_send(_undecodable_answer(data, exc, self.server.context), addr)
+            return len(data)
+        if self.last_pdu:
+            self.loop.call_soon(self.handle_later)
+        return used_len
 
     async def handle_request(self):
         peer = self.transport.get_extra_info("peername") if self.transport else None
@@ -77,6 +98,19 @@ class _PeerAwareHandler(ServerRequestHandler):
             _PEER.reset(token)
 
 
+def _undecodable_answer(frame: bytes, exc: ModbusIOException, context) -> ExceptionResponse:
+    """The exception response to a Modbus TCP ``frame`` (MBAP header first) that pymodbus
+    could not decode."""
+    fc = frame[7] & 0x7F if len(frame) > 7 else 0  # after the 7-byte MBAP header
+    if exc.dev_id not in getattr(context, "devices", {exc.dev_id: None}):
+        code = ExcCodes.GATEWAY_NO_RESPONSE  # not our unit id, as a decodable request
+    elif fc in _SERVED_FCS:
+        code = ExcCodes.ILLEGAL_VALUE
+    else:
+        code = ExcCodes.ILLEGAL_FUNCTION
+    return ExceptionResponse(fc, exception_code=code, device_id=exc.dev_id, transaction=exc.transaction_id)
+
+
 class _PeerAwareTcpServer(ModbusTcpServer):
     def callback_new_connection(self):
         return _PeerAwareHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
@@ -84,27 +118,38 @@ class _PeerAwareTcpServer(ModbusTcpServer):
 
 class _SingleUnitCore(SimCore):
     """SimCore that answers only our unit id (others: exception 0x0B via NoSuchId),
-    instead of the KeyError -> exception 4 the stock SimCore gives.  Writes pass
-    ``guard`` first (writes disabled, client not allowed: exception 1 wherever they
-    point, so a refused client cannot map the registers), and a write the map refuses
-    (outside it: exception 2) is logged as the others are."""
+    instead of the KeyError -> exception 4 the stock SimCore gives.  A function code
+    other than 3, 4, 6 and 16 (coils, FC 22, 23) is exception 1 wherever it points (the
+    stock SimCore answers a coil function at an address without coils with exception
+    2); a write of one goes to ``on_unserved`` to be logged.  Writes pass ``guard``
+    first (writes disabled, client not allowed: exception 1 wherever they point, so a
+    refused client cannot map the registers), and a write the map refuses before our
+    action sees it (outside the map: exception 2) is logged as the others are."""
 
     guard: Callable[[int], ExcCodes | None] | None = None
     on_outside: Callable[[int], object] | None = None
+    on_unserved: Callable[[int, int], ExcCodes] | None = None
 
     async def async_getValues(self, device_id, func_code, address, count=1):
         if device_id not in self.devices:
             raise NoSuchIdException(device_id)
+        if func_code not in _SERVED_FCS:
+            return ExcCodes.ILLEGAL_FUNCTION
         return await super().async_getValues(device_id, func_code, address, count)
 
     async def async_setValues(self, device_id, func_code, address, values):
         if device_id not in self.devices:
             raise NoSuchIdException(device_id)
+        if func_code not in _WRITE_FCS:
+            if self.on_unserved is not None:
+                return self.on_unserved(func_code, address)
+            return ExcCodes.ILLEGAL_FUNCTION
         refused = self.guard(address) if self.guard is not None else None
         if refused is not None:
             return refused
+        _WRITE_SEEN.set(False)
         result = await super().async_setValues(device_id, func_code, address, values)
-        if result == ExcCodes.ILLEGAL_ADDRESS and self.on_outside is not None:
+        if result == ExcCodes.ILLEGAL_ADDRESS and not _WRITE_SEEN.get() and self.on_outside is not None:
             self.on_outside(address)  # the map refused it before our action saw it
         return result
 
@@ -274,6 +319,12 @@ class SunSpecServer:
         core.on_outside = lambda address: self._refuse(
             ExcCodes.ILLEGAL_ADDRESS, _PEER.get(), address, "outside the SunSpec map"
         )
+        core.on_unserved = lambda fc, address: self._refuse(
+            ExcCodes.ILLEGAL_FUNCTION,
+            _PEER.get(),
+            address,
+            f"function code {fc} is not served (6 or 16 write)",
+        )
         server.context = core
         return server
 
@@ -292,6 +343,7 @@ class SunSpecServer:
                 return None
             if fc not in _WRITE_FCS:
                 return ExcCodes.ILLEGAL_FUNCTION
+            _WRITE_SEEN.set(True)
             return self._write(address, [int(v) for v in set_values])
         except Exception:  # a bad snapshot must not kill the server; the client gets exc 4
             self.stats["errors"] += 1

@@ -60,7 +60,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         type=str,
         default=None,
         metavar="HOST:PORT",
-        help="with --realtime: serve SunSpec (models 1 and 601) on this address; "
+        help="with --realtime: serve SunSpec (models 1, 601 and 64601) on this address; "
         "port 0 picks a free one (printed as 'SUNSPEC host:port')",
     )
     # realtime is an operator's session: SCADA's accepted writes (INFO) are seen as they come

@@ -5,6 +5,7 @@ first cycle boundary, or make it wait a whole period)."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 from pymodbus.client import ModbusTcpClient
 
@@ -67,3 +68,39 @@ def test_sunspec_is_served_for_the_whole_duration_with_a_longer_period(tmp_path)
     # an operator's session logs at INFO by default, so SCADA's accepted writes are seen
     # (an audit's finding: at WARNING nothing of SCADA's actions was kept)
     assert "INFO    heliotrack.sunspec: SunSpec server on 127.0.0.1:" in err, err
+
+
+def test_a_wind_scenario_reads_its_anemometer_and_serves_the_wind(tmp_path):
+    """A SCADA integrator's finding: on config/hil-storm.toml, ``simulate --realtime``
+    built no emulated anemometer and gave the controller none to poll, so the plant ran
+    with [wind] but no wind protection, and model 64601 read no wind and no alarm for the
+    whole run."""
+    from controller.sunspec.models import SunSpecMap
+
+    storm = Path(__file__).resolve().parents[2] / "config" / "hil-storm.toml"
+    cfg = tmp_path / "storm.toml"
+    cfg.write_text(storm.read_text().replace("period_s = 60.0", "period_s = 2.0"))
+    proc = heliotrack(
+        "simulate", "--config", str(cfg), "--realtime", "--duration", "12", "--sunspec", "127.0.0.1:0"
+    )
+    wind_spd = SunSpecMap(3).slot("WindSpd", model=64601).address  # hil-storm: 3 trackers
+    seen: list[int] = []
+    try:
+        first = proc.stdout.readline().strip()
+        assert first.startswith("SUNSPEC 127.0.0.1:"), first + proc.stderr.read()
+        client = ModbusTcpClient("127.0.0.1", port=int(first.rsplit(":", 1)[1]), timeout=1, retries=0)
+        assert client.connect()
+        try:
+            t0 = time.monotonic()
+            while time.monotonic() - t0 < 11 and not any(w != 0xFFFF for w in seen):
+                rr = client.read_holding_registers(wind_spd, count=3, device_id=1)
+                seen.extend(rr.registers if not rr.isError() else [])
+                time.sleep(0.5)
+        finally:
+            client.close()
+        _out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert any(w != 0xFFFF for w in seen), seen  # WindSpd, WindGst, WindAvg read

@@ -120,6 +120,32 @@ def test_single_axis_typ_and_rotation_in_elevation():
     assert raw_to_deg(decode_point(az.point, enc.registers(plant, ct.staged, az.address, 2))) is None
 
 
+def test_a_row_of_a_mixed_plant_reads_its_azimuth_points_as_unimplemented():
+    # a live audit on config/hil-default.toml (a dual-axis tracker and a row): after a
+    # global Manual with GlblAzCtl = 200, the row's AzCtl read 200.0 beside its
+    # unimplemented AzTrgt and AzPos; the row has no azimuth, and its AzCtl refuses writes
+    m = SunSpecMap(2)
+    plant = PlantSnapshot(
+        "mixed",
+        "dual-axis",
+        datetime(2026, 3, 20),
+        [TrackerSnapshot("D0", 30.0, 170.0, 29.5, 171.0), TrackerSnapshot.row("R0", -25.0, -24.5)],
+    )
+    ct = ControlTable(m)
+    ct.refresh(plant)
+    g_el = m.slot("GlblElCtl")
+    words = encode_point(g_el.point, 20000) + encode_point(g_el.point, 200000) + [1]
+    ct.apply_write(plant, g_el.address, words)
+    enc = Encoder(m)
+
+    def deg(name, tracker):
+        slot = m.slot(name, tracker)
+        return raw_to_deg(decode_point(slot.point, enc.registers(plant, ct.staged, slot.address, 2)))
+
+    assert [deg(n, 0) for n in ("AzCtl", "ElCtl")] == [200.0, 20.0]
+    assert [deg(n, 1) for n in ("AzTrgt", "AzPos", "AzCtl", "ElCtl")] == [None, None, None, 20.0]
+
+
 def test_control_write_must_cover_whole_writable_points():
     m = SunSpecMap(2)
     plant = _plant(2)
