@@ -6,9 +6,10 @@ object and a queue, so the control loop never waits on SCADA.  The loop publishe
 snapshot after each cycle and applies queued overrides and stow requests before the next.
 
 The weather (vendor model 64601) comes from the loop's :class:`~controller.safety.SafetyState`:
-the stow in force, the wind and the snow/hail requests at publication, and a wind stow
-that started since (the loop polls the anemometer between cycles) at once, so that model
-601 writes are refused (exception 6) from the gust on, not from the next cycle on.
+the stow in force and the snow/hail requests at publication; the anemometer's readings
+and a wind stow that started since (the loop polls the anemometer between cycles) at
+once, so that SCADA sees each poll's wind and model 601 writes are refused (exception 6)
+from the gust on, not from the next cycle on.
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ import logging
 import queue
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
+from typing import TypedDict
 
 from .config import DualAxisTracker, SingleAxisTracker
 from .loop import Controller, CycleRecord
+from .safety import SafetyState
 from .sunspec import OverrideCommand, PlantSnapshot, StowRequest, TrackerSnapshot, WeatherSnapshot
 from .sunspec.snapshot import SUNSPEC_SOURCE
 from .weather import WindState
@@ -34,6 +37,22 @@ def _anemometer_lost(wind: WindState) -> bool:
     return wind.alarm and wind.reason.startswith("anemometer silent")
 
 
+class _Readings(TypedDict):
+    speed_m_s: float | None
+    gust_m_s: float | None
+    mean_10min_m_s: float | None
+
+
+def _readings(safety: SafetyState) -> _Readings:
+    """The anemometer's last valid reading, as :class:`WeatherSnapshot` fields."""
+    last = safety.monitor.last if safety.monitor is not None else None
+    return {
+        "speed_m_s": last.speed_m_s if last is not None else None,
+        "gust_m_s": last.gust_m_s if last is not None else None,
+        "mean_10min_m_s": last.mean_10min_m_s if last is not None else None,
+    }
+
+
 class Northbound:
     """Bridge between a :class:`Controller` and a :class:`controller.sunspec.SunSpecServer`."""
 
@@ -46,20 +65,18 @@ class Northbound:
 
     # -- server thread ---------------------------------------------------------------
     def snapshot(self) -> PlantSnapshot:
-        """The published snapshot; with a wind stow that started since, marked as one (the
-        same object while nothing changes, so the server's per-tracker work is skipped)."""
-        snap, wind = self._snapshot, self.controller.safety.wind  # each read is atomic
+        """The published snapshot with the anemometer's readings polled since and, with a
+        wind stow that started since, marked as one (the same object while nothing changes,
+        so the server's per-tracker work is skipped; each poll makes a new ``wind``)."""
+        safety = self.controller.safety
+        snap, wind = self._snapshot, safety.wind  # each read is atomic
         live = self._live
         if live is not None and live[0] is snap and live[1] is wind:
             return live[2]
-        out = snap
-        if wind.stow and snap.weather.stow != "wind":
-            out = replace(
-                snap,
-                weather=replace(
-                    snap.weather, stow="wind", reason=wind.reason, anemometer_lost=_anemometer_lost(wind)
-                ),
-            )
+        weather = replace(snap.weather, **_readings(safety), anemometer_lost=_anemometer_lost(wind))
+        if wind.stow and weather.stow != "wind":
+            weather = replace(weather, stow="wind", reason=wind.reason)
+        out = snap if weather == snap.weather else replace(snap, weather=weather)
         self._live = (snap, wind, out)
         return out
 
@@ -148,13 +165,10 @@ class Northbound:
     def _weather(self) -> WeatherSnapshot:
         safety = self.controller.safety
         order = safety.order()
-        last = safety.monitor.last if safety.monitor is not None else None
         return WeatherSnapshot(
             stow=order.kind if order is not None else "",
             reason=order.reason if order is not None else "",
-            speed_m_s=last.speed_m_s if last is not None else None,
-            gust_m_s=last.gust_m_s if last is not None else None,
-            mean_10min_m_s=last.mean_10min_m_s if last is not None else None,
+            **_readings(safety),
             anemometer_lost=_anemometer_lost(safety.wind),
             requests=tuple(safety.requests.items()),
         )
