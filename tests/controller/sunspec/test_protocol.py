@@ -11,22 +11,7 @@ from contextlib import closing
 import pytest
 from pymodbus.client import ModbusTcpClient
 
-from controller.sunspec import SunSpecServer
 from tests.controller.sunspec.test_server import HOST, Plant
-
-
-@pytest.fixture
-def serve():
-    servers = []
-
-    def start(plant, **kw):
-        srv = SunSpecServer(plant, plant.on_override, host=HOST, port=0, **kw).start()
-        servers.append(srv)
-        return srv
-
-    yield start
-    for s in servers:
-        s.stop()
 
 
 def _exchange(sock: socket.socket, pdu: bytes, unit: int = 1, tid: int = 0x1234) -> bytes:

@@ -52,20 +52,6 @@ class Plant:
         self.overrides.append(cmd)
 
 
-@pytest.fixture
-def serve():
-    servers = []
-
-    def start(plant, **kw):
-        srv = SunSpecServer(plant, plant.on_override, host=HOST, port=0, **kw).start()
-        servers.append(srv)
-        return srv
-
-    yield start
-    for s in servers:
-        s.stop()
-
-
 def scan(srv, slave_id=1) -> SunSpecModbusClientDeviceTCP:
     dev = SunSpecModbusClientDeviceTCP(slave_id=slave_id, ipaddr=HOST, ipport=srv.port, timeout=2)
     dev.scan()

@@ -29,6 +29,7 @@ from controller.sunspec import (
 from controller.sunspec.control import ControlTable, WriteRefused
 from controller.sunspec.models import SunSpecMap
 from controller.sunspec.vendor import WEATHER_MODEL_ID
+from tests.controller.sunspec.conftest import server_starter
 
 HOST = "127.0.0.1"
 STORM = WeatherSnapshot(
@@ -58,17 +59,11 @@ class Plant:
 
 @pytest.fixture
 def serve():
-    servers = []
-
-    def start(plant, **kw):
-        kw.setdefault("writes_enabled", True)
-        srv = SunSpecServer(plant, plant.on_override, host=HOST, port=0, **kw).start()
-        servers.append(srv)
-        return srv
-
+    """SunSpec servers with SCADA's writes on unless a test says otherwise."""
+    start, servers = server_starter(writes_enabled=True)
     yield start
-    for s in servers:
-        s.stop()
+    for srv in servers:
+        srv.stop()
 
 
 @pytest.fixture
