@@ -8,6 +8,7 @@ import contextlib
 import fcntl
 import logging
 import os
+import select
 import struct
 import threading
 import time
@@ -113,9 +114,26 @@ class SharedNetwork:
 
     @property
     def dead(self) -> bool:
-        """python-can's receive thread stopped on an error: nothing will be heard again."""
+        """Nothing will be heard on this bus again: python-can's receive thread stopped on an
+        error, or the serial adapter's port has hung up (unplugged; a pty whose other end
+        closed).  The hang-up is asked of the port itself: the receive thread notices it
+        only at its next read, and a network handed out in between, for a new adapter that
+        came up under the old one's name (a full suite reuses pty names), had failed its
+        first SDO with "device reports readiness to read but returned no data"."""
         notifier = self.network.notifier
-        return notifier is not None and notifier.exception is not None
+        if notifier is not None and notifier.exception is not None:
+            return True
+        port = getattr(self.bus.inner, "serialPortOrig", None)
+        fd = getattr(port, "fd", None)
+        if fd is None:
+            return False
+        poller = select.poll()
+        poller.register(fd, select.POLLIN)
+        try:
+            events = poller.poll(0)
+        except OSError:
+            return True
+        return any(ev & (select.POLLHUP | select.POLLERR | select.POLLNVAL) for _, ev in events)
 
     def release(self) -> None:
         with self._lock:

@@ -508,3 +508,29 @@ def test_an_unplugged_slcan_adapter_is_let_go():
 
         run(scenario())
     assert _held(path) == []
+
+
+def test_an_adapter_that_hung_up_is_dead_before_the_receive_thread_notices():
+    """A full suite met this: a new slcan pty came up under an old one's name while the
+    old network's receive thread had not yet read its hang-up, so that network was handed
+    out again and the first SDO failed ("device reports readiness to read but returned no
+    data").  The port is asked itself."""
+    from hil.canopen.slcan import open_slcan_pty
+
+    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
+        link, adapter = open_slcan_pty(ch)
+        path = link.path
+
+        async def scenario():
+            d = open_drive(CanopenLink(name="usb", interface="slcan", channel=path), 8)
+            await d.connect()
+            shared = SharedNetwork._open[("slcan", path)]
+            assert not shared.dead
+            shared.network.notifier.stop()  # a receive thread that has not read since
+            adapter.stop()
+            adapter.bus.shutdown()
+            link.close()  # the other end gone
+            assert shared.network.notifier.exception is None and shared.dead
+            await d.close()
+
+        run(scenario())
