@@ -480,41 +480,15 @@ def _held(path: str) -> list[str]:
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # python-can's reader
-def test_an_unplugged_slcan_adapter_is_let_go():
+@pytest.mark.parametrize("reader", ["reading", "stopped"])
+def test_an_unplugged_slcan_adapter_is_dead_and_let_go(reader):
     """A walk of docs/deploy.md: with the USB-CAN adapter gone (its emulator killed),
     python-can's slcan shutdown wrote its close command first, which raised, and never
     closed the port: the controller kept the vanished device open, so the adapter plugged
     back came up under another name (/dev/ttyACM1 for /dev/ttyACM0; here another pty) and
-    the row stayed lost until a restart."""
-    from hil.canopen.slcan import open_slcan_pty
-
-    with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
-        link, adapter = open_slcan_pty(ch)
-        path = link.path
-
-        async def scenario():
-            d = open_drive(CanopenLink(name="usb", interface="slcan", channel=path), 8)
-            await d.connect()
-            shared = SharedNetwork._open[("slcan", path)]
-            adapter.stop()
-            adapter.bus.shutdown()
-            link.close()  # unplugged
-            for _ in range(50):
-                if shared.dead:
-                    break
-                await asyncio.sleep(0.05)
-            assert shared.dead
-            await d.close()  # as the loop closes a lost link
-
-        run(scenario())
-    assert _held(path) == []
-
-
-def test_an_adapter_that_hung_up_is_dead_before_the_receive_thread_notices():
-    """A full suite met this: a new slcan pty came up under an old one's name while the
-    old network's receive thread had not yet read its hang-up, so that network was handed
-    out again and the first SDO failed ("device reports readiness to read but returned no
-    data").  The port is asked itself."""
+    the row stayed lost until a restart.  And the network is dead at once, not only once
+    its receive thread has read the hang-up ("stopped": a thread that has not read since),
+    so a new adapter under the old one's name gets a fresh network."""
     from hil.canopen.slcan import open_slcan_pty
 
     with emulated(axes=one_axis(), node_id=8) as (_fw, _emu, ch):
@@ -526,11 +500,19 @@ def test_an_adapter_that_hung_up_is_dead_before_the_receive_thread_notices():
             await d.connect()
             shared = SharedNetwork._open[("slcan", path)]
             assert not shared.dead
-            shared.network.notifier.stop()  # a receive thread that has not read since
+            if reader == "stopped":
+                shared.network.notifier.stop()
             adapter.stop()
             adapter.bus.shutdown()
-            link.close()  # the other end gone
-            assert shared.network.notifier.exception is None and shared.dead
-            await d.close()
+            link.close()  # unplugged
+            if reader == "stopped":
+                assert shared.network.notifier.exception is None and shared.dead
+            for _ in range(50):
+                if shared.dead:
+                    break
+                await asyncio.sleep(0.05)
+            assert shared.dead
+            await d.close()  # as the loop closes a lost link
 
         run(scenario())
+    assert _held(path) == []
