@@ -142,14 +142,19 @@ class SlcanAdapter:
             if c in "tTrR":
                 return self._transmit(c, arg)
             if c == "O" or c == "L":
-                # A client that died without "C" leaves the channel open and frames
-                # unread; the next client's "O" starts it clean (and still gets BEL).
-                self._flush_stale()
-                if self.is_open:
+                if self.is_open:  # a second open: refused (BEL), nothing dropped
                     return ERROR
                 self.is_open, self.listen_only = True, c == "L"
                 return OK
             if c == "C":
+                # Frames the closing client left unread are dropped here, so the next client
+                # starts clean (python-can's client closes first when it sets the bit rate,
+                # one that died open included).  Not on "O": python-can opens twice (after
+                # the bit rate, then again), and a flush at the second "O" could take the
+                # client's first frames between its reader's select and its read ("device
+                # reports readiness to read but returned no data"): its reception stopped
+                # for good, a full suite's flaky CANopen tests.
+                self._flush_stale()
                 self.is_open = False
                 return OK
             if c == "S":

@@ -72,3 +72,41 @@ def test_python_can_slcan_client_reaches_the_virtual_bus(adapter):
         client.shutdown()
         node_side.shutdown()
     assert wait_for(lambda: not ad.is_open)  # the client's shutdown sent "C"
+
+
+def test_a_second_open_drops_none_of_the_clients_frames(adapter):
+    """python-can's client sends "O" after setting the bit rate and again at the end of its
+    start: the adapter flushed the pty on that second "O", and a frame written for the
+    client in between was lost under its reader ("device reports readiness to read but
+    returned no data", its reception stopped for good).  Stale frames go at "C"."""
+    import os
+    import select
+    import time
+
+    ad, link, ch = adapter
+    node_side = can.Bus(interface="virtual", channel=ch)
+    fd = os.open(link.path, os.O_RDWR | os.O_NOCTTY)
+
+    def drain(wait: float = 0.3) -> bytes:
+        time.sleep(wait)  # the adapter answers from its own thread
+        got = b""
+        while select.select([fd], [], [], 0)[0]:
+            got += os.read(fd, 256)
+        return got
+
+    try:
+        os.write(fd, b"O\r")
+        assert drain() == OK
+        node_side.send(can.Message(arbitration_id=0x701, data=b"\x05", is_extended_id=False))
+        assert wait_for(lambda: select.select([fd], [], [], 0)[0], 2.0)  # the frame is there
+        os.write(fd, b"O\r")  # the second open
+        assert drain() == b"t701105\r" + ERROR  # the frame kept, the second open refused
+        node_side.send(can.Message(arbitration_id=0x701, data=b"\x05", is_extended_id=False))
+        assert wait_for(lambda: select.select([fd], [], [], 0)[0], 2.0)
+        os.write(fd, b"C\r")  # the client closes with a frame unread: dropped
+        assert drain() == OK
+        os.write(fd, b"O\r")
+        assert drain() == OK
+    finally:
+        os.close(fd)
+        node_side.shutdown()
