@@ -3,6 +3,7 @@ an exception, and the pixel count is checked from the header before anything is 
 
 from __future__ import annotations
 
+import re
 import struct
 from pathlib import Path
 
@@ -16,11 +17,19 @@ _PNG = b"\x89PNG\r\n\x1a\n"
 _JPEG = b"\xff\xd8"
 # JPEG start-of-frame markers (baseline, progressive, lossless...), not DHT/JPG/DAC
 _SOF = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+# Radiance RGBE: "#?RADIANCE" (or "#?RGBE"), header lines, a blank line, then the
+# resolution line, e.g. "-Y 480 +X 640" (rows first) or "+X 640 -Y 480"
+_RGBE = (b"#?RADIANCE", b"#?RGBE")
+_RGBE_SIZE = re.compile(rb"\n\n([-+][XY]) +(\d{1,12}) +([-+][XY]) +(\d{1,12})\r?\n")
 
 
 def header_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) from a PNG or JPEG header without decoding; None for other formats
-    or when the header cannot be read."""
+    """(width, height) from a PNG, JPEG or Radiance (HDR) header without decoding; None
+    for other formats or when the header cannot be read.
+
+    OpenCV decodes a Radiance buffer through a temporary file, which it leaves behind in
+    the temporary folder when the header's size makes it throw (over 2**30 pixels): such a
+    frame must be refused before :func:`cv2.imdecode` sees it."""
     if data[:8] == _PNG and len(data) >= 24 and data[12:16] == b"IHDR":
         w, h = struct.unpack(">II", data[16:24])
         return int(w), int(h)
@@ -38,6 +47,11 @@ def header_size(data: bytes) -> tuple[int, int] | None:
                 h, w = struct.unpack(">HH", data[i + 5 : i + 9])
                 return int(w), int(h)
             i += 2 + length
+    if data.startswith(_RGBE):
+        m = _RGBE_SIZE.search(data, 0, 64 * 1024)
+        if m is not None and m.group(1)[1:] != m.group(3)[1:]:
+            a, b = int(m.group(2)), int(m.group(4))
+            return (b, a) if m.group(1).endswith(b"Y") else (a, b)
     return None
 
 

@@ -27,6 +27,21 @@ def test_sizes_from_the_header(tmp_path):
     for ext in (".png", ".jpg"):
         ok, buf = cv2.imencode(ext, img)
         assert header_size(buf.tobytes()) == (40, 30)
+    ok, buf = cv2.imencode(".hdr", img.astype(np.float32))
+    assert header_size(buf.tobytes()) == (40, 30)
+    assert header_size(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n+X 7 -Y 5\n") == (7, 5)
+
+
+def test_a_huge_radiance_header_leaves_no_temporary_file(tmp_path, monkeypatch):
+    # OpenCV decodes RGBE buffers through a temporary file and left it behind when the
+    # header's size made it throw: one file in /tmp per such frame, for good
+    temp = tmp_path / "opencv-temp"
+    temp.mkdir()
+    monkeypatch.setenv("OPENCV_TEMP_PATH", str(temp))
+    p = tmp_path / "huge.hdr"
+    p.write_bytes(b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 134716 +X 134716\n" + bytes(16))
+    assert read_image(p) == (None, "image_too_large")
+    assert list(temp.iterdir()) == []
 
 
 def test_a_huge_image_is_refused_before_decoding(tmp_path):
