@@ -1,4 +1,5 @@
-"""What the fuzzers share: bounded hypothesis settings, TOML values and a TOML writer.
+"""What the fuzzers share: bounded hypothesis settings, a scratch folder, TOML values and a
+TOML writer.
 
 Every fuzz test runs a fixed, small number of examples without a per-example deadline (the
 machine may be busy), so the whole set stays well under a minute.
@@ -6,9 +7,13 @@ machine may be busy), so the whole set stays well under a minute.
 
 from __future__ import annotations
 
+import atexit
 import datetime as dt
 import math
 import os
+import shutil
+import tempfile
+from pathlib import Path
 from typing import Any
 
 from hypothesis import HealthCheck, settings
@@ -16,6 +21,14 @@ from hypothesis import strategies as st
 
 #: ``HELIOTRACK_FUZZ_SCALE=20 pytest tests/fuzz`` searches 20 times longer (not in CI).
 SCALE = float(os.environ.get("HELIOTRACK_FUZZ_SCALE", "1"))
+
+
+def scratch_dir(prefix: str) -> Path:
+    """A fresh temporary folder for a fuzzer's files, removed when the test run ends (the
+    ``@given`` tests cannot take pytest's function-scoped ``tmp_path``)."""
+    path = Path(tempfile.mkdtemp(prefix=prefix))
+    atexit.register(shutil.rmtree, path, ignore_errors=True)
+    return path
 
 
 def bounded(n: int) -> settings:

@@ -5,7 +5,6 @@ configuration whose limits and stow angles are consistent; never another excepti
 from __future__ import annotations
 
 import math
-import tempfile
 import tomllib
 from pathlib import Path
 
@@ -20,7 +19,7 @@ from controller.sky.settings import SkyConfig
 from heliotrack.scenario import parse_scenario
 from tests.conftest import REPO
 
-from .strategies import bounded, documents, dumps, mutated
+from .strategies import bounded, documents, dumps, mutated, scratch_dir
 
 CONFIGS = sorted((REPO / "config").glob("hil-*.toml"))
 BASES = [tomllib.loads(p.read_text()) for p in CONFIGS]
@@ -88,7 +87,7 @@ allow = ["127.0.0.1", "10.0.0.0/24"]
 """
 )
 BUNDLE = tomllib.loads((REPO / "config" / "calibration" / "recommended.toml").read_text())
-_DIR = Path(tempfile.mkdtemp(prefix="heliotrack-fuzz-"))
+_DIR = scratch_dir("heliotrack-fuzz-")
 
 
 def _file(data: bytes) -> Path:

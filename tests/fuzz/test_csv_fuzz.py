@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +17,9 @@ from controller.errors import InputError
 from controller.sky.io import MAX_IRRADIANCE, MIN_IRRADIANCE, TIME_RANGE, read_records
 from controller.sunpath.io import read_observations
 
-from .strategies import bounded
+from .strategies import bounded, scratch_dir
 
-_DIR = Path(tempfile.mkdtemp(prefix="heliotrack-fuzz-csv-"))
+_DIR = scratch_dir("heliotrack-fuzz-csv-")
 
 cells = st.one_of(
     st.text(max_size=12),

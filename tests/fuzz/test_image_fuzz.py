@@ -5,9 +5,7 @@ never an image above the pixel limit."""
 from __future__ import annotations
 
 import struct
-import tempfile
 import zlib
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -16,9 +14,9 @@ from hypothesis import strategies as st
 
 from controller.vision.imageio import header_size, load_grey, read_image
 
-from .strategies import bounded
+from .strategies import bounded, scratch_dir
 
-_DIR = Path(tempfile.mkdtemp(prefix="heliotrack-fuzz-img-"))
+_DIR = scratch_dir("heliotrack-fuzz-img-")
 REASONS = {
     "file_not_found",
     "unreadable_file",
