@@ -6,8 +6,10 @@ number of connections, and a SocketCAN channel any number of sockets: a trial ``
 another ``--state``, or a ``check`` beside the service (it writes each drive's
 configuration), would drive the same drives at once, each taking the other's writes for a
 drive that does not keep its configuration.  So every process that drives them holds a
-lock per bus for its life, in a machine-wide folder (``/run/lock``, else the temporary
-folder): ``flock``, which the kernel lets go however the process ends.  A bus is named as
+lock per bus for its life, in a machine-wide folder (``$HELIOTRACK_LOCK_DIR``, else
+``/run/lock``, else the temporary folder): ``flock``, which the kernel lets go however the
+process ends.  Containers on one host share a bus only through a folder they all mount,
+named by ``HELIOTRACK_LOCK_DIR``.  A bus is named as
 the configuration names it (``link.bus``: host and port as written; ``localhost`` and
 ``127.0.0.1`` are two names), so this guards one edge computer against itself, not two
 computers against each other.
@@ -32,6 +34,8 @@ log = logging.getLogger(__name__)
 
 #: Where the locks go: the first of these that is a writable folder.
 LOCK_DIRS = (Path("/run/lock"), Path(tempfile.gettempdir()))
+#: A folder named here holds the locks instead (created if missing).
+LOCK_DIR_ENV = "HELIOTRACK_LOCK_DIR"
 
 
 class Held(Exception):
@@ -74,6 +78,9 @@ def shared_buses(links: Iterable[LinkConfig]) -> dict[tuple[str, ...], str]:
 def lock_path(bus: tuple[str, ...]) -> Path:
     """The lock file of ``bus`` (``heliotrack-tcp-10.0.0.5-502.lock``)."""
     name = "heliotrack-" + "-".join(re.sub(r"[^A-Za-z0-9._]", "_", part) for part in bus) + ".lock"
+    named = os.environ.get(LOCK_DIR_ENV)
+    if named:
+        return Path(named) / name
     folder = next((d for d in LOCK_DIRS if d.is_dir() and os.access(d, os.W_OK)), LOCK_DIRS[-1])
     return folder / name
 
@@ -92,6 +99,7 @@ def claim_buses(links: Iterable[LinkConfig]) -> Iterator[None]:
         for bus, name in shared_buses(links).items():
             path = lock_path(bus)
             try:
+                path.parent.mkdir(parents=True, exist_ok=True)  # a HELIOTRACK_LOCK_DIR not made yet
                 fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
             except OSError as exc:
                 log.warning("%s: not locked (%s): nothing stops a second process here", path, exc.strerror)

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import atexit
+import os
+import shutil
+import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -16,6 +20,12 @@ from hil.pty import PtyLink
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT_CONFIG = REPO / "config" / "hil-default.toml"
+
+# The bus locks of the session's runs and checks (their ports are random) go to a folder
+# of its own, inherited by the processes it starts, not to the machine's /run/lock
+_LOCKS = tempfile.mkdtemp(prefix="heliotrack-test-locks-")
+atexit.register(shutil.rmtree, _LOCKS, ignore_errors=True)
+os.environ["HELIOTRACK_LOCK_DIR"] = _LOCKS
 
 
 @pytest.fixture

@@ -5,6 +5,7 @@ drives at once (an installer's walk).  They are refused in one line naming the f
 
 from __future__ import annotations
 
+import os
 import signal
 import socket
 
@@ -75,3 +76,15 @@ def test_which_buses_are_claimed():
                 pass
     with claim_buses(links):  # let go at the end of the block
         pass
+
+
+def test_a_lock_folder_named_in_the_environment_holds_the_locks(tmp_path, monkeypatch):
+    # containers on one host see each other's locks only in a folder they all mount
+    folder = tmp_path / "shared" / "locks"  # made when first needed
+    monkeypatch.setenv("HELIOTRACK_LOCK_DIR", str(folder))
+    links = [ModbusTcpLink(name="gw", host="10.0.0.5", tcp_port=502)]
+    with claim_buses(links):
+        assert (folder / "heliotrack-tcp-10.0.0.5-502.lock").read_text() == f"{os.getpid()}\n"
+        with pytest.raises(UserError, match=r"link 'gw': 10.0.0.5:502 is driven by another"):
+            with claim_buses(links):
+                pass
