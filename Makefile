@@ -7,8 +7,12 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test lint wheel-test bench install clean
 
+# Debian and Ubuntu ship venv without ensurepip unless python3-venv is installed: then the
+# venv is made without pip and the system's pip installs pip into it.
 $(STAMP): pyproject.toml
-	$(PYTHON) -m venv $(VENV)
+	$(PYTHON) -m venv $(VENV) || { echo "make: no ensurepip; a venv without pip, pip from the system's pip"; \
+	  rm -rf $(VENV) && $(PYTHON) -m venv --without-pip $(VENV) && \
+	  $(PYTHON) -m pip --python $(BIN)/python install --quiet pip; }
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
