@@ -32,14 +32,18 @@ lint: $(STAMP)
 	$(BIN)/mypy
 
 # A plain (not editable) install must run: build the wheel from the tracked files (as from
-# a fresh clone; nothing is written into the tree), install it into a throwaway venv and
+# a fresh clone; without git, e.g. an unpacked archive, from the tree less what the build
+# and the tools write; nothing is written into the tree), install it into a throwaway venv and
 # simulate an hour from outside the repository, so only the wheel's files (the packaged
 # config/ included) are there to use.  The throwaway venv borrows the installed
 # dependencies from $(VENV) through a .pth line (no download); heliotrack itself comes
 # from the wheel alone.
 wheel-test: $(STAMP)
 	@set -e; tmp=$$(mktemp -d); trap 'rm -rf "$$tmp"' EXIT; \
-	mkdir "$$tmp/src"; git ls-files -z | tar --null -T - -cf - | tar -xf - -C "$$tmp/src"; \
+	mkdir "$$tmp/src"; \
+	if git rev-parse --is-inside-work-tree >/dev/null 2>&1; then git ls-files -z | tar --null -T - -cf -; \
+	else tar --exclude=./$(VENV) --exclude=./out --exclude='*.egg-info' --exclude=__pycache__ \
+	  --exclude='.*_cache' --exclude=./build --exclude=./dist -cf - .; fi | tar -xf - -C "$$tmp/src"; \
 	$(BIN)/pip wheel --quiet --no-deps --wheel-dir "$$tmp/dist" "$$tmp/src" 2>"$$tmp/build.log" || { cat "$$tmp/build.log"; exit 1; }; \
 	$(BIN)/python -m venv --without-pip "$$tmp/venv"; \
 	deps=$$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])'); \
