@@ -40,6 +40,7 @@ from hil.drive.firmware import FirmwareReject
 
 from .cia402 import Cia402StateMachine
 from .drive_bus import DriveBus
+from .pdo_rules import check_pdo_write, stored_in
 
 log = logging.getLogger(__name__)
 
@@ -275,6 +276,7 @@ class AxisNode:
         elif index == 0x1016 and subindex == 1:
             self._set_consumer(value)
         elif 0x1400 <= index < 0x1C00:
+            check_pdo_write(self.node.object_dictionary, index, subindex, value, stored_in(self.node))
             self._pdo_dirty = True  # stored after this callback; re-read in service()
         else:
             try:
