@@ -39,7 +39,7 @@ from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .blobs import core_fill
 from .lens import FisheyeLens
 from .radiometry import Radiometry
-from .skybg import sky_by_elevation, sky_dipole
+from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
@@ -89,8 +89,12 @@ class GlareOptions:
     sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
         with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
         :func:`controller.calibration.fisheye_sky_scale.fit_sky_scale`).
+    sky_calibration : ``(k0, k1)`` for the dipole, then for the model by elevation: the
+        correction of the model in use times ``k0 + k1 (1 / sin(el) - 1)`` at the axis's
+        elevation (bundle ``[orientation] sky_calibration``; :func:`.skybg.calibrated_scale`).
     column_smear : a frame-transfer CCD's column smear is read far from the glare and taken
-        off the rim's samples (:mod:`.smear`).
+        off the rim's samples (:mod:`.smear`); on with a camera's sky calibration, which is
+        fitted so (alone it exposes more of the aureole's bias than it removes: docs).
     """
 
     level: float = 0.85
@@ -109,7 +113,8 @@ class GlareOptions:
     sky_unsettled_deg: float = 0.25
     drop_stale_sky: bool = True
     sky_scale: float = 1.0
-    column_smear: bool = True
+    sky_calibration: tuple[float, float, float, float] | None = None
+    column_smear: bool = False
 
 
 @dataclass
@@ -299,7 +304,8 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
-        shift_s = opts.sky_scale * shift * np.ones(n_rays)  # in the sky model's units
+        k_sky = opts.sky_scale * calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
+        shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
         shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
@@ -357,6 +363,7 @@ def fit_glare(
         if it >= 1 and moved < 0.5 * floor and (sky_pass or reads >= opts.sky_reads):
             break
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
+    flags += ["sky_by_elevation"] if by_el is not None else []
     # how far the sky's correction moved the rim's centre: its error is a share of it
     sky_move = 0.0
     if idx.size >= 3:
