@@ -7,8 +7,8 @@ Method (see docs/fisheye.md):
    point of a ray is where it first falls below a level between the peak and the local
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
    removes the background's gradient first (a sky brighter on one side would shift the rim).
-   A column smear (a CCD's frame transfer, :mod:`.smear`) is taken off the samples
-   (``smear``); a saturated streak (bloom, :mod:`.streak`) costs the rays that
+   A column smear (a CCD's frame transfer, :mod:`.smear`) is taken off the samples with
+   a camera's sky calibration (``smear``); a saturated streak (bloom, :mod:`.streak`) costs the rays that
    run into it, whose rims it hides: the near-vertical rays when it leaves both ways,
    those within 40 deg of its way when it leaves one way (their sky's rings too, and the
    sky's dipole is fitted on the rest of the circle).

@@ -16,6 +16,9 @@ The estimate is kept only when it is a smear: the rows above and the rows below 
 both see it, at the same level within noise, and it stands clear of their noise.  Anything
 else (no smear, a cloud in some rows, a ground's texture) is no smear, and nothing is
 taken off.  A saturated pixel is left as it is: its light, smear included, is unknown.
+The removal is on with a camera's sky calibration (``GlareOptions.column_smear``, bundle
+``[orientation] sky_calibration``): alone, on the third renderer, it exposed the aureole's
+bias that the smear had partly offset (docs/fisheye-rounds.md, a twenty-first round).
 """
 
 from __future__ import annotations
