@@ -126,6 +126,18 @@ def run_look(name: str, frames_of: Callable, truth_bundle, site: tuple, days: li
                 "residual_deg_rotation_then_with_scale": None
                 if sky is None
                 else [round(sky.residual_unscaled_deg, 4), round(sky.residual_deg, 4)],
+                "sky_calibration": None
+                if scaled.bundle.orientation is None
+                else scaled.bundle.orientation.sky_calibration,
+                "sky_calibration_fitted": None
+                if scaled.calibration is None
+                else [round(k, 4) for k in scaled.calibration.coefficients],
+                "residual_deg_compared_then_calibrated": None
+                if scaled.calibration is None
+                else [
+                    round(scaled.calibration.residual_compared_deg, 4),
+                    round(scaled.calibration.residual_deg, 4),
+                ],
             }
         )
     return {

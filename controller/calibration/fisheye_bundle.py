@@ -19,6 +19,8 @@ enu_from_camera = [[..], [..], [..]]   # 3 x 3; columns = camera x, y, z (OpenCV
 residual_deg = 0.02         # optional: RMS residual of the fit that produced it
 method = "sun"              # optional: how it was obtained
 sky_scale = 1.0             # optional: the sky model's correction of the rim times this
+sky_calibration = [k0, k1, k0, k1]   # optional: per sky model (dipole, by elevation), the
+                            # correction times k0 + k1 (1 / sin(el) - 1), the column smear off
 
 [radiometry]                # optional: grey level <-> light (docs/fisheye.md, "Radiometry")
 response = "srgb"           # "linear" (default), "srgb", "gamma" (with gamma = ..) or "table"
@@ -76,6 +78,13 @@ class OrientationCal:
         "from a day of sun detections; 1: the model as it is).",
         ge=0.25,
         le=4.0,
+    )
+    sky_calibration: tuple[float, float, float, float] | None = setting(
+        None,
+        doc="Per camera, in place of sky_scale: (k0, k1) of the sky's dipole, then (k0, k1) of its "
+        "model by elevation; the model's correction of the rim times k0 + k1 (1 / sin(el) - 1), "
+        "with a frame-transfer column smear taken off the frames (fitted with the rotation from a "
+        "day of sun detections; absent: sky_scale alone, as before).",
     )
 
     def __schema_check__(self, at: Where) -> OrientationCal:
@@ -302,6 +311,8 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             out.append(f"frames = {int(o.frames)}")
         if o.sky_scale != 1.0:
             out.append(f"sky_scale = {_fmt(o.sky_scale)}")
+        if o.sky_calibration is not None:
+            out.append(f"sky_calibration = {_fmt(list(o.sky_calibration))}")
     r = b.radiometry
     if r is not None:
         out += ["", "[radiometry]", f"response = {_fmt(r.response)}"]

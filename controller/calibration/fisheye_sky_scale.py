@@ -122,3 +122,117 @@ def fit_sky_scale(
         used=int(keep.sum()),
         rejected=int((~keep).sum()),
     )
+
+
+#: the air mass term is held at this elevation's below it (as in the pipeline)
+MIN_CAL_EL_DEG = 5.0
+#: a sky model seen on fewer frames than this keeps its one scale, without the air mass term
+MIN_PER_MODEL = 6
+
+
+@dataclass(frozen=True)
+class SkyCalibrationFit:
+    """Result of :func:`fit_sky_calibration` (angles in degrees)."""
+
+    coefficients: tuple[float, float, float, float]  # (k0, k1) of the dipole, then by elevation
+    adopted: bool  # it cut the residual it is compared with by MIN_GAIN
+    residual_deg: float  # RMS angle over the inliers, rotation and calibration fitted together
+    residual_compared_deg: float  # what it had to beat (the bundle's fit without it)
+    enu_from_camera: np.ndarray
+    used: int
+
+
+def _air_mass_less_one(s: np.ndarray) -> np.ndarray:
+    el = np.maximum(np.arcsin(np.clip(s[:, 2], -1.0, 1.0)), np.radians(MIN_CAL_EL_DEG))
+    return 1.0 / np.sin(el) - 1.0
+
+
+def fit_sky_calibration(
+    times: Sequence[float],
+    d_unscaled: np.ndarray,
+    d_scaled: np.ndarray,
+    step: float,
+    by_elevation: Sequence[bool],
+    site: Site,
+    compared_deg: float,
+    *,
+    scale: float = 1.0,
+    min_used: int = 12,
+    iters: int = 60,
+) -> SkyCalibrationFit:
+    """A scale for each of the two sky models (the dipole, the model by elevation), each
+    linear in the air mass less one, ``k0 + k1 (1 / sin(el) - 1)``, fitted with the rotation.
+
+    As :func:`fit_sky_scale`, with frame ``i``'s scale ``k_i = A_i . p`` (``A_i``: the
+    columns of its model, 1 and the air mass less one of pvlib's sun, held under 5 deg):
+    ``d_i(p) = d_i(1) + (k_i - 1) m_i``; Kabsch's rotation for a given ``p``, a linear least
+    squares in ``p`` for a given rotation, alternated.  A model seen on fewer than
+    ``MIN_PER_MODEL`` frames keeps ``scale`` (the one sky scale adopted), one seen over less
+    than 0.3 of air mass has no air mass term.  It is
+    adopted when its residual is at most ``1 - MIN_GAIN`` of ``compared_deg`` (the residual
+    of the bundle's fit without it) and every frame's scale lies within ``SCALE_BOUNDS``.
+
+    Parameters
+    ----------
+    d_unscaled, d_scaled, step : as for :func:`fit_sky_scale` (the frames measured with
+        their column smear taken off).
+    by_elevation : per frame, the sky was modelled by elevation (its flag
+        ``sky_by_elevation``), not by the dipole.
+    """
+    d1 = _unit(np.asarray(d_unscaled, float).reshape(-1, 3))
+    d2 = _unit(np.asarray(d_scaled, float).reshape(-1, 3))
+    e = np.asarray(by_elevation, bool)
+    if not (len(d1) == len(d2) == len(times) == len(e)):
+        raise InputError("sky calibration: the detections, flags and times differ in length")
+    if len(d1) < min_used:
+        raise InputError(f"sky calibration: {len(d1)} sun detections, need >= {min_used}")
+    m = (d2 - d1) / float(step)
+    s = sun_vectors(site, times)
+    x = _air_mass_less_one(s)
+    cols = []
+    for model in (~e, e):
+        free = model.sum() >= MIN_PER_MODEL
+        cols += [(model.astype(float), free), (model * x, free and float(np.ptp(x[model])) >= 0.3)]
+    A = np.stack([c for c, _ in cols], 1)
+    use = np.array([f for _, f in cols])
+    p0 = np.array([scale, 0.0, scale, 0.0])  # what a term without its frames keeps
+
+    def solve(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = p0.copy()
+        R = kabsch(d1[keep], s[keep])
+        fixed = (A[keep][:, ~use] @ p0[~use])[:, None]
+        for _ in range(iters):
+            Rm, Rd = m[keep] @ R.T, d1[keep] @ R.T
+            M = (A[keep][:, None, use] * Rm[:, :, None]).reshape(-1, int(use.sum()))
+            q = np.linalg.lstsq(M, (s[keep] - Rd + Rm - fixed * Rm).reshape(-1), rcond=None)[0]
+            p_new = p0.copy()
+            p_new[use] = q
+            R = kabsch(_unit(d1[keep] + (A[keep] @ p_new - 1.0)[:, None] * m[keep]), s[keep])
+            done = float(np.abs(p_new - p).max()) < 1e-5
+            p = p_new
+            if done:
+                break
+        return R, p
+
+    keep = np.ones(len(d1), bool)
+    R, p = solve(keep)
+    for _ in range(5):
+        err = _angles(R, _unit(d1 + (A @ p - 1.0)[:, None] * m), s)
+        med = float(np.median(err[keep]))
+        mad = 1.4826 * float(np.median(np.abs(err[keep] - med)))
+        new = err <= med + max(3.0 * mad, 0.05)
+        if new.sum() < min_used or np.array_equal(new, keep):
+            break
+        keep = new
+        R, p = solve(keep)
+    k = A @ p
+    res = float(np.sqrt(np.mean(_angles(R, _unit(d1 + (k - 1.0)[:, None] * m), s)[keep] ** 2)))
+    bounded = bool(np.all((k[keep] >= SCALE_BOUNDS[0]) & (k[keep] <= SCALE_BOUNDS[1])))
+    return SkyCalibrationFit(
+        coefficients=(float(p[0]), float(p[1]), float(p[2]), float(p[3])),
+        adopted=bounded and res <= (1.0 - MIN_GAIN) * compared_deg,
+        residual_deg=res,
+        residual_compared_deg=float(compared_deg),
+        enu_from_camera=R,
+        used=int(keep.sum()),
+    )

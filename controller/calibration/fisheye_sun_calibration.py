@@ -7,8 +7,12 @@ sky-correction scale with it (``heliotrack calibrate fisheye orientation``).
    in use), the frames are measured again with the sky's correction as it is and scaled by
    ``1 + SCALE_STEP``; :func:`.fisheye_sky_scale.fit_sky_scale` fits the scale and the
    rotation together.
-3. When the scale earns its place, the frames are measured a last time at that scale and
-   the rotation fitted (and refined) on those detections.
+3. The frames are measured twice more, their column smear taken off (a frame-transfer
+   CCD's; :mod:`controller.vision.fisheye.smear`), and a scale for each sky model, linear
+   in the air mass, is fitted with the rotation
+   (:func:`.fisheye_sky_scale.fit_sky_calibration`), scored against what step 2 adopted.
+4. When the scale or the calibration earns its place, the frames are measured a last time
+   with it and the rotation fitted (and refined) on those detections.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import numpy as np
 from ..sun.source import Site
 from .fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 from .fisheye_orientation import OrientationFit, fit_orientation
-from .fisheye_sky_scale import SkyScaleFit, fit_sky_scale
+from .fisheye_sky_scale import SkyCalibrationFit, SkyScaleFit, fit_sky_calibration, fit_sky_scale
 
 #: the step between the two scales the frames are measured at
 SCALE_STEP = 0.25
@@ -38,21 +42,30 @@ class SunCalibration:
     sky: SkyScaleFit | None  # None when not fitted (``fit_scale=False``, too few detections)
     detections: int  # frames found in the first pass
     not_found: int
+    calibration: SkyCalibrationFit | None = None  # the sky models' scales (None: not fitted)
 
 
-def _detect(bundle: FisheyeBundle, frames: Sequence[tuple[float, Any]], sky_scale: float = 1.0) -> list:
-    """(t, d_cam, centre_uv) per frame, None where not found; ``frames``: (POSIX s, a BGR
-    image or a path)."""
+def _detect(
+    bundle: FisheyeBundle, frames: Sequence[tuple[float, Any]], sky_scale: float = 1.0, smear: bool = False
+) -> list:
+    """(t, d_cam, centre_uv, sky modelled by elevation) per frame, None where not found;
+    ``frames``: (POSIX s, a BGR image or a path); ``smear``: the column smear taken off."""
     from ..vision.fisheye import FisheyeEstimator, FisheyeOptions
 
     opts = FisheyeOptions()
-    est = FisheyeEstimator(bundle, replace(opts, glare=replace(opts.glare, sky_scale=sky_scale)))
+    glare = replace(opts.glare, sky_scale=sky_scale, column_smear=smear or opts.glare.column_smear)
+    est = FisheyeEstimator(bundle, replace(opts, glare=glare))
     out: list = []
     for t, frame in frames:
         r = est.estimate_file(frame, t) if isinstance(frame, (str, Path)) else est.estimate_image(frame, t)
         ok = r.found and r.d_cam is not None and r.centre_uv is not None
-        out.append((t, np.asarray(r.d_cam, float), np.asarray(r.centre_uv, float)) if ok else None)
+        by_el = "sky_by_elevation" in r.quality
+        out.append((t, np.asarray(r.d_cam, float), np.asarray(r.centre_uv, float), by_el) if ok else None)
     return out
+
+
+def _pairs(a: list, b: list) -> list:
+    return [(x, y) for x, y in zip(a, b) if x is not None and y is not None]
 
 
 def _fit(found: list, site: Site, bundle: FisheyeBundle, **kw) -> OrientationFit:
@@ -66,8 +79,17 @@ def _fit(found: list, site: Site, bundle: FisheyeBundle, **kw) -> OrientationFit
     )
 
 
+def _rounded(k: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    return (round(k[0], 4), round(k[1], 4), round(k[2], 4), round(k[3], 4))
+
+
 def _with_fit(
-    bundle: FisheyeBundle, fit: OrientationFit, site: SiteCal, method: str, scale: float
+    bundle: FisheyeBundle,
+    fit: OrientationFit,
+    site: SiteCal,
+    method: str,
+    scale: float,
+    calibration: tuple[float, float, float, float] | None = None,
 ) -> FisheyeBundle:
     new = replace(
         bundle,
@@ -77,6 +99,7 @@ def _with_fit(
             method=method,
             frames=fit.used,
             sky_scale=round(scale, 4),
+            sky_calibration=None if calibration is None else _rounded(calibration),
         ),
         site=site,
     )
@@ -105,11 +128,10 @@ def calibrate_from_sun(
     fit = _fit(found, sun_site, bundle, **kw)
     lens = "+lens" if fit.camera else ""
     out = _with_fit(bundle, fit, site, method + lens, 1.0)
-    sky = None
+    sky: SkyScaleFit | None = None
+    cal: SkyCalibrationFit | None = None
     if fit_scale:
-        plain = _detect(out, frames)
-        scaled = _detect(out, frames, 1.0 + SCALE_STEP)
-        pairs = [(a, b) for a, b in zip(plain, scaled) if a is not None and b is not None]
+        pairs = _pairs(_detect(out, frames), _detect(out, frames, 1.0 + SCALE_STEP))
         if len(pairs) >= 12:
             sky = fit_sky_scale(
                 [a[0] for a, _ in pairs],
@@ -118,11 +140,31 @@ def calibrate_from_sun(
                 SCALE_STEP,
                 sun_site,
             )
-        if sky is not None and sky.scale != 1.0:
+            beat = sky.residual_deg if sky.scale != 1.0 else sky.residual_unscaled_deg
+            pairs = _pairs(_detect(out, frames, smear=True), _detect(out, frames, 1.0 + SCALE_STEP, True))
+            if len(pairs) >= 12:
+                cal = fit_sky_calibration(
+                    [a[0] for a, _ in pairs],
+                    np.array([a[1] for a, _ in pairs]),
+                    np.array([b[1] for _, b in pairs]),
+                    SCALE_STEP,
+                    [a[3] for a, _ in pairs],
+                    sun_site,
+                    beat,
+                    scale=sky.scale,
+                )
+        if cal is not None and cal.adopted:
+            ori = OrientationCal(
+                enu_from_camera=as_mat3(cal.enu_from_camera), sky_calibration=cal.coefficients
+            )
+            last = [f for f in _detect(replace(out, orientation=ori), frames) if f is not None]
+            fit = _fit(last, sun_site, bundle, **kw)  # the lens's priors: the boards' values
+            out = _with_fit(out, fit, site, method + lens + "+sky_calibration", 1.0, cal.coefficients)
+        elif sky is not None and sky.scale != 1.0:
             # the fitted rotation replaces the first one's: the last pass is gated by it
             ori = OrientationCal(enu_from_camera=as_mat3(sky.enu_from_camera))
             at = replace(out, orientation=ori)
             last = [f for f in _detect(at, frames, sky.scale) if f is not None]
             fit = _fit(last, sun_site, bundle, **kw)  # the lens's priors: the boards' values
             out = _with_fit(out, fit, site, method + lens + "+sky_scale", sky.scale)
-    return SunCalibration(out, fit, sky, len(found), len(first) - len(found))
+    return SunCalibration(out, fit, sky, len(found), len(first) - len(found), cal)

@@ -8,7 +8,9 @@ bundle from images.
   checkerboard values by priors; ``--refine rotation`` keeps the lens) -> ``[orientation]``,
   ``[site]`` and the refined ``[camera]``.  The frames are then measured again with that
   rotation, and the scale of the sky's correction of the glare's rim is fitted with it
-  (``[orientation] sky_scale``; ``--sky-scale none`` leaves it at 1).
+  (``[orientation] sky_scale``; ``--sky-scale none`` leaves it at 1), or, when it cuts the
+  residual further, a scale for each sky model linear in the air mass, fitted on the frames
+  with their column smear taken off (``[orientation] sky_calibration``).
   ``--horizon IMAGE`` adds the horizon's zenith as a constraint and reports the agreement.
   A fit that cannot be the camera's is refused before anything is written: no rotation
   within 0.5 deg of the sun's path (mirrored frames), a camera tilted more than
@@ -255,6 +257,11 @@ def _orientation(args) -> int:
             round(cal.sky.residual_unscaled_deg, 4),
             round(cal.sky.residual_deg, 4),
         ]
+    if cal.calibration is not None:
+        c = cal.calibration
+        out["sky_calibration"] = [round(k, 4) for k in c.coefficients] if c.adopted else None
+        out["sky_calibration_fitted"] = [round(k, 4) for k in c.coefficients]
+        out["sky_calibration_residual_deg"] = [round(c.residual_compared_deg, 4), round(c.residual_deg, 4)]
     print(json.dumps(out))
     return 0
 

@@ -119,3 +119,17 @@ def _dt_centres(dt: np.ndarray, x0: int, y0: int, k: int = 3) -> list[tuple[floa
         if len(chosen) >= k:
             break
     return chosen
+
+
+def core_fill(grey: np.ndarray, c: tuple[float, float], r: float, level: float) -> float:
+    """Fraction of the pixels within 0.7 r of the centre that are at or above ``level``."""
+    rr = max(0.7 * r, 1.0)
+    x0, x1 = max(int(c[0] - rr), 0), min(int(c[0] + rr) + 2, grey.shape[1])
+    y0, y1 = max(int(c[1] - rr), 0), min(int(c[1] + rr) + 2, grey.shape[0])
+    if x1 <= x0 or y1 <= y0:
+        return 0.0
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    inside = (xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= rr * rr
+    if not inside.any():
+        return 0.0
+    return float(np.mean(grey[y0:y1, x0:x1][inside] >= level))

@@ -36,13 +36,14 @@ from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, with_sky_scale
 from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
-from .glare import GlareFit, GlareOptions, fit_glare
+from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
 from .lens import FisheyeLens
 from .pipeline import FramePipeline
 from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
 from .selfsite import LearnedEphemeris, SiteFit, SiteFromSun
+from .smear import column_smear, fit_smeared
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
 REASON_ORDER = (
@@ -205,6 +206,7 @@ class FisheyeEstimator(FramePipeline):
         )
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
+        self._smear = column_smear(grey, blobs, float(peak)) if o.glare.column_smear else None
         cands: list[Candidate] = []
         low = 0
         for blob in blobs:
@@ -248,15 +250,8 @@ class FisheyeEstimator(FramePipeline):
             near = min(
                 max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
             )
-            return not_found(
-                None,
-                "gate_rejected",
-                t,
-                self.frame,
-                self.algorithm,
-                gates=[g.name for g in gates],
-                beyond_gate_deg=round(near, 3),
-            )
+            beyond: dict[str, object] = {"gates": [g.name for g in gates], "beyond_gate_deg": round(near, 3)}
+            return not_found(None, "gate_rejected", t, self.frame, self.algorithm, **beyond)
         passing.sort(key=lambda c: -c.fit.radius_deg)
         flags = ["several_candidates"] if len(sun_like) > 1 else []
         best = passing[0]
@@ -298,7 +293,7 @@ class FisheyeEstimator(FramePipeline):
         self, grey: np.ndarray, x: float, y: float, r: float, peak: float, opts: GlareOptions
     ) -> Candidate | None:
         """The glare around (``x``, ``y``) fitted and judged, or None when no rim was found."""
-        fit = fit_glare(grey, self.lens, x, y, r, peak, opts, up_cam=self.up_cam, radiometry=self.radiometry)
+        fit = fit_smeared(grey, self.lens, (x, y, r), peak, opts, self._smear, self.up_cam, self.radiometry)
         return None if fit is None else self._judge(fit)
 
     def _judge(self, fit: GlareFit) -> Candidate:

@@ -72,8 +72,14 @@ def load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | Non
 
 def with_sky_scale(options: FisheyeOptions, orientation: OrientationCal | None) -> FisheyeOptions:
     """``options`` (a :class:`.default.FisheyeOptions`) with the bundle orientation's
-    ``sky_scale`` applied to its glare options (multiplying theirs)."""
-    if orientation is None or orientation.sky_scale == 1.0:
+    ``sky_scale`` applied to its glare options (multiplying theirs) and its
+    ``sky_calibration``, which was fitted on frames with their column smear taken off, with
+    that removal (:mod:`.smear`)."""
+    if orientation is None:
         return options
-    glare = replace(options.glare, sky_scale=options.glare.sky_scale * orientation.sky_scale)
-    return replace(options, glare=glare)
+    glare = options.glare
+    if orientation.sky_scale != 1.0:
+        glare = replace(glare, sky_scale=glare.sky_scale * orientation.sky_scale)
+    if orientation.sky_calibration is not None:
+        glare = replace(glare, sky_calibration=orientation.sky_calibration, column_smear=True)
+    return options if glare is options.glare else replace(options, glare=glare)

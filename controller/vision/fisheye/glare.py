@@ -7,9 +7,8 @@ Method (see docs/fisheye.md):
    point of a ray is where it first falls below a level between the peak and the local
    sky (linear interpolation between samples).  A plane fitted to the sky around the glare
    removes the background's gradient first (a sky brighter on one side would shift the rim).
-   An unsaturated column smear (a CCD's frame-transfer streak) adds the same level above
-   and below the glare and is left in, though it can move the centre ~0.07 deg (docs:
-   a seventeenth round); a saturated streak (bloom, :mod:`.streak`) costs the rays that
+   A column smear (a CCD's frame transfer, :mod:`.smear`) is taken off the samples with
+   a camera's sky calibration (``smear``); a saturated streak (bloom, :mod:`.streak`) costs the rays that
    run into it, whose rims it hides: the near-vertical rays when it leaves both ways,
    those within 40 deg of its way when it leaves one way (their sky's rings too, and the
    sky's dipole is fitted on the rest of the circle).
@@ -37,10 +36,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
+from .blobs import core_fill
 from .lens import FisheyeLens
 from .radiometry import Radiometry
-from .skybg import sky_by_elevation, sky_dipole
-from .sphere import fit_cone, sample_sphere, tangent_basis
+from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
+from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
 
@@ -89,6 +89,12 @@ class GlareOptions:
     sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
         with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
         :func:`controller.calibration.fisheye_sky_scale.fit_sky_scale`).
+    sky_calibration : ``(k0, k1)`` for the dipole, then for the model by elevation: the
+        correction of the model in use times ``k0 + k1 (1 / sin(el) - 1)`` at the axis's
+        elevation (bundle ``[orientation] sky_calibration``; :func:`.skybg.calibrated_scale`).
+    column_smear : a frame-transfer CCD's column smear is read far from the glare and taken
+        off the rim's samples (:mod:`.smear`); on with a camera's sky calibration, which is
+        fitted so (alone it exposes more of the aureole's bias than it removes: docs).
     """
 
     level: float = 0.85
@@ -107,6 +113,8 @@ class GlareOptions:
     sky_unsettled_deg: float = 0.25
     drop_stale_sky: bool = True
     sky_scale: float = 1.0
+    sky_calibration: tuple[float, float, float, float] | None = None
+    column_smear: bool = False
 
 
 @dataclass
@@ -181,21 +189,23 @@ def fit_glare(
     *,
     up_cam: np.ndarray | None = None,
     radiometry: Radiometry | None = None,
+    smear: np.ndarray | None = None,
 ) -> GlareFit | None:
     """Measure the glare around (x0, y0) (px; a point inside it, ``r_px`` its rough radius).
 
     Rays are cast on the sphere around the current axis (equal angular steps, projected
     through the lens), starting from the ray through (x0, y0); the sky's asymmetry near the
-    rim is removed and the cone refitted, until the axis stops moving (``opts.max_passes``).  ``up_cam``: the zenith in the camera frame
-    when the orientation is known (samples below 1 deg elevation are not sky); otherwise
-    samples beyond 88 deg off the optical axis are not trusted.  ``radiometry``: the camera's
-    response and vignetting; with it the sky is modelled in light, undone of the vignetting,
-    and each ray's rim level turned back into grey (:mod:`.radiometry`).
+    rim is removed and the cone refitted, until the axis stops moving (``opts.max_passes``).
+    ``up_cam``: the zenith in the camera frame when the orientation is known (samples below
+    1 deg elevation are not sky); otherwise samples beyond 88 deg off the optical axis are
+    not trusted.  ``radiometry``: the camera's response and vignetting; with it the sky is
+    modelled in light, undone of the vignetting, and each ray's rim level turned back into
+    grey (:mod:`.radiometry`).  ``smear``: a column smear per column (:mod:`.smear`), taken
+    off the samples (unknown where it exceeds the rim's depth under the clip).
     """
     H, W = grey.shape
     xc, yc, r = float(x0), float(y0), max(float(r_px), 1.5)
-    # a saturated streak (bloom) costs the rays that run into it; an unsaturated column
-    # smear is left in (symmetric about the glare's row, but see the module's step 2).  The
+    # a saturated streak (bloom) costs the rays that run into it (the module's step 2).  The
     # candidate's disk is rough (a noisy plateau's inscribed disk is small and off centre):
     # a streak that leaves one way only is judged around the first pass's rim instead
     streak = streak_way(streak_sides(grey, xc, yc, r, peak - 3))
@@ -247,7 +257,8 @@ def fit_glare(
         if sky_pass:
             ring_chi = np.arange(1.15 * rho, 3.2 * rho + 4 * step, 3 * step)
             grids.append((phi[ring_sel], ring_chi))
-        samples = sample_sphere(grey, lens, a, e1, e2, up_cam, grids)
+        sm = None if smear is None else (smear, peak - CLIP_MARGIN, (1.0 - opts.level) * (peak - bg))
+        samples = sample_sphere(grey, lens, a, e1, e2, up_cam, grids, sm)
         vals = np.where(samples[0][1], samples[0][0], np.nan)  # no rim below the horizon
         if sky_pass:
             rvals, rsky = samples[1]
@@ -262,7 +273,7 @@ def fit_glare(
                 if np.isfinite(prof).all():
                     exc = blended_excess(lens, a, e1, e2, phi[ring_sel], ring_chi, alpha, math.radians(dpp))
                     rvals = rvals - np.gradient(prof, ring_chi)[None, :] * exc
-            outer = rvals[:, -3:][rsky[:, -3:]]
+            outer = rvals[:, -3:][rsky[:, -3:] & np.isfinite(rvals[:, -3:])]
             if outer.size < 8:
                 return None
             bg = float(np.median(outer))  # in the sky model's units (grey, or light)
@@ -293,7 +304,8 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
-        shift_s = opts.sky_scale * shift * np.ones(n_rays)  # in the sky model's units
+        k_sky = opts.sky_scale * calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
+        shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
         shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
@@ -351,6 +363,7 @@ def fit_glare(
         if it >= 1 and moved < 0.5 * floor and (sky_pass or reads >= opts.sky_reads):
             break
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
+    flags += ["sky_by_elevation"] if by_el is not None else []
     # how far the sky's correction moved the rim's centre: its error is a share of it
     sky_move = 0.0
     if idx.size >= 3:
@@ -390,7 +403,7 @@ def fit_glare(
         radius_px=r_fit,
         peak=peak,
         background=bg,
-        core_fill=_core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
+        core_fill=core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
         deg_per_px=dpp,
         smear=None if streak is None else "bloom",
         one_way_streak=bool(streak),
@@ -484,17 +497,3 @@ def _largest_gap(idx: np.ndarray, usable: np.ndarray) -> tuple[float, np.ndarray
     gaps = np.diff(np.concatenate([s, [s[0] + m]]))
     k = int(np.argmax(gaps))
     return float((gaps[k] - 1) * 360.0 / m), rays[(s[k] + 1 + np.arange(gaps[k] - 1)) % m]
-
-
-def _core_fill(grey: np.ndarray, c: tuple[float, float], r: float, level: float) -> float:
-    """Fraction of the pixels within 0.7 r of the centre that are at or above ``level``."""
-    rr = max(0.7 * r, 1.0)
-    x0, x1 = max(int(c[0] - rr), 0), min(int(c[0] + rr) + 2, grey.shape[1])
-    y0, y1 = max(int(c[1] - rr), 0), min(int(c[1] + rr) + 2, grey.shape[0])
-    if x1 <= x0 or y1 <= y0:
-        return 0.0
-    yy, xx = np.mgrid[y0:y1, x0:x1]
-    inside = (xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= rr * rr
-    if not inside.any():
-        return 0.0
-    return float(np.mean(grey[y0:y1, x0:x1][inside] >= level))

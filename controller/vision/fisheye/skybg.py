@@ -7,6 +7,7 @@ the rim's level is raised, ray by ray, by the sky's asymmetric part, estimated h
 
 from __future__ import annotations
 
+import math
 import warnings
 from functools import lru_cache
 
@@ -192,3 +193,27 @@ def sky_by_elevation(
     worst = float(np.abs(np.polyval([c[2], c[1], c[0], 0.0], np.linspace(-1, 1, 9))).max())
     cap = 0.25 * contrast
     return c * (cap / worst) if worst > cap else c
+
+
+#: the air mass term of :func:`calibrated_scale` is held at this elevation's below it
+MIN_CAL_EL = math.radians(5.0)
+
+
+def calibrated_scale(
+    cal: tuple[float, float, float, float] | None,
+    by_elevation: bool,
+    a: np.ndarray,
+    up_cam: np.ndarray | None,
+) -> float:
+    """A camera's sky calibration ``(k0, k1)`` of the dipole, then of the model by elevation
+    (:func:`controller.calibration.fisheye_sky_scale.fit_sky_calibration`), for the model in
+    use, at the elevation of the axis ``a``: ``k0 + k1 (1 / sin(el) - 1)``, the air mass less
+    one (held under 5 deg), kept within 0.25-4 (a sky scale's bounds).  1 without a
+    calibration; ``k0`` without the vertical."""
+    if cal is None:
+        return 1.0
+    k0, k1 = (cal[2], cal[3]) if by_elevation else (cal[0], cal[1])
+    x = 0.0
+    if up_cam is not None:
+        x = 1.0 / math.sin(max(math.asin(float(np.clip(a @ up_cam, -1.0, 1.0))), MIN_CAL_EL)) - 1.0
+    return float(np.clip(k0 + k1 * x, 0.25, 4.0))

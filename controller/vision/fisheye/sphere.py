@@ -128,6 +128,10 @@ def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
+#: grey levels under the frame's peak that count as saturated (``FisheyeOptions.sat_margin``)
+CLIP_MARGIN = 4.0
+
+
 def sample_sphere(
     grey: np.ndarray,
     lens: FisheyeLens,
@@ -136,12 +140,17 @@ def sample_sphere(
     e2: np.ndarray,
     up_cam: np.ndarray | None,
     grids: list[tuple[np.ndarray, np.ndarray]],
+    smear: tuple[np.ndarray, float, float] | None = None,
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """Bilinear samples of ``grey`` at directions ``cos(chi) a + sin(chi) (cos(phi) e1 +
     sin(phi) e2)`` for each (phi, chi) grid, with one projection through the lens.
 
     Returns per grid (values (n_phi, n_chi) with NaN behind the lens, ``sky`` mask: the
-    sample looks at the sky, inside the frame).
+    sample looks at the sky, inside the frame).  ``smear``: ``(level, clip, hidden)``, a
+    level per column (W,) (the column smear of :func:`.smear.column_smear`) taken off every
+    pixel under ``clip``; a pixel at or over it (near saturation) is left as it is (its light, smear included,
+    is unknown), or, in a column whose smear exceeds ``hidden``, unknown (NaN): the
+    clip there may hide where the glare's own light crosses the rim's level.
     """
     H, W = grey.shape
     blocks = []
@@ -165,6 +174,9 @@ def sample_sphere(
     x1 = int(np.clip(np.ceil(uv[:, 0].max()) + m + 1, x0 + 1, W))
     y1 = int(np.clip(np.ceil(uv[:, 1].max()) + m + 1, y0 + 1, H))
     win = grey[y0:y1, x0:x1].astype(np.float32)
+    if smear is not None:
+        lev = smear[0][None, x0:x1]
+        win = np.where(win < smear[1], win - lev, np.where(lev > smear[2], np.nan, win))
     mx = (uv[:, 0] - x0).astype(np.float32).reshape(1, -1)
     my = (uv[:, 1] - y0).astype(np.float32).reshape(1, -1)
     vals = np.empty(dirs.shape[0], np.float32)

@@ -56,6 +56,14 @@ def test_bundle_round_trip(tmp_path):
     scaled = {**DOC, "orientation": {**DOC["orientation"], "sky_scale": 1.85}}
     again = load_fisheye_bundle(save_fisheye_bundle(fisheye_bundle_from_dict(scaled), tmp_path / "s.toml"))
     assert again.orientation.sky_scale == 1.85
+    assert again.orientation.sky_calibration is None  # a bundle with the scale alone: as before
+    assert "sky_calibration" not in p.read_text()
+    four = {**DOC, "orientation": {**DOC["orientation"], "sky_calibration": [1.9, -0.15, 2.6, -0.2]}}
+    p4 = save_fisheye_bundle(fisheye_bundle_from_dict(four), tmp_path / "c.toml")
+    assert "sky_calibration = [1.9, -0.15, 2.6, -0.2]" in p4.read_text()
+    again = load_fisheye_bundle(p4)
+    assert again.orientation.sky_calibration == (1.9, -0.15, 2.6, -0.2)
+    assert again.orientation.sky_scale == 1.0
 
 
 @pytest.mark.parametrize(
@@ -80,6 +88,15 @@ def test_bundle_round_trip(tmp_path):
         (
             {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "sky_scale": 5.0}},
             "orientation.sky_scale",
+        ),
+        (
+            {
+                "orientation": {
+                    "enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                    "sky_calibration": [2, 0],
+                }
+            },
+            "orientation.sky_calibration",
         ),
         ({"radiometry": {"response": "cubic"}}, "radiometry.response"),
         ({"radiometry": {"response": "gamma"}}, "radiometry.gamma"),
