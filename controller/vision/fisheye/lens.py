@@ -117,7 +117,12 @@ class FisheyeLens:
         valid = d[:, 2] > 1e-9
         safe = np.where(valid[:, None], d, [0.0, 0.0, 1.0])
         uv, _ = cv2.fisheye.projectPoints(
-            np.ascontiguousarray(safe.reshape(-1, 1, 3)), np.zeros(3), np.zeros(3), self.K, self.D
+            np.ascontiguousarray(safe.reshape(-1, 1, 3)),
+            np.zeros(3),
+            np.zeros(3),
+            self.K,
+            self.D,
+            alpha=self._skew / self.fx,  # OpenCV takes the skew here, not from K
         )
         return uv.reshape(-1, 2), valid
 

@@ -4,9 +4,10 @@ import math
 
 import numpy as np
 
-from controller.sun.types import angle_between_deg
+from controller.sun.source import Site, solar_position
+from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator
-from controller.vision.fisheye.gates import track_prediction
+from controller.vision.fisheye.gates import Ephemeris, track_prediction
 
 from .helpers import small_scene, truth_bundle
 
@@ -54,3 +55,27 @@ def test_without_the_site_the_sequence_gate_follows_the_suns_track_and_is_tighte
     assert math.isclose(track.radius_deg, 1.0 + 0.05 * 6.0 + 0.5 * 360.0 / 600.0)
     off = sun_at(16.0, dec_deg=12.0)  # 2 deg off the sun, across its track
     assert plain.distance_deg(off) < plain.radius_deg and track.distance_deg(off) > track.radius_deg
+
+
+def test_the_ephemeris_computes_a_block_of_its_grid_at_once_and_stays_spas(monkeypatch):
+    import controller.vision.fisheye.gates as gates
+
+    site = Site(latitude=-33.9, longitude=18.4)
+    calls = []
+
+    def counted(*a, **kw):
+        calls.append(1)
+        return solar_position(*a, **kw)
+
+    monkeypatch.setattr(gates, "solar_position", counted)
+    eph = Ephemeris(site)
+    t0 = 1_749_967_200.0  # 2025-06-15 06:00 UTC, on the 10-min grid
+    for k in range(40):  # frames 15 min apart over 10 h
+        t = t0 + 900.0 * k
+        sp = solar_position(site, [t])
+        if float(sp["apparent_elevation"].iloc[0]) < 3.0:
+            continue  # refraction's step at the horizon: no chord follows it (and no gate there)
+        truth = azel_to_enu(float(sp["azimuth"].iloc[0]), float(sp["apparent_elevation"].iloc[0]))
+        # SPA's own value on the grid, its chords between (the gate is 1 deg wide)
+        assert angle_between_deg(eph.direction(t), truth) < (1e-9 if k % 2 == 0 else 0.01)
+    assert len(calls) <= 2  # one SPA call per 12 h block, not one per grid point

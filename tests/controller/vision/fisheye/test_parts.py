@@ -30,6 +30,20 @@ def test_lens_rays_match_the_worlds_lens_to_95_degrees():
     assert ok2.all() and np.abs(uv2 - uv[front]).max() < 1e-6
 
 
+def test_a_skewed_lens_projects_as_it_inverts():
+    # cv2.fisheye.projectPoints takes the skew as its ``alpha``, not from K[0, 1]: a K with a
+    # skew had put pixels 0.5 px off the rays they came from
+    K = np.array([[166.2, 0.4, 319.7], [0, 165.8, 240.1], [0, 0, 1]])
+    lens = FisheyeLens(K, [0.02, -0.01, 0.003, -0.0005], 640, 480)
+    rng = np.random.default_rng(3)
+    th, ph = rng.uniform(0, np.radians(88), 200), rng.uniform(-np.pi, np.pi, 200)
+    d = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+    uv, ok = lens.project(d)
+    back, ok2 = lens.rays(uv)
+    assert ok.all() and ok2.all()
+    assert np.degrees(np.arccos(np.clip((back * d).sum(1), -1, 1))).max() < 1e-4  # 0.14 before
+
+
 def test_lens_rays_of_a_stereographic_lens_hold_past_where_opencv_clamps_them():
     # r = 2 f tan(theta / 2) as a cv2.fisheye fit: its distorted radius passes pi / 2 at
     # 76 deg, where cv2.fisheye.undistortPoints clamps it (rays 6 deg off at 85 deg)
