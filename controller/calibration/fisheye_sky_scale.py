@@ -71,6 +71,17 @@ def _joint(d1: np.ndarray, m: np.ndarray, s: np.ndarray, iters: int = 50) -> tup
     return R, k
 
 
+def _inliers(err: np.ndarray, keep: np.ndarray, min_used: int) -> np.ndarray | None:
+    """The detections whose angle ``err`` (deg) is within 3 MAD (at least 0.05 deg) over the
+    median of those in ``keep``; None when that changes nothing or leaves under ``min_used``."""
+    med = float(np.median(err[keep]))
+    mad = 1.4826 * float(np.median(np.abs(err[keep] - med)))
+    new = err <= med + max(3.0 * mad, 0.05)
+    if new.sum() < min_used or np.array_equal(new, keep):
+        return None
+    return new
+
+
 def fit_sky_scale(
     times: Sequence[float],
     d_unscaled: np.ndarray,
@@ -101,11 +112,8 @@ def fit_sky_scale(
     keep = np.ones(len(d1), bool)
     R, k = _joint(d1, m, s)
     for _ in range(5):
-        err = _angles(R, _unit(d1 + (k - 1.0) * m), s)
-        med = float(np.median(err[keep]))
-        mad = 1.4826 * float(np.median(np.abs(err[keep] - med)))
-        new = err <= med + max(3.0 * mad, 0.05)
-        if new.sum() < min_used or np.array_equal(new, keep):
+        new = _inliers(_angles(R, _unit(d1 + (k - 1.0) * m), s), keep, min_used)
+        if new is None:
             break
         keep = new
         R, k = _joint(d1[keep], m[keep], s[keep])
@@ -217,11 +225,8 @@ def fit_sky_calibration(
     keep = np.ones(len(d1), bool)
     R, p = solve(keep)
     for _ in range(5):
-        err = _angles(R, _unit(d1 + (A @ p - 1.0)[:, None] * m), s)
-        med = float(np.median(err[keep]))
-        mad = 1.4826 * float(np.median(np.abs(err[keep] - med)))
-        new = err <= med + max(3.0 * mad, 0.05)
-        if new.sum() < min_used or np.array_equal(new, keep):
+        new = _inliers(_angles(R, _unit(d1 + (A @ p - 1.0)[:, None] * m), s), keep, min_used)
+        if new is None:
             break
         keep = new
         R, p = solve(keep)

@@ -68,6 +68,11 @@ def _pairs(a: list, b: list) -> list:
     return [(x, y) for x, y in zip(a, b) if x is not None and y is not None]
 
 
+def _columns(pairs: list) -> tuple[list[float], np.ndarray, np.ndarray]:
+    """The times, and the directions found at the two scales, of :func:`_pairs`' frames."""
+    return [a[0] for a, _ in pairs], np.array([a[1] for a, _ in pairs]), np.array([b[1] for _, b in pairs])
+
+
 def _fit(found: list, site: Site, bundle: FisheyeBundle, **kw) -> OrientationFit:
     return fit_orientation(
         [f[0] for f in found],
@@ -133,25 +138,13 @@ def calibrate_from_sun(
     if fit_scale:
         pairs = _pairs(_detect(out, frames), _detect(out, frames, 1.0 + SCALE_STEP))
         if len(pairs) >= 12:
-            sky = fit_sky_scale(
-                [a[0] for a, _ in pairs],
-                np.array([a[1] for a, _ in pairs]),
-                np.array([b[1] for _, b in pairs]),
-                SCALE_STEP,
-                sun_site,
-            )
+            sky = fit_sky_scale(*_columns(pairs), SCALE_STEP, sun_site)
             beat = sky.residual_deg if sky.scale != 1.0 else sky.residual_unscaled_deg
             pairs = _pairs(_detect(out, frames, smear=True), _detect(out, frames, 1.0 + SCALE_STEP, True))
             if len(pairs) >= 12:
+                by_el = [a[3] for a, _ in pairs]
                 cal = fit_sky_calibration(
-                    [a[0] for a, _ in pairs],
-                    np.array([a[1] for a, _ in pairs]),
-                    np.array([b[1] for _, b in pairs]),
-                    SCALE_STEP,
-                    [a[3] for a, _ in pairs],
-                    sun_site,
-                    beat,
-                    scale=sky.scale,
+                    *_columns(pairs), SCALE_STEP, by_el, sun_site, beat, scale=sky.scale
                 )
         if cal is not None and cal.adopted:
             ori = OrientationCal(
