@@ -25,6 +25,7 @@ from .config import Config
 from .diffuse import DiffuseSwitch
 from .drive_setup import DriveSetup
 from .drives.base import DriveCommError, DriveHeld, DriveLink, DriveState
+from .geometry import lowest_sun_azimuth
 from .health import Health
 from .history import History
 from .modes import ControlMode, ModeDecision, decide_mode
@@ -195,7 +196,11 @@ class Controller(WindPolling, DriveSetup):
         if order is not None:
             return [(list(self.safety.angles(tr.cfg, order.kind)), False) for tr in self.trackers]
         return sp.for_mode(
-            decision.mode, est, [tr.cfg for tr in self.trackers], [tr.last_state for tr in self.trackers]
+            decision.mode,
+            est,
+            [tr.cfg for tr in self.trackers],
+            [tr.last_state for tr in self.trackers],
+            lowest_sun_azimuth(self.config.site.latitude),
         )
 
     async def _observe(self, t: float) -> None:

@@ -19,12 +19,17 @@ Setpoint = tuple[list[float], bool]  # axis targets (deg), backtracking
 
 
 def tracking(
-    est: SunEstimate, trackers: Sequence[TrackerConfig], states: Sequence[DriveState | None]
+    est: SunEstimate,
+    trackers: Sequence[TrackerConfig],
+    states: Sequence[DriveState | None],
+    seam_deg: float | None = None,
 ) -> list[Setpoint]:
     """Follow the sun: dual-axis trackers point at it, rows track with backtracking.
 
     ``states`` (the drives' last states) keep a dual-axis azimuth on the near side of a
-    wrap.  A row whose sun is below the horizon (NaN rotation) is sent to its stow.
+    wrap; ``seam_deg`` (:func:`~controller.geometry.lowest_sun_azimuth`) is where a travel
+    wider than one turn unwinds.  A row whose sun is below the horizon (NaN rotation) is
+    sent to its stow.
     """
     out: list[Setpoint] = [(list(cfg.stow_angles), False) for cfg in trackers]
     if not (math.isfinite(est.az_deg) and math.isfinite(est.el_deg)):
@@ -40,7 +45,7 @@ def tracking(
             st = states[i]
             current = st.axes[0].actual_deg if st is not None else None
             az, el = dual_axis_setpoint(
-                est.az_deg, est.el_deg, cfg.azimuth_limits, cfg.elevation_limits, current
+                est.az_deg, est.el_deg, cfg.azimuth_limits, cfg.elevation_limits, current, seam_deg
             )
             out[i] = ([az, el], False)
     return out
@@ -59,12 +64,14 @@ def for_mode(
     est: SunEstimate | None,
     trackers: Sequence[TrackerConfig],
     states: Sequence[DriveState | None],
+    seam_deg: float | None = None,
 ) -> list[Setpoint]:
-    """Targets of every tracker for ``mode`` (STOW: each tracker's configured stow)."""
+    """Targets of every tracker for ``mode`` (STOW: each tracker's configured stow;
+    ``seam_deg`` as for :func:`tracking`)."""
     if mode == ControlMode.DIFFUSE:
         return [facing_sky(cfg, st) for cfg, st in zip(trackers, states)]
     if mode == ControlMode.TRACK and est is not None:
-        return tracking(est, trackers, states)
+        return tracking(est, trackers, states, seam_deg)
     return [(list(cfg.stow_angles), False) for cfg in trackers]
 
 

@@ -56,7 +56,9 @@ class DualAxisTracker(TrackerConfig):
     azimuth_limits: tuple[float, float] = setting(
         (0.0, 360.0),
         doc="Azimuth travel [min, max]; its seam must not lie on the sun's path: [-180, 180] "
-        "south of the equator (`config validate`, `run` and `simulate` warn).",
+        "south of the equator (`config validate`, `run` and `simulate` warn). Under a midnight "
+        "sun (latitude beyond 65), a travel holding a whole turn from the sun's lowest azimuth "
+        "to the next (north: e.g. [-90, 450]; south: [-270, 270]) unwinds there once a day.",
         unit="deg",
         ge=-360,
         le=720,

@@ -38,6 +38,7 @@ from .. import setpoints as sp
 from ..calibration.fisheye_bundle import load_fisheye_bundle
 from ..config import Config, DualAxisTracker, TrackerConfig
 from ..drives.base import DriveCommError
+from ..geometry import lowest_sun_azimuth
 from ..loop import Controller
 from ..modes import ControlMode, ModeDecision
 from ..records import TrackerRuntime
@@ -164,7 +165,9 @@ class ClosedLoopController(Controller):
         position = [a.actual_deg for a in state.axes][: tr.cfg.axes]
         reference = None
         if est is not None:
-            reference = sp.tracking(est, [tr.cfg], [state])[0][0]
+            reference = sp.tracking(est, [tr.cfg], [state], lowest_sun_azimuth(self.config.site.latitude))[0][
+                0
+            ]
         frame = await asyncio.to_thread(row.frames.grab, t)
         if frame is None:
             row.frames_seen["no frame"] += 1

@@ -11,7 +11,7 @@ from __future__ import annotations
 import pandas as pd
 import pvlib
 
-from .dual_axis import wrap_into_range
+from .dual_axis import SEAM_HYSTERESIS_DEG, lowest_sun_azimuth, wrap_into_range
 
 __all__ = ["SAMPLED_DAYS", "travel_warnings", "unwinding_days"]
 
@@ -28,6 +28,10 @@ def unwinding_days(
 ) -> list[str]:
     """The sampled days on which tracking the sun within ``azimuth_limits`` turns the
     azimuth axis by more than 180 deg between two 10-minute steps (an unwinding).
+
+    An unwinding at the sun's lowest point (within :data:`.SEAM_HYSTERESIS_DEG` and a
+    step's motion of :func:`.lowest_sun_azimuth`) is not counted: under a midnight sun any
+    finite travel unwinds once a day, and that is where it costs least.
 
     Parameters
     ----------
@@ -54,6 +58,7 @@ def unwinding_days(
     az = pos["azimuth"].to_numpy().reshape(len(days), len(steps))
     el = pos["apparent_elevation"].to_numpy().reshape(len(days), len(steps))
     lo, hi = azimuth_limits
+    seam = lowest_sun_azimuth(latitude)
     out = []
     for k, day in enumerate(days):
         current: float | None = None
@@ -61,10 +66,12 @@ def unwinding_days(
             if e < min_elevation_deg:
                 current = None  # at night the tracker parks; the morning starts afresh
                 continue
-            target = wrap_into_range(float(a), lo, hi, near=current)
+            target = wrap_into_range(float(a), lo, hi, near=current, seam=seam)
             if current is not None and abs(target - current) > 180.0:
-                out.append(day.date().isoformat())
-                break
+                off_seam = 180.0 if seam is None else abs((float(a) - seam + 180.0) % 360.0 - 180.0)
+                if off_seam > SEAM_HYSTERESIS_DEG + 5.0:
+                    out.append(day.date().isoformat())
+                    break
             current = target
     return out
 

@@ -14,6 +14,12 @@ from tests.controller.validate import validated
         (-32.5, (0.0, 360.0), SAMPLED_DAYS),  # south: the noon sun is north, every day
         (-32.5, (-180.0, 180.0), 0),
         (10.0, (0.0, 360.0), "some"),  # the tropics: the summer sun passes north of the zenith
+        (10.0, (-90.0, 450.0), 0),  # a second half-turn of travel takes it
+        # a midnight sun unwinds any travel once a day: at its lowest, that is not counted
+        (69.65, (0.0, 360.0), 0),
+        (69.65, (-90.0, 450.0), 0),  # it had unwound at the hard limit, the sun 25 deg up
+        (-69.65, (-180.0, 180.0), 0),
+        (-69.65, (0.0, 360.0), SAMPLED_DAYS - 4),  # the noon sun north, every day but the polar night's
     ],
 )
 def test_days_on_which_the_axis_unwinds(latitude, limits, unwinding):
