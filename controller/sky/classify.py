@@ -21,6 +21,7 @@ import pandas as pd
 from controller.sun.source import Site
 
 from .baselines import classify_by_fraction, classify_by_kt, detect_clearsky_fraction
+from .clear_shift import clear_shift_rows
 from .clearness import clearness_index_rows
 from .fractal import variation_dimension_rows
 from .grid import DayGrid, build_day_grid, to_posix_seconds
@@ -37,8 +38,18 @@ from .sunshine import pyranometric_sunshine_fraction, sunshine_fraction
 
 CLASS_NAMES = {0: "", 1: "I", 2: "II", 3: "III"}
 
-#: Per-day columns of :attr:`DayResults.rows`; the last five are not in ``days``.
-ROW_CHECK_COLUMNS = ("K_T", "H0_MJ", "valid_s", "ghi_max", "lit_night_s", "noon_offset_h", "edge_offset_h")
+#: Per-day columns of :attr:`DayResults.rows`; all but the first two are not in ``days``.
+ROW_CHECK_COLUMNS = (
+    "K_T",
+    "H0_MJ",
+    "valid_s",
+    "ghi_max",
+    "lit_night_s",
+    "noon_offset_h",
+    "edge_offset_h",
+    "clear_shift_h",
+    "clear_fit",
+)
 
 
 # --------------------------------------------------------------------------- rules
@@ -134,6 +145,10 @@ def _row_features(
         "noon_offset_h": light_centre_rows(ghi, has, t0, step_s, site.longitude, geo["eot_s"]),
         "edge_offset_h": light_edge_rows(has & (ghi > EDGE_GHI_W_M2), up, step_s),
     }
+    if h0_analytic:  # whole days (a live window's few hours time no clock)
+        out["clear_shift_h"], out["clear_fit"] = clear_shift_rows(
+            ghi, has, t0, step_s, site.latitude, site.longitude, geo
+        )
     if with_clearsky:
         month = pd.to_datetime(np.asarray(t0, float) + 43200, unit="s").month
         out["clear_fraction"] = detect_clearsky_fraction(
@@ -178,9 +193,11 @@ class DayResults:
         (:mod:`controller.sky.plausibility`) judge: ``date``, ``kept``, ``daylight_s``,
         ``valid_s`` (s of samples), ``ghi_max`` (W/m2), ``K_T``, ``H0_MJ``, ``lit_night_s``
         (s of GHI over 20 W/m2 with the sun computed more than 3 deg below the horizon) and
-        ``noon_offset_h`` (the GHI-weighted circular mean time, h after solar noon) and
+        ``noon_offset_h`` (the GHI-weighted circular mean time, h after solar noon),
         ``edge_offset_h`` (how far both edges of the lit period moved from the computed
-        sunrise and sunset, h; see :func:`~controller.sky.plausibility.light_edge_rows`).
+        sunrise and sunset, h; see :func:`~controller.sky.plausibility.light_edge_rows`),
+        ``clear_shift_h`` and ``clear_fit`` (a clear day's light against the computed sun,
+        h later, and the fit's misfit; :func:`~controller.sky.clear_shift.clear_shift_rows`).
     """
 
     days: pd.DataFrame

@@ -22,6 +22,9 @@ check              kind     fires when
                             10 W/m2) sit 0.5 h or more (median over days) on the same side of
                             the computed sunrise and sunset, and 2/3 of the days agree
 ``clock``          error    the same, 0.75 h or more
+``clock``          warning  otherwise, 2 or more clear days (:mod:`.clear_shift`): their light,
+                            fitted by a clear-sky shape shifted in time, comes 0.5 h or more
+                            (median) after or before the computed sun; error from 0.75 h
 =================  =======  =====================================================================
 """
 
@@ -67,6 +70,8 @@ CLOCK_WARN_H = 0.5
 CLOCK_ERROR_H = 0.75
 CLOCK_MIN_DAYS = 3
 CLOCK_SHARE = 2.0 / 3.0
+#: Clear days (:mod:`.clear_shift`) that time the light when its edges cannot (a midnight sun).
+CLOCK_MIN_CLEAR_DAYS = 2
 
 
 @dataclass(frozen=True)
@@ -351,6 +356,28 @@ def check_record(res: DayResults, site: Site) -> list[Finding]:
                 f"{'later' if edge.hours > 0 else 'earlier'} than the sun rises and sets at "
                 f"--lat {lat:g} --lon {lon:g} (median of {edge.n_days} days, {edge.n_near} of them "
                 f"on that side): {_clock_cause(edge.hours, lon)}",
+            )
+        )
+    # the same from the clear days' light against the sun's height all day: where the sun
+    # grazes the horizon for hours, or never sets, the edges tell nothing (65 N in June: a
+    # record an hour late passed).  A sensor tilted east or west moves it too (5 deg at 70 N
+    # in June: 0.56 h), so that is named beside the clock.
+    clear = noon_offset(rows["clear_shift_h"].to_numpy(float)[valid >= MIN_VALID_S])
+    if (
+        not any(f.error or f.check == "clock" for f in out)
+        and clear.n_days >= CLOCK_MIN_CLEAR_DAYS
+        and abs(clear.hours) >= CLOCK_WARN_H
+        and clear.n_near >= CLOCK_SHARE * clear.n_days
+    ):
+        out.append(
+            Finding(
+                "clock",
+                abs(clear.hours) >= CLOCK_ERROR_H,
+                f"the clear days' light follows the sun's height {abs(clear.hours):.1f} h "
+                f"{'later' if clear.hours > 0 else 'earlier'} than computed at --lat {lat:g} "
+                f"--lon {lon:g} (median of {clear.n_days} clear days, {clear.n_near} of them on "
+                f"that side): {_clock_cause(clear.hours, lon)}; or a pyranometer tilted "
+                f"towards the {'west' if clear.hours > 0 else 'east'}",
             )
         )
     return sorted(out, key=lambda f: not f.error)
