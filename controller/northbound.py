@@ -17,12 +17,12 @@ from __future__ import annotations
 import logging
 import queue
 from dataclasses import replace
-from datetime import UTC, datetime, timedelta
 from typing import TypedDict
 
 from .config import DualAxisTracker, SingleAxisTracker
 from .loop import Controller, CycleRecord
 from .safety import SafetyState
+from .sun.source import site_local_time
 from .sunspec import OverrideCommand, PlantSnapshot, StowRequest, TrackerSnapshot, WeatherSnapshot
 from .sunspec.snapshot import SUNSPEC_SOURCE
 from .weather import WindState
@@ -151,12 +151,12 @@ class Northbound:
         plant_type = "dual-axis" if "dual-axis" in kinds else "single-axis"
         site = self.controller.config.site
         t = records[0].time if records else self.controller.clock.now()
-        local = datetime.fromtimestamp(t, tz=UTC) + timedelta(hours=site.longitude / 15)
+        local = site_local_time(site, t)
         tilts = [tr.cfg.axis_tilt for tr in self.controller.trackers if isinstance(tr.cfg, SingleAxisTracker)]
         return PlantSnapshot(
             self.name,
             plant_type,
-            local.replace(tzinfo=None),
+            local,
             tuple(trackers),
             axis_tilt_deg=max(tilts, default=0.0),
             weather=self._weather(),

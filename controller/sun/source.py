@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta, tzinfo
 from typing import TYPE_CHECKING, Any
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 import numpy as np
 import pandas as pd
 import pvlib
 
-from ..schema import setting
+from ..schema import Where, setting
 
 if TYPE_CHECKING:
     from ..store import Store
@@ -41,12 +43,46 @@ class Site:
         12.0, doc="Mean air temperature, for refraction.", unit="degC", ge=-60, le=60
     )
     name: str = setting("", doc="Name (reports, SunSpec).")
+    timezone: str = setting(
+        "",
+        doc="IANA time zone of the plant's civil clock, e.g. \"Europe/Oslo\", for SunSpec's "
+        "local date and time (DtLoc, TmLoc, Day); empty: local mean solar time, UTC + "
+        "longitude / 15 h. The controller itself runs on UTC either way.",
+        example="Asia/Tehran",
+    )
+
+    def __schema_check__(self, at: Where) -> Site:
+        if self.timezone:
+            try:
+                civil_zone(self.timezone)
+            except ValueError:
+                raise at.child("timezone").error(
+                    'an IANA time zone name such as "Europe/Oslo" or "UTC"', self.timezone
+                ) from None
+        return self
 
     @property
     def pressure(self) -> float:
         if self.pressure_pa is not None:
             return self.pressure_pa
         return float(pvlib.atmosphere.alt2pres(self.altitude))
+
+
+def civil_zone(name: str) -> tzinfo:
+    """The IANA zone ``name`` (``[site] timezone``); ValueError when there is none by it."""
+    try:
+        return ZoneInfo(name)
+    except (ZoneInfoNotFoundError, ValueError, TypeError, OSError) as exc:
+        raise ValueError(f"no time zone {name!r}") from exc
+
+
+def site_local_time(site: Site, t_posix: float) -> datetime:
+    """The plant's local wall time at ``t_posix`` (naive): civil time in ``site.timezone``,
+    else local mean solar time (UTC + longitude / 15 h)."""
+    utc = datetime.fromtimestamp(t_posix, tz=UTC)
+    if site.timezone:
+        return utc.astimezone(civil_zone(site.timezone)).replace(tzinfo=None)
+    return (utc + timedelta(hours=site.longitude / 15.0)).replace(tzinfo=None)
 
 
 def solar_position(site: Site, times) -> pd.DataFrame:

@@ -61,6 +61,16 @@ ROW = '[[trackers]]\nname = "r"\ntype = "single-axis"\nlink = "a"\ndevice_id = 2
         ),
         (lambda s: s + "[control]\nperiod = 60\n", "control.period", "known keys"),
         (lambda s: s.replace("[site]\nlatitude = 10\n", "[site]\n"), "site.latitude", "missing"),
+        (
+            lambda s: s.replace("longitude = 20", 'longitude = 20\ntimezone = "Europe/Osl"'),
+            "site.timezone",
+            "an IANA time zone name",
+        ),
+        (
+            lambda s: s.replace("longitude = 20", 'longitude = 20\ntimezone = "../../etc/passwd"'),
+            "site.timezone",
+            "IANA",
+        ),
         (lambda s: s + '[hotspot]\ncalibration = "b.toml"\n', "hotspot.calibration", "an existing file"),
         # typos are errors, never silently dropped
         (lambda s: s.replace("[[trackers]]", "[[trackersX]]"), "trackersX", "known keys"),

@@ -71,3 +71,25 @@ def test_override_is_clamped_to_the_rows_limits(plant):
     assert run(ctl.cycle())[1].targets_deg == (55.0,)
     with pytest.raises(ValueError):
         ctl.set_override(0, "Sideways", None, None)
+
+
+def test_scada_reads_the_plants_civil_time_when_its_zone_is_given(plant):
+    from dataclasses import replace
+
+    run, ctl, bridge, fws, clock = plant
+    records = run(ctl.cycle())  # 2024-06-01 08:00 UTC
+    bridge.publish(records)
+    # without a zone: local mean solar time at 48.3364 E, UTC + 3 h 13 min 21 s
+    assert bridge.snapshot().local_time.strftime("%Y%m%d %H%M%S") == "20240601 111320"
+    ctl.config = replace(ctl.config, site=replace(ctl.config.site, timezone="Asia/Tehran"))
+    bridge.publish(records)
+    with SunSpecServer(bridge.snapshot, bridge.on_override, host="127.0.0.1", port=0) as srv:
+        dev = scan(srv.port)
+        try:
+            m = dev.models[601][0]
+            assert (m.DtLoc.value, m.TmLoc.value, m.Day.value) == ("20240601", "113000", 153)  # UTC+3:30
+        finally:
+            dev.close()
+    ctl.config = replace(ctl.config, site=replace(ctl.config.site, timezone="Europe/Oslo"))
+    bridge.publish(records)
+    assert bridge.snapshot().local_time.strftime("%H%M%S") == "100000"  # summer time, UTC+2
