@@ -13,13 +13,11 @@ SCADA's to give again, and the file is rewritten at the first change.
 
 from __future__ import annotations
 
-import json
 import logging
-import time
 from pathlib import Path
 
-from controller.atomic import atomic_write
 from controller.loop import Controller
+from heliotrack.kept_record import read_record, write_record
 
 log = logging.getLogger("heliotrack.run")
 
@@ -44,11 +42,7 @@ def note_stow_requests(
     now = kept(ctl)
     if now == last:
         return last
-    path = folder / FILE_NAME
-    try:
-        atomic_write(path, json.dumps({"time": time.time(), "requests": now}) + "\n")
-    except OSError as exc:  # said once for this set, not every cycle
-        log.warning("%s: not written (%s): the stow requests in force would not survive a restart", path, exc)
+    write_record(folder / FILE_NAME, "requests", now, "the stow requests")
     return now
 
 
@@ -58,16 +52,7 @@ def restore_stow_requests(ctl: Controller, folder: Path | None) -> dict[str, str
     if folder is None:
         return {}
     path = folder / FILE_NAME
-    try:
-        record = json.loads(path.read_text())
-        requests = record["requests"]
-        if not isinstance(requests, dict):
-            raise TypeError("requests is not a table")
-    except FileNotFoundError:
-        return {}
-    except (OSError, ValueError, TypeError, KeyError) as exc:
-        log.warning("%s: not read (%s); no stow request taken from it", path, exc)
-        return {}
+    requests = read_record(path, "requests", "stow request")
     out = {}
     for source, kind in sorted(requests.items()):
         if source in KEPT and kind in KINDS:

@@ -101,6 +101,7 @@ class Service:
         self.bridge: Any = None
         self._foreign: frozenset[str] | None = None  # trackers on record in someone else's stow
         self._requests: dict[str, str] | None = None  # stow requests on record
+        self._overrides: dict[str, list[float]] | None = None  # Manual overrides on record
 
     # -- signals -----------------------------------------------------------------------------
     def _on_signal(self, signum: int) -> None:
@@ -126,6 +127,7 @@ class Service:
         from controller.loop import Controller
         from controller.store import open_store_or_none
         from heliotrack.devices import open_anemometer, open_drives, open_pyranometer
+        from heliotrack.manual_overrides import restore_overrides
         from heliotrack.runtime import resume_last_shutdown
         from heliotrack.stow_requests import restore_stow_requests
         from heliotrack.sun_sources import build_sun_source
@@ -159,6 +161,7 @@ class Service:
             resume_last_shutdown(ctl, self.state)
             folder = self.state.path if self.state is not None else None
             self._requests = restore_stow_requests(ctl, folder) if folder is not None else None
+            self._overrides = restore_overrides(ctl, folder) if folder is not None else None
             server = self._sunspec(ctl)
             t0 = time.monotonic()
             crashed = await self._live(ctl, duration)
@@ -245,6 +248,7 @@ class Service:
             log.warning("%s", warning)
 
     def _on_cycle(self, records) -> None:
+        from heliotrack.manual_overrides import note_overrides
         from heliotrack.runtime import note_foreign_stows
         from heliotrack.stow_requests import note_stow_requests
 
@@ -253,7 +257,9 @@ class Service:
         if self.bridge is not None:
             self.bridge.publish(records)
             self.tally["overrides"] += self.bridge.apply_pending()
-        self._requests = note_stow_requests(ctl, self.state.path if self.state else None, self._requests)
+        folder = self.state.path if self.state else None
+        self._requests = note_stow_requests(ctl, folder, self._requests)
+        self._overrides = note_overrides(ctl, folder, self._overrides)
         modes = Counter(r.mode for r in records)
         errors = [r.error for r in records if r.error]
         source = records[0].source if records else "none"
