@@ -12,11 +12,24 @@ import json
 import logging
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from controller.atomic import atomic_write
 
 log = logging.getLogger("heliotrack.run")
+
+T = TypeVar("T", bound=dict)
+
+
+def note_record(path: Path | None, key: str, now: T, last: T | None, what: str) -> T | None:
+    """Write ``now`` as the table ``key`` of ``path`` when it differs from ``last`` (the value
+    last written; None: not yet by this process); return the value now on record (``last``
+    without a path: nothing is kept)."""
+    if path is None:
+        return last
+    if now != last:
+        write_record(path, key, now, what)
+    return now
 
 
 def write_record(path: Path, key: str, value: dict[str, Any], what: str) -> None:

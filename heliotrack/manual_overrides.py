@@ -21,7 +21,7 @@ from pathlib import Path
 
 from controller.config import DualAxisTracker
 from controller.loop import Controller
-from heliotrack.kept_record import read_record, write_record
+from heliotrack.kept_record import note_record, read_record
 
 log = logging.getLogger("heliotrack.run")
 
@@ -38,13 +38,8 @@ def note_overrides(
 ) -> dict[str, list[float]] | None:
     """Write the overrides to ``folder / FILE_NAME`` when they differ from ``last`` (the ones
     last written; None: not yet by this process); return the ones now on record."""
-    if folder is None:
-        return last
-    now = kept(ctl)
-    if now == last:
-        return last
-    write_record(folder / FILE_NAME, "overrides", now, "the Manual overrides")
-    return now
+    path = None if folder is None else folder / FILE_NAME
+    return note_record(path, "overrides", kept(ctl), last, "the Manual overrides")
 
 
 def restore_overrides(ctl: Controller, folder: Path | None) -> dict[str, list[float]]:

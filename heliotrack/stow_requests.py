@@ -17,7 +17,7 @@ import logging
 from pathlib import Path
 
 from controller.loop import Controller
-from heliotrack.kept_record import read_record, write_record
+from heliotrack.kept_record import note_record, read_record
 
 log = logging.getLogger("heliotrack.run")
 
@@ -37,13 +37,8 @@ def note_stow_requests(
 ) -> dict[str, str] | None:
     """Write the kept requests to ``folder / FILE_NAME`` when they differ from ``last`` (the
     ones last written; None: not yet by this process); return the ones now on record."""
-    if folder is None:
-        return last
-    now = kept(ctl)
-    if now == last:
-        return last
-    write_record(folder / FILE_NAME, "requests", now, "the stow requests")
-    return now
+    path = None if folder is None else folder / FILE_NAME
+    return note_record(path, "requests", kept(ctl), last, "the stow requests")
 
 
 def restore_stow_requests(ctl: Controller, folder: Path | None) -> dict[str, str]:

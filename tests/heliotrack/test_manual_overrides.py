@@ -5,17 +5,11 @@ from __future__ import annotations
 
 import json
 import logging
-import signal
-import socket
-import time
 from dataclasses import replace
-
-from pymodbus.client import ModbusTcpClient
 
 from controller.sunspec.models import SunSpecMap
 from heliotrack.manual_overrides import FILE_NAME, note_overrides, restore_overrides
-from tests.heliotrack.plant_emulators import heliotrack
-from tests.heliotrack.test_bus_claims import free_port, tcp_plant
+from tests.heliotrack.test_stow_requests import commanded_then_restarted, sunspec_plant
 
 
 def test_overrides_are_written_on_change_and_put_back(default_plant, tmp_path, caplog):
@@ -63,43 +57,18 @@ def test_a_record_that_cannot_be_read_or_names_other_trackers_is_ignored(default
 
 
 def test_scadas_manual_override_survives_a_restart_of_run(tmp_path):
-    cfg = tcp_plant(tmp_path, free_port())  # drives silent: the override is what is judged
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    cfg.write_text(cfg.read_text() + f"\n[sunspec]\nenabled = true\nport = {port}\nwrites_enabled = true\n")
+    cfg, port = sunspec_plant(tmp_path)
     m = SunSpecMap(1)
     ctl_reg, el_reg = m.slot("Ctl", 0).address, m.slot("ElCtl", 0).address
     state = tmp_path / "state"
 
-    def served(proc) -> ModbusTcpClient:
-        client = ModbusTcpClient("127.0.0.1", port=port, timeout=2)
-        for _ in range(100):
-            if client.connect():
-                return client
-            assert proc.poll() is None, proc.stderr.read()
-            time.sleep(0.1)
-        raise AssertionError("SunSpec never served")
-
-    first = heliotrack("run", "--config", str(cfg), "--state", str(state))
-    try:
-        client = served(first)
+    def manual(client):
         assert not client.write_registers(el_reg, [0, 30000], device_id=1).isError()  # 30 deg (0.001)
         assert not client.write_register(ctl_reg, 1, device_id=1).isError()  # 1: Manual
-        for _ in range(50):  # applied and kept at the next cycle (1 s)
-            if (state / FILE_NAME).exists():
-                break
-            time.sleep(0.1)
-        client.close()
-        first.send_signal(signal.SIGTERM)
-        assert first.wait(20) == 0
-    finally:
-        if first.poll() is None:
-            first.kill()
-    assert json.loads((state / FILE_NAME).read_text())["overrides"]["dual-1"][1] == 30.0
-    second = heliotrack("run", "--config", str(cfg), "--state", str(state), "--duration", "3")
+
+    second, client = commanded_then_restarted(cfg, port, state, FILE_NAME, manual)
     try:
-        client = served(second)
+        assert json.loads((state / FILE_NAME).read_text())["overrides"]["dual-1"][1] == 30.0
         assert client.read_holding_registers(ctl_reg, count=1, device_id=1).registers == [1]
         assert client.read_holding_registers(el_reg, count=2, device_id=1).registers == [0, 30000]
         client.close()

@@ -9,6 +9,7 @@ import logging
 import signal
 import socket
 import time
+from pathlib import Path
 
 from pymodbus.client import ModbusTcpClient
 
@@ -48,30 +49,38 @@ def test_a_record_that_cannot_be_read_is_one_warning_and_no_request(default_plan
     assert restore_stow_requests(ctl, None) == {}
 
 
-def test_scadas_snow_stow_survives_a_restart_of_run(tmp_path):
-    cfg = tcp_plant(tmp_path, free_port())  # drives silent: the request is what is judged
+def sunspec_plant(folder) -> tuple[Path, int]:
+    """A plant file whose drives are silent (what SCADA commands is what is judged), serving
+    writable SunSpec on a free port of 127.0.0.1; and that port."""
+    cfg = tcp_plant(folder, free_port())
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     cfg.write_text(cfg.read_text() + f"\n[sunspec]\nenabled = true\nport = {port}\nwrites_enabled = true\n")
-    stow_req = SunSpecMap(1).slot("StowReq", model=WEATHER_MODEL_ID).address
-    state = tmp_path / "state"
+    return cfg, port
 
-    def served(proc) -> ModbusTcpClient:
-        client = ModbusTcpClient("127.0.0.1", port=port, timeout=2)
-        for _ in range(100):
-            if client.connect():
-                return client
-            assert proc.poll() is None, proc.stderr.read()
-            time.sleep(0.1)
-        raise AssertionError("SunSpec never served")
 
+def served(proc, port: int) -> ModbusTcpClient:
+    """A client connected to the SunSpec server of ``run`` process ``proc``."""
+    client = ModbusTcpClient("127.0.0.1", port=port, timeout=2)
+    for _ in range(100):
+        if client.connect():
+            return client
+        assert proc.poll() is None, proc.stderr.read()
+        time.sleep(0.1)
+    raise AssertionError("SunSpec never served")
+
+
+def commanded_then_restarted(cfg: Path, port: int, state: Path, kept: str, command):
+    """``run`` on ``cfg`` given ``command(client)`` over SunSpec until ``state / kept`` is
+    written, stopped (SIGTERM, exit 0) and started again for 3 s: the second process and a
+    client connected to it."""
     first = heliotrack("run", "--config", str(cfg), "--state", str(state))
     try:
-        client = served(first)
-        assert not client.write_register(stow_req, 1, device_id=1).isError()  # 1: snow
+        client = served(first, port)
+        command(client)
         for _ in range(50):  # applied and kept at the next cycle (1 s)
-            if (state / FILE_NAME).exists():
+            if (state / kept).exists():
                 break
             time.sleep(0.1)
         client.close()
@@ -82,7 +91,21 @@ def test_scadas_snow_stow_survives_a_restart_of_run(tmp_path):
             first.kill()
     second = heliotrack("run", "--config", str(cfg), "--state", str(state), "--duration", "3")
     try:
-        client = served(second)
+        return second, served(second, port)
+    except BaseException:
+        second.kill()
+        raise
+
+
+def test_scadas_snow_stow_survives_a_restart_of_run(tmp_path):
+    cfg, port = sunspec_plant(tmp_path)
+    stow_req = SunSpecMap(1).slot("StowReq", model=WEATHER_MODEL_ID).address
+
+    def snow(client):
+        assert not client.write_register(stow_req, 1, device_id=1).isError()  # 1: snow
+
+    second, client = commanded_then_restarted(cfg, port, tmp_path / "state", FILE_NAME, snow)
+    try:
         assert client.read_holding_registers(stow_req, count=1, device_id=1).registers == [1]
         client.close()
         _, err = second.communicate(timeout=30)
