@@ -38,7 +38,7 @@ import numpy as np
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .blobs import core_fill
 from .lens import FisheyeLens
-from .radiometry import Radiometry
+from .radiometry import Radiometry, illumination_about, rim_shift
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
@@ -263,7 +263,7 @@ def fit_glare(
         if sky_pass:
             rvals, rsky = samples[1]
             if radiometry is not None:  # the sky in light, as the centre's illumination sees it
-                rvals = radiometry.to_light(rvals) / _illumination(
+                rvals = radiometry.to_light(rvals) / illumination_about(
                     radiometry, a, e1, e2, phi[ring_sel], ring_chi
                 )
             if alpha > 0.0:  # the rings at equal blended distance, to first order
@@ -307,11 +307,11 @@ def fit_glare(
         k_sky = opts.sky_scale * calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
         shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
-        shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
+        shift = rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
         f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
         if f_level != opts.level:
-            shift = _rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
+            shift = rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
         level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
         has &= rays_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
@@ -412,36 +412,6 @@ def fit_glare(
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
     )
-
-
-def _illumination(
-    radiometry: Radiometry, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, phi: np.ndarray, chi: np.ndarray
-) -> np.ndarray:
-    """The lens's illumination at the samples (``phi``, ``chi``) about ``a`` (n_phi, n_chi),
-    relative to the illumination at ``a``."""
-    tz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
-    z = np.cos(chi)[None, :] * a[2] + np.sin(chi)[None, :] * tz[:, None]
-    return radiometry.illumination(z) / radiometry.illumination(float(a[2]))
-
-
-def _rim_shift(
-    radiometry: Radiometry | None,
-    shift_s: np.ndarray,
-    base: float,
-    a: np.ndarray,
-    e1: np.ndarray,
-    e2: np.ndarray,
-    phi: np.ndarray,
-    rho: float,
-) -> np.ndarray:
-    """Each ray's raise of the rim's grey level over ``base`` (grey): the sky's asymmetry
-    ``shift_s`` in the sky model's units, added in light to the base level's light and dimmed
-    by the lens's illumination at the rim, then turned back into grey.  Without a
-    radiometry, the frame is linear and evenly lit: the shift itself."""
-    if radiometry is None:
-        return shift_s
-    vig = _illumination(radiometry, a, e1, e2, phi, np.array([rho]))[:, 0]
-    return np.asarray(radiometry.to_grey(vig * (radiometry.to_light(base) + shift_s)), float) - base
 
 
 def horizon_side_excess(
