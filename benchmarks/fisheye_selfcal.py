@@ -68,6 +68,35 @@ def _third(index: int) -> tuple[str, Callable, object, tuple, list]:
     return name, frames, fisheye_bundle_from_dict(ft.bundle_dict(look)), ft.SITE, list(ft.DAYS)
 
 
+def calibrated_third(index: int, day: str) -> tuple[object, dict]:
+    """The third renderer's look ``index`` calibrated as an installer does on its clear
+    ``day``'s frames (every 20 min), from the bundle as handed over (no orientation, no site):
+    :func:`controller.calibration.fisheye_sun_calibration.calibrate_from_sun`.
+
+    Returns
+    -------
+    (FisheyeBundle, dict)
+        The calibrated bundle (its site the renderer's), and the day, the number of frames and
+        what the calibration wrote (``sky_scale``, ``sky_calibration``).
+    """
+    from controller.calibration.fisheye_bundle import SiteCal
+    from controller.calibration.fisheye_sun_calibration import calibrate_from_sun
+
+    _, frames_of, truth_bundle, site, _ = _third(index)
+    frames = [(t, img) for t, img, _ in frames_of(day)]
+    start = replace(truth_bundle, orientation=None, site=None)
+    where = SiteCal(latitude=site[0], longitude=site[1], altitude=site[2])
+    cal = calibrate_from_sun(start, frames, where, refine="rotation").bundle
+    o = cal.orientation
+    wrote = {
+        "day": day,
+        "frames": len(frames),
+        "sky_scale": None if o is None else o.sky_scale,
+        "sky_calibration": None if o is None or o.sky_calibration is None else list(o.sky_calibration),
+    }
+    return cal, wrote
+
+
 def _errors(bundle, frames: list) -> tuple[list[float], int, int]:
     """(errors of the fixes within FALSE_DEG, fixes beyond it, frames not found)."""
     from controller.vision.fisheye import FisheyeEstimator

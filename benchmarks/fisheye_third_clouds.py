@@ -29,6 +29,9 @@ times full scale, so it still saturates 0.8-1 deg at ``T`` = 0.04) or the sun is
 ``dimmed`` between.  Scoring: :class:`benchmarks.fisheye_suites.Tally`
 (a dimmed sun not found is neither a miss nor a rejection; found within 1 deg it is a
 correct detection but its error is not in the visible RMS).
+
+Passes: the renderer's own bundle with its ``[site]`` and without it; a camera calibrated as
+an installer does on the clear :data:`CALIBRATION_DAY` (its rotation and sky calibration), too.
 """
 
 from __future__ import annotations
@@ -397,6 +400,8 @@ class Scorer:
 
 
 PASSES = ("with site", "without site")
+#: the clear day a camera is calibrated on for the calibrated passes (the third renderer's)
+CALIBRATION_DAY = "2026-03-20"
 
 
 def bundles() -> dict:
@@ -405,13 +410,27 @@ def bundles() -> dict:
     return {"with site": full, "without site": {k: v for k, v in full.items() if k != "site"}}
 
 
-def run_sequences(seqs, hours: float, step_s: float) -> dict:
+def calibrated_bundles(day: str = CALIBRATION_DAY) -> tuple[dict, dict]:
+    """A camera calibrated on the renderer's clear ``day`` as an installer does
+    (:func:`benchmarks.fisheye_selfcal.calibrated_third`), with its site and without it (by
+    pass name), and what the calibration wrote."""
+    from dataclasses import replace
+
+    from .fisheye_selfcal import calibrated_third
+
+    cal, wrote = calibrated_third(LOOKS.index(LOOK), day)
+    return {"calibrated, with site": cal, "calibrated, without site": replace(cal, site=None)}, wrote
+
+
+def run_sequences(seqs, hours: float, step_s: float, calibrated: dict | None = None) -> dict:
     """Render the sequences and score the default pipeline on them, each pass its own
-    estimator, reset between sequences."""
+    estimator, reset between sequences (``calibrated``: more passes, by name, with their
+    :class:`FisheyeBundle`)."""
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
 
     ests = {k: FisheyeEstimator(fisheye_bundle_from_dict(b)) for k, b in bundles().items()}
+    ests.update({k: FisheyeEstimator(b) for k, b in (calibrated or {}).items()})
     scorers = {k: Scorer() for k in ests}
     clear = {k: Scorer() for k in ests}
     scene, drawn = CloudyScene(), []
@@ -442,8 +461,10 @@ def run_sequences(seqs, hours: float, step_s: float) -> dict:
     }
 
 
-def run(quick: bool = False) -> dict:
-    """The benchmark: four 2-hour sequences, a frame every 30 s, with and without the site.
+def run(quick: bool = False, calibrated: bool = True) -> dict:
+    """The benchmark: four 2-hour sequences, a frame every 30 s, with and without the site,
+    with the renderer's own bundle and (``calibrated``) with a camera calibrated on its clear
+    :data:`CALIBRATION_DAY` (:func:`calibrated_bundles`).
 
     Parameters
     ----------
@@ -457,12 +478,16 @@ def run(quick: bool = False) -> dict:
         :meth:`Tally.summary`, ``acceptance``, and ``clear_reference``: every tenth frame
         with the clouds and distractors off, the renderer's clear-sky baseline at those
         times, not judged), ``cases`` (every false detection and miss; those of the clear
-        reference apart), ``acceptance`` (both passes), ``definitions``, ``seconds``.
+        reference apart), ``acceptance`` (every pass), ``calibration`` (what the calibrated
+        passes' calibration wrote), ``definitions``, ``seconds``.
     """
     t0 = time.perf_counter()
     seqs = SEQUENCES[1:2] if quick else SEQUENCES
     hours, step_s = (1.0, 120.0) if quick else (2.0, 30.0)
-    out = run_sequences(seqs, hours, step_s)
+    cal, wrote = calibrated_bundles() if calibrated else (None, None)
+    out = run_sequences(seqs, hours, step_s, cal)
+    if wrote is not None:
+        out["calibration"] = wrote
     accs = [p["acceptance"] for p in out["passes"].values()]
     out["acceptance"] = {k: all(a[k] for a in accs) for k in accs[0]}
     out["definitions"] = dict(

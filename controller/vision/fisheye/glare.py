@@ -37,8 +37,9 @@ import numpy as np
 
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .blobs import core_fill
+from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
 from .lens import FisheyeLens
-from .radiometry import Radiometry
+from .radiometry import Radiometry, illumination_about, rim_shift
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
@@ -92,6 +93,14 @@ class GlareOptions:
     sky_calibration : ``(k0, k1)`` for the dipole, then for the model by elevation: the
         correction of the model in use times ``k0 + k1 (1 / sin(el) - 1)`` at the axis's
         elevation (bundle ``[orientation] sky_calibration``; :func:`.skybg.calibrated_scale`).
+    clear_sky_roughness : (lo, hi): a camera's ``sky_calibration`` (fitted on clear days)
+        is applied in full while the rings' roughness (:func:`.clearsky.ring_roughness`:
+        their structure beyond harmonics 0-2 over their dipole) is at most ``lo``, in
+        proportion down to none at ``hi``, where the rings read a cloud's edges
+        (:mod:`.clearsky`).  Judged from the sky's second reading on: the first, about the
+        candidate's rough centre, sees the glare's own profile off centre.  Not the one
+        ``sky_scale``: its frames keep the CCD smear's column in the rings (no removal), which
+        reads as roughness on a clear day.
     column_smear : a frame-transfer CCD's column smear is read far from the glare and taken
         off the rim's samples (:mod:`.smear`); on with a camera's sky calibration, which is
         fitted so (alone it exposes more of the aureole's bias than it removes: docs).
@@ -114,6 +123,7 @@ class GlareOptions:
     drop_stale_sky: bool = True
     sky_scale: float = 1.0
     sky_calibration: tuple[float, float, float, float] | None = None
+    clear_sky_roughness: tuple[float, float] = (0.2, 0.5)
     column_smear: bool = False
 
 
@@ -229,6 +239,7 @@ def fit_glare(
     dipole = np.zeros(2)
     by_el: np.ndarray | None = None
     bg = bg_s = top_s = 0.0
+    trust = 1.0  # in a clear sky around the glare (:mod:`.clearsky`)
     alpha = 0.0
 
     # -- pass 2: rays on the sphere around the axis ---------------------------------------
@@ -251,7 +262,7 @@ def fit_glare(
         sky_pass = it < 2 or (reads < opts.sky_reads and moved < settled)
         reads += int(sky_pass)
         if sky_pass and it >= 2:  # a settled fit, kept in case the new reading unsettles it
-            kept = (a, rho, dipole, by_el, bg, bg_s, top_s)
+            kept = (a, rho, dipole, by_el, bg, bg_s, top_s, trust)
             kept_stale = read_inside and opts.drop_stale_sky
         grids = [(phi, rim_chi)]
         if sky_pass:
@@ -263,7 +274,7 @@ def fit_glare(
         if sky_pass:
             rvals, rsky = samples[1]
             if radiometry is not None:  # the sky in light, as the centre's illumination sees it
-                rvals = radiometry.to_light(rvals) / _illumination(
+                rvals = radiometry.to_light(rvals) / illumination_about(
                     radiometry, a, e1, e2, phi[ring_sel], ring_chi
                 )
             if alpha > 0.0:  # the rings at equal blended distance, to first order
@@ -279,6 +290,11 @@ def fit_glare(
             bg = float(np.median(outer))  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
             dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, rsky)
+            if it and opts.sky_calibration is not None:  # judged once centred (see GlareOptions)
+                rough = ring_roughness(
+                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, top_s - bg
+                )
+                trust = clear_sky_trust(rough, *opts.clear_sky_roughness)
             by_el = None
             if up_cam is not None and not rsky.all():
                 # rings cut by the horizon: model the sky by elevation instead of a dipole
@@ -304,14 +320,15 @@ def fit_glare(
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
             shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
-        k_sky = opts.sky_scale * calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
+        k_cam = calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
+        k_sky = opts.sky_scale * trusted_scale(k_cam, trust)  # the calibration, as far as the sky is clear
         shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
         # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
-        shift = _rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
+        shift = rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
         top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
         f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
         if f_level != opts.level:
-            shift = _rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
+            shift = rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
         level = bg + f_level * (peak - bg) + shift
         chi_c, has, slope = _crossings(vals, rim_chi, level)
         has &= rays_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
@@ -352,7 +369,7 @@ def fit_glare(
             # a reading that moves a settled axis this far is a cloud's, not a correction of
             # the linearisation: back to the settled fit and its sky, no more readings, and
             # one more pass to refit the rim there (on the last pass, the fit is left unsettled)
-            a, rho, dipole, by_el, bg, bg_s, top_s = kept
+            a, rho, dipole, by_el, bg, bg_s, top_s, trust = kept
             reads = opts.sky_reads
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it == 0 and streak is None and opts.one_way_streaks:
@@ -412,36 +429,6 @@ def fit_glare(
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
     )
-
-
-def _illumination(
-    radiometry: Radiometry, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, phi: np.ndarray, chi: np.ndarray
-) -> np.ndarray:
-    """The lens's illumination at the samples (``phi``, ``chi``) about ``a`` (n_phi, n_chi),
-    relative to the illumination at ``a``."""
-    tz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
-    z = np.cos(chi)[None, :] * a[2] + np.sin(chi)[None, :] * tz[:, None]
-    return radiometry.illumination(z) / radiometry.illumination(float(a[2]))
-
-
-def _rim_shift(
-    radiometry: Radiometry | None,
-    shift_s: np.ndarray,
-    base: float,
-    a: np.ndarray,
-    e1: np.ndarray,
-    e2: np.ndarray,
-    phi: np.ndarray,
-    rho: float,
-) -> np.ndarray:
-    """Each ray's raise of the rim's grey level over ``base`` (grey): the sky's asymmetry
-    ``shift_s`` in the sky model's units, added in light to the base level's light and dimmed
-    by the lens's illumination at the rim, then turned back into grey.  Without a
-    radiometry, the frame is linear and evenly lit: the shift itself."""
-    if radiometry is None:
-        return shift_s
-    vig = _illumination(radiometry, a, e1, e2, phi, np.array([rho]))[:, 0]
-    return np.asarray(radiometry.to_grey(vig * (radiometry.to_light(base) + shift_s)), float) - base
 
 
 def horizon_side_excess(

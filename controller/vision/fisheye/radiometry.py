@@ -69,3 +69,33 @@ class Radiometry:
         """Relative illumination at field angles whose cosines are ``cos_theta``
         (camera z is the optical axis)."""
         return relative_illumination(self.vignetting, np.asarray(cos_theta, float))
+
+
+def illumination_about(
+    radiometry: Radiometry, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, phi: np.ndarray, chi: np.ndarray
+) -> np.ndarray:
+    """The lens's illumination at the samples (``phi``, ``chi``) about ``a`` (n_phi, n_chi),
+    relative to the illumination at ``a``."""
+    tz = np.cos(phi) * e1[2] + np.sin(phi) * e2[2]
+    z = np.cos(chi)[None, :] * a[2] + np.sin(chi)[None, :] * tz[:, None]
+    return radiometry.illumination(z) / radiometry.illumination(float(a[2]))
+
+
+def rim_shift(
+    radiometry: Radiometry | None,
+    shift_s: np.ndarray,
+    base: float,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+) -> np.ndarray:
+    """Each ray's raise of the rim's grey level over ``base`` (grey): the sky's asymmetry
+    ``shift_s`` in the sky model's units, added in light to the base level's light and dimmed
+    by the lens's illumination at the rim, then turned back into grey.  Without a
+    radiometry, the frame is linear and evenly lit: the shift itself."""
+    if radiometry is None:
+        return shift_s
+    vig = illumination_about(radiometry, a, e1, e2, phi, np.array([rho]))[:, 0]
+    return np.asarray(radiometry.to_grey(vig * (radiometry.to_light(base) + shift_s)), float) - base

@@ -1,0 +1,112 @@
+"""How far the sky read around the glare is a clear sky's: the trust a camera's sky
+calibration is given on a frame.
+
+A camera's sky calibration (``sky_scale``, ``sky_calibration``; :func:`.skybg.calibrated_scale`)
+is fitted on clear days: it scales the sky model's correction of the rim to what a clear
+sky's aureole and gradient do there.  Under broken cloud the rings around the glare read a
+cloud's edges as well, and the model's asymmetry is partly the cloud's; the clear sky's
+scale says nothing about that part, and amplifying it (by 1.6-2.8 on the third renderer)
+moved visible suns by the cloud's share and had them refused.  A clear sky is smooth in
+azimuth around the sun: a ring's means are its level, a dipole (the gradient) and a
+little quadrupole.  A cloud's edge puts structure at every order.  So each outer ring's ray
+means (1.7-3.2 rim radii: closer in, the glare's own steep profile read about an axis still
+off its centre leaves structure of its own) are fitted with harmonics up to the second,
+and what they leave (RMS over the rings' rays) is set against the rings' dipole (RMS over
+the rings), floored at :data:`DIPOLE_FLOOR` of the glare's contrast (a high sun's dipole is
+small, and so is what its scale changes).  That ratio is the rings' roughness; the
+calibration's departure from 1 is kept in full up to a roughness ``lo``, falls linearly to
+none at ``hi``, and beyond it the sky model is applied as it is (:func:`trusted_scale`).
+:func:`.glare.fit_glare` judges the rings from its second reading on (the first is read
+about the candidate's rough centre).
+
+On the third renderer's clear days a calibrated camera's readings after the first read at
+most 0.14 (the first, up to 0.20); under its broken cloud, the visible suns a calibrated
+camera lost and the uncalibrated one found read 0.2-1.2 (all six rings), half over 0.7.
+The one ``sky_scale`` is not judged: its bundles leave the CCD smear's column in the rings,
+which reads 0.3 on the third renderer's clear days.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: the rings' bands, in rim radii (the outer ones of :func:`.skybg.sky_dipole`)
+RING_BANDS = ((1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))
+#: the rings' dipole is counted as at least this fraction of the glare's contrast
+DIPOLE_FLOOR = 0.05
+#: rays a ring needs (all of their samples on the sky) for its harmonics to be fitted
+MIN_RING_RAYS = 12
+
+
+def ring_roughness(
+    vals: np.ndarray,
+    chi: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    rays_ok: np.ndarray,
+    sky: np.ndarray,
+    contrast: float,
+) -> float | None:
+    """The rings' structure beyond a clear sky's harmonics, over their dipole (dimensionless).
+
+    Parameters
+    ----------
+    vals : ndarray, shape (n_rays, n_chi)
+        The rings' samples, in the sky model's units (grey levels, or light).
+    chi : ndarray, shape (n_chi,)
+        Each sample's angle from the axis (rad).
+    phi : ndarray, shape (n_rays,)
+        Each ray's angle about the axis (rad).
+    rho : float
+        The rim's radius (rad).
+    rays_ok : ndarray of bool, shape (n_rays,)
+        The rays that count (a streak's are left out).
+    sky : ndarray of bool, shape (n_rays, n_chi)
+        The samples that look at the sky.
+    contrast : float
+        The glare's peak less the sky (the sky model's units).
+
+    Returns
+    -------
+    float or None
+        RMS of the rings' ray means about their fit by harmonics 0-2, over the RMS of the
+        fitted dipole's amplitude (at least :data:`DIPOLE_FLOOR` times ``contrast``); None
+        when no ring has :data:`MIN_RING_RAYS` rays wholly on the sky.
+    """
+    good = sky & rays_ok[:, None] & np.isfinite(vals)
+    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    res2, dip2 = [], []
+    for lo, hi in RING_BANDS:
+        sel = (chi >= lo * rho) & (chi < hi * rho)
+        if sel.sum() < 2:
+            continue
+        ok = good[:, sel].all(axis=1)
+        if ok.sum() < MIN_RING_RAYS:
+            continue
+        m = vals[ok][:, sel].mean(axis=1)
+        coef, *_ = np.linalg.lstsq(A[ok], m, rcond=None)
+        res2.append(float(np.mean((m - A[ok] @ coef) ** 2)))
+        dip2.append(float(coef[1] ** 2 + coef[2] ** 2))
+    if not res2:
+        return None
+    dip = max(math.sqrt(float(np.mean(dip2))), DIPOLE_FLOOR * max(contrast, 0.0), 1e-9)
+    return math.sqrt(float(np.mean(res2))) / dip
+
+
+def clear_sky_trust(roughness: float | None, lo: float, hi: float) -> float:
+    """The trust (0-1) in a clear sky around the glare: 1 up to a ``roughness`` of ``lo``,
+    falling linearly to 0 at ``hi`` (:func:`ring_roughness`; dimensionless); 1 when the
+    rings could not be judged (None)."""
+    if roughness is None:
+        return 1.0
+    if hi <= lo:
+        return 1.0 if roughness <= lo else 0.0
+    return float(np.clip((hi - roughness) / (hi - lo), 0.0, 1.0))
+
+
+def trusted_scale(scale: float, trust: float) -> float:
+    """A camera's sky scale (dimensionless) applied in proportion to the ``trust`` in a
+    clear sky (0-1): ``1 + (scale - 1) trust``, the sky model as it is with no trust."""
+    return 1.0 + (scale - 1.0) * trust

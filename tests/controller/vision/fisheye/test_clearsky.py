@@ -1,0 +1,95 @@
+"""A camera's sky calibration, fitted on clear days, applied as far as the rings around the
+glare read a clear sky (clearsky)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from controller.calibration.camera import CameraCal
+from controller.vision.fisheye.clearsky import clear_sky_trust, ring_roughness, trusted_scale
+from controller.vision.fisheye.glare import GlareOptions, fit_glare
+from controller.vision.fisheye.lens import FisheyeLens
+
+RHO = 0.05  # the rim's radius (rad)
+CAL = (2.5, 0.0, 2.5, 0.0)  # a camera whose clear sky asks for 2.5 times the model's correction
+
+
+def rings(cloud: bool, seed: int) -> tuple[np.ndarray, ...]:
+    """Rings 1.15-3.2 rim radii out: the glare's profile, a clear sky's dipole and a little
+    quadrupole, noise; with ``cloud``, a cloud 50 grey levels dark over 40 deg of the rings
+    beyond 2 radii."""
+    rng = np.random.default_rng(seed)
+    phi = np.arange(48) * (2 * math.pi / 48)
+    chi = np.arange(1.15 * RHO, 3.2 * RHO, 0.02 * RHO)
+    s = chi[None, :] / RHO
+    vals = 60.0 + 120.0 * np.exp(-(chi - RHO) / (0.3 * RHO))[None, :]
+    vals = vals + 4.0 * s * np.cos(phi - 0.7)[:, None] + 0.3 * s**2 * np.cos(2 * phi)[:, None]
+    vals = vals + rng.normal(0.0, 0.7, vals.shape)
+    if cloud:
+        band = (np.abs(np.degrees(phi) - 100.0) < 20.0)[:, None] & (chi[None, :] > 2.0 * RHO)
+        vals = np.where(band, vals - 50.0, vals)
+    ok = np.ones(phi.size, bool)
+    return vals, chi, phi, RHO, ok, np.ones(vals.shape, bool)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_clear_skys_rings_are_smooth_and_a_clouds_are_not(seed):
+    lo, hi = GlareOptions().clear_sky_roughness
+    clear = ring_roughness(*rings(False, seed), 180.0)
+    cloud = ring_roughness(*rings(True, seed), 180.0)
+    assert clear is not None and cloud is not None
+    assert clear < lo < hi < cloud
+    assert clear_sky_trust(clear, lo, hi) == 1.0 and clear_sky_trust(cloud, lo, hi) == 0.0
+
+
+def test_the_trust_falls_linearly_between_its_bounds_and_scales_the_departure_from_one():
+    assert clear_sky_trust(0.35, 0.2, 0.5) == pytest.approx(0.5)
+    assert clear_sky_trust(None, 0.2, 0.5) == 1.0  # rings that could not be judged
+    assert trusted_scale(2.6, 0.5) == pytest.approx(1.8)
+    assert trusted_scale(0.6, 0.0) == 1.0 and trusted_scale(2.6, 1.0) == 2.6
+
+
+def test_rings_without_enough_sky_are_not_judged():
+    vals, chi, phi, rho, ok, sky = rings(True, 0)
+    sky[:40] = False  # the horizon takes all but 8 rays
+    assert ring_roughness(vals, chi, phi, rho, ok, sky, 180.0) is None
+
+
+def _scene(cloud: bool) -> tuple[np.ndarray, FisheyeLens, np.ndarray]:
+    """A linear frame: a glare 3 deg wide (Moffat-like, 400 grey levels at its centre), a sky
+    brightening across it (150 grey levels per radian), and with ``cloud`` a cloud 50 grey
+    levels dark 5.5-9 deg from the sun over 40 deg of azimuth."""
+    cam = CameraCal(
+        width=320, height=240, fx=400.0, fy=400.0, cx=160.0, cy=120.0, dist=(0.0,) * 4, model="fisheye"
+    )
+    lens = FisheyeLens.from_camera(cam)
+    u, v = np.meshgrid(np.arange(320.0), np.arange(240.0))
+    d = lens.rays(np.stack([u.ravel(), v.ravel()], 1))[0].reshape(240, 320, 3)
+    sun = np.array([0.1, -0.05, 1.0]) / np.linalg.norm([0.1, -0.05, 1.0])
+    th = np.degrees(np.arccos(np.clip(d @ sun, -1.0, 1.0)))
+    g = np.cross(sun, [0.0, 0.0, 1.0])
+    g /= np.linalg.norm(g)
+    img = 60.0 + 150.0 * (d @ g) + 400.0 * (1.0 + (th / 3.0) ** 2) ** -1.5
+    if cloud:
+        az = np.degrees(np.arctan2(d @ np.cross(sun, g), d @ g))
+        img = img + np.where((np.abs(az - 40.0) < 20.0) & (th > 5.5) & (th < 9.0), -50.0, 0.0)
+    return np.clip(img, 0.0, 255.0), lens, sun
+
+
+@pytest.mark.parametrize("cloud", [False, True], ids=["clear", "cloud in the rings"])
+def test_a_cameras_calibration_scales_a_clear_skys_correction_and_not_a_clouds(cloud):
+    img, lens, sun = _scene(cloud)
+    uv, _ = lens.project(sun[None, :])
+    x0, y0 = float(uv[0, 0]), float(uv[0, 1])
+    r_px = 2.7 / lens.deg_per_px(x0, y0)
+    plain = fit_glare(img, lens, x0, y0, r_px, 255.0, GlareOptions())
+    cal = fit_glare(img, lens, x0, y0, r_px, 255.0, GlareOptions(sky_calibration=CAL))
+    assert plain is not None and cal is not None and "sky_dipole" in plain.flags
+    apart = math.degrees(math.acos(min(1.0, float(plain.axis @ cal.axis))))
+    if cloud:  # the sky model as it is, once the rings are judged (the first reading is not)
+        assert apart < 0.005
+    else:  # 1.5 times more correction than the model's own (0.08 deg here)
+        assert apart > 0.05
