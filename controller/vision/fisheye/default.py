@@ -415,8 +415,10 @@ class FisheyeEstimator(FramePipeline):
             )
         if self.ephemeris is not None and t is not None:
             o = self.bundle.orientation
-            slack = 5.0 * (o.residual_deg or 0.0) if o is not None else 0.0
-            out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg + slack, "enu"))
+            slack = 0.0  # narrowed by the rotation's own error, as the learned site's (.gates)
+            if o is not None and o.residual_deg is not None:
+                slack = 2.0 * o.residual_deg / math.sqrt(max(o.frames or 1, 1))
+            out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg - slack, "enu"))
         if self.learned is not None and t is not None and self.site_from_sun is not None:
             if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew
                 self.site_from_sun, self.learned = SiteFromSun(), None

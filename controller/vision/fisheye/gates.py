@@ -16,10 +16,14 @@
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
-  the sun is within ``ephemeris_deg`` (plus five times the orientation fit's residual) of
-  pvlib's position.  A site learned from the sun (:mod:`.selfsite`) gates at ``ephemeris_deg``
-  less twice its fit's error over the root of its sights (its sun's own error, to a first
-  guess), so that a fix it lets through is still within ``ephemeris_deg`` of the true sun.
+  the sun is within ``ephemeris_deg`` of pvlib's position, less twice the orientation fit's
+  residual over the root of its frames (the rotation's own error, to a first guess; bundle
+  ``residual_deg`` and ``frames``).  A site learned from the sun (:mod:`.selfsite`) gates at
+  ``ephemeris_deg`` less twice its fit's error over the root of its sights.  Either way a
+  fix it lets through is still within ``ephemeris_deg`` of the true sun.  (Until
+  2026-12-01 the bundle's gate was widened by five times the residual instead: a camera
+  calibrated on the third renderer's clear day, residual 0.05 deg, let two fixes 1.01 and
+  1.03 deg off through under its clouds.)
   The ephemeris is evaluated on a
   10-minute grid and interpolated (error < 0.001 deg), so the gate costs nothing per frame.
 """

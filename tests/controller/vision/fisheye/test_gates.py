@@ -79,3 +79,24 @@ def test_the_ephemeris_computes_a_block_of_its_grid_at_once_and_stays_spas(monke
         # SPA's own value on the grid, its chords between (the gate is 1 deg wide)
         assert angle_between_deg(eph.direction(t), truth) < (1e-9 if k % 2 == 0 else 0.01)
     assert len(calls) <= 2  # one SPA call per 12 h block, not one per grid point
+
+
+def test_a_fitted_orientation_narrows_the_ephemeris_gate_by_its_own_error():
+    """What the gate lets through must be within 1 deg of the true sun even when the bundle's
+    rotation is a little off: the gate is 1 deg less twice the fit's residual over the root of
+    its frames.  Widened by five times the residual instead, a calibrated camera (0.05 deg)
+    passed fixes 1.01 and 1.03 deg off on the third renderer's clouds."""
+    from dataclasses import replace
+
+    scn = small_scene()
+    t = 1_710_936_000.0  # 2024-03-20 12:00 UTC
+    plain = FisheyeEstimator(truth_bundle(scn))
+    (g,) = [g for g in plain._gates(t, None) if g.name == "ephemeris"]
+    assert g.radius_deg == 1.0
+    b = truth_bundle(scn)
+    fitted = replace(b, orientation=replace(b.orientation, residual_deg=0.05, frames=25))
+    (g,) = [g for g in FisheyeEstimator(fitted)._gates(t, None) if g.name == "ephemeris"]
+    assert math.isclose(g.radius_deg, 1.0 - 2.0 * 0.05 / 5.0)
+    surveyed = replace(b, orientation=replace(b.orientation, residual_deg=0.2))  # no frames: one
+    (g,) = [g for g in FisheyeEstimator(surveyed)._gates(t, None) if g.name == "ephemeris"]
+    assert math.isclose(g.radius_deg, 0.6)
