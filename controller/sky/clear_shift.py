@@ -42,7 +42,7 @@ def haurwitz_shape(cos_z: np.ndarray) -> np.ndarray:
     return np.where(c > 0, pos * np.exp(-0.057 / pos), 0.0)
 
 
-def _bins(ghi: np.ndarray, has: np.ndarray, step_s: int) -> tuple[np.ndarray, np.ndarray, float]:
+def _bins(ghi: np.ndarray, has: np.ndarray, step_s: int) -> tuple[np.ndarray, float]:
     """Mean GHI per bin (NaN where under half the bin holds samples), and the bin width (s)."""
     k = max(1, int(round(BIN_S / step_s)))
     rows, n = ghi.shape
@@ -50,7 +50,7 @@ def _bins(ghi: np.ndarray, has: np.ndarray, step_s: int) -> tuple[np.ndarray, np
     g = np.where(has, ghi, 0.0)[:, : nb * k].reshape(rows, nb, k).astype(np.float64)
     cnt = has[:, : nb * k].reshape(rows, nb, k).sum(axis=2)
     mean = g.sum(axis=2) / np.maximum(cnt, 1)
-    return np.where(cnt * 2 >= k, mean, np.nan), cnt > 0, float(k * step_s)
+    return np.where(cnt * 2 >= k, mean, np.nan), float(k * step_s)
 
 
 def clear_shift_rows(
@@ -87,7 +87,7 @@ def clear_shift_rows(
         RMS misfit of the best shift over the mean light of the daylight bins (NaN
         without daylight).
     """
-    g, _, width = _bins(ghi, has, step_s)
+    g, width = _bins(ghi, has, step_s)
     rows, nb = g.shape
     t_bin = np.asarray(t0, float) + 0.5 * (width - step_s)  # each bin's centre
     shifts = np.arange(-MAX_SHIFT_H, MAX_SHIFT_H + 1e-9, 5.0 / 60.0)
