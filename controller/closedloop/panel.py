@@ -165,9 +165,8 @@ class ClosedLoopController(Controller):
         position = [a.actual_deg for a in state.axes][: tr.cfg.axes]
         reference = None
         if est is not None:
-            reference = sp.tracking(est, [tr.cfg], [state], lowest_sun_azimuth(self.config.site.latitude))[0][
-                0
-            ]
+            seam = lowest_sun_azimuth(self.config.site.latitude)
+            reference = sp.tracking(est, [tr.cfg], [state], seam)[0][0]
         frame = await asyncio.to_thread(row.frames.grab, t)
         if frame is None:
             row.frames_seen["no frame"] += 1
