@@ -445,7 +445,11 @@ def test_an_slcan_adapter_is_held_exclusively():
                 try:
                     assert _flock(link.path) is None  # held while the drive is open
                     shared = SharedNetwork._open[("slcan", link.path)]
-                    shared.network.notifier.exception = OSError("device disconnected")  # dead
+                    # dead as a real one is: its receive thread ended with an error (a thread
+                    # left reading would share the pty with the fresh network's and fail on
+                    # the bytes it took: "multiple access on port", a warning in the suite)
+                    shared.network.notifier.stop(1.0)
+                    shared.network.notifier.exception = OSError("device disconnected")
                     fresh = await asyncio.to_thread(SharedNetwork.acquire, "slcan", link.path, d.bus_kwargs)
                     assert fresh is not shared  # it could take the port over
                     fresh.release()
