@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .lens import FisheyeLens
+from .small import median
 from .sphere import tangent_basis
 
 #: Prior on the blend (0: all on the sky, 1: all on the sensor), and its one-sigma width:
@@ -49,14 +50,17 @@ def _distances(lens: FisheyeLens, v: np.ndarray, uv: np.ndarray, a: np.ndarray, 
     """Angular and pixel distances of the rim points from ``a`` and their derivatives with
     respect to small turns of ``a`` along its tangent basis; None if ``a`` is behind the lens."""
     e1, e2 = tangent_basis(a)
-    probes = np.stack([a, a + h * e1, a + h * e2])
+    probes = np.array([a, a + h * e1, a + h * e2])
     c, ok = lens.project(probes / np.linalg.norm(probes, axis=1, keepdims=True))
     if not ok.all():
         return None
     cos_d = np.clip(v @ a, -1.0, 1.0)
     d_ang = np.arccos(cos_d)
     sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
-    g_ang = np.stack([-(v @ e1) / sin_d, -(v @ e2) / sin_d], 1)
+    g_ang = np.empty((len(v), 2))
+    np.divide(v @ e1, sin_d, out=g_ang[:, 0])
+    np.divide(v @ e2, sin_d, out=g_ang[:, 1])
+    np.negative(g_ang, out=g_ang)
     dp = uv - c[0]
     d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
     dc = (c[1:] - c[0]) / h  # (2, 2): the image's motion per radian of turn along e1, e2
@@ -67,7 +71,7 @@ def _distances(lens: FisheyeLens, v: np.ndarray, uv: np.ndarray, a: np.ndarray, 
 def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
     """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
     reselection, ``iters`` times; ``s``: the lens's scale (rad per px)."""
-    rho = float(np.median(np.arccos(np.clip(v[inl] @ a, -1.0, 1.0))))
+    rho = median(np.arccos(np.clip(v[inl] @ a, -1.0, 1.0)))
     got = _distances(lens, v, uv, a)
     if got is None:
         return None
@@ -96,8 +100,9 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
         res = alpha * s * got[5] + (1.0 - alpha) * got[3] - rho
         if i == iters:
             break
-        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
-        new = np.abs(res - np.median(res[inl])) <= k * max(mad, floor)
+        mid = median(res[inl])
+        mad = 1.4826 * median(np.abs(res[inl] - mid))
+        new = np.abs(res - mid) <= k * max(mad, floor)
         if new.sum() < 6 or np.array_equal(new, inl):
             break
         inl = new

@@ -41,6 +41,7 @@ from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
 from .lens import FisheyeLens
 from .radiometry import Radiometry, illumination_about, rim_shift
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
+from .small import median
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
@@ -287,7 +288,7 @@ def fit_glare(
             outer = rvals[:, -3:][rsky[:, -3:] & np.isfinite(rvals[:, -3:])]
             if outer.size < 8:
                 return None
-            bg = float(np.median(outer))  # in the sky model's units (grey, or light)
+            bg = median(outer)  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
             dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, rsky)
             if it and opts.sky_calibration is not None:  # judged once centred (see GlareOptions)
@@ -312,7 +313,7 @@ def fit_glare(
             if radiometry is not None:
                 bg = float(radiometry.to_grey(bg_s))
             inner = samples[1][0][:, ring_chi < 1.4 * rho][rsky[:, ring_chi < 1.4 * rho]]
-            read_inside = inner.size > 0 and float(np.median(inner)) >= bg + opts.level * (peak - bg)
+            read_inside = inner.size > 0 and median(inner) >= bg + opts.level * (peak - bg)
         if by_el is not None:
             t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
             sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)

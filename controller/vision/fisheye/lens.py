@@ -24,6 +24,7 @@ import numpy as np
 
 #: Rays beyond this off-axis angle (deg) are not trusted (see the module's docstring).
 THETA_LIMIT_DEG = 95.0
+_NO_TURN = np.zeros(3)  # projectPoints' rotation and translation: none
 _FEW = 8  # up to this many pixels, rays are computed in floats (numpy's overhead dominates)
 
 
@@ -115,11 +116,11 @@ class FisheyeLens:
         """Camera-frame directions (N, 3) -> pixels (N, 2); ``valid`` only in front (z > 0)."""
         d = np.asarray(dirs, np.float64).reshape(-1, 3)
         valid = d[:, 2] > 1e-9
-        safe = np.where(valid[:, None], d, [0.0, 0.0, 1.0])
+        safe = d if valid.all() else np.where(valid[:, None], d, [0.0, 0.0, 1.0])
         uv, _ = cv2.fisheye.projectPoints(
             np.ascontiguousarray(safe.reshape(-1, 1, 3)),
-            np.zeros(3),
-            np.zeros(3),
+            _NO_TURN,
+            _NO_TURN,
             self.K,
             self.D,
             alpha=self._skew / self.fx,  # OpenCV takes the skew here, not from K

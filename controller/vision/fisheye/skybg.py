@@ -13,6 +13,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from .small import median, median_rows
+
 
 def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
     """Robust fit m = m0 + c cos(phi) + s sin(phi) + quadrupole; returns (c, s)."""
@@ -25,13 +27,16 @@ def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
             return np.zeros(2)
         coef, *_ = np.linalg.lstsq(A[keep], m[keep], rcond=None)
         res = m - A @ coef
-        mad = 1.4826 * float(np.median(np.abs(res[keep]))) + 0.5
+        mad = 1.4826 * median(np.abs(res[keep])) + 0.5
         new = finite & (np.abs(res) <= 3.0 * mad)
         if np.array_equal(new, keep):
             break
         keep = new
     return coef[1:3]
 
+
+#: the rings' edges (rim radii) whose dipoles :func:`sky_dipole` fits
+RING_EDGES = (1.15, 1.4, 1.7, 2.0, 2.4, 2.8, 3.2)
 
 #: rounds of clipping the elevation model's outliers (it stops once they stop changing)
 MAX_CLIP_ROUNDS = 8
@@ -55,7 +60,7 @@ def harmonics(phi: np.ndarray, M: np.ndarray) -> np.ndarray:
     if clean.any():
         coef = M[clean] @ pinv_t
         res = M[clean] - coef @ A.T
-        mad = 1.4826 * np.median(np.abs(res), axis=1) + 0.5
+        mad = 1.4826 * median_rows(np.abs(res)) + 0.5
         ok = (np.abs(res) <= 3.0 * mad[:, None]).all(axis=1)
         rows = np.flatnonzero(clean)
         out[rows[ok]] = coef[ok, 1:3]
@@ -97,19 +102,25 @@ def sky_dipole(
     prof[~seen] = float(prof[seen].mean())  # the mean profile (a ring seen nowhere: its mean)
     dprof = np.gradient(prof, chi)
     rows, means = [], []
-    for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2)):
-        sel = (chi >= lo * rho) & (chi < hi * rho)
-        if sel.sum() < 2:
+    n_ok = int(np.count_nonzero(rays_ok))
+    # the rings' radii rise along ``chi``: each ring is a run of columns (sums over counts
+    # below are numpy's means, value for value, without their overhead)
+    cuts = np.searchsorted(chi, np.array(RING_EDGES) * rho).tolist()
+    for i0, i1 in zip(cuts[:-1], cuts[1:]):
+        n = i1 - i0
+        if n < 2:
             continue
-        m = vals[:, sel].mean(axis=1)
-        m[~rays_ok | ~sky[:, sel].all(axis=1)] = np.nan
+        m = vals[:, i0:i1].sum(axis=1) / n
+        m[~rays_ok | ~sky[:, i0:i1].all(axis=1)] = np.nan
         # a ring cut by the horizon: its dipole is unreliable (the rays left out by design,
         # a streak's, count against the ring only where it would be left too short)
         fin = np.isfinite(m)
-        if fin.mean() < 0.6 or fin[rays_ok].mean() < 0.75:
+        if int(np.count_nonzero(fin)) / fin.size < 0.6 or (
+            n_ok and int(np.count_nonzero(fin & rays_ok)) / n_ok < 0.75
+        ):
             continue
-        c = float(chi[sel].mean())
-        rows.append([-float(dprof[sel].mean()), c / rho, (c / rho) ** 2])
+        c = float(chi[i0:i1].sum()) / n
+        rows.append([-float(dprof[i0:i1].sum()) / n, c / rho, (c / rho) ** 2])
         means.append(m)
     rhs = harmonics(phi, np.asarray(means)) if means else np.zeros((0, 2))
     if len(rows) < 4:
@@ -184,7 +195,7 @@ def sky_by_elevation(
     for _ in range(MAX_CLIP_ROUNDS):
         sol, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
         res = b - A @ sol
-        mad = 1.4826 * float(np.median(np.abs(res[keep]))) + 0.5
+        mad = 1.4826 * median(np.abs(res[keep])) + 0.5
         new = np.abs(res) <= 3.0 * mad
         if np.array_equal(new, keep) or new.sum() < 2 * A.shape[1]:
             break

@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from .lens import FisheyeLens
+from .small import median
 
 SIN_1DEG = math.sin(math.radians(1.0))
 COS_88DEG = math.cos(math.radians(88.0))
@@ -47,7 +48,7 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
         res = ang - A @ coef
         if i == iters:
             break
-        mad = 1.4826 * float(np.median(np.abs(res[inl] - np.median(res[inl]))))
+        mad = 1.4826 * median(np.abs(res[inl] - median(res[inl])))
         new = np.abs(res) <= k * max(mad, floor_rad)
         if new.sum() < 6 or np.array_equal(new, inl):
             break
@@ -161,7 +162,8 @@ def sample_sphere(
     uv, okp = lens.project(dirs)
     if not okp.any():
         return [(np.full(b.shape[:2], np.nan), np.zeros(b.shape[:2], bool)) for b in blocks]
-    uv[~okp] = uv[okp][0]
+    if not okp.all():
+        uv[~okp] = uv[okp][0]
     if up_cam is not None:
         sky = dirs @ up_cam > SIN_1DEG
     else:

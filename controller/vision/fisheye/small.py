@@ -1,0 +1,41 @@
+"""Statistics of the few dozen values the rim's fits handle at a time.
+
+numpy's general functions spend more on dispatch than on a rim's 30-100 values: a frame
+calls a median some thirty times, and at 200 frames/s each microsecond is 0.02 % of the
+budget.  These give numpy's results, value for value, on that hot path.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def median(x: np.ndarray) -> float:
+    """``float(np.median(x))`` of a 1-D array: the middle value, or the mean of the two
+    middle values; NaN when ``x`` is empty or holds a NaN (as numpy)."""
+    n = x.size
+    if n == 0:
+        return math.nan
+    h = n // 2
+    if n % 2:
+        p = np.partition(x, (h, n - 1))  # the last slot: the largest, NaN if there is one
+        m = p[h]
+    else:
+        p = np.partition(x, (h - 1, h, n - 1))
+        m = (p[h - 1] + p[h]) / 2
+    if np.isnan(p[n - 1]):
+        return math.nan
+    return float(m)
+
+
+def median_rows(x: np.ndarray) -> np.ndarray:
+    """``np.median(x, axis=1)`` of a 2-D array without NaN (each row's middle value, or the
+    mean of its two middle values)."""
+    n = x.shape[1]
+    h = n // 2
+    if n % 2:
+        return np.partition(x, h, axis=1)[:, h]
+    p = np.partition(x, (h - 1, h), axis=1)
+    return (p[:, h - 1] + p[:, h]) / 2

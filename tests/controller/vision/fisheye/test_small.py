@@ -1,0 +1,39 @@
+import math
+
+import numpy as np
+import pytest
+
+from controller.vision.fisheye.small import median, median_rows
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_median_is_numpys_value_for_value(dtype):
+    rng = np.random.default_rng(5)
+    for n in list(range(1, 12)) + [37, 100, 101]:
+        for _ in range(20):
+            x = rng.normal(size=n).astype(dtype)
+            if n > 3:
+                x[: n // 3] = x[0]  # ties
+            rng.shuffle(x)
+            assert median(x) == float(np.median(x))
+
+
+def test_median_of_nothing_or_of_a_nan_is_nan():
+    assert math.isnan(median(np.zeros(0)))
+    for n in (1, 2, 5, 6):
+        x = np.arange(n, dtype=float)
+        x[n // 2] = np.nan
+        assert math.isnan(median(x))
+
+
+def test_median_leaves_its_argument_alone():
+    x = np.array([3.0, 1.0, 2.0, 0.0])
+    median(x)
+    assert x.tolist() == [3.0, 1.0, 2.0, 0.0]
+
+
+@pytest.mark.parametrize("n", [1, 2, 7, 36, 37])
+def test_median_rows_is_numpys_value_for_value(n):
+    x = np.random.default_rng(n).normal(size=(6, n))
+    x[:, : n // 3] = x[:, :1]  # ties
+    assert median_rows(x).tolist() == np.median(x, axis=1).tolist()
