@@ -171,10 +171,12 @@ def sample_sphere(
     sky &= okp & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
     # a float window of the frame that holds every sample
     m = 1
-    x0 = int(np.clip(np.floor(uv[:, 0].min()) - m, 0, W - 1))
-    y0 = int(np.clip(np.floor(uv[:, 1].min()) - m, 0, H - 1))
-    x1 = int(np.clip(np.ceil(uv[:, 0].max()) + m + 1, x0 + 1, W))
-    y1 = int(np.clip(np.ceil(uv[:, 1].max()) + m + 1, y0 + 1, H))
+    u_lo, v_lo = uv.min(axis=0).tolist()
+    u_hi, v_hi = uv.max(axis=0).tolist()
+    x0 = min(max(math.floor(u_lo) - m, 0), W - 1)
+    y0 = min(max(math.floor(v_lo) - m, 0), H - 1)
+    x1 = min(max(math.ceil(u_hi) + m + 1, x0 + 1), W)
+    y1 = min(max(math.ceil(v_hi) + m + 1, y0 + 1), H)
     win = grey[y0:y1, x0:x1].astype(np.float32)
     if smear is not None:
         lev = smear[0][None, x0:x1]
