@@ -39,3 +39,14 @@ def median_rows(x: np.ndarray) -> np.ndarray:
         return np.partition(x, h, axis=1)[:, h]
     p = np.partition(x, (h - 1, h), axis=1)
     return (p[:, h - 1] + p[:, h]) / 2
+
+
+def median_kept(x: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Each row's median over its ``keep`` entries (``x``, ``keep``: 2-D, every row keeping
+    at least one): ``np.median(x[i][keep[i]])`` row by row, in one sort."""
+    s = np.sort(np.where(keep, x, np.inf), axis=1)
+    n = keep.sum(axis=1)
+    r = np.arange(x.shape[0])
+    hi = s[r, n // 2]
+    lo = s[r, np.maximum(n - 1, 0) // 2]
+    return np.where(n % 2 == 1, hi, (lo + hi) / 2)

@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.small import median, median_rows
+from controller.vision.fisheye.small import median, median_kept, median_rows
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -37,3 +37,13 @@ def test_median_rows_is_numpys_value_for_value(n):
     x = np.random.default_rng(n).normal(size=(6, n))
     x[:, : n // 3] = x[:, :1]  # ties
     assert median_rows(x).tolist() == np.median(x, axis=1).tolist()
+
+
+def test_median_kept_is_the_median_of_each_rows_kept_values():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(40, 36))
+    keep = rng.random((40, 36)) < rng.uniform(0.05, 1.0, (40, 1))
+    keep[:, 0] = True
+    x[~keep & (rng.random((40, 36)) < 0.5)] = np.nan  # what is not kept may be anything
+    want = [float(np.median(row[k])) for row, k in zip(x, keep)]
+    assert median_kept(x, keep).tolist() == want
