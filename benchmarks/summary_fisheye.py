@@ -76,6 +76,17 @@ def fisheye(r: dict) -> list[Headline]:
             ok=acc.get("fps_1920x1080_ge_50"),
         ),
     ]
+    others = fps.get("640x480, other renderers")
+    if others:
+        out.append(
+            Headline(
+                "fisheye",
+                "frames/s, 640 x 480, clear frames of the second / third renderer",
+                " / ".join(fmt(others[k]["fps"], 3) for k in ("second renderer", "third renderer")),
+                ">= 200",
+                ok=acc.get("fps_640x480_other_renderers_ge_200"),
+            )
+        )
     other = r.get("other_renderer")
     if other:
         oc, ocl = other["clear"]["other renderer"], other["clouds"]
