@@ -126,7 +126,8 @@ def sky_dipole(
     look at the sky (not the ground, not beyond the image circle); a ray's ring counts only
     when all its samples do, and a ring only when 75 % of the rays in ``rays_ok`` and 60 %
     of all its rays count (a streak's 22 % left out by design and a little ground had
-    dropped every ring when 75 % of all rays were asked for).
+    dropped every ring when 75 % of all rays were asked for).  ``chi``: the rings' radii
+    (rad), ascending, as :func:`.glare.fit_glare` casts them.
     """
     if sky is None:
         sky = np.ones(vals.shape, bool)
