@@ -39,6 +39,7 @@ mask = "mask.png"   # optional (top level); relative paths resolve against this 
 from __future__ import annotations
 
 import datetime as dt
+import math
 import re
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -125,7 +126,8 @@ class PoseCal:
                 raise at.error("both rvec and tvec")
             if max(abs(x) for x in self.rvec) > 4 * np.pi:  # 1e300 rad made a NaN rotation
                 raise at.child("rvec").error("a rotation vector of at most 4 pi rad", list(self.rvec))
-            if float(np.linalg.norm(self.tvec)) > MAX_CAMERA_DISTANCE_M:  # a survey in mm, say
+            # a survey in mm, say (hypot: a fuzzed 1e200 overflowed numpy's norm, with a warning)
+            if math.hypot(*self.tvec) > MAX_CAMERA_DISTANCE_M:
                 raise at.child("tvec").error(
                     f"a camera within {MAX_CAMERA_DISTANCE_M:g} m of the surface's model origin "
                     "(is the survey in metres?)",
@@ -163,7 +165,7 @@ class LevelCal:
 
     def __schema_check__(self, at: Where) -> LevelCal:
         if self.zenith_model is not None:
-            norm = float(np.linalg.norm(self.zenith_model))
+            norm = math.hypot(*self.zenith_model)  # no overflow for a huge vector
             if norm < 1e-9:
                 raise at.child("zenith_model").error("a non-zero vector", list(self.zenith_model))
             # the model's z is the dome's axis, installed about level: a zenith far from it

@@ -226,8 +226,13 @@ def test_the_noon_method_needs_both_sides_of_noon():
             "[0.17, 41.0, 799.7]",
             "pose.tvec: expected a camera within 20 m of the surface's model origin",
         ),  # mm
+        (  # a fuzzed file's: its length overflowed numpy's norm (a RuntimeWarning) on the way
+            "[1e200, 0.0, 1e200]",
+            "pose.tvec: expected a camera within 20 m of the surface's model origin",
+        ),
     ],
 )
+@pytest.mark.filterwarnings("error")
 def test_a_bundle_whose_camera_cannot_see_the_surface_is_named_at_load(
     tmp_path, capsys, bundle, tvec, message
 ):
