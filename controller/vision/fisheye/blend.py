@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import median
-from .sphere import tangent_basis
+from .small import median, solve_spd
+from .sphere import Vec3, tangent_frame
 
 #: Prior on the blend (0: all on the sky, 1: all on the sensor), and its one-sigma width:
 #: neutral, so that it only decides where the rim cannot (near the centre of the field).
@@ -46,58 +46,75 @@ class BlendFit:
     residuals: np.ndarray  # of every rim point
 
 
-def _distances(lens: FisheyeLens, v: np.ndarray, uv: np.ndarray, a: np.ndarray, h: float = 1e-4):
-    """Angular and pixel distances of the rim points from ``a`` and their derivatives with
-    respect to small turns of ``a`` along its tangent basis; None if ``a`` is behind the lens."""
-    e1, e2 = tangent_basis(a)
-    probes = np.array([a, a + h * e1, a + h * e2])
-    c, ok = lens.project(probes / np.linalg.norm(probes, axis=1, keepdims=True))
-    if not ok.all():
-        return None
-    cos_d = np.clip(v @ a, -1.0, 1.0)
-    d_ang = np.arccos(cos_d)
-    sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
-    g_ang = np.empty((len(v), 2))
-    np.divide(v @ e1, sin_d, out=g_ang[:, 0])
-    np.divide(v @ e2, sin_d, out=g_ang[:, 1])
-    np.negative(g_ang, out=g_ang)
-    dp = uv - c[0]
-    d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
-    dc = (c[1:] - c[0]) / h  # (2, 2): the image's motion per radian of turn along e1, e2
-    g_pix = -(dp @ dc.T) / d_pix[:, None]
-    return e1, e2, c[0], d_ang, g_ang, d_pix, g_pix
+def _probe(lens: FisheyeLens, a: Vec3, h: float = 1e-4):
+    """The tangent frame at ``a``, its image ``pi(a)`` and the image's motion per radian of
+    turn along e1, e2 (a (2, 2) array, by differences over ``h``); None if behind the lens."""
+    e1, e2 = tangent_frame(*a)
+    out = []
+    for p in (a, [ai + h * ei for ai, ei in zip(a, e1)], [ai + h * ei for ai, ei in zip(a, e2)]):
+        n = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+        c = lens.project_one(p[0] / n, p[1] / n, p[2] / n)
+        if c is None:
+            return None
+        out.append(c)
+    (u0, v0), (u1, v1), (u2, v2) = out
+    return e1, e2, (u0, v0), np.array([[(u1 - u0) / h, (v1 - v0) / h], [(u2 - u0) / h, (v2 - v0) / h]])
 
 
 def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
     """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
-    reselection, ``iters`` times; ``s``: the lens's scale (rad per px)."""
+    reselection, ``iters`` times; ``s``: the lens's scale (rad per px).
+
+    Each step solves the normal equations of the inliers' residuals and the prior on
+    ``alpha``; in floats where the values are few (the fit runs ~10 steps per pass)."""
     rho = median(np.arccos(np.clip(v[inl] @ a, -1.0, 1.0)))
-    got = _distances(lens, v, uv, a)
+    a = tuple(a.tolist())
+    got = _probe(lens, a)
     if got is None:
         return None
     res = np.zeros(len(v))
     for i in range(iters + 1):
+        vi, uvi = v[inl], uv[inl]
+        J = np.empty((len(vi), 4))  # d residual / d (turn along e1, e2; rho; alpha)
+        J[:, 2] = -1.0
         for _ in range(3):  # Gauss-Newton on the current inliers
-            e1, e2, _, d_ang, g_ang, d_pix, g_pix = got
-            res = alpha * s * d_pix + (1.0 - alpha) * d_ang - rho
-            J = np.column_stack(
-                [alpha * s * g_pix + (1.0 - alpha) * g_ang, -np.ones(len(v)), s * d_pix - d_ang]
-            )
+            e1, e2, c, dc = got
+            cos_e = vi @ np.array([a, e1, e2]).T  # cos of the distance, then along e1, e2
+            cos_d = np.clip(cos_e[:, 0], -1.0, 1.0)
+            d_ang = np.arccos(cos_d)
+            sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
+            dp = uvi - c
+            d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
+            r = alpha * s * d_pix + (1.0 - alpha) * d_ang - rho
+            J[:, :2] = (dp @ (-(alpha * s) * dc.T)) / d_pix[:, None] - cos_e[:, 1:] * ((1.0 - alpha) / sin_d)[
+                :, None
+            ]
+            J[:, 3] = s * d_pix - d_ang
             # the prior on alpha, weighed like one rim point at the fit's noise
-            sig = max(floor, float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else floor)
-            A = np.vstack([J[inl], [0.0, 0.0, 0.0, sig / ALPHA_SIGMA]])
-            b = np.concatenate([-res[inl], [-(sig / ALPHA_SIGMA) * (alpha - ALPHA_PRIOR)]])
-            step, *_ = np.linalg.lstsq(A, b, rcond=None)
-            a = a + step[0] * e1 + step[1] * e2
-            a /= np.linalg.norm(a)
-            rho += float(step[2])
-            alpha = float(np.clip(alpha + step[3], 0.0, 1.0))
-            got = _distances(lens, v, uv, a)
+            w = max(floor, math.sqrt(float(r @ r) / len(r))) / ALPHA_SIGMA
+            M = (J.T @ J).tolist()
+            M[3][3] += w * w
+            g = (-(J.T @ r)).tolist()
+            g[3] -= w * w * (alpha - ALPHA_PRIOR)
+            step = solve_spd(M, g)
+            if step is None:
+                A = np.vstack([J, [0.0, 0.0, 0.0, w]])
+                b = np.concatenate([-r, [-w * (alpha - ALPHA_PRIOR)]])
+                step = np.linalg.lstsq(A, b, rcond=None)[0].tolist()
+            t1, t2, d_rho, d_alpha = step
+            x, y, z = (a[j] + t1 * e1[j] + t2 * e2[j] for j in range(3))
+            n = math.sqrt(x * x + y * y + z * z)
+            a = (x / n, y / n, z / n)
+            rho += d_rho
+            alpha = min(max(alpha + d_alpha, 0.0), 1.0)
+            got = _probe(lens, a)
             if got is None:
                 return None
-            if abs(step[0]) + abs(step[1]) < 0.2 * floor:
+            if abs(t1) + abs(t2) < 0.2 * floor:
                 break
-        res = alpha * s * got[5] + (1.0 - alpha) * got[3] - rho
+        dp = uv - got[2]
+        d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
+        res = alpha * s * d_pix + (1.0 - alpha) * np.arccos(np.clip(v @ np.array(a), -1.0, 1.0)) - rho
         if i == iters:
             break
         mid = median(res[inl])
@@ -106,8 +123,8 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
         if new.sum() < 6 or np.array_equal(new, inl):
             break
         inl = new
-    rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
-    return BlendFit(a, rho, alpha, inl, rms, res)
+    rms = math.sqrt(float(res[inl] @ res[inl]) / int(inl.sum())) if inl.any() else float("inf")
+    return BlendFit(np.array(a), rho, alpha, inl, rms, res)
 
 
 def fit_blend(

@@ -11,19 +11,17 @@ import cv2
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import median
+from .small import median, solve_spd
 
 SIN_1DEG = math.sin(math.radians(1.0))
 COS_88DEG = math.cos(math.radians(88.0))
 
 
-def plane_fit(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
-    """Weighted plane a . v = c through unit vectors (total least squares); a . mean > 0."""
-    sw = w.sum()
-    m = (w[:, None] * v).sum(0) / sw
+def plane_fit(v: np.ndarray) -> tuple[np.ndarray, float]:
+    """Plane a . v = c through unit vectors (total least squares); a . mean > 0."""
+    m = v.sum(0) / len(v)
     q = v - m
-    C = (w[:, None] * q).T @ q
-    _, vecs = np.linalg.eigh(C)
+    _, vecs = np.linalg.eigh(q.T @ q)
     a = vecs[:, 0]
     if a @ m < 0:
         a = -a
@@ -32,20 +30,28 @@ def plane_fit(v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, float]:
 
 def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
     """Iterate plane fit / harmonic residuals / MAD selection from the inlier set ``inl``;
-    returns (axis, cos radius, inliers, residuals rad, (c2, s2) rad)."""
-    a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
+    returns (axis, cos radius, inliers, residuals rad, (c2, s2) rad).  The harmonics are
+    fitted by their normal equations (``np.linalg.lstsq`` where those are near singular)."""
+    a, c = plane_fit(v[inl])
     ell = np.zeros(2)
     res = np.zeros(len(v))
+    A = np.empty((len(v), 5))  # 1, cos 2 psi, sin 2 psi, cos 3 psi, sin 3 psi
+    A[:, 0] = 1.0
     for i in range(iters + 1):
-        e1, e2 = tangent_basis(a)
-        ang = np.arccos(np.clip(v @ a, -1.0, 1.0))
-        psi = np.arctan2(v @ e2, v @ e1)
-        A = np.stack(
-            [np.ones_like(psi), np.cos(2 * psi), np.sin(2 * psi), np.cos(3 * psi), np.sin(3 * psi)], 1
-        )
-        coef, *_ = np.linalg.lstsq(A[inl], ang[inl], rcond=None)
-        ell = coef[1:3]
-        res = ang - A @ coef
+        e1, e2 = tangent_frame(*a.tolist())
+        proj = v @ np.array([a, e1, e2]).T
+        ang = np.arccos(np.clip(proj[:, 0], -1.0, 1.0))
+        psi = np.arctan2(proj[:, 2], proj[:, 1])
+        np.cos(2 * psi, out=A[:, 1])
+        np.sin(2 * psi, out=A[:, 2])
+        np.cos(3 * psi, out=A[:, 3])
+        np.sin(3 * psi, out=A[:, 4])
+        Ai, ai = A[inl], ang[inl]
+        coef = solve_spd((Ai.T @ Ai).tolist(), (Ai.T @ ai).tolist())
+        if coef is None:
+            coef = np.linalg.lstsq(Ai, ai, rcond=None)[0].tolist()
+        ell = np.array(coef[1:3])
+        res = ang - A @ np.array(coef)
         if i == iters:
             break
         mad = 1.4826 * median(np.abs(res[inl] - median(res[inl])))
@@ -53,7 +59,7 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
         if new.sum() < 6 or np.array_equal(new, inl):
             break
         inl = new
-        a, c = plane_fit(v[inl], np.ones(int(inl.sum())))
+        a, c = plane_fit(v[inl])
     return a, c, inl, res, ell
 
 
@@ -121,12 +127,21 @@ def fit_cone(
 
 def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors completing ``a`` to a right-handed frame (e1 near the camera's x)."""
-    ref = (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)
-    d = ref[0] * a[0] + ref[1] * a[1] + ref[2] * a[2]
-    e1 = np.array([ref[0] - d * a[0], ref[1] - d * a[1], ref[2] - d * a[2]])
-    e1 /= math.sqrt(float(e1 @ e1))
-    e2 = np.array([a[1] * e1[2] - a[2] * e1[1], a[2] * e1[0] - a[0] * e1[2], a[0] * e1[1] - a[1] * e1[0]])
-    return e1, e2
+    e1, e2 = tangent_frame(*a.tolist())
+    return np.array(e1), np.array(e2)
+
+
+Vec3 = tuple[float, float, float]
+
+
+def tangent_frame(ax: float, ay: float, az: float) -> tuple[Vec3, Vec3]:
+    """:func:`tangent_basis` of the unit vector (``ax``, ``ay``, ``az``), in floats."""
+    rx, ry = (1.0, 0.0) if abs(ax) < 0.9 else (0.0, 1.0)
+    d = rx * ax + ry * ay
+    x, y, z = rx - d * ax, ry - d * ay, -d * az
+    n = math.sqrt(x * x + y * y + z * z)
+    x, y, z = x / n, y / n, z / n
+    return (x, y, z), (ay * z - az * y, az * x - ax * z, ax * y - ay * x)
 
 
 #: grey levels under the frame's peak that count as saturated (``FisheyeOptions.sat_margin``)

@@ -8,7 +8,7 @@ import pytest
 
 from controller.vision.fisheye import FisheyeEstimator, FisheyeLens, SeedEstimator
 from controller.vision.fisheye.seed import K_H, K_I, K_S, segment, weighted_hsi
-from controller.vision.fisheye.sphere import fit_cone, tangent_basis
+from controller.vision.fisheye.sphere import fit_cone, tangent_basis, tangent_frame
 from hil.skycam import render_sky, seed_lens
 
 from .helpers import small_scene, truth_bundle, utc
@@ -42,6 +42,30 @@ def test_a_skewed_lens_projects_as_it_inverts():
     back, ok2 = lens.rays(uv)
     assert ok.all() and ok2.all()
     assert np.degrees(np.arccos(np.clip((back * d).sum(1), -1, 1))).max() < 1e-4  # 0.14 before
+
+
+def test_one_direction_projects_as_opencv_does_bit_for_bit():
+    K = np.array([[166.2, 0.4, 319.7], [0, 165.8, 240.1], [0, 0, 1]])
+    for D in ([0.02, -0.01, 0.003, -0.0005], [0.0, 0.0, 0.0, 0.0], [-0.05, 0.01, 0.0, 0.0]):
+        lens = FisheyeLens(K, D, 640, 480)
+        rng = np.random.default_rng(4)
+        d = rng.normal(size=(2000, 3))
+        d[:, 2] = np.abs(d[:, 2]) + 1e-6
+        d[0] = (0.0, 0.0, 1.0)  # the axis itself: no radius to divide by
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        uv, _ = lens.project(d)
+        assert [lens.project_one(*p) for p in d.tolist()] == [tuple(q) for q in uv.tolist()]
+    assert lens.project_one(0.1, 0.2, 0.0) is None and lens.project_one(0.0, 0.6, -0.8) is None
+
+
+def test_tangent_frame_in_floats_is_tangent_basis():
+    rng = np.random.default_rng(6)
+    for a in rng.normal(size=(500, 3)):
+        a /= np.linalg.norm(a)
+        e1, e2 = tangent_basis(a)
+        f1, f2 = tangent_frame(*a.tolist())
+        assert e1.tolist() == list(f1) and e2.tolist() == list(f2)
+        assert abs(e1 @ a) < 1e-12 and abs(e1 @ e2) < 1e-12 and np.allclose(np.cross(e1, e2), a)
 
 
 def test_lens_rays_of_a_stereographic_lens_hold_past_where_opencv_clamps_them():

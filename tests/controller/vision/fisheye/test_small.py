@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.small import median, median_kept, median_rows
+from controller.vision.fisheye.small import median, median_kept, median_rows, solve_spd
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -47,3 +47,26 @@ def test_median_kept_is_the_median_of_each_rows_kept_values():
     x[~keep & (rng.random((40, 36)) < 0.5)] = np.nan  # what is not kept may be anything
     want = [float(np.median(row[k])) for row, k in zip(x, keep)]
     assert median_kept(x, keep).tolist() == want
+
+
+@pytest.mark.parametrize("n", [1, 2, 4, 5])
+def test_solve_spd_solves_normal_equations_as_numpy(n):
+    rng = np.random.default_rng(n)
+    for _ in range(50):
+        J = rng.normal(size=(40, n)) * rng.uniform(0.01, 100.0, n)  # columns of any scale
+        r = rng.normal(size=40)
+        x = solve_spd((J.T @ J).tolist(), (J.T @ r).tolist())
+        assert x is not None
+        assert np.allclose(x, np.linalg.lstsq(J, r, rcond=None)[0], rtol=1e-8, atol=0)
+
+
+def test_solve_spd_refuses_dependent_columns_and_leaves_its_arguments_alone():
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(30, 3))
+    # all but dependent: a pivot of 1e-12 of its diagonal, where normal equations keep ~4 digits
+    J[:, 2] = J[:, 0] - 2.0 * J[:, 1] + 1e-6 * rng.normal(size=30)
+    M, g = (J.T @ J).tolist(), [1.0, 2.0, 3.0]
+    before = [row[:] for row in M]
+    assert solve_spd(M, g) is None
+    assert M == before and g == [1.0, 2.0, 3.0]
+    assert solve_spd([[-1.0]], [1.0]) is None and solve_spd([[0.0]], [1.0]) is None
