@@ -44,7 +44,7 @@ def test_a_skewed_lens_projects_as_it_inverts():
     assert np.degrees(np.arccos(np.clip((back * d).sum(1), -1, 1))).max() < 1e-4  # 0.14 before
 
 
-def test_one_direction_projects_as_opencv_does_bit_for_bit():
+def test_directions_project_as_opencv_projects_them():
     K = np.array([[166.2, 0.4, 319.7], [0, 165.8, 240.1], [0, 0, 1]])
     for D in ([0.02, -0.01, 0.003, -0.0005], [0.0, 0.0, 0.0, 0.0], [-0.05, 0.01, 0.0, 0.0]):
         lens = FisheyeLens(K, D, 640, 480)
@@ -53,9 +53,18 @@ def test_one_direction_projects_as_opencv_does_bit_for_bit():
         d[:, 2] = np.abs(d[:, 2]) + 1e-6
         d[0] = (0.0, 0.0, 1.0)  # the axis itself: no radius to divide by
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        uv, _ = lens.project(d)
+        uv, ok = lens.project_cv(d)
         assert [lens.project_one(*p) for p in d.tolist()] == [tuple(q) for q in uv.tolist()]
+        # OpenCV's formula in numpy: within rounding of OpenCV's own
+        mine, ok2 = lens.project(d)
+        assert ok.all() and ok2.all() and np.abs(mine - uv).max() < 1e-10
     assert lens.project_one(0.1, 0.2, 0.0) is None and lens.project_one(0.0, 0.6, -0.8) is None
+    # behind the lens: not valid, put at the principal point, as OpenCV's call is given them
+    back = np.array([[0.1, 0.2, 0.0], [0.0, 0.6, -0.8], [0.6, 0.0, 0.8]] * 3)
+    for n in (1, 3, 9):
+        uv, ok = lens.project(back[:n])
+        ref, ok_ref = lens.project_cv(back[:n])
+        assert ok.tolist() == ok_ref.tolist() and np.abs(uv - ref).max() < 1e-10
 
 
 def test_tangent_frame_in_floats_is_tangent_basis():
