@@ -41,7 +41,7 @@ from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
 from .lens import FisheyeLens
 from .radiometry import Radiometry, illumination_about, rim_shift
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
-from .small import median
+from .small import gradient, median
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
@@ -284,7 +284,7 @@ def fit_glare(
                     prof = np.nanmean(np.where(rsky, rvals, np.nan), axis=0)
                 if np.isfinite(prof).all():
                     exc = blended_excess(lens, a, e1, e2, phi[ring_sel], ring_chi, alpha, math.radians(dpp))
-                    rvals = rvals - np.gradient(prof, ring_chi)[None, :] * exc
+                    rvals = rvals - gradient(prof, ring_chi)[None, :] * exc
             outer = rvals[:, -3:][rsky[:, -3:] & np.isfinite(rvals[:, -3:])]
             if outer.size < 8:
                 return None

@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .small import median, median_kept, median_rows
+from .small import gradient, median, median_kept, median_rows
 
 
 def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -138,7 +138,7 @@ def sky_dipole(
     prof = np.where(good, vals, 0.0).sum(axis=0) / np.maximum(n_good, 1)
     seen = n_good > 0
     prof[~seen] = float(prof[seen].mean())  # the mean profile (a ring seen nowhere: its mean)
-    dprof = np.gradient(prof, chi)
+    dprof = gradient(prof, chi)
     rows, means = [], []
     n_ok = int(np.count_nonzero(rays_ok))
     # the rings' radii rise along ``chi``: each ring is a run of columns (sums over counts
@@ -198,7 +198,7 @@ def sky_by_elevation(
         prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
     if not np.isfinite(prof).all():
         return None
-    dprof = np.gradient(prof, chi)
+    dprof = gradient(prof, chi)
     rings = [(lo, hi) for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))]
     rows, rhs = [], []
     n_rings = 0

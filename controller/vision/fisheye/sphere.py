@@ -186,8 +186,8 @@ def sample_sphere(
     sky &= okp & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
     # a float window of the frame that holds every sample
     m = 1
-    u_lo, v_lo = uv.min(axis=0).tolist()
-    u_hi, v_hi = uv.max(axis=0).tolist()
+    u, v = uv[:, 0], uv[:, 1]  # by column: numpy reduces an (N, 2) array along N 20x slower
+    u_lo, v_lo, u_hi, v_hi = float(u.min()), float(v.min()), float(u.max()), float(v.max())
     x0 = min(max(math.floor(u_lo) - m, 0), W - 1)
     y0 = min(max(math.floor(v_lo) - m, 0), H - 1)
     x1 = min(max(math.ceil(u_hi) + m + 1, x0 + 1), W)

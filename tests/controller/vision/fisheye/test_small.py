@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.small import median, median_kept, median_rows, solve_spd
+from controller.vision.fisheye.small import gradient, median, median_kept, median_rows, solve_spd
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -70,3 +70,17 @@ def test_solve_spd_refuses_dependent_columns_and_leaves_its_arguments_alone():
     assert solve_spd(M, g) is None
     assert M == before and g == [1.0, 2.0, 3.0]
     assert solve_spd([[-1.0]], [1.0]) is None and solve_spd([[0.0]], [1.0]) is None
+
+
+@pytest.mark.parametrize("n", [2, 3, 7, 40])
+def test_gradient_is_numpys_value_for_value(n):
+    rng = np.random.default_rng(n)
+    for x in (
+        np.arange(n) * 0.25,
+        np.arange(0.0123, 0.0123 + n * 0.0017, 0.0017)[:n],
+        np.sort(rng.uniform(0, 1, n)),
+    ):
+        for f in (rng.normal(size=n), rng.normal(size=n).astype(np.float32)):  # a profile of samples
+            f[n // 2] = np.nan if n > 3 else f[n // 2]  # a NaN spreads to its neighbours alike
+            g = gradient(f, x)
+            assert g.dtype == np.gradient(f, x).dtype and np.array_equal(g, np.gradient(f, x), equal_nan=True)
