@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import median, solve_spd
+from .small import clip_unit, median, solve_spd
 from .sphere import Vec3, tangent_frame
 
 #: Prior on the blend (0: all on the sky, 1: all on the sensor), and its one-sigma width:
@@ -67,7 +67,7 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
 
     Each step solves the normal equations of the inliers' residuals and the prior on
     ``alpha``; in floats where the values are few (the fit runs ~10 steps per pass)."""
-    rho = median(np.arccos(np.clip(v[inl] @ a, -1.0, 1.0)))
+    rho = median(np.arccos(clip_unit(v[inl] @ a)))
     a = tuple(a.tolist())
     got = _probe(lens, a)
     if got is None:
@@ -80,7 +80,7 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
         for _ in range(3):  # Gauss-Newton on the current inliers
             e1, e2, c, dc = got
             cos_e = vi @ np.array([a, e1, e2]).T  # cos of the distance, then along e1, e2
-            cos_d = np.clip(cos_e[:, 0], -1.0, 1.0)
+            cos_d = clip_unit(cos_e[:, 0])
             d_ang = np.arccos(cos_d)
             sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
             dp = uvi - c
@@ -114,7 +114,7 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
                 break
         dp = uv - got[2]
         d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
-        res = alpha * s * d_pix + (1.0 - alpha) * np.arccos(np.clip(v @ np.array(a), -1.0, 1.0)) - rho
+        res = alpha * s * d_pix + (1.0 - alpha) * np.arccos(clip_unit(v @ np.array(a))) - rho
         if i == iters:
             break
         mid = median(res[inl])

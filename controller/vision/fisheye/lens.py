@@ -180,12 +180,17 @@ class FisheyeLens:
     def deg_per_px(self, u: float, v: float) -> float:
         """Local scale (deg per pixel, the geometric mean of the radial and tangential ones)
         at pixel (u, v)."""
-        d, ok = self.rays([[u - 0.5, v], [u + 0.5, v], [u, v - 0.5], [u, v + 0.5]])
-        if not ok.all():
+        (left, ok_l), (right, ok_r), (top, ok_t), (bottom, ok_b) = (
+            self._ray(u - 0.5, v),
+            self._ray(u + 0.5, v),
+            self._ray(u, v - 0.5),
+            self._ray(u, v + 0.5),
+        )
+        if not (ok_l and ok_r and ok_t and ok_b):
             return math.degrees(1.0 / self._f)
-        du = d[1] - d[0]
-        dv = d[3] - d[2]
-        area = float(np.linalg.norm(np.cross(du, dv)))
+        ux, uy, uz = right[0] - left[0], right[1] - left[1], right[2] - left[2]
+        vx, vy, vz = bottom[0] - top[0], bottom[1] - top[1], bottom[2] - top[2]
+        area = math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx)  # |du x dv|
         return math.degrees(math.sqrt(max(area, 1e-18)))
 
     def circle_radius_px(self, theta_deg: float) -> float:

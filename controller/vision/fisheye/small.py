@@ -59,6 +59,8 @@ def solve_spd(M: list[list[float]], g: list[float], tiny: float = 1e-10) -> list
     (columns this close to dependent lose their precision in normal equations: the caller
     falls back to ``np.linalg.lstsq`` on the design matrix)."""
     n = len(g)
+    if n == 4:  # the blend's step, some twenty times a frame: unrolled
+        return _solve_spd4(M, g, tiny)
     L = [row[:] for row in M]
     for j in range(n):
         Lj = L[j]
@@ -90,6 +92,37 @@ def solve_spd(M: list[list[float]], g: list[float], tiny: float = 1e-10) -> list
     return y
 
 
+def _solve_spd4(M: list[list[float]], g: list[float], tiny: float) -> list[float] | None:
+    """:func:`solve_spd` of a 4 x 4 system, the same operations unrolled."""
+    (m00, m01, m02, m03), (_, m11, m12, m13), (_, _, m22, m23), (_, _, _, m33) = M
+    if not m00 > tiny * m00:
+        return None
+    l00 = math.sqrt(m00)
+    l10, l20, l30 = m01 / l00, m02 / l00, m03 / l00
+    d = m11 - l10 * l10
+    if not d > tiny * m11:
+        return None
+    l11 = math.sqrt(d)
+    l21, l31 = (m12 - l20 * l10) / l11, (m13 - l30 * l10) / l11
+    d = m22 - l20 * l20 - l21 * l21
+    if not d > tiny * m22:
+        return None
+    l22 = math.sqrt(d)
+    l32 = (m23 - l30 * l20 - l31 * l21) / l22
+    d = m33 - l30 * l30 - l31 * l31 - l32 * l32
+    if not d > tiny * m33:
+        return None
+    l33 = math.sqrt(d)
+    y0 = g[0] / l00
+    y1 = (g[1] - l10 * y0) / l11
+    y2 = (g[2] - l20 * y0 - l21 * y1) / l22
+    y3 = (g[3] - l30 * y0 - l31 * y1 - l32 * y2) / l33
+    x3 = y3 / l33
+    x2 = (y2 - l32 * x3) / l22
+    x1 = (y1 - l21 * x2 - l31 * x3) / l11
+    return [(y0 - l10 * x1 - l20 * x2 - l30 * x3) / l00, x1, x2, x3]
+
+
 def gradient(f: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``np.gradient(f, x)`` of 1-D float arrays (at least two values), value for value and
     in ``f``'s precision: second-order differences inside, first-order at the ends, numpy's
@@ -111,3 +144,8 @@ def gradient(f: np.ndarray, x: np.ndarray) -> np.ndarray:
     out[0] = (f[1] - f[0]) / dx[0]
     out[-1] = (f[-1] - f[-2]) / dx[-1]
     return out
+
+
+def clip_unit(x: np.ndarray) -> np.ndarray:
+    """``np.clip(x, -1.0, 1.0)`` (a cosine's rounding kept in range) without its wrapper."""
+    return np.minimum(np.maximum(x, -1.0), 1.0)

@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import median, solve_spd
+from .small import clip_unit, median, solve_spd
 
 SIN_1DEG = math.sin(math.radians(1.0))
 COS_88DEG = math.cos(math.radians(88.0))
@@ -40,7 +40,7 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
     for i in range(iters + 1):
         e1, e2 = tangent_frame(*a.tolist())
         proj = v @ np.array([a, e1, e2]).T
-        ang = np.arccos(np.clip(proj[:, 0], -1.0, 1.0))
+        ang = np.arccos(clip_unit(proj[:, 0]))
         psi = np.arctan2(proj[:, 2], proj[:, 1])
         np.cos(2 * psi, out=A[:, 1])
         np.sin(2 * psi, out=A[:, 2])

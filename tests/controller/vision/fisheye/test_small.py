@@ -3,7 +3,7 @@ import math
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.small import gradient, median, median_kept, median_rows, solve_spd
+from controller.vision.fisheye.small import clip_unit, gradient, median, median_kept, median_rows, solve_spd
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -84,3 +84,8 @@ def test_gradient_is_numpys_value_for_value(n):
             f[n // 2] = np.nan if n > 3 else f[n // 2]  # a NaN spreads to its neighbours alike
             g = gradient(f, x)
             assert g.dtype == np.gradient(f, x).dtype and np.array_equal(g, np.gradient(f, x), equal_nan=True)
+
+
+def test_clip_unit_is_numpys_clip():
+    x = np.array([-1.0000000000000002, -1.0, -0.3, 0.0, 1.0, 1.0000000000000002, 5.0, np.nan, -np.inf])
+    assert np.array_equal(clip_unit(x), np.clip(x, -1.0, 1.0), equal_nan=True)
