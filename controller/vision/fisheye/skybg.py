@@ -94,8 +94,8 @@ def _robust_rows(A: np.ndarray, M: np.ndarray) -> np.ndarray:
         if rows.size == 0:
             break
         w = keep[rows].astype(float)
-        N = np.einsum("rn,ni,nj->rij", w, A, A)
-        b = np.einsum("rn,ni->ri", w * Mz[rows], A)
+        N = (A.T[None, :, :] * w[:, None, :]) @ A  # each row's A^T W A
+        b = (w * Mz[rows]) @ A
         coef[rows] = np.linalg.solve(N, b[..., None])[..., 0]
         res = np.abs(Mz[rows] - coef[rows] @ A.T)
         mad = 1.4826 * median_kept(res, keep[rows]) + 0.5
@@ -160,9 +160,9 @@ def sky_dipole(
         c = float(chi[i0:i1].sum()) / n
         rows.append([-float(dprof[i0:i1].sum()) / n, c / rho, (c / rho) ** 2])
         means.append(m)
-    rhs = harmonics(phi, np.asarray(means)) if means else np.zeros((0, 2))
     if len(rows) < 4:
         return np.zeros(2)
+    rhs = harmonics(phi, np.asarray(means))
     A = np.asarray(rows)
     sol, *_ = np.linalg.lstsq(A, np.asarray(rhs), rcond=None)  # (3, 2): eps, k1, k2 per axis
     dip = sol[1] + sol[2]
