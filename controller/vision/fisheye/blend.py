@@ -75,8 +75,10 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
     res = np.zeros(len(v))
     for i in range(iters + 1):
         vi, uvi = v[inl], uv[inl]
-        J = np.empty((len(vi), 4))  # d residual / d (turn along e1, e2; rho; alpha)
-        J[:, 2] = -1.0
+        # d residual / d (turn along e1, e2; rho; alpha), then the residual: one product
+        # gives the normal equations and the residuals' sum of squares
+        Jr = np.empty((len(vi), 5))
+        Jr[:, 2] = -1.0
         for _ in range(3):  # Gauss-Newton on the current inliers
             e1, e2, c, dc = got
             cos_e = vi @ np.array([a, e1, e2]).T  # cos of the distance, then along e1, e2
@@ -85,20 +87,21 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
             sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
             dp = uvi - c
             d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
-            r = alpha * s * d_pix + (1.0 - alpha) * d_ang - rho
-            J[:, :2] = (dp @ (-(alpha * s) * dc.T)) / d_pix[:, None] - cos_e[:, 1:] * ((1.0 - alpha) / sin_d)[
-                :, None
-            ]
-            J[:, 3] = s * d_pix - d_ang
+            r = Jr[:, 4]
+            np.subtract(alpha * s * d_pix + (1.0 - alpha) * d_ang, rho, out=r)
+            Jr[:, :2] = (dp @ (-(alpha * s) * dc.T)) / d_pix[:, None] - cos_e[:, 1:] * (
+                (1.0 - alpha) / sin_d
+            )[:, None]
+            Jr[:, 3] = s * d_pix - d_ang
+            N = (Jr.T @ Jr).tolist()
             # the prior on alpha, weighed like one rim point at the fit's noise
-            w = max(floor, math.sqrt(float(r @ r) / len(r))) / ALPHA_SIGMA
-            M = (J.T @ J).tolist()
+            w = max(floor, math.sqrt(N[4][4] / len(r))) / ALPHA_SIGMA
+            M = [row[:4] for row in N[:4]]
             M[3][3] += w * w
-            g = (-(J.T @ r)).tolist()
-            g[3] -= w * w * (alpha - ALPHA_PRIOR)
+            g = [-N[0][4], -N[1][4], -N[2][4], -N[3][4] - w * w * (alpha - ALPHA_PRIOR)]
             step = solve_spd(M, g)
             if step is None:
-                A = np.vstack([J, [0.0, 0.0, 0.0, w]])
+                A = np.vstack([Jr[:, :4], [0.0, 0.0, 0.0, w]])
                 b = np.concatenate([-r, [-w * (alpha - ALPHA_PRIOR)]])
                 step = np.linalg.lstsq(A, b, rcond=None)[0].tolist()
             t1, t2, d_rho, d_alpha = step
