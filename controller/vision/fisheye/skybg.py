@@ -139,32 +139,38 @@ def sky_dipole(
     seen = n_good > 0
     prof[~seen] = float(prof[seen].mean())  # the mean profile (a ring seen nowhere: its mean)
     dprof = gradient(prof, chi)
-    rows, means = [], []
+    # the rings' radii rise along ``chi``: each ring is a run of columns, all summed in one
+    # reduction (sums over counts: the rings' means, in the samples' precision)
+    cuts = np.searchsorted(chi, np.array(RING_EDGES) * rho)
+    lo, hi = cuts[:-1], cuts[1:]
+    wide = hi - lo >= 2
+    if int(np.count_nonzero(wide)) < 4:
+        return np.zeros(2)
+    lo, hi = lo[wide], hi[wide]
+    n = (hi - lo).astype(vals.dtype)
+    at = np.stack([lo, hi], axis=1).ravel()  # [start, end) of each ring; the ends' sums unused
+    R, C = vals.shape
+    pad = np.zeros((R, C + 1), vals.dtype)
+    pad[:, :C] = vals
+    m = np.add.reduceat(pad, at, axis=1)[:, ::2] / n  # (rays, rings)
+    sky_pad = np.ones((R, C + 1), bool)
+    sky_pad[:, :C] = sky
+    m[~rays_ok[:, None] | ~np.logical_and.reduceat(sky_pad, at, axis=1)[:, ::2]] = np.nan
+    # a ring cut by the horizon: its dipole is unreliable (the rays left out by design, a
+    # streak's, count against the ring only where it would be left too short)
+    fin = np.isfinite(m)
     n_ok = int(np.count_nonzero(rays_ok))
-    # the rings' radii rise along ``chi``: each ring is a run of columns (sums over counts
-    # below are numpy's means, value for value, without their overhead)
-    cuts = np.searchsorted(chi, np.array(RING_EDGES) * rho).tolist()
-    for i0, i1 in zip(cuts[:-1], cuts[1:]):
-        n = i1 - i0
-        if n < 2:
-            continue
-        m = vals[:, i0:i1].sum(axis=1) / n
-        m[~rays_ok | ~sky[:, i0:i1].all(axis=1)] = np.nan
-        # a ring cut by the horizon: its dipole is unreliable (the rays left out by design,
-        # a streak's, count against the ring only where it would be left too short)
-        fin = np.isfinite(m)
-        if int(np.count_nonzero(fin)) / fin.size < 0.6 or (
-            n_ok and int(np.count_nonzero(fin & rays_ok)) / n_ok < 0.75
-        ):
-            continue
-        c = float(chi[i0:i1].sum()) / n
-        rows.append([-float(dprof[i0:i1].sum()) / n, c / rho, (c / rho) ** 2])
-        means.append(m)
+    keep = np.count_nonzero(fin, axis=0) / R >= 0.6
+    if n_ok:
+        keep &= np.count_nonzero(fin & rays_ok[:, None], axis=0) / n_ok >= 0.75
+    c = np.add.reduceat(np.append(chi, 0.0), at)[::2][keep].astype(float) / (hi - lo)[keep] / rho
+    dp = np.add.reduceat(np.append(dprof, 0.0).astype(dprof.dtype), at)[::2][keep].astype(float)
+    rows = np.stack([-dp / (hi - lo)[keep], c, c**2], axis=1)
+    means = m[:, keep].T
     if len(rows) < 4:
         return np.zeros(2)
-    rhs = harmonics(phi, np.asarray(means))
-    A = np.asarray(rows)
-    sol, *_ = np.linalg.lstsq(A, np.asarray(rhs), rcond=None)  # (3, 2): eps, k1, k2 per axis
+    rhs = harmonics(phi, np.ascontiguousarray(means))
+    sol, *_ = np.linalg.lstsq(rows, rhs, rcond=None)  # (3, 2): eps, k1, k2 per axis
     dip = sol[1] + sol[2]
     cap = 0.25 * contrast
     nrm = float(np.linalg.norm(dip))

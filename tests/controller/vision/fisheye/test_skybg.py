@@ -59,3 +59,31 @@ def test_rings_with_gaps_and_outliers_get_each_rings_own_robust_fit():
     want = np.array([harmonic(phi, m) for m in M])
     assert np.allclose(got, want, rtol=0, atol=1e-9)
     assert (want == 0).all(axis=1).sum() >= 10  # rings without a dipole were met
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_skys_dipole_at_the_rim_is_read_from_the_rings_that_count(dtype):
+    """A sky ``(0.8 chi / rho + 0.4 (chi / rho)^2) cos(phi - 0.7)`` around a glare's profile:
+    the dipole at the rim is 1.2 grey levels towards 0.7 rad, read from the rings outside;
+    rays left out by design and a ring cut short by the horizon do not change it, and fewer
+    than four rings give none."""
+    from controller.vision.fisheye.skybg import sky_dipole
+
+    rng = np.random.default_rng(2)
+    phi = np.arange(36) * (2 * np.pi / 36)
+    chi = np.arange(1.15 * RHO, 3.2 * RHO + 0.16 * RHO, 0.12 * RHO)
+    s = chi / RHO
+    glare = 60.0 + 150.0 * np.exp(-(chi - RHO) / (0.3 * RHO))
+    vals = (
+        glare + np.outer(np.cos(phi - 0.7), 0.8 * s + 0.4 * s**2) + rng.normal(0, 0.05, (36, s.size))
+    ).astype(dtype)
+    ok = np.ones(36, bool)
+    want = 1.2 * np.array([np.cos(0.7), np.sin(0.7)])
+    np.testing.assert_allclose(sky_dipole(vals, chi, phi, RHO, ok, 200.0), want, atol=0.05)
+    ok[np.sin(phi) >= np.sin(np.radians(50))] = False  # the rays towards a one-way streak: 22 %
+    np.testing.assert_allclose(sky_dipole(vals, chi, phi, RHO, ok, 200.0), want, atol=0.05)
+    sky = np.ones(vals.shape, bool)
+    sky[:20, s > 2.8] = False  # the outermost ring mostly below the horizon: dropped
+    np.testing.assert_allclose(sky_dipole(vals, chi, phi, RHO, ok, 200.0, sky), want, atol=0.05)
+    sky[:20, s > 2.0] = False  # three rings left: no dipole
+    assert sky_dipole(vals, chi, phi, RHO, ok, 200.0, sky).tolist() == [0.0, 0.0]
