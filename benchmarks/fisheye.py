@@ -27,9 +27,12 @@ calibration chain, robustness to other looks of the world, and frames per second
 * ``panel_loop``: the panel-mounted closed loop in ``heliotrack simulate`` (clear day, and
   1.5 deg row offsets with a 2-hour gap; assisted, paper and sky-fixed modes):
   :mod:`benchmarks.fisheye_loop` (``python -m benchmarks.fisheye_loop`` runs it alone).
-* ``fps``: one core (``cv2.setNumThreads(1)``), best of 5 passes over 30 clear frames, at
-  640 x 480 and 1920 x 1080, both pipelines; it waits up to 15 min for the machine to be
-  quiet (1-minute load under 1.2) and records the wait and the load average.
+* ``fps``: one core (``cv2.setNumThreads(1)``) over 30 clear frames, at 640 x 480 and
+  1920 x 1080, both pipelines, and the default pipeline on the two other renderers' clear
+  frames at 640 x 480: the default pipeline's best of 20 passes over each set, the four
+  sets in turn, so that each set's best comes from the same stretch of time (the seed's
+  best of 3); it waits up to 15 min for the machine to be quiet (1-minute load under 1.2)
+  and records the wait and the load average.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ from .fisheye_suites import (
     day_frames,
     distractor_sequences,
     frames_per_second,
+    frames_per_second_interleaved,
     result_error,
     run_sequences,
     stats,
@@ -60,6 +64,8 @@ DESCRIPTION = "fisheye sky camera: clear-day accuracy, clouds, distractors, chai
 DAYS = [(2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21)]
 #: 1-minute load average under which the machine counts as quiet for the timing
 QUIET_LOAD = 1.2
+#: rounds of the default pipeline's timed passes, its four frame sets in turn (~15 s)
+DEFAULT_ROUNDS = 20
 SITES = ("andimeshk", "fuzhou", "alice-springs")
 
 
@@ -234,6 +240,7 @@ def fps(quick: bool) -> dict:
         waited += 15.0
     out: dict = {"waited_for_quiet_s": waited, "load_average_before": [round(x, 2) for x in os.getloadavg()]}
     n = 10 if quick else 30
+    default_runs, seeds = {}, {}
     for label, scn in (
         ("640x480", sky_profile("seed")),
         ("1920x1080", sky_profile("hd").with_(lens=full_hd_lens())),
@@ -241,19 +248,22 @@ def fps(quick: bool) -> dict:
         ts = [utc(2025, 3, 20, 4, 0) + 900.0 * k for k in range(n)]
         images = [render_sky(scn, t).image for t in ts]
         b = truth_bundle(scn)
-        out[label] = {
-            "default": frames_per_second(lambda b=b: FisheyeEstimator(b), images, ts),
-            "seed": frames_per_second(lambda b=b: SeedEstimator(b), images, ts, repeats=3),
-        }
-    out["640x480, other renderers"] = other_renderers_fps(n)
+        default_runs[label] = (lambda b=b: FisheyeEstimator(b), images, ts)
+        seeds[label] = frames_per_second(lambda b=b: SeedEstimator(b), images, ts, repeats=3)
+    default_runs.update(other_renderer_runs(n))
+    timed = frames_per_second_interleaved(default_runs, 5 if quick else DEFAULT_ROUNDS)
+    for label in ("640x480", "1920x1080"):
+        out[label] = {"default": timed[label], "seed": seeds[label]}
+    out["640x480, other renderers"] = {k: timed[k] for k in ("second renderer", "third renderer")}
     out["load_average_after"] = [round(x, 2) for x in os.getloadavg()]
     return out
 
 
-def other_renderers_fps(n: int) -> dict:
-    """The default pipeline's speed on ``n`` clear frames of each of the two renderers
-    written apart (20 Mar, 20 min apart, from the first sun 5 deg up; their bundles as in
-    their benches): their glare, sky and smear make it work harder than on the HIL's."""
+def other_renderer_runs(n: int) -> dict:
+    """``n`` clear frames of each of the two renderers written apart (20 Mar, 20 min apart,
+    from the first sun 5 deg up; their bundles as in their benches), as runs for
+    :func:`.fisheye_suites.frames_per_second_interleaved`: their glare, sky and smear make
+    the default pipeline work harder than on the HIL's."""
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
 
@@ -274,8 +284,8 @@ def other_renderers_fps(n: int) -> dict:
     ]
     b3 = fisheye_bundle_from_dict(third.bundle_dict(third.LOOKS[0]))
     return {
-        "second renderer": frames_per_second(lambda: FisheyeEstimator(b2), images, ts),
-        "third renderer": frames_per_second(lambda: FisheyeEstimator(b3), images3, [t for t, _, _ in frames]),
+        "second renderer": (lambda: FisheyeEstimator(b2), images, ts),
+        "third renderer": (lambda: FisheyeEstimator(b3), images3, [t for t, _, _ in frames]),
     }
 
 

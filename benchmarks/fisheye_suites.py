@@ -294,26 +294,44 @@ def frames_per_second(make_estimator, images, times, repeats: int = 5) -> dict:
     """Best of ``repeats`` passes over ``images`` taken at POSIX ``times`` (one core: OpenCV
     single-threaded); ``found``: the suns the last pass accepted (the frames' own times, so
     that the ephemeris gate passes them as in the field)."""
+    return frames_per_second_interleaved({"": (make_estimator, images, times)}, repeats)[""]
+
+
+def frames_per_second_interleaved(runs: dict, repeats: int) -> dict:
+    """:func:`frames_per_second` of several ``runs`` (name -> (make_estimator, images,
+    times)), their passes taken in turn, ``repeats`` rounds: each run's best pass comes from
+    the same stretch of time.  A shared machine's speed swings by a quarter over minutes;
+    timed one after the other, a run that fell in a slow stretch read slow for all its
+    passes."""
     import cv2
 
     cv2.setNumThreads(1)
-    est = make_estimator()
-    for img, t in zip(images[:3], times[:3]):
-        est.estimate_image(img, t)
-    best = float("inf")
-    found = 0
-    for _ in range(repeats):
-        est.reset_sequence()
-        start = time.perf_counter()
-        res = [est.estimate_image(img, t) for img, t in zip(images, times)]
-        best = min(best, (time.perf_counter() - start) / len(images))
-        found = sum(bool(r.found) for r in res)
+    ests = {}
+    for name, (make, images, times) in runs.items():
+        ests[name] = make()
+        for img, t in zip(images[:3], times[:3]):
+            ests[name].estimate_image(img, t)
+    best = {name: float("inf") for name in runs}
+    found = {name: 0 for name in runs}
+    names = list(runs)
+    for k in range(repeats):
+        for name in names[k % len(names) :] + names[: k % len(names)]:  # each run leads in turn
+            _, images, times = runs[name]
+            est = ests[name]
+            est.reset_sequence()
+            start = time.perf_counter()
+            res = [est.estimate_image(img, t) for img, t in zip(images, times)]
+            best[name] = min(best[name], (time.perf_counter() - start) / len(images))
+            found[name] = sum(bool(r.found) for r in res)
     return {
-        "ms_per_frame": round(1000 * best, 3),
-        "fps": round(1.0 / best, 1),
-        "frames": len(images),
-        "found": found,
-        "repeats": repeats,
+        name: {
+            "ms_per_frame": round(1000 * best[name], 3),
+            "fps": round(1.0 / best[name], 1),
+            "frames": len(runs[name][1]),
+            "found": found[name],
+            "repeats": repeats,
+        }
+        for name in runs
     }
 
 
