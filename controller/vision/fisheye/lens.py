@@ -9,7 +9,7 @@ Direction -> pixel is ``cv2.fisheye.projectPoints``'s formula, in front of the l
 (z > 0: it works through ``tan(theta)``), written out in numpy: OpenCV's call spends about
 90 ns a point (a rotation and its bookkeeping per point), five times the vectorised
 formula, and a glare's rays are thousands of points a pass; the tests hold the two within
-1e-12 px.  Pixel -> direction inverts the polynomial here, by
+1e-10 px.  Pixel -> direction inverts the polynomial here, by
 Newton's method from a table, to ``THETA_LIMIT_DEG``: ``cv2.fisheye.undistortPoints`` clamps
 ``theta_d`` at pi / 2, so on a lens whose image grows faster than the angle (stereographic,
 common on sky cameras) every ray past 76-78 deg came back wrong (6 deg at 85 deg: a low
