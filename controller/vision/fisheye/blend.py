@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import clip_unit, median, solve_spd
+from .small import median, solve_spd
 from .sphere import Vec3, tangent_frame
 
 #: Prior on the blend (0: all on the sky, 1: all on the sensor), and its one-sigma width:
@@ -46,68 +46,71 @@ class BlendFit:
     residuals: np.ndarray  # of every rim point
 
 
-def _probe(lens: FisheyeLens, a: Vec3, h: float = 1e-4):
+def _probe(lens: FisheyeLens, a: Vec3):
     """The tangent frame at ``a``, its image ``pi(a)`` and the image's motion per radian of
-    turn along e1, e2 (a (2, 2) array, by differences over ``h``); None if behind the lens."""
+    turn along e1, e2 (((du, dv) along e1), (du, dv) along e2)); None if behind the lens."""
     e1, e2 = tangent_frame(*a)
-    out = []
-    for p in (a, [ai + h * ei for ai, ei in zip(a, e1)], [ai + h * ei for ai, ei in zip(a, e2)]):
-        n = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
-        c = lens.project_one(p[0] / n, p[1] / n, p[2] / n)
-        if c is None:
-            return None
-        out.append(c)
-    (u0, v0), (u1, v1), (u2, v2) = out
-    return e1, e2, (u0, v0), np.array([[(u1 - u0) / h, (v1 - v0) / h], [(u2 - u0) / h, (v2 - v0) / h]])
-
-
-def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
-    """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
-    reselection, ``iters`` times; ``s``: the lens's scale (rad per px).
-
-    Each step solves the normal equations of the inliers' residuals and the prior on
-    ``alpha``; in floats where the values are few (the fit runs ~10 steps per pass)."""
-    rho = median(np.arccos(clip_unit(v[inl] @ a)))
-    a = tuple(a.tolist())
-    got = _probe(lens, a)
+    got = lens.project_one_moving(a, e1, e2)
     if got is None:
         return None
-    res = np.zeros(len(v))
+    return e1, e2, got[0], got[1]
+
+
+def _refine(lens, XT, a, inl, k, floor, iters, s, alpha):
+    """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
+    reselection, ``iters`` times; ``XT``: the rim points as rows (x, y, z, u, v, 1) of a
+    (6, N) array (directions, pixels); ``s``: the lens's scale (rad per px).
+
+    Each step solves the normal equations of the inliers' residuals and the prior on
+    ``alpha``; in floats where the values are few (the fit runs ~10 steps per pass), on
+    arrays laid out by row, so that each quantity is one contiguous run."""
+    got = _probe(lens, tuple(a.tolist()))
+    if got is None:
+        return None
+    rho = median(_angles(XT[:, inl], a, *got[:2]))
+    a = tuple(a.tolist())
+    res = np.zeros(XT.shape[1])
     for i in range(iters + 1):
-        vi, uvi = v[inl], uv[inl]
+        Xi = XT[:, inl]
+        n = Xi.shape[1]
         # d residual / d (turn along e1, e2; rho; alpha), then the residual: one product
         # gives the normal equations and the residuals' sum of squares
-        Jr = np.empty((len(vi), 5))
-        Jr[:, 2] = -1.0
+        JT = np.empty((5, n))
+        JT[2] = -1.0
+        unit = np.empty((4, n))  # the pixel offset's direction, then the tangent's
         for _ in range(3):  # Gauss-Newton on the current inliers
             e1, e2, c, dc = got
-            cos_e = vi @ np.array([a, e1, e2]).T  # cos of the distance, then along e1, e2
-            cos_d = clip_unit(cos_e[:, 0])
-            d_ang = np.arccos(cos_d)
-            sin_d = np.maximum(np.sqrt(1.0 - cos_d * cos_d), 1e-9)
-            dp = uvi - c
-            d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
-            r = Jr[:, 4]
-            np.subtract(alpha * s * d_pix + (1.0 - alpha) * d_ang, rho, out=r)
-            Jr[:, :2] = (dp @ (-(alpha * s) * dc.T)) / d_pix[:, None] - cos_e[:, 1:] * (
-                (1.0 - alpha) / sin_d
-            )[:, None]
-            Jr[:, 3] = s * d_pix - d_ang
-            N = (Jr.T @ Jr).tolist()
+            Q = _frame_rows(a, e1, e2, c) @ Xi  # cos to a, e1, e2; pixel offset from pi(a)
+            sin_d = np.hypot(Q[1], Q[2])
+            d_ang = np.arctan2(sin_d, Q[0])
+            np.maximum(sin_d, 1e-9, out=sin_d)
+            d_pix = np.maximum(np.hypot(Q[3], Q[4]), 1e-9)
+            np.divide(Q[3:5], d_pix, out=unit[:2])
+            np.divide(Q[1:3], sin_d, out=unit[2:])
+            g_s, g_a = -alpha * s, alpha - 1.0
+            G = [[g_s * dc[0][0], g_s * dc[0][1], g_a, 0.0], [g_s * dc[1][0], g_s * dc[1][1], 0.0, g_a]]
+            np.matmul(G, unit, out=JT[:2])
+            np.multiply(d_pix, s, out=JT[3])
+            JT[3] -= d_ang
+            r = JT[4]
+            np.multiply(JT[3], alpha, out=r)  # alpha * s * d_pix + (1 - alpha) * d_ang - rho
+            r += d_ang
+            r -= rho
+            N = (JT @ JT.T).tolist()
             # the prior on alpha, weighed like one rim point at the fit's noise
-            w = max(floor, math.sqrt(N[4][4] / len(r))) / ALPHA_SIGMA
+            w = max(floor, math.sqrt(N[4][4] / n)) / ALPHA_SIGMA
             M = [row[:4] for row in N[:4]]
             M[3][3] += w * w
             g = [-N[0][4], -N[1][4], -N[2][4], -N[3][4] - w * w * (alpha - ALPHA_PRIOR)]
             step = solve_spd(M, g)
             if step is None:
-                A = np.vstack([Jr[:, :4], [0.0, 0.0, 0.0, w]])
+                A = np.vstack([JT[:4].T, [0.0, 0.0, 0.0, w]])
                 b = np.concatenate([-r, [-w * (alpha - ALPHA_PRIOR)]])
                 step = np.linalg.lstsq(A, b, rcond=None)[0].tolist()
             t1, t2, d_rho, d_alpha = step
             x, y, z = (a[j] + t1 * e1[j] + t2 * e2[j] for j in range(3))
-            n = math.sqrt(x * x + y * y + z * z)
-            a = (x / n, y / n, z / n)
+            nrm = math.sqrt(x * x + y * y + z * z)
+            a = (x / nrm, y / nrm, z / nrm)
             rho += d_rho
             alpha = min(max(alpha + d_alpha, 0.0), 1.0)
             got = _probe(lens, a)
@@ -115,9 +118,8 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
                 return None
             if abs(t1) + abs(t2) < 0.2 * floor:
                 break
-        dp = uv - got[2]
-        d_pix = np.maximum(np.hypot(dp[:, 0], dp[:, 1]), 1e-9)
-        res = alpha * s * d_pix + (1.0 - alpha) * np.arccos(clip_unit(v @ np.array(a))) - rho
+        Q = _frame_rows(a, *got[:3]) @ XT
+        res = alpha * s * np.hypot(Q[3], Q[4]) + (1.0 - alpha) * np.arctan2(np.hypot(Q[1], Q[2]), Q[0]) - rho
         if i == iters:
             break
         mid = median(res[inl])
@@ -128,6 +130,26 @@ def _refine(lens, v, uv, a, inl, k, floor, iters, s, alpha):
         inl = new
     rms = math.sqrt(float(res[inl] @ res[inl]) / int(inl.sum())) if inl.any() else float("inf")
     return BlendFit(np.array(a), rho, alpha, inl, rms, res)
+
+
+def _frame_rows(a: Vec3, e1: Vec3, e2: Vec3, c: tuple[float, float]) -> np.ndarray:
+    """The (5, 6) map from rim points' rows (x, y, z, u, v, 1) to their cosines along
+    ``a``, ``e1``, ``e2`` and their pixel offsets from ``c``."""
+    return np.array(
+        [
+            [a[0], a[1], a[2], 0.0, 0.0, 0.0],
+            [e1[0], e1[1], e1[2], 0.0, 0.0, 0.0],
+            [e2[0], e2[1], e2[2], 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0, 0.0, -c[0]],
+            [0.0, 0.0, 0.0, 0.0, 1.0, -c[1]],
+        ]
+    )
+
+
+def _angles(XT: np.ndarray, a, e1, e2) -> np.ndarray:
+    """Angles (rad) of the points' directions (rows 0-2 of ``XT``) from ``a``."""
+    Q = np.array([a, e1, e2]) @ XT[:3]
+    return np.arctan2(np.hypot(Q[1], Q[2]), Q[0])
 
 
 def fit_blend(
@@ -154,13 +176,15 @@ def fit_blend(
             return None
         scale_rad = math.radians(lens.deg_per_px(float(c[0, 0]), float(c[0, 1])))
     s = scale_rad
+    XT = np.empty((6, len(v)))  # rows x, y, z, u, v, 1 (see _refine)
+    XT[:3], XT[3:5], XT[5] = v.T, uv.T, 1.0
     sols: list[BlendFit] = []
     tried: list[np.ndarray] = []
     for m in starts:
         if m.sum() < 6 or any(np.array_equal(m, t) for t in tried):
             continue
         tried.append(m)
-        f = _refine(lens, v, uv, a0.copy(), m.copy(), k, floor_rad, iters, s, alpha0)
+        f = _refine(lens, XT, a0.copy(), m.copy(), k, floor_rad, iters, s, alpha0)
         if f is not None:
             sols.append(f)
     if not sols:

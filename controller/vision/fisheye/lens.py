@@ -125,19 +125,26 @@ class FisheyeLens:
             out = [self.project_one(*p) for p in d.tolist()]
             uv = np.array([(self.cx, self.cy) if q is None else q for q in out], float).reshape(-1, 2)
             return uv, np.array([q is not None for q in out], bool)
-        valid = d[:, 2] > 1e-9
+        u, v, valid = self.project_xyz(d[:, 0], d[:, 1], d[:, 2])
+        uv = np.empty((d.shape[0], 2))
+        uv[:, 0], uv[:, 1] = u, v
+        return uv, valid
+
+    def project_xyz(
+        self, x: np.ndarray, y: np.ndarray, z: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`project` of directions given by their components (arrays of one shape):
+        (u, v, valid), each of that shape."""
+        valid = z > 1e-9
         if not valid.all():
-            d = np.where(valid[:, None], d, [0.0, 0.0, 1.0])
-        x, y = d[:, 0] / d[:, 2], d[:, 1] / d[:, 2]
-        r = np.sqrt(x * x + y * y)
+            x, y, z = np.where(valid, x, 0.0), np.where(valid, y, 0.0), np.where(valid, z, 1.0)
+        xn, yn = x / z, y / z
+        r = np.sqrt(xn * xn + yn * yn)
         td = self._theta_d_cv(np.arctan(r))
         with np.errstate(divide="ignore", invalid="ignore"):
             cd = np.where(r > 1e-8, td * (1.0 / r), 1.0)
-        xd, yd = x * cd, y * cd
-        uv = np.empty((d.shape[0], 2))
-        uv[:, 0] = (xd + self._alpha * yd) * self.fx + self.cx
-        uv[:, 1] = yd * self.fy + self.cy
-        return uv, valid
+        xd, yd = xn * cd, yn * cd
+        return (xd + self._alpha * yd) * self.fx + self.cx, yd * self.fy + self.cy, valid
 
     def project_cv(self, dirs) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` through ``cv2.fisheye.projectPoints`` itself (the reference)."""
@@ -166,6 +173,41 @@ class FisheyeLens:
         cd = td * (1.0 / r) if r > 1e-8 else 1.0
         xd, yd = xn * cd, yn * cd
         return (xd + self._alpha * yd) * self.fx + self.cx, yd * self.fy + self.cy
+
+    def project_one_moving(
+        self, p: tuple[float, float, float], d1: tuple[float, float, float], d2: tuple[float, float, float]
+    ) -> tuple[tuple[float, float], tuple[tuple[float, float], tuple[float, float]]] | None:
+        """:meth:`project_one` of the direction ``p`` and the image's motion (px per unit
+        motion of the direction, to first order) along ``d1`` and along ``d2``: the
+        projection's derivative, in floats (None behind the lens)."""
+        x, y, z = p
+        if not z > 1e-9:
+            return None
+        xn, yn = x / z, y / z  # as project_one, operation for operation
+        r2 = xn * xn + yn * yn
+        r = math.sqrt(r2)
+        th = math.atan(r)
+        td = self._theta_d_cv(th)
+        cd = td * (1.0 / r) if r > 1e-8 else 1.0
+        xd, yd = xn * cd, yn * cd
+        uv = ((xd + self._alpha * yd) * self.fx + self.cx, yd * self.fy + self.cy)
+        k1, k2, k3, k4 = self._k
+        t2 = th * th
+        if r > 1e-8:
+            slope = (1.0 + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + t2 * 9.0 * k4)))) / (1.0 + r2)
+        else:  # on the axis the distortion's scale is 1 and flat
+            slope = 1.0
+        moves = []
+        for dx, dy, dz in (d1, d2):
+            dxn, dyn = (dx - xn * dz) / z, (dy - yn * dz) / z
+            if r > 1e-8:
+                dr = (xn * dxn + yn * dyn) / r
+                dcd = (slope * dr - cd * dr) / r
+            else:
+                dcd = 0.0
+            dxd, dyd = dxn * cd + xn * dcd, dyn * cd + yn * dcd
+            moves.append(((dxd + self._alpha * dyd) * self.fx, dyd * self.fy))
+        return uv, (moves[0], moves[1])
 
     def _theta_d_cv(self, th):
         """``theta_d`` of ``th`` (float or array) as ``cv2.fisheye.projectPoints`` sums it."""

@@ -67,6 +67,31 @@ def test_directions_project_as_opencv_projects_them():
         assert ok.tolist() == ok_ref.tolist() and np.abs(uv - ref).max() < 1e-10
 
 
+def test_a_directions_image_moves_as_the_projections_differences_say():
+    """:meth:`project_one_moving`: the pixel of :meth:`project_one`, bit for bit, and its
+    motion along two tangents, as central differences give it (on the axis too)."""
+    K = np.array([[166.2, 0.4, 319.7], [0, 165.8, 240.1], [0, 0, 1]])
+    lens = FisheyeLens(K, [0.02, -0.01, 0.003, -0.0005], 640, 480)
+    rng = np.random.default_rng(6)
+    d = rng.normal(size=(500, 3))
+    d[:, 2] = np.abs(d[:, 2]) + 0.05
+    d[0] = (0.0, 0.0, 1.0)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    h = 1e-6
+    for p in d.tolist():
+        e1, e2 = tangent_frame(*p)
+        uv, moves = lens.project_one_moving(tuple(p), e1, e2)
+        assert uv == lens.project_one(*p)
+        for e, m in zip((e1, e2), moves):
+            ends = [
+                lens.project_one(*(q / np.linalg.norm(q)))
+                for q in (np.add(p, np.multiply(h, e)), np.subtract(p, np.multiply(h, e)))
+            ]
+            diff = (np.array(ends[0]) - np.array(ends[1])) / (2 * h)
+            assert np.abs(diff - m).max() < 1e-5 * max(1.0, np.abs(diff).max())
+    assert lens.project_one_moving((0.6, 0.0, -0.8), (0.0, 1.0, 0.0), (0.8, 0.0, 0.6)) is None
+
+
 def test_tangent_frame_in_floats_is_tangent_basis():
     rng = np.random.default_rng(6)
     for a in rng.normal(size=(500, 3)):
