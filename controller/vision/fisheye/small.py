@@ -61,6 +61,14 @@ def solve_spd(M: list[list[float]], g: list[float], tiny: float = 1e-10) -> list
     n = len(g)
     if n == 4:  # the blend's step, some twenty times a frame: unrolled
         return _solve_spd4(M, g, tiny)
+    if n == 5:  # the cone's harmonics, some ten times a frame: unrolled
+        return _solve_spd5(M, g, tiny)
+    return _solve_spd_any(M, g, tiny)
+
+
+def _solve_spd_any(M: list[list[float]], g: list[float], tiny: float) -> list[float] | None:
+    """:func:`solve_spd` of any size, by loops."""
+    n = len(g)
     L = [row[:] for row in M]
     for j in range(n):
         Lj = L[j]
@@ -121,6 +129,46 @@ def _solve_spd4(M: list[list[float]], g: list[float], tiny: float) -> list[float
     x2 = (y2 - l32 * x3) / l22
     x1 = (y1 - l21 * x2 - l31 * x3) / l11
     return [(y0 - l10 * x1 - l20 * x2 - l30 * x3) / l00, x1, x2, x3]
+
+
+def _solve_spd5(M: list[list[float]], g: list[float], tiny: float) -> list[float] | None:
+    """:func:`solve_spd` of a 5 x 5 system, the same operations unrolled."""
+    (m00, m01, m02, m03, m04), (_, m11, m12, m13, m14), (_, _, m22, m23, m24) = M[0], M[1], M[2]
+    m33, m34, m44 = M[3][3], M[3][4], M[4][4]
+    if not m00 > tiny * m00:
+        return None
+    l00 = math.sqrt(m00)
+    l10, l20, l30, l40 = m01 / l00, m02 / l00, m03 / l00, m04 / l00
+    d = m11 - l10 * l10
+    if not d > tiny * m11:
+        return None
+    l11 = math.sqrt(d)
+    l21, l31, l41 = (m12 - l20 * l10) / l11, (m13 - l30 * l10) / l11, (m14 - l40 * l10) / l11
+    d = m22 - l20 * l20 - l21 * l21
+    if not d > tiny * m22:
+        return None
+    l22 = math.sqrt(d)
+    l32 = (m23 - l30 * l20 - l31 * l21) / l22
+    l42 = (m24 - l40 * l20 - l41 * l21) / l22
+    d = m33 - l30 * l30 - l31 * l31 - l32 * l32
+    if not d > tiny * m33:
+        return None
+    l33 = math.sqrt(d)
+    l43 = (m34 - l40 * l30 - l41 * l31 - l42 * l32) / l33
+    d = m44 - l40 * l40 - l41 * l41 - l42 * l42 - l43 * l43
+    if not d > tiny * m44:
+        return None
+    l44 = math.sqrt(d)
+    y0 = g[0] / l00
+    y1 = (g[1] - l10 * y0) / l11
+    y2 = (g[2] - l20 * y0 - l21 * y1) / l22
+    y3 = (g[3] - l30 * y0 - l31 * y1 - l32 * y2) / l33
+    y4 = (g[4] - l40 * y0 - l41 * y1 - l42 * y2 - l43 * y3) / l44
+    x4 = y4 / l44
+    x3 = (y3 - l43 * x4) / l33
+    x2 = (y2 - l32 * x3 - l42 * x4) / l22
+    x1 = (y1 - l21 * x2 - l31 * x3 - l41 * x4) / l11
+    return [(y0 - l10 * x1 - l20 * x2 - l30 * x3 - l40 * x4) / l00, x1, x2, x3, x4]
 
 
 def gradient(f: np.ndarray, x: np.ndarray) -> np.ndarray:

@@ -11,17 +11,18 @@ import cv2
 import numpy as np
 
 from .lens import FisheyeLens
-from .small import clip_unit, median, solve_spd
+from .small import median, solve_spd
 
 SIN_1DEG = math.sin(math.radians(1.0))
 COS_88DEG = math.cos(math.radians(88.0))
 
 
-def plane_fit(v: np.ndarray) -> tuple[np.ndarray, float]:
-    """Plane a . v = c through unit vectors (total least squares); a . mean > 0."""
-    m = v.sum(0) / len(v)
-    q = v - m
-    _, vecs = np.linalg.eigh(q.T @ q)
+def plane_fit(VT: np.ndarray) -> tuple[np.ndarray, float]:
+    """Plane a . v = c through unit vectors given as the columns of ``VT`` (3, N) (total
+    least squares); a . mean > 0."""
+    m = VT.sum(axis=1) / VT.shape[1]
+    q = VT - m[:, None]
+    _, vecs = np.linalg.eigh(q @ q.T)
     a = vecs[:, 0]
     if a @ m < 0:
         a = -a
@@ -31,27 +32,33 @@ def plane_fit(v: np.ndarray) -> tuple[np.ndarray, float]:
 def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iters: int):
     """Iterate plane fit / harmonic residuals / MAD selection from the inlier set ``inl``;
     returns (axis, cos radius, inliers, residuals rad, (c2, s2) rad).  The harmonics are
-    fitted by their normal equations (``np.linalg.lstsq`` where those are near singular)."""
-    a, c = plane_fit(v[inl])
+    fitted by their normal equations (``np.linalg.lstsq`` where those are near singular),
+    on arrays laid out by row (each quantity one contiguous run: the points are few)."""
+    VT = np.ascontiguousarray(v.T)
+    a, c = plane_fit(VT[:, inl])
     ell = np.zeros(2)
     res = np.zeros(len(v))
-    A = np.empty((len(v), 5))  # 1, cos 2 psi, sin 2 psi, cos 3 psi, sin 3 psi
-    A[:, 0] = 1.0
+    B = np.empty((6, len(v)))  # 1, cos 2 psi, sin 2 psi, cos 3 psi, sin 3 psi; the angle
+    B[0] = 1.0
+    t = np.empty(len(v))
     for i in range(iters + 1):
         e1, e2 = tangent_frame(*a.tolist())
-        proj = v @ np.array([a, e1, e2]).T
-        ang = np.arccos(clip_unit(proj[:, 0]))
-        psi = np.arctan2(proj[:, 2], proj[:, 1])
-        np.cos(2 * psi, out=A[:, 1])
-        np.sin(2 * psi, out=A[:, 2])
-        np.cos(3 * psi, out=A[:, 3])
-        np.sin(3 * psi, out=A[:, 4])
-        Ai, ai = A[inl], ang[inl]
-        coef = solve_spd((Ai.T @ Ai).tolist(), (Ai.T @ ai).tolist())
+        Q = np.array([a, e1, e2]) @ VT
+        np.arctan2(np.hypot(Q[1], Q[2]), Q[0], out=B[5])
+        psi = np.arctan2(Q[2], Q[1])
+        np.multiply(psi, 2.0, out=t)
+        np.cos(t, out=B[1])
+        np.sin(t, out=B[2])
+        np.multiply(psi, 3.0, out=t)
+        np.cos(t, out=B[3])
+        np.sin(t, out=B[4])
+        Bi = B[:, inl]
+        N = (Bi @ Bi.T).tolist()
+        coef = solve_spd([row[:5] for row in N[:5]], [row[5] for row in N[:5]])
         if coef is None:
-            coef = np.linalg.lstsq(Ai, ai, rcond=None)[0].tolist()
+            coef = np.linalg.lstsq(Bi[:5].T, Bi[5], rcond=None)[0].tolist()
         ell = np.array(coef[1:3])
-        res = ang - A @ np.array(coef)
+        res = B[5] - np.array(coef) @ B[:5]
         if i == iters:
             break
         mad = 1.4826 * median(np.abs(res[inl] - median(res[inl])))
@@ -59,7 +66,7 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
         if new.sum() < 6 or np.array_equal(new, inl):
             break
         inl = new
-        a, c = plane_fit(v[inl])
+        a, c = plane_fit(VT[:, inl])
     return a, c, inl, res, ell
 
 
@@ -108,21 +115,26 @@ def fit_cone(
     tol = 5.0 * floor_rad
     sols = [refine_cone(v, np.ones(len(v), bool), k, floor_rad, iters)]
     first_inl, first_res = sols[0][2], sols[0][3]
-    clean = first_inl.mean() >= 0.9 and float(np.sqrt(np.mean(first_res[first_inl] ** 2))) <= tol
+    clean = first_inl.sum() / first_inl.size >= 0.9 and _rms(first_res, first_inl) <= tol
     if len(v) >= 12 and not clean:
         start = _ransac_circle(v, floor_rad)
         if start.sum() >= 6:
             sols.append(refine_cone(v, start, k, floor_rad, iters))
-    rms_of = [float(np.sqrt(np.mean(r[i] ** 2))) if i.any() else np.inf for _, _, i, r, _ in sols]
+    rms_of = [_rms(r, i) for _, _, i, r, _ in sols]
     good = [j for j, r in enumerate(rms_of) if r <= tol]
     if good:
         best = max(good, key=lambda j: int(sols[j][2].sum()))
     else:
         best = int(np.argmin([float(np.minimum(r**2, tol * tol).sum()) for _, _, _, r, _ in sols]))
     a, c, inl, res, ell = sols[best]
-    rho = float(np.arccos(np.clip(c, -1.0, 1.0)))
-    rms = float(np.sqrt(np.mean(res[inl] ** 2))) if inl.any() else float("inf")
-    return a, rho, inl, rms, ell
+    rho = math.acos(min(max(c, -1.0), 1.0))
+    return a, rho, inl, _rms(res, inl), ell
+
+
+def _rms(res: np.ndarray, keep: np.ndarray) -> float:
+    """RMS of ``res[keep]`` (inf when none is kept), as ``np.sqrt(np.mean(...))`` sums it."""
+    r = res[keep]
+    return math.sqrt(float((r * r).sum()) / r.size) if r.size else math.inf
 
 
 def tangent_basis(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -169,24 +181,29 @@ def sample_sphere(
     clip there may hide where the glare's own light crosses the rim's level.
     """
     H, W = grey.shape
-    blocks = []
-    for phi, chi in grids:
-        t = np.cos(phi)[:, None, None] * e1 + np.sin(phi)[:, None, None] * e2
-        blocks.append(np.cos(chi)[None, :, None] * a + np.sin(chi)[None, :, None] * t)
-    dirs = np.concatenate([b.reshape(-1, 3) for b in blocks])
-    uv, okp = lens.project(dirs)
+    # the directions by component, each grid a (n_phi, n_chi) block of one flat run
+    shapes = [(len(phi), len(chi)) for phi, chi in grids]
+    X = np.empty((3, sum(p * c for p, c in shapes)))
+    k = 0
+    for (phi, chi), (n_p, n_c) in zip(grids, shapes):
+        cp, sp, cc, sc = np.cos(phi), np.sin(phi), np.cos(chi), np.sin(chi)
+        for j in range(3):
+            out = X[j, k : k + n_p * n_c].reshape(n_p, n_c)
+            np.multiply((cp * e1[j] + sp * e2[j])[:, None], sc, out=out)
+            out += cc * a[j]
+        k += n_p * n_c
+    u, v, okp = lens.project_xyz(X[0], X[1], X[2])
     if not okp.any():
-        return [(np.full(b.shape[:2], np.nan), np.zeros(b.shape[:2], bool)) for b in blocks]
+        return [(np.full(sh, np.nan), np.zeros(sh, bool)) for sh in shapes]
     if not okp.all():
-        uv[~okp] = uv[okp][0]
+        u[~okp], v[~okp] = u[okp][0], v[okp][0]
     if up_cam is not None:
-        sky = dirs @ up_cam > SIN_1DEG
+        sky = up_cam @ X > SIN_1DEG
     else:
-        sky = dirs[:, 2] > COS_88DEG
-    sky &= okp & (uv[:, 0] >= 0) & (uv[:, 0] <= W - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= H - 1)
+        sky = X[2] > COS_88DEG
+    sky &= okp & (u >= 0) & (u <= W - 1) & (v >= 0) & (v <= H - 1)
     # a float window of the frame that holds every sample
     m = 1
-    u, v = uv[:, 0], uv[:, 1]  # by column: numpy reduces an (N, 2) array along N 20x slower
     u_lo, v_lo, u_hi, v_hi = float(u.min()), float(v.min()), float(u.max()), float(v.max())
     x0 = min(max(math.floor(u_lo) - m, 0), W - 1)
     y0 = min(max(math.floor(v_lo) - m, 0), H - 1)
@@ -196,17 +213,17 @@ def sample_sphere(
     if smear is not None:
         lev = smear[0][None, x0:x1]
         win = np.where(win < smear[1], win - lev, np.where(lev > smear[2], np.nan, win))
-    mx = (uv[:, 0] - x0).astype(np.float32).reshape(1, -1)
-    my = (uv[:, 1] - y0).astype(np.float32).reshape(1, -1)
-    vals = np.empty(dirs.shape[0], np.float32)
-    for i in range(0, dirs.shape[0], 30000):  # remap maps are limited to 32767 per side
+    mx = (u - x0).astype(np.float32).reshape(1, -1)
+    my = (v - y0).astype(np.float32).reshape(1, -1)
+    vals = np.empty(u.size, np.float32)
+    for i in range(0, u.size, 30000):  # remap maps are limited to 32767 per side
         vals[i : i + 30000] = cv2.remap(
             win, mx[:, i : i + 30000], my[:, i : i + 30000], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE
         ).ravel()
     vals[~okp] = np.nan
-    out, k = [], 0
-    for b in blocks:
-        n = b.shape[0] * b.shape[1]
-        out.append((vals[k : k + n].reshape(b.shape[:2]), sky[k : k + n].reshape(b.shape[:2])))
+    samples, k = [], 0
+    for sh in shapes:
+        n = sh[0] * sh[1]
+        samples.append((vals[k : k + n].reshape(sh), sky[k : k + n].reshape(sh)))
         k += n
-    return out
+    return samples

@@ -3,7 +3,15 @@ import math
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.small import clip_unit, gradient, median, median_kept, median_rows, solve_spd
+from controller.vision.fisheye.small import (
+    _solve_spd_any,
+    clip_unit,
+    gradient,
+    median,
+    median_kept,
+    median_rows,
+    solve_spd,
+)
 
 
 @pytest.mark.parametrize("dtype", [np.float64, np.float32])
@@ -60,15 +68,27 @@ def test_solve_spd_solves_normal_equations_as_numpy(n):
         assert np.allclose(x, np.linalg.lstsq(J, r, rcond=None)[0], rtol=1e-8, atol=0)
 
 
-def test_solve_spd_refuses_dependent_columns_and_leaves_its_arguments_alone():
+@pytest.mark.parametrize("n", [4, 5])
+def test_solve_spd_unrolled_is_the_loop_bit_for_bit(n):
+    rng = np.random.default_rng(10 + n)
+    for _ in range(200):
+        J = rng.normal(size=(30, n)) * rng.uniform(0.01, 100.0, n)
+        M, g = (J.T @ J).tolist(), rng.normal(size=n).tolist()
+        assert solve_spd(M, g) == _solve_spd_any(M, g, 1e-10)
+
+
+@pytest.mark.parametrize("n", [3, 4, 5])
+@pytest.mark.parametrize("dep", [1, 2, -1])
+def test_solve_spd_refuses_dependent_columns_and_leaves_its_arguments_alone(n, dep):
     rng = np.random.default_rng(0)
-    J = rng.normal(size=(30, 3))
+    J = rng.normal(size=(30, n))
     # all but dependent: a pivot of 1e-12 of its diagonal, where normal equations keep ~4 digits
-    J[:, 2] = J[:, 0] - 2.0 * J[:, 1] + 1e-6 * rng.normal(size=30)
-    M, g = (J.T @ J).tolist(), [1.0, 2.0, 3.0]
+    others = [j for j in range(n) if j != dep % n]
+    J[:, dep] = J[:, others[0]] - 2.0 * J[:, others[1]] + 1e-6 * rng.normal(size=30)
+    M, g = (J.T @ J).tolist(), [1.0 + j for j in range(n)]
     before = [row[:] for row in M]
     assert solve_spd(M, g) is None
-    assert M == before and g == [1.0, 2.0, 3.0]
+    assert M == before and g == [1.0 + j for j in range(n)]
     assert solve_spd([[-1.0]], [1.0]) is None and solve_spd([[0.0]], [1.0]) is None
 
 
