@@ -41,7 +41,7 @@ from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
 from .lens import FisheyeLens
 from .radiometry import Radiometry, illumination_about, rim_shift
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
-from .small import gradient, median
+from .small import clip_unit, gradient, median
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
 from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
 
@@ -225,6 +225,7 @@ def fit_glare(
     dpp = lens.deg_per_px(xc, yc)
     n_rays = int(np.clip(round(2 * math.pi * r / 0.8), opts.min_rays, opts.max_rays))
     phi = np.arange(n_rays) * (2 * math.pi / n_rays)
+    cos_phi, sin_phi = np.cos(phi), np.sin(phi)
 
     # -- start: the ray through the inscribed disk's centre, the disk's angular radius ----
     d0, ok0 = lens.rays([[xc, yc]])
@@ -251,9 +252,11 @@ def fit_glare(
     read_inside, kept_stale = False, False  # the last reading's rings began inside the glare
     for it in range(opts.max_passes):
         e1, e2 = tangent_basis(a)
+        dirs_t = cos_phi[:, None] * e1 + sin_phi[:, None] * e2  # the rays' directions at the axis
+        up_a = 0.0 if up_cam is None else min(max(float(a @ up_cam), -1.0), 1.0)  # sin(elevation)
         # the streak's rays: both ways, the near-vertical ones (by design: not counted in the
         # rim's gaps); one way, those towards it (counted: that side of the rim is unseen)
-        vertical_ok = np.abs(np.sin(phi)) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
+        vertical_ok = np.abs(sin_phi) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
         rays_ok = vertical_ok & ~rays_towards(lens, a, e1, e2, phi, rho, streak) if streak else vertical_ok
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         if rim_chi.size < 2:  # a step wider than the rim (a fit shrunk far inside the candidate)
@@ -299,11 +302,10 @@ def fit_glare(
             by_el = None
             if up_cam is not None and not rsky.all():
                 # rings cut by the horizon: model the sky by elevation instead of a dipole
-                el0 = math.asin(float(np.clip(a @ up_cam, -1, 1)))
-                t_r = np.cos(phi[ring_sel])[:, None] * e1 + np.sin(phi[ring_sel])[:, None] * e2
+                el0 = math.asin(up_a)
                 sin_el = (
                     np.cos(ring_chi)[None, :] * float(a @ up_cam)
-                    + np.sin(ring_chi)[None, :] * (t_r @ up_cam)[:, None]
+                    + np.sin(ring_chi)[None, :] * (dirs_t[ring_sel] @ up_cam)[:, None]
                 )
                 xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
                 by_el = sky_by_elevation(
@@ -315,12 +317,11 @@ def fit_glare(
             inner = samples[1][0][:, ring_chi < 1.4 * rho][rsky[:, ring_chi < 1.4 * rho]]
             read_inside = inner.size > 0 and median(inner) >= bg + opts.level * (peak - bg)
         if by_el is not None:
-            t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
-            sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (t_k @ up_cam)
-            xk = (np.arcsin(np.clip(sin_k, -1, 1)) - math.asin(float(np.clip(a @ up_cam, -1, 1)))) / rho
+            sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (dirs_t @ up_cam)
+            xk = (np.arcsin(clip_unit(sin_k)) - math.asin(up_a)) / rho
             shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
         else:
-            shift = dipole[0] * np.cos(phi) + dipole[1] * np.sin(phi)
+            shift = dipole[0] * cos_phi + dipole[1] * sin_phi
         k_cam = calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
         k_sky = opts.sky_scale * trusted_scale(k_cam, trust)  # the calibration, as far as the sky is clear
         shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
@@ -336,12 +337,10 @@ def fit_glare(
         if by_el is not None:  # near the horizon the sky model extrapolates: a large
             has &= np.abs(shift_s) <= opts.max_horizon_shift * (top_s - bg_s)  # shift is a guess
         if up_cam is not None:  # the last degrees above the horizon change too fast to model
-            t_k = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
-            sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (t_k @ up_cam)
+            sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (dirs_t @ up_cam)
             has &= sin_rim > _SIN_RIM_MIN
         if has.sum() < 8:
             return None
-        dirs_t = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2
         pts = np.cos(chi_c)[:, None] * a + np.sin(chi_c)[:, None] * dirs_t
         a_new, rho, inl, rms, _ = fit_cone(pts[has], k=opts.outlier_k, floor_rad=floor)
         # the centre: the rim read as a circle in a blend of the sky's and the sensor's
@@ -386,8 +385,8 @@ def fit_glare(
     sky_move = 0.0
     if idx.size >= 3:
         moves = -np.asarray(shift * np.ones(n_rays))[idx] / np.maximum(slope[idx], 1e-9)
-        c1 = 2.0 * float(np.mean(moves * np.cos(phi[idx])))
-        s1 = 2.0 * float(np.mean(moves * np.sin(phi[idx])))
+        c1 = 2.0 * float(np.mean(moves * cos_phi[idx]))
+        s1 = 2.0 * float(np.mean(moves * sin_phi[idx]))
         sky_move = math.hypot(c1, s1)
     if alpha >= 0.75:
         flags.append("round_in_image")
