@@ -47,13 +47,17 @@ def find_blobs(
         binary &= valid
     H, W = binary.shape
     f = max(1, min(H, W) // 120)
-    small = cv2.resize(binary, (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
+    if H % f == 0 and W % f == 0:
+        # a block is marked by its largest value: a dilation read at the blocks' corners
+        # (50 us at 640 x 480 against INTER_AREA's 140; the same marks)
+        small = np.ascontiguousarray(cv2.dilate(binary, np.ones((f, f), np.uint8), anchor=(0, 0))[::f, ::f])
+    else:  # blocks of a fractional size: the marked pixels' share of each, over nothing
+        small = cv2.resize(binary, (max(W // f, 1), max(H // f, 1)), interpolation=cv2.INTER_AREA)
+        small = (small > 0).astype(np.uint8)
     # 16-bit labels where they cannot overflow (at most a quarter of the pixels are separate
     # 8-connected blobs): the same labels, 40-95 us against 32-bit ones' 130 at 160 x 120
     ltype = cv2.CV_16U if small.size <= 4 * 65535 else cv2.CV_32S
-    n, _, stats, _ = cv2.connectedComponentsWithStats(
-        (small > 0).astype(np.uint8), connectivity=8, ltype=ltype
-    )
+    n, _, stats, _ = cv2.connectedComponentsWithStats(small, connectivity=8, ltype=ltype)
     if n <= 1:
         return []
     sx, sy = W / small.shape[1], H / small.shape[0]
