@@ -101,15 +101,13 @@ def _streak_band(
 def _column_run(grey: np.ndarray, x0: int, x1: int, y0: int, step: int, sat_level: float) -> int:
     """How many rows from ``y0``, going ``step`` (-1 up, +1 down), columns ``x0:x1`` stay
     saturated somewhere (a single unsaturated row is bridged, for noise)."""
-    H = grey.shape[0]
-    y, n, gap = y0, 0, 0
-    while 0 <= y + step < H and gap < 2:
-        y += step
-        if grey[y, x0:x1].max() >= sat_level:
-            n, gap = n + 1 + gap, 0
-        else:
-            gap += 1
-    return n
+    rows = grey[:y0][::-1, x0:x1] if step < 0 else grey[y0 + 1 :, x0:x1]
+    if rows.size == 0:
+        return 0
+    sat = rows.max(axis=1) >= sat_level
+    ends = np.flatnonzero(~sat[:-1] & ~sat[1:])  # two unsaturated rows in a row end the run
+    hit = np.flatnonzero(sat[: ends[0] if ends.size else sat.size])
+    return int(hit[-1]) + 1 if hit.size else 0
 
 
 def core_row(grey: np.ndarray, xc: float, yc: float, sat_level: float) -> tuple[float, float]:

@@ -120,3 +120,28 @@ def test_the_skys_dipole_is_fitted_on_the_part_of_the_circle_a_streak_leaves():
     sky[(np.degrees(phi) > 60) & (np.degrees(phi) < 95)] = False  # the ground's wedge
     dip = sky_dipole(vals, chi, phi, rho, ~up, 150.0, sky)
     assert dip == pytest.approx(k, abs=0.5)
+
+
+def test_a_columns_run_is_the_row_by_row_walks():
+    """The saturated run along the core's column, read in one reduction, is what walking
+    row by row gives: one unsaturated row bridged, two end it, the frame's edge ends it."""
+    from controller.vision.fisheye.streak import _column_run
+
+    def walk(grey, x0, x1, y0, step, sat):
+        y, n, gap = y0, 0, 0
+        while 0 <= y + step < grey.shape[0] and gap < 2:
+            y += step
+            if grey[y, x0:x1].max() >= sat:
+                n, gap = n + 1 + gap, 0
+            else:
+                gap += 1
+        return n
+
+    rng = np.random.default_rng(5)
+    for _ in range(3000):
+        H = int(rng.integers(1, 25))
+        grey = ((rng.random((H, 6)) < rng.uniform(0.2, 1.0)) * 255).astype(np.uint8)
+        y0, x0 = int(rng.integers(0, H)), int(rng.integers(0, 3))
+        x1 = x0 + 1 + int(rng.integers(0, 3))
+        for step in (-1, 1):
+            assert _column_run(grey, x0, x1, y0, step, 250) == walk(grey, x0, x1, y0, step, 250)
