@@ -41,6 +41,9 @@ RING_EDGES = (1.15, 1.4, 1.7, 2.0, 2.4, 2.8, 3.2)
 #: rounds of clipping the elevation model's outliers (it stops once they stop changing)
 MAX_CLIP_ROUNDS = 8
 
+#: the rings' edges (rim radii) of :func:`sky_by_elevation`
+ELEVATION_RING_EDGES = (1.15, 1.4, 1.7, 2.0, 2.4, 2.8, 3.2)
+
 
 @lru_cache(maxsize=16)
 def _design(phi_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
@@ -132,12 +135,13 @@ def sky_dipole(
     if sky is None:
         sky = np.ones(vals.shape, bool)
     good = sky & rays_ok[:, None] & np.isfinite(vals)
-    if good.sum() < 12:
-        return np.zeros(2)
     n_good = good.sum(axis=0)
+    if n_good.sum() < 12:
+        return np.zeros(2)
     prof = np.where(good, vals, 0.0).sum(axis=0) / np.maximum(n_good, 1)
     seen = n_good > 0
-    prof[~seen] = float(prof[seen].mean())  # the mean profile (a ring seen nowhere: its mean)
+    if not seen.all():  # the mean profile (a ring seen nowhere: its mean)
+        prof[~seen] = float(prof[seen].mean())
     dprof = gradient(prof, chi)
     # the rings' radii rise along ``chi``: each ring is a run of columns, all summed in one
     # reduction (sums over counts: the rings' means, in the samples' precision)
@@ -205,32 +209,38 @@ def sky_by_elevation(
     if not np.isfinite(prof).all():
         return None
     dprof = gradient(prof, chi)
-    rings = [(lo, hi) for lo, hi in ((1.15, 1.4), (1.4, 1.7), (1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))]
-    rows, rhs = [], []
-    n_rings = 0
-    for j, (lo, hi) in enumerate(rings):
-        sel = (chi >= lo * rho) & (chi < hi * rho)
-        if sel.sum() < 2:
-            continue
-        ok = good[:, sel].all(axis=1)
-        if ok.sum() < 6:
-            continue
-        n_rings += 1
-        m = vals[ok][:, sel].mean(axis=1)
-        xx = x[ok][:, sel].mean(axis=1)
-        dp = float(dprof[sel].mean())
-        sj = float(chi[sel].mean()) / rho - 1.0
-        one = np.zeros((ok.sum(), len(rings)))
-        one[:, j] = 1.0
-        cols = np.column_stack([one, -dp * np.cos(phi[ok]), -dp * np.sin(phi[ok]), xx, xx**2, xx**3, xx * sj])
-        rows.append(cols)
-        rhs.append(m)
-    if n_rings < 3:
+    # the rings' radii rise along ``chi``: each ring is a run of columns, reduced at once
+    edges = np.searchsorted(chi, np.array(ELEVATION_RING_EDGES) * rho)
+    lo, hi = edges[:-1], edges[1:]
+    wide = hi - lo >= 2
+    at = np.stack([lo, hi], axis=1).ravel()
+    R, C = vals.shape
+    pad = np.zeros((R, C + 1))
+    pad[:, :C] = np.where(good, vals, 0.0)  # the rings' sums (a ray counts where all its samples do)
+    sums = np.add.reduceat(pad, at, axis=1)[:, ::2]
+    pad[:, :C] = x
+    xsums = np.add.reduceat(pad, at, axis=1)[:, ::2]
+    good_pad = np.ones((R, C + 1), bool)
+    good_pad[:, :C] = good
+    ok = np.logical_and.reduceat(good_pad, at, axis=1)[:, ::2] & wide  # (rays, rings)
+    used = np.flatnonzero(ok.sum(axis=0) >= 6)
+    if used.size < 3:
         return None
-    A = np.concatenate(rows)
-    b = np.concatenate(rhs)
-    used = np.flatnonzero(np.abs(A[:, : len(rings)]).sum(0) > 0)
-    A = np.concatenate([A[:, used], A[:, len(rings) :]], axis=1)
+    n = np.maximum(hi - lo, 1).astype(float)
+    dp = np.add.reduceat(np.append(dprof, 0.0), at)[::2] / n
+    sj = np.add.reduceat(np.append(chi, 0.0), at)[::2] / n / rho - 1.0
+    # one row per (ring, ray) seen, ring by ring: a level per ring, the glare's shift, the sky
+    okt = ok[:, used].T
+    ring, ray = np.nonzero(okt)
+    m = (sums[:, used] / n[used]).T[okt]
+    xx = (xsums[:, used] / n[used]).T[okt]
+    d = dp[used][ring]
+    A = np.zeros((m.size, used.size + 6))
+    A[np.arange(m.size), ring] = 1.0
+    A[:, used.size :] = np.stack(
+        [-d * np.cos(phi[ray]), -d * np.sin(phi[ray]), xx, xx**2, xx**3, xx * sj[used][ring]], axis=1
+    )
+    b = m
     # clipped until the kept samples stop changing: a cloud over a third of the outer rings,
     # still half in the fit after two rounds, had turned the horizon's brightening round
     # (the third renderer's broken cloud: suns under a clear line of sight found 0.9 deg low)

@@ -87,3 +87,54 @@ def test_the_skys_dipole_at_the_rim_is_read_from_the_rings_that_count(dtype):
     np.testing.assert_allclose(sky_dipole(vals, chi, phi, RHO, ok, 200.0, sky), want, atol=0.05)
     sky[:20, s > 2.0] = False  # three rings left: no dipole
     assert sky_dipole(vals, chi, phi, RHO, ok, 200.0, sky).tolist() == [0.0, 0.0]
+
+
+def _by_elevation_ring_by_ring(vals, chi, phi, rho, good, x):
+    """The elevation model's design, built ring by ring (the reference)."""
+    from controller.vision.fisheye.skybg import ELEVATION_RING_EDGES
+    from controller.vision.fisheye.small import gradient
+
+    prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
+    dprof = gradient(prof, chi)
+    edges = ELEVATION_RING_EDGES
+    rows, rhs = [], []
+    for j, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
+        sel = (chi >= lo * rho) & (chi < hi * rho)
+        ok = good[:, sel].all(axis=1)
+        if sel.sum() < 2 or ok.sum() < 6:
+            continue
+        xx = x[ok][:, sel].mean(axis=1)
+        dp, sj = float(dprof[sel].mean()), float(chi[sel].mean()) / rho - 1.0
+        one = np.zeros((ok.sum(), len(edges) - 1))
+        one[:, j] = 1.0
+        rows.append(
+            np.column_stack([one, -dp * np.cos(phi[ok]), -dp * np.sin(phi[ok]), xx, xx**2, xx**3, xx * sj])
+        )
+        rhs.append(vals[ok][:, sel].mean(axis=1))
+    A = np.concatenate(rows)
+    A = np.concatenate(
+        [A[:, np.flatnonzero(A[:, : len(edges) - 1].any(axis=0))], A[:, len(edges) - 1 :]], axis=1
+    )
+    return A, np.concatenate(rhs)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_elevation_models_rings_are_read_as_ring_by_ring(seed, monkeypatch):
+    """All rings reduced at once give the design a ring-by-ring reading gives, rings left out
+    (too few rays wholly on the sky) included."""
+    from controller.vision.fisheye import skybg
+
+    vals, chi, phi, sky, x = rings(bool(seed % 2), seed)
+    rng = np.random.default_rng(seed)
+    sky = sky & (rng.random(sky.shape) > 0.01)  # scattered samples off the sky
+    sky[:, (chi > 1.4 * RHO) & (chi < 1.7 * RHO)] &= phi[:, None] < 0.5  # a ring with too few rays
+    seen = []
+    real = np.linalg.lstsq
+    monkeypatch.setattr(
+        skybg.np.linalg, "lstsq", lambda A, b, rcond=None: seen.append((A, b)) or real(A, b, rcond=rcond)
+    )
+    assert skybg.sky_by_elevation(vals, chi, phi, RHO, np.ones(phi.size, bool), sky, x, 175.0) is not None
+    A, b = _by_elevation_ring_by_ring(vals, chi, phi, RHO, sky, x)
+    assert seen[0][0].shape == A.shape and A.shape[1] == 5 + 6  # one ring dropped
+    np.testing.assert_allclose(seen[0][0], A, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(seen[0][1], b, rtol=1e-12, atol=1e-9)
