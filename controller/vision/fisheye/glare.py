@@ -174,19 +174,21 @@ def _crossings(
     """First fall of each row of ``vals`` below its ``level`` after an unbroken run at or above
     it from the first sample; (radius by linear interpolation, found, the fall's slope in
     grey levels per unit of ``radii``)."""
-    n = vals.shape[0]
+    n, m = vals.shape
     above = vals >= level[:, None]
     below = ~above
     below[:, 0] = False
     j = np.argmax(below, axis=1)
-    has = below[np.arange(n), j] & above[:, 0]
-    jj = np.clip(j, 1, len(radii) - 1)
-    v1 = vals[np.arange(n), jj - 1]
-    v2 = vals[np.arange(n), jj]
+    at = np.arange(0, n * m, m) + j  # each row's first fall, in the flattened rows
+    has = below.ravel()[at] & above[:, 0]
+    jj = np.minimum(np.maximum(j, 1), m - 1)
+    flat = vals.ravel()
+    v1, v2 = flat[at + (jj - j) - 1], flat[at + (jj - j)]
     has &= np.isfinite(v1) & np.isfinite(v2)
-    frac = np.clip((v1 - level) / np.maximum(v1 - v2, 1e-6), 0.0, 1.0)
-    slope = (v1 - v2) / np.maximum(radii[jj] - radii[jj - 1], 1e-12)
-    return radii[jj - 1] + frac * (radii[jj] - radii[jj - 1]), has, slope
+    frac = np.minimum(np.maximum((v1 - level) / np.maximum(v1 - v2, 1e-6), 0.0), 1.0)
+    r0, dr = radii[jj - 1], radii[jj] - radii[jj - 1]
+    slope = (v1 - v2) / np.maximum(dr, 1e-12)
+    return r0 + frac * dr, has, slope
 
 
 def fit_glare(
