@@ -122,10 +122,11 @@ def _refine(lens, XT, a, inl, k, floor, iters, s, alpha):
         res = alpha * s * np.hypot(Q[3], Q[4]) + (1.0 - alpha) * np.arctan2(np.hypot(Q[1], Q[2]), Q[0]) - rho
         if i == iters:
             break
-        mid = median(res[inl])
-        mad = 1.4826 * median(np.abs(res[inl] - mid))
+        r_in = res[inl]
+        mid = median(r_in)
+        mad = 1.4826 * median(np.abs(r_in - mid))
         new = np.abs(res - mid) <= k * max(mad, floor)
-        if new.sum() < 6 or np.array_equal(new, inl):
+        if np.count_nonzero(new) < 6 or (new == inl).all():
             break
         inl = new
     rms = math.sqrt(float(res[inl] @ res[inl]) / int(inl.sum())) if inl.any() else float("inf")

@@ -36,8 +36,6 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
     on arrays laid out by row (each quantity one contiguous run: the points are few)."""
     VT = np.ascontiguousarray(v.T)
     a, c = plane_fit(VT[:, inl])
-    ell = np.zeros(2)
-    res = np.zeros(len(v))
     B = np.empty((6, len(v)))  # 1, cos 2 psi, sin 2 psi, cos 3 psi, sin 3 psi; the angle
     B[0] = 1.0
     t = np.empty(len(v))
@@ -57,17 +55,18 @@ def refine_cone(v: np.ndarray, inl: np.ndarray, k: float, floor_rad: float, iter
         coef = solve_spd([row[:5] for row in N[:5]], [row[5] for row in N[:5]])
         if coef is None:
             coef = np.linalg.lstsq(Bi[:5].T, Bi[5], rcond=None)[0].tolist()
-        ell = np.array(coef[1:3])
+        ell = coef[1:3]
         res = B[5] - np.array(coef) @ B[:5]
         if i == iters:
             break
-        mad = 1.4826 * median(np.abs(res[inl] - median(res[inl])))
+        r_in = res[inl]
+        mad = 1.4826 * median(np.abs(r_in - median(r_in)))
         new = np.abs(res) <= k * max(mad, floor_rad)
-        if new.sum() < 6 or np.array_equal(new, inl):
+        if np.count_nonzero(new) < 6 or (new == inl).all():
             break
         inl = new
         a, c = plane_fit(VT[:, inl])
-    return a, c, inl, res, ell
+    return a, c, inl, res, np.array(ell)
 
 
 def _ransac_circle(v: np.ndarray, floor_rad: float, n_hyp: int = 32) -> np.ndarray:
