@@ -9,7 +9,8 @@ Direction -> pixel is ``cv2.fisheye.projectPoints``'s formula, in front of the l
 (z > 0: it works through ``tan(theta)``), written out in numpy: OpenCV's call spends about
 90 ns a point (a rotation and its bookkeeping per point), five times the vectorised
 formula, and a glare's rays are thousands of points a pass; the tests hold the two within
-1e-10 px.  Pixel -> direction inverts the polynomial here, by
+1e-10 px (the arrays' ``theta_d`` is summed by Horner's rule: within 1e-12 px; one
+direction's, in floats, as OpenCV sums it, bit for bit).  Pixel -> direction inverts the polynomial here, by
 Newton's method from a table, to ``THETA_LIMIT_DEG``: ``cv2.fisheye.undistortPoints`` clamps
 ``theta_d`` at pi / 2, so on a lens whose image grows faster than the angle (stereographic,
 common on sky cameras) every ray past 76-78 deg came back wrong (6 deg at 85 deg: a low
@@ -140,7 +141,17 @@ class FisheyeLens:
             x, y, z = np.where(valid, x, 0.0), np.where(valid, y, 0.0), np.where(valid, z, 1.0)
         xn, yn = x / z, y / z
         r = np.sqrt(xn * xn + yn * yn)
-        td = self._theta_d_cv(np.arctan(r))
+        th = np.arctan(r)
+        # theta_d by Horner's rule, in place: within 1e-15 of OpenCV's sum of powers (and
+        # its pixels within 1e-12 px) at two thirds of the cost on a pass's ~2500 rays
+        k1, k2, k3, k4 = self._k
+        t2 = th * th
+        td = t2 * k4
+        for k in (k3, k2, k1):
+            td += k
+            td *= t2
+        td += 1.0
+        td *= th
         with np.errstate(divide="ignore", invalid="ignore"):
             cd = np.where(r > 1e-8, td * (1.0 / r), 1.0)
         xd, yd = xn * cd, yn * cd
