@@ -152,10 +152,15 @@ class FisheyeLens:
             td *= t2
         td += 1.0
         td *= th
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cd = np.where(r > 1e-8, td * (1.0 / r), 1.0)
-        xd, yd = xn * cd, yn * cd
-        return (xd + self._alpha * yd) * self.fx + self.cx, yd * self.fy + self.cy, valid
+        cd = np.divide(td, r, out=td, where=r > 1e-8)  # on the axis: theta_d / r is 1
+        cd[r <= 1e-8] = 1.0
+        xn *= cd  # the distorted point (xd, yd)
+        yn *= cd
+        u = xn * self.fx if self._alpha == 0.0 else (xn + self._alpha * yn) * self.fx
+        u += self.cx
+        v = yn * self.fy
+        v += self.cy
+        return u, v, valid
 
     def project_cv(self, dirs) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` through ``cv2.fisheye.projectPoints`` itself (the reference)."""

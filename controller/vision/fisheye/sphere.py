@@ -185,11 +185,10 @@ def sample_sphere(
     X = np.empty((3, sum(p * c for p, c in shapes)))
     k = 0
     for (phi, chi), (n_p, n_c) in zip(grids, shapes):
-        cp, sp, cc, sc = np.cos(phi), np.sin(phi), np.cos(chi), np.sin(chi)
-        for j in range(3):
-            out = X[j, k : k + n_p * n_c].reshape(n_p, n_c)
-            np.multiply((cp * e1[j] + sp * e2[j])[:, None], sc, out=out)
-            out += cc * a[j]
+        t = np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2  # (n_p, 3): the rays' tangents
+        out = X[:, k : k + n_p * n_c].reshape(3, n_p, n_c)
+        np.multiply(t.T[:, :, None], np.sin(chi), out=out)
+        out += a[:, None, None] * np.cos(chi)
         k += n_p * n_c
     u, v, okp = lens.project_xyz(X[0], X[1], X[2])
     if not okp.any():
