@@ -101,34 +101,13 @@ def _solve_spd_any(M: list[list[float]], g: list[float], tiny: float) -> list[fl
 
 
 def _solve_spd4(M: list[list[float]], g: list[float], tiny: float) -> list[float] | None:
-    """:func:`solve_spd` of a 4 x 4 system, the same operations unrolled."""
-    (m00, m01, m02, m03), (_, m11, m12, m13), (_, _, m22, m23), (_, _, _, m33) = M
-    if not m00 > tiny * m00:
-        return None
-    l00 = math.sqrt(m00)
-    l10, l20, l30 = m01 / l00, m02 / l00, m03 / l00
-    d = m11 - l10 * l10
-    if not d > tiny * m11:
-        return None
-    l11 = math.sqrt(d)
-    l21, l31 = (m12 - l20 * l10) / l11, (m13 - l30 * l10) / l11
-    d = m22 - l20 * l20 - l21 * l21
-    if not d > tiny * m22:
-        return None
-    l22 = math.sqrt(d)
-    l32 = (m23 - l30 * l20 - l31 * l21) / l22
-    d = m33 - l30 * l30 - l31 * l31 - l32 * l32
-    if not d > tiny * m33:
-        return None
-    l33 = math.sqrt(d)
-    y0 = g[0] / l00
-    y1 = (g[1] - l10 * y0) / l11
-    y2 = (g[2] - l20 * y0 - l21 * y1) / l22
-    y3 = (g[3] - l30 * y0 - l31 * y1 - l32 * y2) / l33
-    x3 = y3 / l33
-    x2 = (y2 - l32 * x3) / l22
-    x1 = (y1 - l21 * x2 - l31 * x3) / l11
-    return [(y0 - l10 * x1 - l20 * x2 - l30 * x3) / l00, x1, x2, x3]
+    """:func:`solve_spd` of a 4 x 4 system: the 5 x 5 one bordered by an identity row and
+    column (the border's terms are exact zeros: the same values as unrolled for 4)."""
+    x = _solve_spd5([[*M[0], 0.0], [*M[1], 0.0], [*M[2], 0.0], [*M[3], 0.0], _BORDER], [*g, 0.0], tiny)
+    return None if x is None else x[:4]
+
+
+_BORDER = [0.0, 0.0, 0.0, 0.0, 1.0]
 
 
 def _solve_spd5(M: list[list[float]], g: list[float], tiny: float) -> list[float] | None:
