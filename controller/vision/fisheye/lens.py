@@ -10,12 +10,12 @@ Direction -> pixel is ``cv2.fisheye.projectPoints``'s formula, in front of the l
 90 ns a point (a rotation and its bookkeeping per point), five times the vectorised
 formula, and a glare's rays are thousands of points a pass; the tests hold the two within
 1e-10 px (the arrays' ``theta_d`` is summed by Horner's rule: within 1e-12 px; one
-direction's, in floats, as OpenCV sums it, bit for bit).  Pixel -> direction inverts the polynomial here, by
-Newton's method from a table, to ``THETA_LIMIT_DEG``: ``cv2.fisheye.undistortPoints`` clamps
-``theta_d`` at pi / 2, so on a lens whose image grows faster than the angle (stereographic,
-common on sky cameras) every ray past 76-78 deg came back wrong (6 deg at 85 deg: a low
-sun's glare read 2.5 deg wide instead of 5.6, and no rim found), and it folds rays past 90
-deg on the others.
+direction's, in floats, as OpenCV sums it, bit for bit).  Pixel -> direction inverts the
+polynomial here, by Newton's method from a table, to ``THETA_LIMIT_DEG``:
+``cv2.fisheye.undistortPoints`` clamps ``theta_d`` at pi / 2, so on a lens whose image
+grows faster than the angle (stereographic, common on sky cameras) every ray past 76-78 deg
+came back wrong (6 deg at 85 deg: a low sun's glare read 2.5 deg wide instead of 5.6, and no
+rim found), and it folds rays past 90 deg on the others.
 """
 
 from __future__ import annotations

@@ -35,14 +35,12 @@ def harmonic(phi: np.ndarray, m: np.ndarray) -> np.ndarray:
     return coef[1:3]
 
 
-#: the rings' edges (rim radii) whose dipoles :func:`sky_dipole` fits
+#: the rings' edges (rim radii) whose dipoles :func:`sky_dipole` fits, and whose sky
+#: :func:`sky_by_elevation` models
 RING_EDGES = (1.15, 1.4, 1.7, 2.0, 2.4, 2.8, 3.2)
 
 #: rounds of clipping the elevation model's outliers (it stops once they stop changing)
 MAX_CLIP_ROUNDS = 8
-
-#: the rings' edges (rim radii) of :func:`sky_by_elevation`
-ELEVATION_RING_EDGES = (1.15, 1.4, 1.7, 2.0, 2.4, 2.8, 3.2)
 
 
 @lru_cache(maxsize=128)
@@ -212,7 +210,7 @@ def sky_by_elevation(
         return None
     dprof = gradient(prof, chi)
     # the rings' radii rise along ``chi``: each ring is a run of columns, reduced at once
-    edges = np.searchsorted(chi, np.array(ELEVATION_RING_EDGES) * rho)
+    edges = np.searchsorted(chi, np.array(RING_EDGES) * rho)
     lo, hi = edges[:-1], edges[1:]
     wide = hi - lo >= 2
     at = np.stack([lo, hi], axis=1).ravel()

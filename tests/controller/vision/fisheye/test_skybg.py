@@ -91,12 +91,12 @@ def test_the_skys_dipole_at_the_rim_is_read_from_the_rings_that_count(dtype):
 
 def _by_elevation_ring_by_ring(vals, chi, phi, rho, good, x):
     """The elevation model's design, built ring by ring (the reference)."""
-    from controller.vision.fisheye.skybg import ELEVATION_RING_EDGES
+    from controller.vision.fisheye.skybg import RING_EDGES
     from controller.vision.fisheye.small import gradient
 
     prof = np.nanmean(np.where(good, vals, np.nan), axis=0)
     dprof = gradient(prof, chi)
-    edges = ELEVATION_RING_EDGES
+    edges = RING_EDGES
     rows, rhs = [], []
     for j, (lo, hi) in enumerate(zip(edges[:-1], edges[1:])):
         sel = (chi >= lo * rho) & (chi < hi * rho)
