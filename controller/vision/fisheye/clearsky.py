@@ -32,6 +32,8 @@ import math
 
 import numpy as np
 
+from .skybg import harmonic_design
+
 #: the rings' bands, in rim radii (the outer ones of :func:`.skybg.sky_dipole`)
 RING_BANDS = ((1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))
 #: the rings' dipole is counted as at least this fraction of the glare's contrast
@@ -76,19 +78,31 @@ def ring_roughness(
         when no ring has :data:`MIN_RING_RAYS` rays wholly on the sky.
     """
     good = sky & rays_ok[:, None] & np.isfinite(vals)
-    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
-    res2, dip2 = [], []
-    for lo, hi in RING_BANDS:
-        sel = (chi >= lo * rho) & (chi < hi * rho)
-        if sel.sum() < 2:
-            continue
-        ok = good[:, sel].all(axis=1)
-        if ok.sum() < MIN_RING_RAYS:
-            continue
-        m = vals[ok][:, sel].mean(axis=1)
-        coef, *_ = np.linalg.lstsq(A[ok], m, rcond=None)
-        res2.append(float(np.mean((m - A[ok] @ coef) ** 2)))
-        dip2.append(float(coef[1] ** 2 + coef[2] ** 2))
+    # each band a run of columns (``chi`` ascends): its rays' means and whether all of a
+    # ray's samples count, reduced at once; then each band's harmonics by its own normal
+    # equations, all bands in one batch
+    cuts = np.searchsorted(chi, np.array(RING_BANDS) * rho).ravel()
+    lo, hi = cuts[0::2], cuts[1::2]
+    bands = hi - lo >= 2
+    if not bands.any():
+        return None
+    at = np.stack([lo[bands], hi[bands]], axis=1).ravel()
+    R, C = vals.shape
+    pad = np.zeros((R, C + 1))
+    pad[:, :C] = np.where(good, vals, 0.0)
+    M = (np.add.reduceat(pad, at, axis=1)[:, ::2] / (hi - lo)[bands]).T  # (bands, rays)
+    ok_pad = np.ones((R, C + 1), bool)
+    ok_pad[:, :C] = good
+    ok = np.logical_and.reduceat(ok_pad, at, axis=1)[:, ::2].T  # (bands, rays)
+    fitted = ok.sum(axis=1) >= MIN_RING_RAYS
+    if not fitted.any():
+        return None
+    W, M = ok[fitted].astype(float), M[fitted]
+    A, _ = harmonic_design(np.ascontiguousarray(phi, dtype=np.float64).tobytes())
+    coef = np.linalg.solve((A.T[None, :, :] * W[:, None, :]) @ A, ((W * M) @ A)[..., None])[..., 0]
+    res = M - coef @ A.T
+    res2 = list((W * res * res).sum(axis=1) / W.sum(axis=1))
+    dip2 = list(coef[:, 1] ** 2 + coef[:, 2] ** 2)
     if not res2:
         return None
     dip = max(math.sqrt(float(np.mean(dip2))), DIPOLE_FLOOR * max(contrast, 0.0), 1e-9)

@@ -44,7 +44,7 @@ MAX_CLIP_ROUNDS = 8
 
 
 @lru_cache(maxsize=128)
-def _design(phi_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
+def harmonic_design(phi_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
     """The harmonics' design matrix for the ray angles (as bytes, to be cached: the same
     few ray sets recur frame after frame) and the transpose of its pseudo-inverse.  A glare
     casts 48-120 rays, so there are at most 73 sets (16 had missed on a third of the calls
@@ -57,7 +57,7 @@ def _design(phi_bytes: bytes) -> tuple[np.ndarray, np.ndarray]:
 def harmonics(phi: np.ndarray, M: np.ndarray) -> np.ndarray:
     """:func:`harmonic` for each row of ``M``; rows without gaps or outliers take one
     matrix product."""
-    A, pinv_t = _design(np.ascontiguousarray(phi, dtype=np.float64).tobytes())
+    A, pinv_t = harmonic_design(np.ascontiguousarray(phi, dtype=np.float64).tobytes())
     out = np.zeros((M.shape[0], 2))
     clean = np.isfinite(M).all(axis=1)
     if clean.any():

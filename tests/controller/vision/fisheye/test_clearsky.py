@@ -93,3 +93,41 @@ def test_a_cameras_calibration_scales_a_clear_skys_correction_and_not_a_clouds(c
         assert apart < 0.005
     else:  # 1.5 times more correction than the model's own (0.08 deg here)
         assert apart > 0.05
+
+
+def _roughness_band_by_band(vals, chi, phi, rho, rays_ok, sky, contrast):
+    """The roughness as first written: each band's rays fitted by least squares in turn."""
+    from controller.vision.fisheye.clearsky import DIPOLE_FLOOR, MIN_RING_RAYS, RING_BANDS
+
+    good = sky & rays_ok[:, None] & np.isfinite(vals)
+    A = np.stack([np.ones_like(phi), np.cos(phi), np.sin(phi), np.cos(2 * phi), np.sin(2 * phi)], 1)
+    res2, dip2 = [], []
+    for lo, hi in RING_BANDS:
+        sel = (chi >= lo * rho) & (chi < hi * rho)
+        if sel.sum() < 2:
+            continue
+        ok = good[:, sel].all(axis=1)
+        if ok.sum() < MIN_RING_RAYS:
+            continue
+        m = vals[ok][:, sel].mean(axis=1)
+        coef, *_ = np.linalg.lstsq(A[ok], m, rcond=None)
+        res2.append(float(np.mean((m - A[ok] @ coef) ** 2)))
+        dip2.append(float(coef[1] ** 2 + coef[2] ** 2))
+    if not res2:
+        return None
+    dip = max(math.sqrt(float(np.mean(dip2))), DIPOLE_FLOOR * max(contrast, 0.0), 1e-9)
+    return math.sqrt(float(np.mean(res2))) / dip
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_bands_fitted_in_one_batch_read_as_band_by_band(seed):
+    rng = np.random.default_rng(seed)
+    vals, chi, phi, rho, ok, sky = rings(bool(seed % 2), seed)
+    ok[rng.choice(phi.size, 9, replace=False)] = False  # a streak's rays
+    sky[:14, -20:] = False  # ground under part of the outer bands: those rays drop out there
+    vals[3, 40] = np.nan  # a sample past the image circle
+    got = ring_roughness(vals, chi, phi, rho, ok, sky, 180.0)
+    want = _roughness_band_by_band(vals, chi, phi, rho, ok, sky, 180.0)
+    assert got == pytest.approx(want, rel=1e-9)
+    sky[:, 1:] = False  # one sample a ray: no band has a ray wholly on the sky
+    assert ring_roughness(vals, chi, phi, rho, ok, sky, 180.0) is None
