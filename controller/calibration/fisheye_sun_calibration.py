@@ -54,7 +54,10 @@ def _detect(
 
     opts = FisheyeOptions()
     glare = replace(opts.glare, sky_scale=sky_scale, column_smear=smear or opts.glare.column_smear)
-    est = FisheyeEstimator(bundle, replace(opts, glare=glare))
+    # the rim's fixes: it is the rim that the rotation and the sky's scales are fitted to (at
+    # run time a camera with the site may place the sun by its rings: .vision.fisheye.rings)
+    gates = replace(opts.gates, ring_locator=False)
+    est = FisheyeEstimator(bundle, replace(opts, glare=glare, gates=gates))
     out: list = []
     for t, frame in frames:
         r = est.estimate_file(frame, t) if isinstance(frame, (str, Path)) else est.estimate_image(frame, t)

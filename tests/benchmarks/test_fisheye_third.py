@@ -104,6 +104,38 @@ def test_the_default_pipeline_finds_a_high_sun_in_a_dark_exposure_frame():
     assert third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)) < 0.1
 
 
+def test_with_the_site_the_camera_learns_to_place_this_skys_sun_by_its_rings():
+    """The third renderer's sky is a gradation times an indicatrix out to the rim: the rim
+    reads its suns 0.05-0.2 deg low, the rings closer; with the bundle's site the camera
+    counts both against the ephemeris and, from the third frame, reports the rings' fix."""
+    from dataclasses import replace
+
+    from controller.vision.fisheye.default import FisheyeOptions
+
+    frames = [f for f in third.sun_frames("2026-03-20", 20) if 25.0 < f[2] < 45.0][::2][:6]
+    scene = third.ThirdScene(DARK)
+    imgs = [
+        scene.render(third.sun_enu(az, el), np.random.default_rng([640, 480, int(t)])) for t, az, el in frames
+    ]
+    bundle = fisheye_bundle_from_dict(third.bundle_dict(DARK))
+    rim_only = replace(FisheyeOptions(), gates=replace(FisheyeOptions().gates, ring_locator=False))
+    errs = {}
+    for key, est in (("rim", FisheyeEstimator(bundle, rim_only)), ("learned", FisheyeEstimator(bundle))):
+        out = []
+        for img, (t, az, el) in zip(imgs, frames):
+            res = est.estimate_image(img, t)
+            assert res.found, res.reason
+            out.append(
+                (third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)), res.quality)
+            )
+        errs[key] = out
+    assert not any("ring_locator" in q for _, q in errs["rim"])
+    assert [("ring_locator" in q) for _, q in errs["learned"]] == [False, False] + [True] * 4
+    rim = math.sqrt(np.mean([e * e for e, _ in errs["rim"][2:]]))
+    rings = math.sqrt(np.mean([e * e for e, _ in errs["learned"][2:]]))
+    assert rings < 0.03 < 0.05 < rim  # deg (development run: 0.012 and 0.099)
+
+
 def _found(az, el, sigma=0.3):
     return FisheyeResult(image=None, found=True, az_deg=az, el_deg=el, sigma_deg=sigma)
 

@@ -42,6 +42,7 @@ from .lens import FisheyeLens
 from .pipeline import FramePipeline
 from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
+from .rings import LocatorChoice
 from .selfsite import LearnedEphemeris, SiteFit, SiteFromSun
 from .smear import column_smear, fit_smeared
 
@@ -160,6 +161,7 @@ class FisheyeEstimator(FramePipeline):
         learn = self.R is not None and self.ephemeris is None and self.options.gates.learn_site
         self.site_from_sun = SiteFromSun() if learn else None
         self.learned: tuple[SiteFit, LearnedEphemeris] | None = None
+        self.locator = LocatorChoice() if self.options.gates.ring_locator else None  # used with the site
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
@@ -268,6 +270,8 @@ class FisheyeEstimator(FramePipeline):
                 return not_found(
                     None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
                 )
+        if self.locator is not None and t is not None:  # a camera whose sky is a product (.rings)
+            best = self.locator.place(best, gates, self.R, self.up_cam)
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
         bound = o.max_sigma_near_horizon_deg if "near_horizon" in res.quality else o.max_sigma_deg
         if res.sigma_deg is not None and res.sigma_deg > bound:

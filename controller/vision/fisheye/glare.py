@@ -40,6 +40,7 @@ from .blobs import core_fill
 from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
 from .lens import FisheyeLens
 from .radiometry import Radiometry, illumination_about, rim_shift
+from .rings import SkyReading
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .small import clip_unit, gradient, median
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
@@ -152,6 +153,7 @@ class GlareFit:
     sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
     sky_gap: bool = False  # the largest gap faces the horizon (or the zenith, near it), no rim found
     one_way_streak: bool = False  # the rays towards a streak that leaves one way were left out
+    sky_reading: SkyReading | None = None  # the rings of the last reading (:mod:`.rings`)
 
     @property
     def inlier_fraction(self) -> float:
@@ -245,6 +247,7 @@ def fit_glare(
     bg = bg_s = top_s = 0.0
     trust = 1.0  # in a clear sky around the glare (:mod:`.clearsky`)
     alpha = 0.0
+    reading: SkyReading | None = None  # the last reading of the sky (:mod:`.rings`)
 
     # -- pass 2: rays on the sphere around the axis ---------------------------------------
     step = math.radians(max(opts.step_px, 0.04 * r) * dpp)  # ~25 samples across a radius
@@ -268,7 +271,7 @@ def fit_glare(
         sky_pass = it < 2 or (reads < opts.sky_reads and moved < settled)
         reads += int(sky_pass)
         if sky_pass and it >= 2:  # a settled fit, kept in case the new reading unsettles it
-            kept = (a, rho, dipole, by_el, bg, bg_s, top_s, trust)
+            kept = (a, rho, dipole, by_el, bg, bg_s, top_s, trust, reading)
             kept_stale = read_inside and opts.drop_stale_sky
         grids = [(phi, rim_chi)]
         if sky_pass:
@@ -296,6 +299,9 @@ def fit_glare(
             bg = median(outer)  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
             dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, rsky)
+            reading = SkyReading(
+                rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, a, e1, e2, top_s - bg
+            )
             if it and opts.sky_calibration is not None:  # judged once centred (see GlareOptions)
                 rough = ring_roughness(
                     rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, top_s - bg
@@ -371,7 +377,7 @@ def fit_glare(
             # a reading that moves a settled axis this far is a cloud's, not a correction of
             # the linearisation: back to the settled fit and its sky, no more readings, and
             # one more pass to refit the rim there (on the last pass, the fit is left unsettled)
-            a, rho, dipole, by_el, bg, bg_s, top_s, trust = kept
+            a, rho, dipole, by_el, bg, bg_s, top_s, trust, reading = kept
             reads = opts.sky_reads
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it == 0 and streak is None and opts.one_way_streaks:
@@ -430,6 +436,7 @@ def fit_glare(
         image_share=alpha,
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
+        sky_reading=reading,
     )
 
 

@@ -1,0 +1,221 @@
+"""The sun placed by the sky's rings alone, for a camera whose sky is a product.
+
+A clear sky's radiance is an indicatrix of the angle to the sun times a gradation by the
+zenith angle (the CIE general skies, Perez).  Where the circumsolar aureole carries that
+product out to the glare's rim, the gradation shifts the rim's isophote along the
+vertical, and :func:`.skybg.sky_dipole`'s additive model of the sky at the rim falls short
+(a third renderer's suns read 0.11 deg low).  In log light such a sky is a level per ring
+around the sun plus a function of elevation, which the rings outside the rim measure
+without extrapolating to it; the glare's own profile, read about an axis ``eps`` off the
+sun's, adds ``-d ln P / d chi`` times ``eps`` (as in :func:`.skybg.sky_by_elevation`, there
+in light).  Where the rim is the lens's glare, whose halo fills the inner rings without the
+gradation, the same fit is 0.03-0.12 deg off; no frame tells the two apart
+(docs/fisheye-rounds.md, a twenty-fourth round), so the choice is the camera's, learned
+from the ephemeris when the bundle has the site (:class:`LocatorChoice`).
+
+Conventions: ``eps`` along the tangent vectors (e1, e2) at the reading's axis (rad); ray
+angle ``phi`` from e1 towards e2; directions are unit vectors in the camera frame.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from .clearsky import ring_roughness
+from .skybg import RING_EDGES
+from .small import gradient, median
+
+#: rounds of clipping the fit's outliers (3 MADs; it stops once they stop changing)
+MAX_CLIP_ROUNDS = 8
+#: the rings' fix is not used where it lies farther than this from the rim's (deg): the
+#: product sky's correction of the rim is 0.2 deg at most on the third renderer's clear days
+MAX_SHIFT_DEG = 0.3
+#: the rings are chosen once their squared angles to the sun sum to under this share of the
+#: rim's, over this many frames at least (:class:`LocatorChoice`)
+LEAD, MIN_FRAMES = 0.5, 2
+#: nor where the rings are rougher than a clear sky's (:func:`.clearsky.ring_roughness`;
+#: the third renderer's clear days read up to 0.30 with its CCD smear's column in them)
+MAX_ROUGHNESS = 0.35
+
+
+@dataclass(frozen=True)
+class SkyReading:
+    """The rings of a fit's last reading of the sky (:func:`.glare.fit_glare`).
+
+    ``vals`` (n_rays, n_chi): samples in the sky model's units (grey, or light);
+    ``chi`` (rad) their angles from ``axis``; ``phi`` the rays' angles about it; ``rho`` the
+    rim's radius (rad); ``rays_ok``, ``sky``: the rays that count and the samples that look
+    at the sky; ``e1``, ``e2`` the tangent basis at ``axis``; ``contrast``: the glare's peak
+    less the sky, in the same units.
+    """
+
+    vals: np.ndarray
+    chi: np.ndarray
+    phi: np.ndarray
+    rho: float
+    rays_ok: np.ndarray
+    sky: np.ndarray
+    axis: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    contrast: float
+
+
+def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
+    """The sun's offset from the reading's axis that its rings' log light places it at (rad,
+    along e1, e2).
+
+    Model of each ray's mean of ``ln vals`` over each ring (:data:`.skybg.RING_EDGES`): a
+    level per ring, ``-d ln P / d chi * (eps_1 cos phi + eps_2 sin phi)`` with ``P`` the
+    rings' mean profile, and ``c1 x + c2 x^2 + c3 x^3 + c4 x (chi / rho - 1)``, ``x`` each
+    sample's elevation less the axis's over ``rho`` (same shape as ``vals``).  Least squares,
+    clipped at 3 MADs until the kept rows stop changing.  A ray's ring counts where all its
+    samples are on the sky and positive; a ring needs 6 such rays, the fit 3 rings.  None
+    when there is too little sky.
+    """
+    vals, chi, phi, rho = reading.vals, reading.chi, reading.phi, reading.rho
+    good = reading.sky & reading.rays_ok[:, None] & np.isfinite(vals) & (vals > 0.0)
+    if int(np.count_nonzero(good)) < 30:
+        return None
+    lv = np.log(np.where(good, vals, 1.0))
+    n_col = good.sum(axis=0)
+    if not (n_col > 0).all():
+        return None
+    dprof = gradient((lv * good).sum(axis=0) / n_col, chi)
+    edges = np.searchsorted(chi, np.array(RING_EDGES) * rho)
+    lo, hi = edges[:-1], edges[1:]
+    wide = hi - lo >= 2
+    if int(np.count_nonzero(wide)) < 3:
+        return None
+    lo, hi = lo[wide], hi[wide]
+    at = np.stack([lo, hi], axis=1).ravel()
+    n = (hi - lo).astype(float)
+
+    def ring_sums(a: np.ndarray) -> np.ndarray:
+        return np.add.reduceat(np.concatenate([a, a[..., :1] * 0], axis=-1), at, axis=-1)[..., ::2]
+
+    ok = np.logical_and.reduceat(np.concatenate([good, good[:, :1]], axis=1), at, axis=1)[:, ::2]
+    used = np.flatnonzero(ok.sum(axis=0) >= 6)
+    if used.size < 3:
+        return None
+    ray, ring = np.nonzero(ok[:, used])
+    k = used.size
+    # design: a level per ring (one-hot), the glare's shift, the cubic in x and its term in
+    # the ring's radius; solved by its normal equations (k + 6 unknowns, ~200 rows)
+    A = np.zeros((ray.size, k + 6))
+    A[np.arange(ray.size), ring] = 1.0
+    y = (ring_sums(lv)[:, used] / n[used])[ray, ring]
+    xx = (ring_sums(x)[:, used] / n[used])[ray, ring]
+    d = (ring_sums(dprof) / n)[used][ring]
+    A[:, k] = -d * np.cos(phi)[ray]
+    A[:, k + 1] = -d * np.sin(phi)[ray]
+    A[:, k + 2] = xx
+    A[:, k + 3] = xx * xx
+    A[:, k + 4] = A[:, k + 3] * xx
+    A[:, k + 5] = xx * (ring_sums(chi) / n / rho - 1.0)[used][ring]
+    n_par = k + 6
+    if y.size < 2 * n_par:
+        return None
+    keep = np.ones(y.size, bool)
+    sol = np.zeros(n_par)
+    for _ in range(MAX_CLIP_ROUNDS):
+        Ak = A[keep]
+        try:
+            sol = np.linalg.solve(Ak.T @ Ak, Ak.T @ y[keep])
+        except np.linalg.LinAlgError:  # a ring's kept rays all but collinear
+            return None
+        res = np.abs(y - A @ sol)
+        mad = 1.4826 * median(res[keep]) + 1e-9
+        new = res <= 3.0 * mad
+        if (new == keep).all() or int(np.count_nonzero(new)) < 2 * n_par:
+            break
+        keep = new
+    return sol[k : k + 2]
+
+
+def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None:
+    """The sun's direction placed by ``reading``'s rings (:func:`log_ring_offset`), or None
+    when they are too few, too rough for a clear sky, or place it farther than
+    :data:`MAX_SHIFT_DEG` from the reading's axis.  ``up_cam``: the zenith in the camera frame."""
+    r = reading
+    rough = ring_roughness(r.vals, r.chi, r.phi, r.rho, r.rays_ok, r.sky, r.contrast)
+    if rough is None or rough > MAX_ROUGHNESS:
+        return None
+    up_a = min(max(float(r.axis @ up_cam), -1.0), 1.0)
+    dirs_up = np.cos(r.phi) * float(r.e1 @ up_cam) + np.sin(r.phi) * float(r.e2 @ up_cam)
+    sin_el = np.cos(r.chi)[None, :] * up_a + np.sin(r.chi)[None, :] * dirs_up[:, None]
+    x = (np.arcsin(np.clip(sin_el, -1.0, 1.0)) - math.asin(up_a)) / r.rho
+    eps = log_ring_offset(r, x)
+    if eps is None or math.degrees(math.hypot(eps[0], eps[1])) > MAX_SHIFT_DEG:
+        return None
+    d = r.axis + eps[0] * r.e1 + eps[1] * r.e2
+    return d / np.linalg.norm(d)
+
+
+class LocatorChoice:
+    """Which of the rim and the rings places this camera's sun better, learned from the
+    ephemeris: the squared angles of each fix to the sun over the last ``window`` frames
+    where both were measured and within ``max_deg`` of it.  A frame's fix is chosen from the
+    frames before it, so the ephemeris never picks a frame's own answer.  The choice is the
+    camera's (its sky's, its glare's): it is kept across sequences.
+    """
+
+    def __init__(
+        self,
+        window: int = 60,
+        max_deg: float = 1.0,
+        lead: float = LEAD,
+        min_frames: int = MIN_FRAMES,
+        settled: int = 20,
+        every: int = 10,
+    ):
+        self._sq: deque[tuple[float, float]] = deque(maxlen=window)
+        self._max, self._lead, self._min = max_deg, lead, min_frames
+        self._settled, self._every, self._frames = settled, every, 0
+
+    @property
+    def rings(self) -> bool:
+        """True when the rings' fixes have agreed with the sun better than the rim's, their
+        sum of squares under ``lead`` times the rim's, over ``min_frames`` frames at least."""
+        rim, rings = sum(p for p, _ in self._sq), sum(q for _, q in self._sq)
+        return len(self._sq) >= self._min and rings < self._lead * rim
+
+    @property
+    def rim_settled(self) -> bool:
+        """The rim has led on ``settled`` frames at least, by half the rings' squares: the
+        rings are then read on one frame in ``every`` only (they cost 0.3 ms a frame)."""
+        rim, rings = sum(p for p, _ in self._sq), sum(q for _, q in self._sq)
+        return len(self._sq) >= self._settled and rim < 0.5 * rings
+
+    def observe(self, rim_deg: float, rings_deg: float) -> None:
+        """Count one frame's two fixes by their angles to the sun (deg)."""
+        if rim_deg <= self._max and rings_deg <= self._max:
+            self._sq.append((rim_deg * rim_deg, rings_deg * rings_deg))
+
+    def place(self, cand: Any, gates: list[Any], R: np.ndarray | None, up_cam: np.ndarray | None) -> Any:
+        """``cand`` (a :class:`.default.Candidate`), placed by its rings when this camera's
+        choice is the rings and their fix passes every gate of ``gates`` (:class:`.gates.Gate`;
+        the ephemeris's among them); the frame counts towards the choice either way."""
+        reading = cand.fit.sky_reading
+        gate = next((g for g in gates if g.name == "ephemeris"), None)
+        if reading is None or gate is None or cand.d_enu is None or R is None or up_cam is None:
+            return cand
+        self._frames += 1
+        if self.rim_settled and self._frames % self._every:
+            return cand
+        d = ring_direction(reading, up_cam)
+        if d is None:
+            return cand
+        d_enu = R @ d
+        use, off = self.rings, gate.distance_deg(d_enu)
+        self.observe(gate.distance_deg(cand.d_enu), off)
+        if not use or any(g.distance_deg(d_enu if g.frame == "enu" else d) > g.radius_deg for g in gates):
+            return cand
+        el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
+        fit = replace(cand.fit, flags=[*cand.fit.flags, "ring_locator"])
+        return replace(cand, fit=fit, d_cam=d, d_enu=d_enu, el_deg=el)

@@ -1,0 +1,151 @@
+"""The sun placed by the sky's rings, for a camera whose sky is a product (rings)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from controller.vision.fisheye.rings import LocatorChoice, SkyReading, log_ring_offset, ring_direction
+
+RHO = math.radians(5.0)  # the rim's radius
+A = np.array([0.0, 0.0, 1.0])  # the reading's axis
+E1, E2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
+
+
+def product_sky(eps: tuple[float, float], el_deg: float = 30.0, seed: int = 0, additive: bool = False):
+    """Rings 1.15-3.2 rim radii about ``A`` of a sky whose light is a circumsolar indicatrix
+    times a Perez-like gradation (or, ``additive``, the two summed), the sun ``eps`` (rad,
+    along E1, E2) off the axis; the zenith towards E2 at ``el_deg`` of the axis's elevation."""
+    rng = np.random.default_rng(seed)
+    phi = np.arange(36) * (2 * math.pi / 36)
+    chi = np.arange(1.15 * RHO, 3.2 * RHO + 1e-9, 0.05 * RHO)
+    e = math.radians(el_deg)
+    up = math.sin(e) * A + math.cos(e) * E2
+    sun = A + eps[0] * E1 + eps[1] * E2
+    sun /= np.linalg.norm(sun)
+    dirs = np.cos(phi)[:, None] * E1 + np.sin(phi)[:, None] * E2
+    d = np.cos(chi)[None, :, None] * A + np.sin(chi)[None, :, None] * dirs[:, None, :]
+    gamma = np.arccos(np.clip(d @ sun, -1, 1))
+    cos_z = np.clip(d @ up, 1e-3, 1.0)
+    indicatrix = 1.0 + 40.0 * (gamma / RHO) ** -2.2
+    gradation = 1.0 + 2.0 * np.exp(-0.3 / cos_z)
+    light = indicatrix + 10.0 * gradation if additive else indicatrix * gradation
+    vals = 30.0 * light * (1.0 + rng.normal(0.0, 0.002, light.shape))
+    x = (np.arcsin(d @ up) - math.asin(float(A @ up))) / RHO
+    return vals, chi, phi, up, x
+
+
+def reading_of(vals, chi, phi, sky=None) -> SkyReading:
+    """The rings as a fit's last reading of the sky keeps them (every ray counts)."""
+    sky = np.ones(vals.shape, bool) if sky is None else sky
+    return SkyReading(vals, chi, phi, RHO, np.ones(phi.size, bool), sky, A, E1, E2, 6000.0)
+
+
+@pytest.mark.parametrize(
+    ("eps_deg", "el_deg"), [((0.0, 0.0), 30.0), ((0.08, -0.12), 30.0), ((-0.1, 0.05), 15.0)]
+)
+def test_the_rings_place_the_sun_in_a_product_sky(eps_deg, el_deg):
+    eps = tuple(math.radians(e) for e in eps_deg)
+    vals, chi, phi, up, x = product_sky(eps, el_deg)
+    ok = np.ones(phi.size, bool)
+    got = log_ring_offset(reading_of(vals, chi, phi), x)
+    assert got is not None
+    assert np.degrees(np.abs(got - np.array(eps))).max() < 0.01
+    # the reading as the pipeline keeps it: the direction, and the same offset
+    reading = SkyReading(vals, chi, phi, RHO, ok, np.ones(vals.shape, bool), A, E1, E2, 30.0 * 200.0)
+    d = ring_direction(reading, up)
+    want = A + eps[0] * E1 + eps[1] * E2
+    assert d is not None
+    assert math.degrees(math.acos(min(1.0, float(d @ (want / np.linalg.norm(want)))))) < 0.01
+
+
+def test_in_an_additive_sky_the_rings_are_off_which_is_why_the_choice_is_learned():
+    vals, chi, phi, up, x = product_sky((0.0, 0.0), 30.0, additive=True)
+    got = log_ring_offset(reading_of(vals, chi, phi), x)
+    assert got is not None and math.degrees(float(np.hypot(*got))) > 0.02
+
+
+def test_too_little_sky_places_nothing():
+    vals, chi, phi, up, x = product_sky((0.0, 0.0))
+    sky = np.zeros(vals.shape, bool)
+    sky[:4] = True  # four rays on the sky: no ring has six
+    assert log_ring_offset(reading_of(vals, chi, phi, sky=sky), x) is None
+    assert log_ring_offset(reading_of(np.zeros_like(vals), chi, phi), x) is None  # no light
+
+
+def test_rough_rings_or_a_far_fix_place_nothing():
+    vals, chi, phi, up, x = product_sky((0.0, 0.0))
+    ok, sky = np.ones(phi.size, bool), np.ones(vals.shape, bool)
+    cloud = vals.copy()
+    cloud[5:12, chi > 2.0 * RHO] *= 0.4  # a cloud over part of the outer rings
+    assert ring_direction(SkyReading(cloud, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
+    far = product_sky((math.radians(0.5), 0.0))[0]  # the rings put the sun 0.5 deg off the axis
+    assert ring_direction(SkyReading(far, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
+
+
+class _Gate:
+    """A gate around ``centre`` (ENU) of ``radius_deg``, as :class:`.gates.Gate` measures."""
+
+    def __init__(self, name, centre, radius_deg, frame="enu"):
+        self.name, self.centre, self.radius_deg, self.frame = name, centre, radius_deg, frame
+
+    def distance_deg(self, v):
+        return math.degrees(math.acos(min(1.0, float(v @ self.centre))))
+
+
+def test_the_choice_follows_the_fixes_that_agree_with_the_sun_and_not_a_frames_own():
+    c = LocatorChoice(window=4)  # the rings once their squares sum under half the rim's, 2 frames
+    assert not c.rings
+    c.observe(0.10, 0.02)
+    assert not c.rings  # one frame is no evidence
+    c.observe(0.10, 0.09)
+    assert c.rings  # 0.0085 against 0.02
+    c.observe(0.01, 0.2)
+    assert not c.rings  # 0.0485 against 0.0201
+    c.observe(2.0, 0.0)  # a fix beyond the gate: not counted
+    assert not c.rings
+    for _ in range(4):
+        c.observe(0.05, 0.035)  # the window forgets the first frames: 0.0049 against 0.01
+    assert c.rings
+    c.observe(0.05, 0.04)  # 0.0053 against 0.01: no longer under half
+    assert not c.rings
+    single = LocatorChoice(min_frames=1)
+    single.observe(0.10, 0.02)
+    assert single.rings
+
+
+def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
+    vals, chi, phi, up, x = product_sky((math.radians(0.1), 0.0))
+    reading = SkyReading(
+        vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6000.0
+    )
+    R = np.eye(3)  # the camera frame is ENU here
+    sun = A + math.radians(0.1) * E1
+    sun /= np.linalg.norm(sun)
+
+    @dataclass
+    class Cand:
+        fit: object
+        d_cam: np.ndarray
+        d_enu: np.ndarray
+        el_deg: float
+
+    @dataclass
+    class Fit:
+        sky_reading: SkyReading
+        flags: list
+
+    cand = Cand(Fit(reading, []), A, A, 90.0)
+    c = LocatorChoice()
+    gates = [_Gate("ephemeris", sun, 1.0)]
+    assert c.place(cand, gates, R, up) is cand  # nothing learned before this frame: the rim
+    assert c.place(cand, gates, R, up) is cand  # one frame learned: not yet evidence
+    second = c.place(cand, gates, R, up)
+    assert "ring_locator" in second.fit.flags
+    assert math.degrees(math.acos(min(1.0, float(second.d_enu @ sun)))) < 0.01
+    tight = [*gates, _Gate("sequence", A, 0.05)]  # the rings' fix is 0.1 deg from the anchor
+    assert c.place(cand, tight, R, up) is cand
+    assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up) is cand  # no site: never
