@@ -128,6 +128,9 @@ def test_with_the_site_the_camera_learns_to_place_this_skys_sun_by_its_rings():
             out.append(
                 (third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)), res.quality)
             )
+            if "ring_locator" in res.quality:  # the centre reported is the rings' fix's
+                uv, _ = est.lens.project(np.asarray(res.d_cam)[None, :])
+                assert np.allclose(uv[0], res.centre_uv, atol=1e-6)
         errs[key] = out
     assert not any("ring_locator" in q for _, q in errs["rim"])
     assert [("ring_locator" in q) for _, q in errs["learned"]] == [False, False] + [True] * 4

@@ -32,8 +32,9 @@ from .small import gradient, median
 
 #: rounds of clipping the fit's outliers (3 MADs; it stops once they stop changing)
 MAX_CLIP_ROUNDS = 8
-#: the rings' fix is not used where it lies farther than this from the rim's (deg): the
-#: product sky's correction of the rim is 0.2 deg at most on the third renderer's clear days
+#: the rings' fix is not used where it lies farther than this from the reading's axis, the
+#: rim's fix of the pass before (deg): the product sky's correction of the rim is 0.2 deg at
+#: most on the third renderer's clear days
 MAX_SHIFT_DEG = 0.3
 #: the rings are chosen once their squared angles to the sun sum to under this share of the
 #: rim's, over this many frames at least (:class:`LocatorChoice`)
@@ -197,10 +198,13 @@ class LocatorChoice:
         if rim_deg <= self._max and rings_deg <= self._max:
             self._sq.append((rim_deg * rim_deg, rings_deg * rings_deg))
 
-    def place(self, cand: Any, gates: list[Any], R: np.ndarray | None, up_cam: np.ndarray | None) -> Any:
+    def place(
+        self, cand: Any, gates: list[Any], R: np.ndarray | None, up_cam: np.ndarray | None, lens: Any
+    ) -> Any:
         """``cand`` (a :class:`.default.Candidate`), placed by its rings when this camera's
         choice is the rings and their fix passes every gate of ``gates`` (:class:`.gates.Gate`;
-        the ephemeris's among them); the frame counts towards the choice either way."""
+        the ephemeris's among them); the frame counts towards the choice either way.  ``R``:
+        ENU from camera; ``lens`` (:class:`.lens.FisheyeLens`) puts the fix's centre in the image."""
         reading = cand.fit.sky_reading
         gate = next((g for g in gates if g.name == "ephemeris"), None)
         if reading is None or gate is None or cand.d_enu is None or R is None or up_cam is None:
@@ -216,6 +220,10 @@ class LocatorChoice:
         self.observe(gate.distance_deg(cand.d_enu), off)
         if not use or any(g.distance_deg(d_enu if g.frame == "enu" else d) > g.radius_deg for g in gates):
             return cand
+        uv, seen = lens.project(d[None, :])
+        if not seen[0]:
+            return cand
         el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
-        fit = replace(cand.fit, flags=[*cand.fit.flags, "ring_locator"])
+        centre = (float(uv[0, 0]), float(uv[0, 1]))
+        fit = replace(cand.fit, flags=[*cand.fit.flags, "ring_locator"], centre_uv=centre)
         return replace(cand, fit=fit, d_cam=d, d_enu=d_enu, el_deg=el)

@@ -86,6 +86,13 @@ def test_rough_rings_or_a_far_fix_place_nothing():
     assert ring_direction(SkyReading(far, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
 
 
+class _Lens:
+    """A pinhole of focal 100 px at (320, 240), as :meth:`.lens.FisheyeLens.project` answers."""
+
+    def project(self, d):
+        return 320.0 + 100.0 * d[:, :2] / d[:, 2:], np.ones(len(d), bool)
+
+
 class _Gate:
     """A gate around ``centre`` (ENU) of ``radius_deg``, as :class:`.gates.Gate` measures."""
 
@@ -137,15 +144,19 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     class Fit:
         sky_reading: SkyReading
         flags: list
+        centre_uv: tuple = (320.0, 240.0)
 
     cand = Cand(Fit(reading, []), A, A, 90.0)
     c = LocatorChoice()
     gates = [_Gate("ephemeris", sun, 1.0)]
-    assert c.place(cand, gates, R, up) is cand  # nothing learned before this frame: the rim
-    assert c.place(cand, gates, R, up) is cand  # one frame learned: not yet evidence
-    second = c.place(cand, gates, R, up)
+    assert c.place(cand, gates, R, up, _Lens()) is cand  # nothing learned before this frame: the rim
+    assert c.place(cand, gates, R, up, _Lens()) is cand  # one frame learned: not yet evidence
+    second = c.place(cand, gates, R, up, _Lens())
     assert "ring_locator" in second.fit.flags
+    u, v = second.fit.centre_uv  # the fix's own centre in the image
+    assert u == pytest.approx(320.0 + 100.0 * second.d_cam[0] / second.d_cam[2])
+    assert v == pytest.approx(320.0 + 100.0 * second.d_cam[1] / second.d_cam[2])
     assert math.degrees(math.acos(min(1.0, float(second.d_enu @ sun)))) < 0.01
     tight = [*gates, _Gate("sequence", A, 0.05)]  # the rings' fix is 0.1 deg from the anchor
-    assert c.place(cand, tight, R, up) is cand
-    assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up) is cand  # no site: never
+    assert c.place(cand, tight, R, up, _Lens()) is cand
+    assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up, _Lens()) is cand  # no site: never
