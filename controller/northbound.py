@@ -113,10 +113,12 @@ class Northbound:
             cfg, rec = tr.cfg, by_name.get(tr.cfg.name)
             tgt = rec.targets_deg if rec and rec.targets_deg else ()
             pos = rec.actual_deg if rec and rec.actual_deg else ()
-            mode = rec.mode if rec else "STOW"
+            manual = self.controller.overrides.get(tr.index)
+            # before the first cycle an override kept over a restart already reads as Manual:
+            # SCADA polling at start-up must not see the row released (Ctl = Automatic)
+            mode = rec.mode if rec else ("MANUAL" if manual else "STOW")
             # Alm SetPoint: the tracker cannot reach or hold its setpoint (link or drive)
             alarm = _ALARM_SETPOINT if rec is not None and (rec.error or rec.health != "ok") else 0
-            manual = self.controller.overrides.get(tr.index)
             if isinstance(cfg, SingleAxisTracker):
                 trackers.append(
                     TrackerSnapshot.row(

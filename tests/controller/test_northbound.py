@@ -93,3 +93,12 @@ def test_scada_reads_the_plants_civil_time_when_its_zone_is_given(plant):
     ctl.config = replace(ctl.config, site=replace(ctl.config.site, timezone="Europe/Oslo"))
     bridge.publish(records)
     assert bridge.snapshot().local_time.strftime("%H%M%S") == "100000"  # summer time, UTC+2
+
+
+def test_an_override_kept_over_a_restart_reads_manual_before_the_first_cycle(default_plant):
+    _run, ctl, _fws, _clock, _cfg = default_plant
+    ctl.set_override(1, "Manual", 20.0, None)  # put back from the state folder at start-up
+    snap = Northbound(ctl, "test-plant").snapshot()  # served at once; no cycle published yet
+    row, dual = snap.trackers[1], snap.trackers[0]
+    assert (row.mode, row.manual_el_deg) == ("MANUAL", 20.0)
+    assert dual.mode == "STOW" and dual.manual_el_deg is None
