@@ -33,6 +33,7 @@ import math
 import numpy as np
 
 from .skybg import harmonic_design
+from .small import median_kept, median_rows
 
 #: the rings' bands, in rim radii (the outer ones of :func:`.skybg.sky_dipole`)
 RING_BANDS = ((1.7, 2.0), (2.0, 2.4), (2.4, 2.8), (2.8, 3.2))
@@ -124,3 +125,92 @@ def trusted_scale(scale: float, trust: float) -> float:
     """A camera's sky scale (dimensionless) applied in proportion to the ``trust`` in a
     clear sky (0-1): ``1 + (scale - 1) trust``, the sky model as it is with no trust."""
     return 1.0 + (scale - 1.0) * trust
+
+
+#: a ring sample further than this many robust sigmas from its ring's clear-sky harmonics is
+#: a cloud's (:func:`cloud_edges`)
+CLOUD_K = 4.0
+#: that sigma's floor: this fraction of the ring's level, plus half a unit of the samples
+CLOUD_FLOOR = 0.03
+#: rounds of refitting a ring's harmonics without the samples it flags
+CLOUD_ROUNDS = 6
+
+
+def cloud_edges(vals: np.ndarray, ok: np.ndarray, phi: np.ndarray, bright: bool = True) -> np.ndarray:
+    """The ring samples a cloud's edge sets apart from a clear sky, and every sample beyond
+    them along their ray.
+
+    A clear sky is smooth around the glare: each ring (a column of ``vals``) is its level, a
+    dipole and a little quadrupole in the ray angle (as :func:`ring_roughness` fits them).  A
+    cloud that crosses the rings (its thick body dark against the aureole, its thin edge
+    bright) is a run of rays far off that fit.  Each ring's harmonics are fitted from its
+    median level, dropping the samples beyond :data:`CLOUD_K` robust sigmas (floored at
+    :data:`CLOUD_FLOOR` of the level) and refitting, :data:`CLOUD_ROUNDS` times at most; a
+    ray is flagged from its first such sample outwards (a cloud goes on beyond its edge:
+    flagging the edge alone left the third renderer's clouds at 0.252 deg RMS, against 0.235).
+    The sky models of :mod:`.skybg` then read the sky around the cloud: they had taken its
+    edge for the sky's gradient and carried it to the rim.  ``bright=False`` flags the dark
+    side only (a bloom's dome over the glare is no cloud's sunlit edge).
+
+    Parameters
+    ----------
+    vals : ndarray, shape (n_rays, n_chi)
+        The rings' samples (grey levels, or light), ``chi`` ascending along the columns.
+    ok : ndarray of bool, same shape
+        The samples that count (on the sky, on a ray that counts, finite).
+    phi : ndarray, shape (n_rays,)
+        Each ray's angle about the axis (rad).
+    bright : bool
+        Flag samples above the fit as well as below it.
+
+    Returns
+    -------
+    ndarray of bool, same shape as ``vals``
+        True where a sample is a cloud's or lies beyond one on its ray.  A ring with fewer
+        than :data:`MIN_RING_RAYS` samples that count flags none; on a ring of level 73 whose
+        dipole is 7, a 4-ray edge 50 above it is flagged, one 40 above it is not (the tests).
+    """
+    bad = np.zeros(vals.shape, bool)
+    cols = np.flatnonzero(ok.sum(axis=0) >= MIN_RING_RAYS)
+    if cols.size == 0:
+        return bad
+    W = ok[:, cols].T  # (rings, rays)
+    M = np.where(W, vals[:, cols].T, 0.0)
+    A, pinv_t = harmonic_design(np.ascontiguousarray(phi, dtype=np.float64).tobytes())
+    if W.all():  # a clear sky's rings: least squares leave no sample beyond half the limit
+        fit = M @ pinv_t  # (a cloud bends this fit towards it: hence half)
+        res = np.abs(M - fit @ A.T)
+        floor = CLOUD_FLOOR * np.abs(median_rows(M)) + 0.5
+        if not (res > (0.5 * CLOUD_K * (1.4826 * median_rows(res) + floor))[:, None]).any():
+            return bad
+    coef = np.zeros((cols.size, A.shape[1]))
+    coef[:, 0] = median_kept(M, W)  # a robust start: a least-squares one bends to the cloud
+    floor = CLOUD_FLOOR * np.abs(coef[:, 0]) + 0.5
+    keep = W
+    active = np.ones(cols.size, bool)
+    for _ in range(CLOUD_ROUNDS):
+        res = np.abs(M - coef @ A.T)
+        limit = CLOUD_K * (1.4826 * median_kept(res, keep) + floor)
+        new = W & (res <= limit[:, None])
+        active &= new.sum(axis=1) >= MIN_RING_RAYS  # too few left: the last fit stands
+        rows = np.flatnonzero(active)
+        if rows.size == 0:
+            break
+        w = new[rows].astype(float)
+        try:
+            coef[rows] = np.linalg.solve((A.T[None] * w[:, None, :]) @ A, ((w * M[rows]) @ A)[..., None])[
+                ..., 0
+            ]
+        except np.linalg.LinAlgError:  # a ring's kept rays all but collinear: its fit stands
+            break
+        done = (new[rows] == keep[rows]).all(axis=1)
+        keep = keep.copy()
+        keep[rows] = new[rows]
+        active[rows[done]] = False
+        if not active.any():
+            break
+    signed = M - coef @ A.T
+    limit = CLOUD_K * (1.4826 * median_kept(np.abs(signed), keep) + floor)
+    out = np.abs(signed) > limit[:, None] if bright else signed < -limit[:, None]
+    bad[:, cols] = (W & out).T
+    return np.logical_or.accumulate(bad, axis=1)

@@ -37,7 +37,7 @@ import numpy as np
 
 from .blend import ALPHA_PRIOR, blended_excess, fit_blend
 from .blobs import core_fill
-from .clearsky import clear_sky_trust, ring_roughness, trusted_scale
+from .clearsky import clear_sky_trust, cloud_edges, ring_roughness, trusted_scale
 from .lens import FisheyeLens
 from .radiometry import Radiometry, illumination_about, rim_shift
 from .rings import SkyReading
@@ -298,7 +298,11 @@ def fit_glare(
                 return None
             bg = median(outer)  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
-            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, rsky)
+            # the sky models read the sky around a cloud's edge, not the edge; a bloom's dome
+            # is no cloud's bright edge (:func:`.clearsky.cloud_edges`)
+            ok_r = rsky & rays_ok[ring_sel, None] & np.isfinite(rvals)
+            clear = rsky & ~cloud_edges(rvals, ok_r, phi[ring_sel], bright=it > 0 and streak is None)
+            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, clear)
             reading = SkyReading(
                 rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, a, e1, e2, top_s - bg
             )
@@ -317,7 +321,7 @@ def fit_glare(
                 )
                 xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
                 by_el = sky_by_elevation(
-                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, xr, top_s - bg
+                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], clear, xr, top_s - bg
                 )
             bg_s = bg
             if radiometry is not None:

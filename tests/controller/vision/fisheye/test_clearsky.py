@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controller.calibration.camera import CameraCal
-from controller.vision.fisheye.clearsky import clear_sky_trust, ring_roughness, trusted_scale
+from controller.vision.fisheye.clearsky import clear_sky_trust, cloud_edges, ring_roughness, trusted_scale
 from controller.vision.fisheye.glare import GlareOptions, fit_glare
 from controller.vision.fisheye.lens import FisheyeLens
 
@@ -131,3 +131,24 @@ def test_the_bands_fitted_in_one_batch_read_as_band_by_band(seed):
     assert got == pytest.approx(want, rel=1e-9)
     sky[:, 1:] = False  # one sample a ray: no band has a ray wholly on the sky
     assert ring_roughness(vals, chi, phi, rho, ok, sky, 180.0) is None
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_clouds_edge_in_the_rings_is_set_apart_and_so_is_the_ray_beyond_it(seed):
+    vals, chi, phi, _, _, sky = rings(False, seed)
+    assert not cloud_edges(vals, sky, phi).any()  # a clear sky's dipole and quadrupole
+    vals, chi, phi, _, _, sky = rings(True, seed)
+    got = cloud_edges(vals, sky, phi)
+    band = (np.abs(np.degrees(phi) - 100.0) < 20.0)[:, None] & (chi[None, :] > 2.0 * RHO)
+    assert (got == band).all()
+
+
+def test_a_bright_edge_counts_once_the_glare_is_known_and_a_ring_with_few_rays_is_not_judged():
+    vals, chi, phi, _, _, sky = rings(False, 1)
+    rays = np.abs(np.degrees(phi) - 250.0) < 15.0  # a sunlit cloud's edge, or a bloom's dome
+    vals[rays, 30] += 60.0  # over a ring of 73 whose dipole is 7: 40 goes unseen
+    beyond = rays[:, None] & (np.arange(chi.size) >= 30)[None, :]
+    assert (cloud_edges(vals, sky, phi) == beyond).all()  # the ray beyond the edge too
+    assert not cloud_edges(vals, sky, phi, bright=False).any()
+    sky[:37] = False  # 11 rays left on the sky: too few to tell a cloud from the sky
+    assert not cloud_edges(vals - 50.0 * beyond, sky, phi).any()
