@@ -104,27 +104,36 @@ class _Gate:
 
 
 def test_the_choice_follows_the_fixes_that_agree_with_the_sun_and_not_a_frames_own():
-    c = LocatorChoice(window=4)  # the rings once their median square is under half the rim's, 2 frames
+    c = LocatorChoice(window=4)  # the rings once they lead by half in sum or median of squares
     assert not c.rings
     c.observe(0.10, 0.02)
     assert not c.rings  # one frame is no evidence
     c.observe(0.10, 0.09)
-    assert c.rings  # 0.00425 against 0.01
+    assert c.rings  # sums 0.0085 against 0.02
     c.observe(0.01, 0.2)
-    assert not c.rings  # 0.0081 against 0.01
+    assert not c.rings  # sums 0.0485 against 0.0201, medians 0.0081 against 0.01
     c.observe(2.0, 0.0)  # a fix beyond the gate: not counted
     assert not c.rings
     for _ in range(4):
         c.observe(0.05, 0.035)  # the window forgets the first frames: 0.001225 against 0.0025
     assert c.rings
-    c.observe(0.9, 0.95)  # a cloud's frame, both fixes far off: their sums would hand it to the rim
-    assert c.rings
+    c.observe(0.9, 0.95)  # a cloud's frame, both fixes far off: the sums would hand it to the rim
+    assert c.rings  # the medians do not
     c.observe(0.05, 0.04)
-    c.observe(0.05, 0.04)  # 0.0016 against 0.0025: no longer under half
+    c.observe(0.05, 0.04)  # medians 0.0016 against 0.0025: no longer under half
     assert not c.rings
     single = LocatorChoice(min_frames=1)
     single.observe(0.10, 0.02)
     assert single.rings
+
+
+def test_a_rim_far_off_on_some_frames_hands_the_choice_to_the_rings_by_the_sums():
+    c = LocatorChoice(window=4)
+    for _ in range(3):
+        c.observe(0.02, 0.03)  # the rim better on most frames: medians 0.0004 against 0.0009
+    assert not c.rings
+    c.observe(0.5, 0.1)  # and far off on one: sums 0.2512 against 0.0127
+    assert c.rings
 
 
 def test_the_rings_are_read_less_once_the_rim_leads_by_far():
@@ -132,9 +141,10 @@ def test_the_rings_are_read_less_once_the_rim_leads_by_far():
     for _ in range(3):
         c.observe(0.01, 0.05)
     assert not c.rim_settled  # three frames: too few
-    c.observe(0.8, 0.6)  # one cloudy frame does not unsettle it
     c.observe(0.01, 0.05)
     assert c.rim_settled and not c.rings
+    c.observe(0.8, 0.6)  # the rim far off once: no longer settled by its sum (rings read again)
+    assert not c.rim_settled and not c.rings
 
 
 def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
