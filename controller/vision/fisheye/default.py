@@ -143,7 +143,7 @@ class FisheyeEstimator(FramePipeline):
 
     def __init__(self, bundle: FisheyeBundle, options: FisheyeOptions | None = None):
         self.bundle = bundle
-        self.options = with_sky_scale(options or FisheyeOptions(), bundle.orientation)
+        self.options = with_sky_scale(options or FisheyeOptions(), bundle.orientation, bundle.site)
         cam = bundle.camera
         self.lens = FisheyeLens.from_camera(cam)
         self.shape = (cam.height, cam.width)

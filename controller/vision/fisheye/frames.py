@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
-from ...calibration.fisheye_bundle import FisheyeBundle, OrientationCal
+from ...calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal
 from ...errors import ConfigError
 from ..imageio import read_image, to_uint8
 
@@ -70,11 +70,18 @@ def load_mask(bundle: FisheyeBundle, shape: tuple[int, int]) -> np.ndarray | Non
     return np.where(m > 0, 255, 0).astype(np.uint8)
 
 
-def with_sky_scale(options: FisheyeOptions, orientation: OrientationCal | None) -> FisheyeOptions:
+def with_sky_scale(
+    options: FisheyeOptions, orientation: OrientationCal | None, site: SiteCal | None = None
+) -> FisheyeOptions:
     """``options`` (a :class:`.default.FisheyeOptions`) with the bundle orientation's
     ``sky_scale`` applied to its glare options (multiplying theirs) and its
     ``sky_calibration``, which was fitted on frames with their column smear taken off, with
-    that removal (:mod:`.smear`)."""
+    that removal (:mod:`.smear`).  With the ``site`` as well (its ephemeris gate on), the
+    sky models leave a cloud's edge out of the rings (``GlareOptions.cloud_edges``): that
+    reads suns under broken cloud closer, and accepts rims that the cloud's edge in the
+    models had made irregular; without the gate, some of those are suns dimmed by the
+    cloud and read 1-2 deg off (the third renderer's clouds without the site: 8 false
+    detections where there had been 1)."""
     if orientation is None:
         return options
     glare = options.glare
@@ -82,4 +89,6 @@ def with_sky_scale(options: FisheyeOptions, orientation: OrientationCal | None) 
         glare = replace(glare, sky_scale=glare.sky_scale * orientation.sky_scale)
     if orientation.sky_calibration is not None:
         glare = replace(glare, sky_calibration=orientation.sky_calibration, column_smear=True)
+    if site is not None and options.gates.ephemeris:
+        glare = replace(glare, cloud_edges=True)
     return options if glare is options.glare else replace(options, glare=glare)

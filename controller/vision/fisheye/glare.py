@@ -106,6 +106,7 @@ class GlareOptions:
     column_smear : a frame-transfer CCD's column smear is read far from the glare and taken
         off the rim's samples (:mod:`.smear`); on with a camera's sky calibration, which is
         fitted so (alone it exposes more of the aureole's bias than it removes: docs).
+    cloud_edges : the sky models leave out a cloud's edge in the rings (:mod:`.clearsky`; with the site).
     """
 
     level: float = 0.85
@@ -127,6 +128,7 @@ class GlareOptions:
     sky_calibration: tuple[float, float, float, float] | None = None
     clear_sky_roughness: tuple[float, float] = (0.2, 0.5)
     column_smear: bool = False
+    cloud_edges: bool = False
 
 
 @dataclass
@@ -298,9 +300,8 @@ def fit_glare(
                 return None
             bg = median(outer)  # in the sky model's units (grey, or light)
             top_s = peak if radiometry is None else float(radiometry.to_light(peak))
-            # the sky models read the sky around a cloud's edge, not the edge; a bloom's dome
-            # is no cloud's bright edge (:func:`.clearsky.cloud_edges`)
-            ok_r = rsky & rays_ok[ring_sel, None] & np.isfinite(rvals)
+            # the sky models read the sky around a cloud's edge; a bloom's dome is no edge
+            ok_r = rsky & rays_ok[ring_sel, None] & np.isfinite(rvals) & opts.cloud_edges
             clear = rsky & ~cloud_edges(rvals, ok_r, phi[ring_sel], bright=it > 0 and streak is None)
             dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, clear)
             reading = SkyReading(

@@ -2,11 +2,12 @@
 sky model's correction by the axis's elevation, and what the bundle turns on."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from controller.calibration.fisheye_bundle import OrientationCal
+from controller.calibration.fisheye_bundle import OrientationCal, SiteCal
 from controller.vision.fisheye import FisheyeOptions
 from controller.vision.fisheye.frames import with_sky_scale
 from controller.vision.fisheye.skybg import calibrated_scale
@@ -50,3 +51,16 @@ def test_a_bundle_with_a_calibration_turns_it_and_the_column_smear_on_and_one_wi
     assert not scaled.glare.column_smear
     cal = with_sky_scale(base, OrientationCal(enu_from_camera=M, sky_calibration=CAL))
     assert cal.glare.sky_calibration == CAL and cal.glare.column_smear and cal.glare.sky_scale == 1.0
+
+
+def test_a_clouds_edge_is_left_out_of_the_sky_models_only_where_the_ephemeris_checks_the_fix():
+    M = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+    site = SiteCal(latitude=-33.45, longitude=-70.66)
+    ori = OrientationCal(enu_from_camera=M)
+    base = FisheyeOptions()
+    assert not base.glare.cloud_edges
+    assert with_sky_scale(base, ori, site).glare.cloud_edges
+    assert with_sky_scale(base, ori) is base  # no site: no gate to check what it accepts
+    assert with_sky_scale(base, None, site) is base  # no orientation: no ephemeris gate either
+    no_gate = replace(base, gates=replace(base.gates, ephemeris=False))
+    assert with_sky_scale(no_gate, ori, site) is no_gate
