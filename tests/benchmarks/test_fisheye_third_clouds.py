@@ -149,13 +149,19 @@ def test_the_scorer_counts_false_detections_and_misses_and_neither_for_a_dimmed_
 CLOUDY_FRAME = 216
 
 
-def test_the_default_pipeline_finds_a_visible_sun_in_a_cloudy_frame(scene):
+def _visible_frame(scene, index: int):
+    """Frame ``index`` of sequence 0 (2 h, every 30 s), its time and truth; its sun visible."""
     seq = clouds.SEQUENCES[0]
     frames = clouds.frame_times(seq, 2.0, 30.0)
     clouds.set_up(scene, seq, frames[0][0], frames[-1][0])
-    t, az, el = frames[CLOUDY_FRAME]
+    t, az, el = frames[index]
     img, truth = scene.frame(t, az, el)
     assert truth["visibility"] == "visible"
+    return img, t, truth
+
+
+def test_the_default_pipeline_finds_a_visible_sun_in_a_cloudy_frame(scene):
+    img, t, truth = _visible_frame(scene, CLOUDY_FRAME)
     gamma = np.degrees(np.arccos(np.clip(scene.d_enu @ truth["sun_enu"], -1, 1)))
     tau = scene.tau_px(t)
     assert (tau[scene.sky] > clouds.COVER_TAU).mean() > 0.2  # a cloudy sky
@@ -176,12 +182,7 @@ def test_a_clouds_edge_in_the_rings_no_longer_pulls_the_sun_with_the_site(scene)
     with the site), 0.07."""
     from dataclasses import replace
 
-    seq = clouds.SEQUENCES[0]
-    frames = clouds.frame_times(seq, 2.0, 30.0)
-    clouds.set_up(scene, seq, frames[0][0], frames[-1][0])
-    t, az, el = frames[CLOUD_IN_THE_RINGS]
-    img, truth = scene.frame(t, az, el)
-    assert truth["visibility"] == "visible"
+    img, t, truth = _visible_frame(scene, CLOUD_IN_THE_RINGS)
     errors = {}
     for edges in (True, False):
         est = FisheyeEstimator(fisheye_bundle_from_dict(clouds.bundles()["with site"]))
