@@ -86,6 +86,14 @@ class OrientationCal:
         "with a frame-transfer column smear taken off the frames (fitted with the rotation from a "
         "day of sun detections; absent: sky_scale alone, as before).",
     )
+    locator: Literal["rim", "rings"] | None = setting(
+        None,
+        doc="With the site known, what places the sun from the first frame on, as the calibration "
+        'day chose (heliotrack calibrate fisheye orientation): "rim", the glare\'s rim, or "rings", '
+        "the sky's rings around it (a sky whose light is a product of the angle to the sun and the "
+        "elevation); the choice is still learned from the ephemeris as frames come (absent: "
+        "learned only).",
+    )
 
     def __schema_check__(self, at: Where) -> OrientationCal:
         M = np.asarray(self.enu_from_camera, float)
@@ -313,6 +321,8 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             out.append(f"sky_scale = {_fmt(o.sky_scale)}")
         if o.sky_calibration is not None:
             out.append(f"sky_calibration = {_fmt(list(o.sky_calibration))}")
+        if o.locator is not None:
+            out.append(f"locator = {_fmt(o.locator)}")
     r = b.radiometry
     if r is not None:
         out += ["", "[radiometry]", f"response = {_fmt(r.response)}"]

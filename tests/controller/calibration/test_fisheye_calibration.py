@@ -64,6 +64,11 @@ def test_bundle_round_trip(tmp_path):
     again = load_fisheye_bundle(p4)
     assert again.orientation.sky_calibration == (1.9, -0.15, 2.6, -0.2)
     assert again.orientation.sky_scale == 1.0
+    assert again.orientation.locator is None and "locator" not in p4.read_text()
+    rings = {**DOC, "orientation": {**DOC["orientation"], "locator": "rings"}}
+    p5 = save_fisheye_bundle(fisheye_bundle_from_dict(rings), tmp_path / "r.toml")
+    assert 'locator = "rings"' in p5.read_text()
+    assert load_fisheye_bundle(p5).orientation.locator == "rings"
 
 
 @pytest.mark.parametrize(
@@ -74,6 +79,10 @@ def test_bundle_round_trip(tmp_path):
         (
             {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}},
             "orientation.enu_from_camera",
+        ),
+        (
+            {"orientation": {"enu_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "locator": "ring"}},
+            "orientation.locator",
         ),
         (
             {"orientation": {"enu_from_camera": [[2, 0, 0], [0, 1, 0], [0, 0, 1]]}},
