@@ -157,11 +157,11 @@ class FisheyeEstimator(FramePipeline):
         if bundle.site is not None and self.R is not None and self.options.gates.ephemeris:
             s = bundle.site
             self.ephemeris = Ephemeris(Site(latitude=s.latitude, longitude=s.longitude, altitude=s.altitude))
-        # no site but the orientation: the site from the sun's own sights (:mod:`.selfsite`)
-        learn = self.R is not None and self.ephemeris is None and self.options.gates.learn_site
-        self.site_from_sun = SiteFromSun() if learn else None
+        g = self.options.gates
+        learn = self.R is not None and self.ephemeris is None and g.learn_site  # no site: from the sun's
+        self.site_from_sun = SiteFromSun() if learn else None  # own sights (:mod:`.selfsite`)
         self.learned: tuple[SiteFit, LearnedEphemeris] | None = None
-        self.locator = LocatorChoice() if self.options.gates.ring_locator else None  # used with the site
+        self.locator = LocatorChoice.of_camera(g, bundle.orientation)  # used with the site
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's

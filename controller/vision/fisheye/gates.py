@@ -75,6 +75,9 @@ class GateOptions:
     # agreed better with the ephemeris, on the frames before (a camera whose sky is a
     # product: :mod:`.rings`)
     ring_locator: bool = True
+    # place every sun the rings can, with no choice learned (the calibration's pass that fits
+    # the rings' own rotation: :mod:`controller.calibration.fisheye_sun_calibration`)
+    rings_always: bool = False
 
 
 def track_prediction(

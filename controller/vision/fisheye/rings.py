@@ -181,10 +181,24 @@ class LocatorChoice:
         min_frames: int = MIN_FRAMES,
         settled: int = 20,
         every: int = 10,
+        always: bool = False,
+        prior: str | None = None,
     ):
         self._sq: deque[tuple[float, float]] = deque(maxlen=window)
+        self._always = always  # the rings, wherever they place the sun (no choice learned)
+        self._prior = prior == "rings"  # the calibration day's choice, until frames have chosen
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
+
+    @classmethod
+    def of_camera(cls, gates: Any, orientation: Any) -> LocatorChoice | None:
+        """The choice of a camera with ``gates`` (:class:`.gates.GateOptions`) and its bundle's
+        ``orientation`` (its ``locator``, the calibration day's choice), or None when the
+        gates leave the rim alone (``ring_locator`` off)."""
+        if not gates.ring_locator:
+            return None
+        prior = None if orientation is None else orientation.locator
+        return cls(always=gates.rings_always, prior=prior)
 
     def _measures(self) -> tuple[tuple[float, float], tuple[float, float]]:
         """The rim's and the rings' squared angles (deg^2): their sums, then their medians."""
@@ -198,9 +212,12 @@ class LocatorChoice:
     def rings(self) -> bool:
         """True when the rings' fixes have agreed with the sun better than the rim's, their
         sum or their median of squares under ``lead`` times the rim's, over ``min_frames``
-        frames at least."""
+        frames at least; before that, as the calibration day chose (``prior``); always True
+        when so constructed (``always``)."""
+        if self._always:
+            return True
         if len(self._sq) < max(self._min, 1):
-            return False
+            return self._prior
         return any(rings < self._lead * rim for rim, rings in self._measures())
 
     @property
@@ -208,7 +225,7 @@ class LocatorChoice:
         """The rim has led on ``settled`` frames at least, by half the rings' squares in sum
         and in median: the rings are then read on one frame in ``every`` only (they cost
         0.3 ms a frame)."""
-        if len(self._sq) < max(self._settled, 1):
+        if self._always or len(self._sq) < max(self._settled, 1):
             return False
         return all(rim < 0.5 * rings for rim, rings in self._measures())
 

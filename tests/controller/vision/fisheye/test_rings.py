@@ -147,6 +147,24 @@ def test_the_rings_are_read_less_once_the_rim_leads_by_far():
     assert not c.rim_settled and not c.rings
 
 
+def test_a_choice_made_always_takes_the_rings_and_never_settles_on_the_rim():
+    c = LocatorChoice(window=8, settled=4, always=True)  # the calibration's rings pass
+    assert c.rings  # before any frame
+    for _ in range(8):
+        c.observe(0.01, 0.05)  # the rim far better: a learned choice would settle on it
+    assert c.rings and not c.rim_settled
+
+
+def test_the_calibration_days_choice_holds_until_frames_have_chosen():
+    c = LocatorChoice(window=4, prior="rings")  # a bundle's [orientation] locator = "rings"
+    assert c.rings  # from the first frame
+    c.observe(0.02, 0.10)
+    assert c.rings  # one frame is no evidence
+    c.observe(0.02, 0.10)
+    assert not c.rings  # two frames where the rim agreed better: learned
+    assert not LocatorChoice(prior="rim").rings and not LocatorChoice().rings
+
+
 def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     vals, chi, phi, up, x = product_sky((math.radians(0.1), 0.0))
     reading = SkyReading(
