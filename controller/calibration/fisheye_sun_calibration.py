@@ -3,15 +3,29 @@ sky-correction scale with it (``heliotrack calibrate fisheye orientation``).
 
 1. The frames are measured in the camera frame (no orientation, so no gate by ENU) and the
    rotation fitted to pvlib's sun (:func:`.fisheye_orientation.fit_orientation`).
-2. With that rotation (the vertical known, so a low sun's sky is modelled by elevation, as
-   in use), the frames are measured again with the sky's correction as it is and scaled by
-   ``1 + SCALE_STEP``; :func:`.fisheye_sky_scale.fit_sky_scale` fits the scale and the
-   rotation together.
-3. The frames are measured twice more, their column smear taken off (a frame-transfer
+2. The locator.  With the site known, a camera whose sky is a product places its sun by the
+   sky's rings (:mod:`controller.vision.fisheye.rings`), and a rotation fitted to the rim's
+   fixes carries the rim's bias into every fix.  With step 1's rotation, the frames are
+   measured by the rim and by the rings wherever they place the sun; each locator's fixes on
+   the frames both placed get their own rotation.  When the rings' residual squared is under
+   :data:`RINGS_LEAD` times the rim's (the share by which the camera's
+   :class:`~controller.vision.fisheye.rings.LocatorChoice` picks them at run time), the
+   rings' rotation, fitted on all their fixes, is the calibration, with the sky as handed
+   over: the rings read its product themselves, and the steps below scale the rim's
+   correction, which they do not use.  The rim is compared as handed over, not as steps 3-5
+   would scale it: those scales are fitted on the same frames (up to five parameters more),
+   and on a product sky their fit of one day did not hold on the next (the third renderer
+   at 1280 x 960, calibrated on 20 Mar: 0.015 deg on its own day, 0.046 on the others).
+   The choice is written to the bundle (``[orientation] locator``): the camera starts with it.
+3. Otherwise, with that rotation (the vertical known, so a low sun's sky is modelled by
+   elevation, as in use), the frames are measured again with the sky's correction as it is
+   and scaled by ``1 + SCALE_STEP``; :func:`.fisheye_sky_scale.fit_sky_scale` fits the scale
+   and the rotation together.
+4. The frames are measured twice more, their column smear taken off (a frame-transfer
    CCD's; :mod:`controller.vision.fisheye.smear`), and a scale for each sky model, linear
    in the air mass, is fitted with the rotation
-   (:func:`.fisheye_sky_scale.fit_sky_calibration`), scored against what step 2 adopted.
-4. When the scale or the calibration earns its place, the frames are measured a last time
+   (:func:`.fisheye_sky_scale.fit_sky_calibration`), scored against what step 3 adopted.
+5. When the scale or the calibration earns its place, the frames are measured a last time
    with it and the rotation fitted (and refined) on those detections.
 """
 
@@ -20,17 +34,35 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
 from ..sun.source import Site
+from ..vision.fisheye.rings import LEAD
 from .fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 from .fisheye_orientation import OrientationFit, fit_orientation
 from .fisheye_sky_scale import SkyCalibrationFit, SkyScaleFit, fit_sky_calibration, fit_sky_scale
 
 #: the step between the two scales the frames are measured at
 SCALE_STEP = 0.25
+#: the rings are the calibration's locator when their residual squared is under this share of
+#: the rim's (step 2; the run-time choice's :data:`controller.vision.fisheye.rings.LEAD`)
+RINGS_LEAD = LEAD
+#: ... over at least this many frames that both placed
+MIN_BOTH = 12
+
+
+@dataclass(frozen=True)
+class LocatorFit:
+    """The rim's and the rings' fixes of a calibration day on the ``frames`` both placed, each
+    with its own rotation: the fits' residuals (deg; RMS over each fit's inliers), and the
+    locator chosen (step 2 of the module's docstring)."""
+
+    rim_residual_deg: float
+    rings_residual_deg: float
+    frames: int
+    locator: Literal["rim", "rings"]
 
 
 @dataclass
@@ -43,25 +75,30 @@ class SunCalibration:
     detections: int  # frames found in the first pass
     not_found: int
     calibration: SkyCalibrationFit | None = None  # the sky models' scales (None: not fitted)
+    locator: LocatorFit | None = None  # the rim against the rings (None: too few frames)
 
 
 def _detect(
-    bundle: FisheyeBundle, frames: Sequence[tuple[float, Any]], sky_scale: float = 1.0, smear: bool = False
+    bundle: FisheyeBundle,
+    frames: Sequence[tuple[float, Any]],
+    sky_scale: float = 1.0,
+    smear: bool = False,
+    rings: bool = False,
 ) -> list:
     """(t, d_cam, centre_uv, sky modelled by elevation) per frame, None where not found;
-    ``frames``: (POSIX s, a BGR image or a path); ``smear``: the column smear taken off."""
+    ``frames``: (POSIX s, a BGR image or a path); ``smear``: the column smear taken off.
+    The rim's fixes; with ``rings``, the rings' wherever they place the sun, None elsewhere."""
     from ..vision.fisheye import FisheyeEstimator, FisheyeOptions
 
     opts = FisheyeOptions()
     glare = replace(opts.glare, sky_scale=sky_scale, column_smear=smear or opts.glare.column_smear)
-    # the rim's fixes: it is the rim that the rotation and the sky's scales are fitted to (at
-    # run time a camera with the site may place the sun by its rings: .vision.fisheye.rings)
-    gates = replace(opts.gates, ring_locator=False)
+    gates = replace(opts.gates, ring_locator=rings, rings_always=rings)
     est = FisheyeEstimator(bundle, replace(opts, glare=glare, gates=gates))
     out: list = []
     for t, frame in frames:
         r = est.estimate_file(frame, t) if isinstance(frame, (str, Path)) else est.estimate_image(frame, t)
         ok = r.found and r.d_cam is not None and r.centre_uv is not None
+        ok = ok and (not rings or "ring_locator" in r.quality)
         by_el = "sky_by_elevation" in r.quality
         out.append((t, np.asarray(r.d_cam, float), np.asarray(r.centre_uv, float), by_el) if ok else None)
     return out
@@ -85,6 +122,23 @@ def _fit(found: list, site: Site, bundle: FisheyeBundle, **kw) -> OrientationFit
         camera=bundle.camera,
         **kw,
     )
+
+
+def _by_rings(
+    bundle: FisheyeBundle, frames: Sequence[tuple[float, Any]], site: Site, **kw
+) -> tuple[LocatorFit, OrientationFit | None] | None:
+    """The rim against the rings on ``bundle`` (step 1's rotation, the site): the comparison,
+    and the rings' rotation when they lead (step 2 of the module's docstring); None when
+    fewer than :data:`MIN_BOTH` frames were placed by both."""
+    rim, rings = _detect(bundle, frames), _detect(bundle, frames, rings=True)
+    both = [(a, b) for a, b in zip(rim, rings) if a is not None and b is not None]
+    if len(both) < MIN_BOTH:
+        return None
+    res_rim = _fit([a for a, _ in both], site, bundle, **kw).residual_deg
+    res_rings = _fit([b for _, b in both], site, bundle, **kw).residual_deg
+    lead = res_rings**2 < RINGS_LEAD * res_rim**2
+    choice = LocatorFit(res_rim, res_rings, len(both), "rings" if lead else "rim")
+    return choice, _fit([f for f in rings if f is not None], site, bundle, **kw) if lead else None
 
 
 def _rounded(k: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
@@ -138,7 +192,12 @@ def calibrate_from_sun(
     out = _with_fit(bundle, fit, site, method + lens, 1.0)
     sky: SkyScaleFit | None = None
     cal: SkyCalibrationFit | None = None
-    if fit_scale:
+    locator = _by_rings(out, frames, sun_site, **kw)
+    choice = None if locator is None else locator[0]
+    if locator is not None and locator[1] is not None:
+        fit = locator[1]
+        out = _with_fit(out, fit, site, method + lens + "+rings", 1.0)
+    elif fit_scale:
         pairs = _pairs(_detect(out, frames), _detect(out, frames, 1.0 + SCALE_STEP))
         if len(pairs) >= 12:
             sky = fit_sky_scale(*_columns(pairs), SCALE_STEP, sun_site)
@@ -163,4 +222,7 @@ def calibrate_from_sun(
             last = [f for f in _detect(at, frames, sky.scale) if f is not None]
             fit = _fit(last, sun_site, bundle, **kw)  # the lens's priors: the boards' values
             out = _with_fit(out, fit, site, method + lens + "+sky_scale", sky.scale)
-    return SunCalibration(out, fit, sky, len(found), len(first) - len(found), cal)
+    if choice is not None:  # the camera starts with it (and goes on learning: .rings.LocatorChoice)
+        assert out.orientation is not None
+        out = replace(out, orientation=replace(out.orientation, locator=choice.locator))
+    return SunCalibration(out, fit, sky, len(found), len(first) - len(found), cal, choice)

@@ -262,6 +262,13 @@ def _orientation(args) -> int:
         out["sky_calibration"] = [round(k, 4) for k in c.coefficients] if c.adopted else None
         out["sky_calibration_fitted"] = [round(k, 4) for k in c.coefficients]
         out["sky_calibration_residual_deg"] = [round(c.residual_compared_deg, 4), round(c.residual_deg, 4)]
+    if cal.locator is not None:  # the rim against the sky's rings (each with its own rotation)
+        loc = cal.locator
+        out["locator"] = loc.locator
+        out["locator_residual_deg"] = {
+            "rim": round(loc.rim_residual_deg, 4),
+            "rings": round(loc.rings_residual_deg, 4),
+        }
     print(json.dumps(out))
     return 0
 

@@ -80,6 +80,7 @@ def test_calibration_writes_a_fisheye_bundle_with_orientation_and_site(installed
     assert ang < 0.1
     # the sky's correction: as it is, or a sky calibration fitted with the rotation
     assert b.orientation.method in ("sun+horizon+lens", "sun+horizon+lens+sky_calibration")
+    assert b.orientation.locator == "rim"  # the HIL's sky is not a product: its rim places the sun
 
 
 @pytest.mark.parametrize(
