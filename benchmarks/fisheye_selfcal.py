@@ -151,6 +151,10 @@ def run_look(name: str, frames_of: Callable, truth_bundle, site: tuple, days: li
                 "sky_scale": None
                 if scaled.bundle.orientation is None
                 else scaled.bundle.orientation.sky_scale,
+                "locator": None if scaled.locator is None else scaled.locator.locator,
+                "locator_residual_deg_rim_then_rings": None
+                if scaled.locator is None
+                else [round(scaled.locator.rim_residual_deg, 4), round(scaled.locator.rings_residual_deg, 4)],
                 "sky_scale_fitted": None if sky is None else round(sky.fitted, 4),
                 "residual_deg_rotation_then_with_scale": None
                 if sky is None
