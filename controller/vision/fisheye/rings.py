@@ -189,6 +189,7 @@ class LocatorChoice:
         self._prior = prior == "rings"  # the calibration day's choice, until frames have chosen
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
+        self._kept: tuple[tuple[float, float], tuple[float, float]] | None = None
 
     @classmethod
     def of_camera(cls, gates: Any, orientation: Any) -> LocatorChoice | None:
@@ -201,12 +202,13 @@ class LocatorChoice:
         return cls(always=gates.rings_always, prior=prior)
 
     def _measures(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """The rim's and the rings' squared angles (deg^2): their sums, then their medians."""
-        sq = np.array(self._sq)
-        return (float(sq[:, 0].sum()), float(sq[:, 1].sum())), (
-            float(np.median(sq[:, 0])),
-            float(np.median(sq[:, 1])),
-        )
+        """The rim's and the rings' squared angles (deg^2): their sums, then their medians
+        (kept until the next frame is counted: each frame asks twice)."""
+        if self._kept is None:
+            sq = np.array(self._sq)
+            sums = (float(sq[:, 0].sum()), float(sq[:, 1].sum()))
+            self._kept = sums, (float(np.median(sq[:, 0])), float(np.median(sq[:, 1])))
+        return self._kept
 
     @property
     def rings(self) -> bool:
@@ -233,6 +235,7 @@ class LocatorChoice:
         """Count one frame's two fixes by their angles to the sun (deg)."""
         if rim_deg <= self._max and rings_deg <= self._max:
             self._sq.append((rim_deg * rim_deg, rings_deg * rings_deg))
+            self._kept = None
 
     def place(
         self, cand: Any, gates: list[Any], R: np.ndarray | None, up_cam: np.ndarray | None, lens: Any
