@@ -190,3 +190,21 @@ def test_summary_rows_judge_the_dark_exposure_and_only_report_the_as_exposed_loo
         "as exposed (zenith grey 72)",
         "false detections, all 2 looks",
     ]
+
+
+def test_with_the_site_the_ccds_smear_is_taken_off_the_rings_that_place_a_high_sun():
+    """The third renderer at 1280 x 960, its highest sun of 21 Dec (79 deg): the CCD's smear
+    runs down the rings' column through the sun, and the rings, read with it, put the sun
+    0.107 deg off (development run; the rim reads it within 0.005).  With the site the smear
+    is taken off (``frames.with_sky_scale``), and the rings place it as well as the rim.
+    The bundle's ``locator = "rings"`` (as the calibration writes it) makes the rings place
+    this first frame."""
+    from dataclasses import replace
+
+    t, az, el = min(third.sun_frames("2026-12-21", 20), key=lambda f: abs(f[2] - 79.1))
+    img = third.ThirdScene(DARK_HD).render(third.sun_enu(az, el), np.random.default_rng([1280, 960, int(t)]))
+    bundle = fisheye_bundle_from_dict(third.bundle_dict(DARK_HD))
+    bundle = replace(bundle, orientation=replace(bundle.orientation, locator="rings"))
+    res = FisheyeEstimator(bundle).estimate_image(img, t)
+    assert res.found and "ring_locator" in res.quality
+    assert third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)) < 0.03

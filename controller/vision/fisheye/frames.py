@@ -81,7 +81,11 @@ def with_sky_scale(
     reads suns under broken cloud closer, and accepts rims that the cloud's edge in the
     models had made irregular; without the gate, some of those are suns dimmed by the
     cloud and read 1-2 deg off (the third renderer's clouds without the site: 8 false
-    detections where there had been 1)."""
+    detections where there had been 1).  With the site, a CCD's column smear is taken off
+    too (:mod:`.smear`): the rings that may place the sun (:mod:`.rings`) read it as the sky's
+    light (a third renderer's sun at 79 deg, 0.107 deg off by its rings with the smear in
+    them), and its removal lets through fixes that only the ephemeris gate refuses (that
+    renderer's clouds without the site: 4 false detections where there had been 1)."""
     if orientation is None:
         return options
     glare = options.glare
@@ -90,5 +94,5 @@ def with_sky_scale(
     if orientation.sky_calibration is not None:
         glare = replace(glare, sky_calibration=orientation.sky_calibration, column_smear=True)
     if site is not None and options.gates.ephemeris:
-        glare = replace(glare, cloud_edges=True)
+        glare = replace(glare, cloud_edges=True, column_smear=True)
     return options if glare is options.glare else replace(options, glare=glare)

@@ -18,7 +18,9 @@ else (no smear, a cloud in some rows, a ground's texture) is no smear, and nothi
 taken off.  A saturated pixel is left as it is: its light, smear included, is unknown.
 The removal is on with a camera's sky calibration (``GlareOptions.column_smear``, bundle
 ``[orientation] sky_calibration``): alone, on the third renderer, it exposed the aureole's
-bias that the smear had partly offset (docs/fisheye-rounds.md, a twenty-first round).
+bias that the smear had partly offset (docs/fisheye-rounds.md, a twenty-first round).  It
+is on with the site too (:func:`.frames.with_sky_scale`): the sky's rings that may then
+place the sun (:mod:`.rings`) read the smear as the sky's light.
 """
 
 from __future__ import annotations

@@ -58,8 +58,9 @@ def test_a_clouds_edge_is_left_out_of_the_sky_models_only_where_the_ephemeris_ch
     site = SiteCal(latitude=-33.45, longitude=-70.66)
     ori = OrientationCal(enu_from_camera=M)
     base = FisheyeOptions()
-    assert not base.glare.cloud_edges
-    assert with_sky_scale(base, ori, site).glare.cloud_edges
+    assert not base.glare.cloud_edges and not base.glare.column_smear
+    gated = with_sky_scale(base, ori, site).glare
+    assert gated.cloud_edges and gated.column_smear  # and the smear, which the rings would read
     assert with_sky_scale(base, ori) is base  # no site: no gate to check what it accepts
     assert with_sky_scale(base, None, site) is base  # no orientation: no ephemeris gate either
     no_gate = replace(base, gates=replace(base.gates, ephemeris=False))
