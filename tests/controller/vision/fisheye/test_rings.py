@@ -103,6 +103,29 @@ class _Gate:
         return math.degrees(math.acos(min(1.0, float(v @ self.centre))))
 
 
+@dataclass
+class _Fit:
+    """The parts of a :class:`.glare.GlareFit` that :meth:`LocatorChoice.place` reads."""
+
+    sky_reading: SkyReading | None
+    flags: list
+    centre_uv: tuple = (320.0, 240.0)
+
+
+@dataclass
+class _Cand:
+    """The parts of a :class:`.default.Candidate` that :meth:`LocatorChoice.place` reads."""
+
+    fit: _Fit
+    d_cam: np.ndarray
+    d_enu: np.ndarray
+    el_deg: float
+
+
+def _angle_deg(a, b) -> float:
+    return math.degrees(math.acos(min(1.0, float(a @ b) / float(np.linalg.norm(a) * np.linalg.norm(b)))))
+
+
 def test_the_choice_follows_the_fixes_that_agree_with_the_sun_and_not_a_frames_own():
     c = LocatorChoice(window=4)  # the rings once they lead by half in sum or median of squares
     assert not c.rings
@@ -174,20 +197,7 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     sun = A + math.radians(0.1) * E1
     sun /= np.linalg.norm(sun)
 
-    @dataclass
-    class Cand:
-        fit: object
-        d_cam: np.ndarray
-        d_enu: np.ndarray
-        el_deg: float
-
-    @dataclass
-    class Fit:
-        sky_reading: SkyReading
-        flags: list
-        centre_uv: tuple = (320.0, 240.0)
-
-    cand = Cand(Fit(reading, []), A, A, 90.0)
+    cand = _Cand(_Fit(reading, []), A, A, 90.0)
     c = LocatorChoice()
     gates = [_Gate("ephemeris", sun, 1.0)]
     assert c.place(cand, gates, R, up, _Lens()) is cand  # nothing learned before this frame: the rim
@@ -201,3 +211,35 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     tight = [*gates, _Gate("sequence", A, 0.05)]  # the rings' fix is 0.1 deg from the anchor
     assert c.place(cand, tight, R, up, _Lens()) is cand
     assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up, _Lens()) is cand  # no site: never
+
+
+def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from_them():
+    """A camera that has chosen the rings, whose rim reads the sun 0.1 deg off where its
+    rings read it right: on a frame whose rings place no sun (here no reading at all, as
+    under a cloud that makes them rough) the rim's fix is moved by its median offset from
+    the rings', once three frames within 2 deg of its elevation have given it."""
+    vals, chi, phi, up, x = product_sky((math.radians(0.1), 0.0))
+    reading = SkyReading(
+        vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6000.0
+    )
+    R = np.eye(3)  # the camera frame is ENU here
+    sun = A + math.radians(0.1) * E1
+    sun /= np.linalg.norm(sun)
+    gates = [_Gate("ephemeris", sun, 1.0)]
+    seen, blind = _Cand(_Fit(reading, []), A, A, 90.0), _Cand(_Fit(None, []), A, A, 90.0)
+    c = LocatorChoice(prior="rings")  # the calibration day chose the rings
+    for _ in range(3):
+        assert c.place(blind, gates, R, up, _Lens()) is blind  # no offsets yet (then 1, then 2)
+        assert "ring_locator" in c.place(seen, gates, R, up, _Lens()).fit.flags
+    moved = c.place(blind, gates, R, up, _Lens())
+    assert "rim_by_rings" in moved.fit.flags and _angle_deg(A, sun) == pytest.approx(0.1, abs=1e-6)
+    assert _angle_deg(moved.d_enu, sun) < 0.01 and moved.d_cam is not A
+    u, v = moved.fit.centre_uv
+    assert u == pytest.approx(320.0 + 100.0 * moved.d_cam[0] / moved.d_cam[2])
+    low = _Cand(_Fit(None, []), A, A, 87.5)  # its elevation 2.5 deg from the offsets': none apply
+    assert c.place(low, gates, R, up, _Lens()) is low
+    assert c.place(blind, [*gates, _Gate("sequence", A, 0.05)], R, up, _Lens()) is blind  # beyond a gate
+    rim = LocatorChoice(prior="rim")  # a camera whose choice is the rim keeps its rim's fix
+    for _ in range(3):
+        rim.place(seen, [_Gate("ephemeris", A, 1.0)], R, up, _Lens())  # the rim on the sun here
+    assert not rim.rings and rim.place(blind, gates, R, up, _Lens()) is blind
