@@ -208,3 +208,37 @@ def test_with_the_site_the_ccds_smear_is_taken_off_the_rings_that_place_a_high_s
     res = FisheyeEstimator(bundle).estimate_image(img, t)
     assert res.found and "ring_locator" in res.quality
     assert third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)) < 0.03
+
+
+def test_without_the_site_the_suns_own_path_hands_this_skys_sun_to_its_rings():
+    """Without the bundle's site there is no ephemeris to compare the rim and the rings by,
+    but the sun's own path still judges them: the rim's sky model reads this sky's sun
+    0.05-0.2 deg low at 15-30 deg and near right higher up, which no site fitted to its
+    sights takes up, while the rings' sights fit one. From the thirteenth frame above 12
+    deg (20-min frames) the rings place the sun: the afternoon reads 0.018 deg where the
+    rim alone reads 0.11 (development run)."""
+    from dataclasses import replace
+
+    from controller.vision.fisheye.default import FisheyeOptions
+
+    frames = [f for f in third.sun_frames("2026-03-20", 20) if f[2] >= 12.0]
+    scene = third.ThirdScene(DARK)
+    imgs = [
+        scene.render(third.sun_enu(az, el), np.random.default_rng([640, 480, int(t)])) for t, az, el in frames
+    ]
+    bundle = replace(fisheye_bundle_from_dict(third.bundle_dict(DARK)), site=None)
+    rim_only = replace(FisheyeOptions(), gates=replace(FisheyeOptions().gates, ring_locator=False))
+    errs = {}
+    for key, est in (("rim", FisheyeEstimator(bundle, rim_only)), ("learned", FisheyeEstimator(bundle))):
+        out = []
+        for img, (t, az, el) in zip(imgs, frames):
+            res = est.estimate_image(img, t)
+            assert res.found, res.reason
+            err = third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el))
+            out.append((err, "ring_locator" in res.quality))
+        errs[key] = out
+    assert len(frames) >= 24
+    assert [q for _, q in errs["learned"]] == [False] * 12 + [True] * (len(frames) - 12)
+    rim = math.sqrt(np.mean([e * e for e, _ in errs["rim"][12:]]))
+    rings = math.sqrt(np.mean([e * e for e, _ in errs["learned"][12:]]))
+    assert rings < 0.03 < 0.08 < rim

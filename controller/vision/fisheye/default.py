@@ -271,7 +271,7 @@ class FisheyeEstimator(FramePipeline):
                     None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
                 )
         if self.locator is not None and t is not None:  # a camera whose sky is a product (.rings)
-            best = self.locator.place(best, gates, self.R, self.up_cam, self.lens)
+            best = self.locator.place(best, gates, self.R, self.up_cam, self.lens, float(t))
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
         bound = o.max_sigma_near_horizon_deg if "near_horizon" in res.quality else o.max_sigma_deg
         if res.sigma_deg is not None and res.sigma_deg > bound:

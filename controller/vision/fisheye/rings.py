@@ -46,6 +46,12 @@ LEAD, MIN_FRAMES = 0.5, 2
 #: offset from the rings' on the frames both placed, the sun within this many degrees of
 #: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`)
 OFFSET_EL_DEG, MIN_OFFSETS = 2.0, 3
+#: without the site, the choice by the sun's own path (:meth:`LocatorChoice.observe_path`):
+#: a sight of both fixes kept at most every PATH_STEP_S, for PATH_KEEP_S (s; 720 at most),
+#: the sun PATH_MIN_EL_DEG high at least; the paths are compared once PATH_MIN_SIGHTS span
+#: PATH_MIN_SPAN_S (s), and again every PATH_EVERY sights
+PATH_STEP_S, PATH_KEEP_S, PATH_MIN_EL_DEG = 120.0, 172800.0, 12.0
+PATH_MIN_SIGHTS, PATH_MIN_SPAN_S, PATH_EVERY = 12, 3600.0, 5
 #: nor where the rings are rougher than a clear sky's (:func:`.clearsky.ring_roughness`;
 #: the third renderer's clear days read up to 0.30 with its CCD smear's column in them)
 MAX_ROUGHNESS = 0.35
@@ -200,6 +206,11 @@ class LocatorChoice:
         self._kept: tuple[tuple[float, float], tuple[float, float]] | None = None
         # the rim's fix less the rings', along the vertical and across it (rad), by elevation (deg)
         self._offsets: deque[tuple[float, float, float]] = deque(maxlen=4 * window)
+        # without the site: sights of both fixes (t, rim ENU, rings ENU), and the squared RMS
+        # of a site fitted to each (rim, rings) once they span enough of the sun's path
+        self._path: deque[tuple[float, np.ndarray, np.ndarray]] = deque(maxlen=720)
+        self._path_sq: tuple[float, float] | None = None
+        self._path_new = 0
 
     @classmethod
     def of_camera(cls, gates: Any, orientation: Any) -> LocatorChoice | None:
@@ -233,6 +244,51 @@ class LocatorChoice:
         return any(rings < self._lead * rim for rim, rings in self._measures())
 
     @property
+    def path_rings(self) -> bool:
+        """Without the site: True when a site fitted to the rings' sights leaves under
+        ``lead`` times the squared RMS of one fitted to the rim's (:meth:`observe_path`);
+        before they are compared, as the calibration day chose (``prior``)."""
+        if self._always:
+            return True
+        if self._path_sq is None:
+            return self._prior
+        rim, rings = self._path_sq
+        return rings < self._lead * rim
+
+    def observe_path(self, t: float, rim_enu: np.ndarray, rings_enu: np.ndarray) -> None:
+        """Count one frame's two fixes (ENU) as sights of the sun at POSIX ``t``, without the
+        site.  The sun's diurnal path is fixed by the site alone; an error of a locator that
+        grows and shrinks with the sun's elevation (a sky model's) bends its sights off any
+        such path, which no site fitted to them takes up.  So each locator's sights get their
+        own site (:func:`.selfsite.fit_site`), and the residuals are compared as the squared
+        angles to the ephemeris are with the site (third renderer, 20-min frames: the rim's
+        site fitted to 0.09-0.11 deg, the rings' to 0.016-0.032, their errors 0.10-0.14 and
+        0.014-0.032; the second renderer's look as described 0.010-0.021 and 0.065-0.075)."""
+        from .selfsite import MIN_SHARE, fit_site
+
+        if self._path and t - self._path[-1][0] < PATH_STEP_S:
+            return
+        if float(rim_enu[2]) < math.sin(math.radians(PATH_MIN_EL_DEG)):
+            return  # under it the rim is cut by the horizon, its errors erratic (CIE sky 10)
+        self._path.append((t, rim_enu, rings_enu))
+        while t - self._path[0][0] > PATH_KEEP_S:
+            self._path.popleft()
+        self._path_new += 1
+        ts = np.array([p[0] for p in self._path])
+        if len(ts) < PATH_MIN_SIGHTS or ts[-1] - ts[0] < PATH_MIN_SPAN_S:
+            return
+        if self._path_sq is not None and self._path_new < PATH_EVERY:
+            return
+        self._path_new = 0
+        sq = []
+        for k in (1, 2):
+            fit = fit_site(ts, np.array([p[k] for p in self._path]))
+            ok = fit is not None and fit[0].n >= MIN_SHARE * len(ts)
+            sq.append(fit[0].rms_deg ** 2 if ok and fit is not None else math.inf)
+        if math.isfinite(min(sq)):
+            self._path_sq = (sq[0], sq[1])
+
+    @property
     def rim_settled(self) -> bool:
         """The rim has led on ``settled`` frames at least, by half the rings' squares in sum
         and in median: the rings are then read on one frame in ``every`` only (they cost
@@ -248,19 +304,28 @@ class LocatorChoice:
             self._kept = None
 
     def place(
-        self, cand: Any, gates: list[Any], R: np.ndarray | None, up_cam: np.ndarray | None, lens: Any
+        self,
+        cand: Any,
+        gates: list[Any],
+        R: np.ndarray | None,
+        up_cam: np.ndarray | None,
+        lens: Any,
+        t: float | None = None,
     ) -> Any:
         """``cand`` (a :class:`.default.Candidate`), placed by its rings when this camera's
         choice is the rings and their fix passes every gate of ``gates`` (:class:`.gates.Gate`;
         the ephemeris's among them); the frame counts towards the choice either way.  Where
         the rings are the choice but place no sun (a cloud in them) or not within the gates,
-        the rim's fix less its offset from the rings' (:meth:`rim_as_rings`).  ``R``: ENU
-        from camera; ``lens`` (:class:`.lens.FisheyeLens`) puts the fix's centre in the image."""
+        the rim's fix less its offset from the rings' (:meth:`rim_as_rings`).  Without the
+        ephemeris's gate (no site) the frame at POSIX ``t`` counts as sights of the sun's path
+        instead (:meth:`observe_path`).  ``R``: ENU from camera; ``lens``
+        (:class:`.lens.FisheyeLens`) puts the fix's centre in the image."""
         reading = cand.fit.sky_reading
         gate = next((g for g in gates if g.name == "ephemeris"), None)
-        if gate is None or cand.d_enu is None or R is None or up_cam is None:
+        if cand.d_enu is None or R is None or up_cam is None or (gate is None and t is None):
             return cand
-        d, use = None, self.rings  # chosen from the frames before: never from this frame's fixes
+        # chosen from the frames before: never from this frame's fixes
+        d, use = None, self.rings if gate is not None else self.path_rings
         if reading is not None:
             self._frames += 1
             if self.rim_settled and self._frames % self._every:
@@ -268,7 +333,10 @@ class LocatorChoice:
             d = ring_direction(reading, up_cam)
         if d is not None:
             d_enu = R @ d
-            self.observe(gate.distance_deg(cand.d_enu), gate.distance_deg(d_enu))
+            if gate is not None:
+                self.observe(gate.distance_deg(cand.d_enu), gate.distance_deg(d_enu))
+            elif t is not None:
+                self.observe_path(float(t), cand.d_enu, d_enu)
             v, h = _vertical_basis(d, up_cam)
             el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
             self._offsets.append((el, float((cand.d_cam - d) @ v), float((cand.d_cam - d) @ h)))

@@ -243,3 +243,57 @@ def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from
     for _ in range(3):
         rim.place(seen, [_Gate("ephemeris", A, 1.0)], R, up, _Lens())  # the rim on the sun here
     assert not rim.rings and rim.place(blind, gates, R, up, _Lens()) is blind
+
+
+def _day_of_sights(bias_deg, step_s: float = 1200.0):
+    """A clear 20 Mar at 40 N: the sun every ``step_s`` while 5 deg up or more, (t, its ENU
+    direction, the same moved ``bias_deg(el)`` deg towards the horizon)."""
+    from controller.sun.source import Site
+    from controller.vision.fisheye.gates import Ephemeris
+
+    eph = Ephemeris(Site(latitude=40.0, longitude=-3.0, altitude=0.0))
+    t0 = 1773964800.0  # 2026-03-20 00:00 UTC
+    out = []
+    for t in np.arange(t0, t0 + 86400.0, step_s):
+        s = eph.direction(float(t))
+        el = math.degrees(math.asin(s[2]))
+        if el < 5.0:
+            continue
+        down = np.array([0.0, 0.0, -1.0]) - s * (-s[2])
+        down /= np.linalg.norm(down)
+        d = s + math.radians(bias_deg(el)) * down
+        out.append((float(t), s, d / np.linalg.norm(d), el))
+    return out
+
+
+def _sky_bias(el: float) -> float:
+    """A rim's sky-model error: 0.2 deg low at 20 deg, fading above and below (deg)."""
+    return 0.2 * math.exp(-(((el - 20.0) / 8.0) ** 2))
+
+
+def test_without_the_site_the_suns_own_path_chooses_the_locator_whose_sights_it_fits():
+    """The rim reads the sun 0.2 deg low around 20 deg (a sky model's error, which comes and
+    goes with the elevation) and the rings read it right: no site takes up the rim's error,
+    so the rings are chosen once 12 sights above 12 deg span an hour, and not before; and
+    the other way round when the rings are the ones in error."""
+    sights = _day_of_sights(_sky_bias)
+    c = LocatorChoice()
+    decided = None
+    for k, (t, s, biased, _) in enumerate(sights):
+        assert not c.path_rings or decided is not None
+        c.observe_path(t, biased, s)  # the rim's fix, the rings'
+        if c.path_rings and decided is None:
+            decided = k
+    above = [k for k, (_, _, _, el) in enumerate(sights) if el >= 12.0]
+    assert decided == above[11]  # the twelfth sight above 12 deg (over 3 h 40 min)
+    rim, rings = c._path_sq
+    assert rings < 1e-5 < 0.001 < rim  # deg^2 about each fitted site (the rings: SPA against the fit's sun)
+    other = LocatorChoice()
+    for t, s, biased, _ in sights:
+        other.observe_path(t, s, biased)  # the rim right, the rings 0.2 deg low
+    assert not other.path_rings
+    low = LocatorChoice()
+    for t, s, biased, el in sights:
+        if el < 12.0:
+            low.observe_path(t, biased, s)
+    assert low._path_sq is None  # under 12 deg the rim is cut by the horizon: no sight counts
