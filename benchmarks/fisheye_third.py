@@ -426,27 +426,35 @@ def score(records: Iterable[tuple[Any, float, float]]) -> dict:
 
 def run_look(look: ThirdLook, step_min: int) -> dict:
     """Render the look's three days, a frame every ``step_min`` minutes, and score the
-    default pipeline on them (one sequence a day).
+    default pipeline on them (one sequence a day), with the bundle as it is and without its
+    ``[site]`` (a second camera on the same frames: the orientation known, the site not).
 
     Returns
     -------
     dict
-        :func:`score`'s, and ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg).
+        :func:`score`'s, ``without_site`` (:func:`score`'s without the site), and
+        ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg).
     """
+    from dataclasses import replace
+
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
 
     scene = ThirdScene(look)
-    est = FisheyeEstimator(fisheye_bundle_from_dict(bundle_dict(look)))
-    records = []
+    bundle = fisheye_bundle_from_dict(bundle_dict(look))
+    ests = (FisheyeEstimator(bundle), FisheyeEstimator(replace(bundle, site=None)))
+    records: tuple[list, list] = ([], [])
     for day in DAYS:
-        est.reset_sequence()
+        for est in ests:
+            est.reset_sequence()
         for t, az, el in sun_frames(day, step_min):
             # a seed of its own per frame: the same frame in a quick and a full run
             rng = np.random.default_rng([look.width, look.height, int(t)])
             img = scene.render(sun_enu(az, el), rng)
-            records.append((est.estimate_image(img, t), az, el))
-    out = score(records)
+            for est, rec in zip(ests, records):
+                rec.append((est.estimate_image(img, t), az, el))
+    out = score(records[0])
+    out["without_site"] = score(records[1])
     out["lens_fit_max_residual_px"] = round(kb_fit(scene.lens)[2], 5)
     return out
 

@@ -231,6 +231,22 @@ def fisheye_third(r: dict) -> list[Headline]:
                     ok=acc.get(flag),
                 )
             )
+    for key, label, limit in (
+        ("third renderer, dark exposure", "640 x 480", 0.03),
+        ("third renderer, dark exposure, 1280 x 960", "1280 x 960", 0.02),
+    ):
+        ns = looks.get(key, {}).get("without_site")
+        if ns is not None:  # the same frames, the bundle without its site (a second camera)
+            rms = ns["error"].get("rms_deg")
+            out.append(
+                Headline(
+                    name,
+                    f"dark exposure, the bundle without its site: clear-sky RMS, {label}",
+                    f"{fmt(rms, 3, ' deg')} ({found(ns)}; {fmt(ns['false_detections'])} false)",
+                    f"<= {limit:g} deg",
+                    ok=rms is not None and rms <= limit and ns["false_detections"] == 0,
+                )
+            )
     for key, label in (
         ("third renderer, as exposed", "as exposed (zenith grey 72)"),
         ("third renderer, as exposed, sRGB", "as exposed, sRGB declared in the bundle"),

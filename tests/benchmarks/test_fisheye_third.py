@@ -183,7 +183,20 @@ def test_summary_rows_judge_the_dark_exposure_and_only_report_the_as_exposed_loo
         ("0/101, -", None),
         ("1", False),
     ]
+    # the dark looks without the bundle's site (a second camera on the same frames): judged
+    r["looks"][third.LOOKS[0].name]["without_site"] = _look(92, 101, 0.039)
+    r["looks"][third.LOOKS[1].name]["without_site"] = _look(96, 101, 0.0435)
+    rows = summary_rows(r)
+    assert [(h.value, h.ok) for h in rows if "without its site" in h.figure] == [
+        ("0.039 deg (found 92 of 101; 0 false)", False),
+        ("0.0435 deg (found 96 of 101; 0 false)", False),
+    ]
+    r["looks"][third.LOOKS[0].name]["without_site"] = _look(92, 101, 0.029, false=1)
+    assert [h.ok for h in summary_rows(r) if "without its site" in h.figure][0] is False  # a false one
+    r["looks"][third.LOOKS[0].name]["without_site"] = _look(92, 101, 0.029)
+    assert [h.ok for h in summary_rows(r) if "without its site" in h.figure][0] is True
     # a quick run (two looks): no 1280 x 960 or sRGB row
+    del r["looks"][third.LOOKS[0].name]["without_site"]
     del r["looks"][third.LOOKS[1].name], r["looks"][third.LOOKS[3].name]
     assert [h.figure.split(":")[0] for h in summary_rows(r)] == [
         "dark exposure (zenith grey 20)",
