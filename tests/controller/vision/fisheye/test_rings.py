@@ -188,14 +188,19 @@ def test_the_calibration_days_choice_holds_until_frames_have_chosen():
     assert not LocatorChoice(prior="rim").rings and not LocatorChoice().rings
 
 
-def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
-    vals, chi, phi, up, x = product_sky((math.radians(0.1), 0.0))
+def _rings_of_a_sun_off_the_axis():
+    """A product sky's rings about ``A`` with the sun 0.1 deg off it along E1: the reading,
+    the zenith, ENU from camera (the identity) and the sun."""
+    vals, chi, phi, up, _ = product_sky((math.radians(0.1), 0.0))
     reading = SkyReading(
         vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6000.0
     )
-    R = np.eye(3)  # the camera frame is ENU here
     sun = A + math.radians(0.1) * E1
-    sun /= np.linalg.norm(sun)
+    return reading, up, np.eye(3), sun / np.linalg.norm(sun)
+
+
+def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
+    reading, up, R, sun = _rings_of_a_sun_off_the_axis()
 
     cand = _Cand(_Fit(reading, []), A, A, 90.0)
     c = LocatorChoice()
@@ -218,13 +223,7 @@ def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from
     rings read it right: on a frame whose rings place no sun (here no reading at all, as
     under a cloud that makes them rough) the rim's fix is moved by its median offset from
     the rings', once three frames within 2 deg of its elevation have given it."""
-    vals, chi, phi, up, x = product_sky((math.radians(0.1), 0.0))
-    reading = SkyReading(
-        vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6000.0
-    )
-    R = np.eye(3)  # the camera frame is ENU here
-    sun = A + math.radians(0.1) * E1
-    sun /= np.linalg.norm(sun)
+    reading, up, R, sun = _rings_of_a_sun_off_the_axis()
     gates = [_Gate("ephemeris", sun, 1.0)]
     seen, blind = _Cand(_Fit(reading, []), A, A, 90.0), _Cand(_Fit(None, []), A, A, 90.0)
     c = LocatorChoice(prior="rings")  # the calibration day chose the rings
