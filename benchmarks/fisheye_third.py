@@ -34,7 +34,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import cv2
@@ -429,14 +429,9 @@ def run_look(look: ThirdLook, step_min: int) -> dict:
     default pipeline on them (one sequence a day), with the bundle as it is and without its
     ``[site]`` (a second camera on the same frames: the orientation known, the site not).
 
-    Returns
-    -------
-    dict
-        :func:`score`'s, ``without_site`` (:func:`score`'s without the site), and
-        ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg).
+    Returns :func:`score`'s, ``without_site`` (:func:`score`'s without the site), and
+    ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg).
     """
-    from dataclasses import replace
-
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
 
