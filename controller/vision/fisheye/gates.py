@@ -71,9 +71,9 @@ class GateOptions:
     # without the site but with the orientation: learn the site from the detections and gate
     # by its ephemeris once they agree (:mod:`.selfsite`)
     learn_site: bool = True
-    # place the sun by the sky's rings instead of the rim once their fixes have agreed better
-    # with the ephemeris (with the site) or with the sun's own path (without it), on the
-    # frames before (a camera whose sky is a product: :mod:`.rings`)
+    # place the sun by the sky's rings too: between the rim's fix and theirs as the frames
+    # before weigh them against the ephemeris (with the site), or by theirs once they fit
+    # the sun's own path better (without it); a camera whose sky is a product: :mod:`.rings`
     ring_locator: bool = True
     # place every sun the rings can, with no choice learned (the calibration's pass that fits
     # the rings' own rotation: :mod:`controller.calibration.fisheye_sun_calibration`)

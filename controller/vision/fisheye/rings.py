@@ -10,10 +10,11 @@ without extrapolating to it; the glare's own profile, read about an axis ``eps``
 sun's, adds ``-d ln P / d chi`` times ``eps`` (as in :func:`.skybg.sky_by_elevation`, there
 in light).  Where the rim is the lens's glare, whose halo fills the inner rings without the
 gradation, the same fit is 0.03-0.12 deg off; no frame tells the two apart
-(docs/fisheye-rounds.md, a twenty-fourth round), so the choice is the camera's, learned
-from the ephemeris when the bundle has the site (:class:`LocatorChoice`).  A cloud in the
-rings leaves only the rim; where the rings are the choice, its fix is then moved by its
-offset from theirs at that elevation, learned where both placed the sun
+(docs/fisheye-rounds.md, a twenty-fourth round), so where the sun lies between the two
+fixes is the camera's to learn, from the ephemeris when the bundle has the site (a weight
+by elevation, :class:`LocatorChoice`), else from the sun's own path (a choice).  A cloud in
+the rings leaves only the rim; where the rings weigh, its fix is then moved by that share
+of its offset from theirs at that elevation, learned where both placed the sun
 (:meth:`LocatorChoice.rim_as_rings`).
 
 Conventions: ``eps`` along the tangent vectors (e1, e2) at the reading's axis (rad); ray
@@ -39,10 +40,15 @@ MAX_CLIP_ROUNDS = 8
 #: rim's fix of the pass before (deg): the product sky's correction of the rim is 0.2 deg at
 #: most on the third renderer's clear days
 MAX_SHIFT_DEG = 0.3
-#: the rings are chosen once the sum or the median of their squared angles to the sun is
-#: under this share of the rim's, over this many frames at least (:class:`LocatorChoice`)
+#: without the site, the rings are chosen once their squared RMS about their own site is
+#: under this share of the rim's (:meth:`LocatorChoice.observe_path`); with it the weight
+#: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`)
 LEAD, MIN_FRAMES = 0.5, 2
-#: where the rings are the choice but place no sun, the rim's fix is moved by its median
+#: the weight is learned from the frames within BAND_DEG of the sun's elevation, at least
+#: MIN_BAND of them (else from all kept); frames whose blended fix is farther from the sun
+#: than TRIM_K times the median are left out (:func:`blend_weight`)
+BAND_DEG, MIN_BAND, TRIM_K = 4.0, 4, 3.0
+#: where the rings weigh but place no sun, the rim's fix is moved by (its weight of) its median
 #: offset from the rings' on the frames both placed, the sun within this many degrees of
 #: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`)
 OFFSET_EL_DEG, MIN_OFFSETS = 2.0, 3
@@ -171,20 +177,40 @@ def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None
     return d / np.linalg.norm(d)
 
 
+def blend_weight(rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rounds: int = 5) -> float:
+    """The weight ``w`` in [0, 1] whose fixes ``rim + w (rings - rim)`` lie closest to the
+    sun, by least squares; ``rim``, ``rings``: (n, 3) each fix less the sun's direction (ENU).
+    Frames whose blended fix lies farther than ``trim_k`` times the median are left out and
+    the weight refitted, ``rounds`` times at most: under broken cloud both fixes can be
+    0.5-1 deg off, and those frames alone had set the weight (the third renderer's clouds:
+    the clear reference after them 0.028 -> 0.066 deg untrimmed)."""
+    dg = rings - rim
+    keep = np.ones(len(rim), bool)
+    w = 0.0
+    for _ in range(rounds):
+        den = float(np.sum(dg[keep] * dg[keep]))
+        w = min(max(-float(np.sum(rim[keep] * dg[keep])) / max(den, 1e-18), 0.0), 1.0)
+        res = np.linalg.norm(rim + w * dg, axis=1)
+        new = res <= trim_k * float(np.median(res))
+        if (new == keep).all() or not new.any():
+            break
+        keep = new
+    return w
+
+
 class LocatorChoice:
-    """Which of the rim and the rings places this camera's sun better, learned from the
-    ephemeris: each fix's squared angle to the sun over the last ``window`` frames where both
-    were measured and within ``max_deg`` of it, compared by their sums and by their medians.
-    A frame's fix is chosen from the frames before it, so the ephemeris never picks a
-    frame's own answer.  The choice is the camera's (its sky's, its glare's): it is kept
-    across sequences.  The rings lead when they lead by either measure: the sums see a rim
-    that is good on most frames and far off on some (the second renderer's power-law look:
-    0.0468 deg by the sums' choice, 0.0696 by the medians'); the medians see through a few
-    frames under broken cloud where both fixes are 0.5-1 deg off, which had outweighed a
-    clear sky's ordinary frames and handed a clear afternoon to the rim (the third
-    renderer's clouds: the clear reference 0.125 deg by the sums' choice, 0.027 by the
-    medians').  The rim has settled only when it leads by both.  Each frame where both
-    placed the sun also keeps the rim's offset from the rings (:meth:`rim_as_rings`).
+    """Where between the rim's fix and the rings' this camera's sun lies, learned from the
+    ephemeris: a weight ``w`` (0 the rim, 1 the rings; :func:`blend_weight`) fitted to the
+    frames before where both were measured within ``max_deg`` of the sun, those within
+    :data:`BAND_DEG` of the frame's elevation.  A frame's fix is placed from the frames before
+    it, so the ephemeris never picks a frame's own answer.  The weight is the camera's (its
+    sky's, its glare's): it is kept across sequences.  A weight, not a choice, because the
+    two can err on either side of the sun: the second renderer's wide glare reads 0.03-0.18
+    deg low by the rim and 0.06-0.25 high by the rings (weight 0.18; 0.0461 -> 0.0397 deg),
+    and the split changes with the elevation (its CIE sky 15: 0.0252 -> 0.0200 by the band's
+    weight, 0.0248 by one weight for all); a sky that is a product reads right by the rings
+    (the third renderer: 0.92-1.0).  Each frame where both placed the sun also keeps the
+    rim's offset from the rings (:meth:`rim_as_rings`).
     """
 
     def __init__(
@@ -198,12 +224,13 @@ class LocatorChoice:
         always: bool = False,
         prior: str | None = None,
     ):
-        self._sq: deque[tuple[float, float]] = deque(maxlen=window)
+        # each fix less the sun's direction (ENU) with the sun's elevation (deg), both measured
+        self._err: deque[tuple[float, np.ndarray, np.ndarray]] = deque(maxlen=4 * window)
         self._always = always  # the rings, wherever they place the sun (no choice learned)
         self._prior = prior == "rings"  # the calibration day's choice, until frames have chosen
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
-        self._kept: tuple[tuple[float, float], tuple[float, float]] | None = None
+        self._all_w: float | None = None  # the weight over every frame kept (until the next)
         # the rim's fix less the rings', along the vertical and across it (rad), by elevation (deg)
         self._offsets: deque[tuple[float, float, float]] = deque(maxlen=4 * window)
         # without the site: sights of both fixes (t, rim ENU, rings ENU), and the squared RMS
@@ -222,26 +249,29 @@ class LocatorChoice:
         prior = None if orientation is None else orientation.locator
         return cls(always=gates.rings_always, prior=prior)
 
-    def _measures(self) -> tuple[tuple[float, float], tuple[float, float]]:
-        """The rim's and the rings' squared angles (deg^2): their sums, then their medians
-        (kept until the next frame is counted: each frame asks twice)."""
-        if self._kept is None:
-            sq = np.array(self._sq)
-            sums = (float(sq[:, 0].sum()), float(sq[:, 1].sum()))
-            self._kept = sums, (float(np.median(sq[:, 0])), float(np.median(sq[:, 1])))
-        return self._kept
+    def weight(self, el_deg: float | None = None) -> float:
+        """The weight of the rings' fix (0 the rim's, 1 the rings'; :func:`blend_weight`) over
+        the frames within :data:`BAND_DEG` of ``el_deg``, or over all kept when they are fewer
+        than :data:`MIN_BAND` (or ``el_deg`` is None); before ``min_frames`` frames, as the
+        calibration day chose (``prior``); always 1 when so constructed (``always``)."""
+        if self._always:
+            return 1.0
+        if len(self._err) < max(self._min, 1):
+            return 1.0 if self._prior else 0.0
+        if el_deg is not None:
+            near = [e for e in self._err if abs(e[0] - el_deg) <= BAND_DEG]
+            if len(near) >= MIN_BAND:
+                return blend_weight(np.array([e[1] for e in near]), np.array([e[2] for e in near]))
+        if self._all_w is None:
+            err = self._err
+            self._all_w = blend_weight(np.array([e[1] for e in err]), np.array([e[2] for e in err]))
+        return self._all_w
 
     @property
     def rings(self) -> bool:
-        """True when the rings' fixes have agreed with the sun better than the rim's, their
-        sum or their median of squares under ``lead`` times the rim's, over ``min_frames``
-        frames at least; before that, as the calibration day chose (``prior``); always True
-        when so constructed (``always``)."""
-        if self._always:
-            return True
-        if len(self._sq) < max(self._min, 1):
-            return self._prior
-        return any(rings < self._lead * rim for rim, rings in self._measures())
+        """True when the rings' fix weighs at least half over every frame kept
+        (:meth:`weight`)."""
+        return self.weight() >= 0.5
 
     @property
     def path_rings(self) -> bool:
@@ -290,18 +320,20 @@ class LocatorChoice:
 
     @property
     def rim_settled(self) -> bool:
-        """The rim has led on ``settled`` frames at least, by half the rings' squares in sum
-        and in median: the rings are then read on one frame in ``every`` only (they cost
-        0.3 ms a frame)."""
-        if self._always or len(self._sq) < max(self._settled, 1):
+        """The rings have weighed nothing over ``settled`` frames at least: they are then read
+        only on frames whose elevation gives them a weight, and on one frame in ``every``
+        (they cost 0.3 ms a frame)."""
+        if self._always or len(self._err) < max(self._settled, 1):
             return False
-        return all(rim < 0.5 * rings for rim, rings in self._measures())
+        return self.weight() == 0.0
 
-    def observe(self, rim_deg: float, rings_deg: float) -> None:
-        """Count one frame's two fixes by their angles to the sun (deg)."""
-        if rim_deg <= self._max and rings_deg <= self._max:
-            self._sq.append((rim_deg * rim_deg, rings_deg * rings_deg))
-            self._kept = None
+    def observe(self, el_deg: float, rim: np.ndarray, rings: np.ndarray, sun: np.ndarray) -> None:
+        """Count one frame's two fixes ``rim``, ``rings`` (ENU) against the ``sun``'s direction
+        at elevation ``el_deg`` (deg), where both lie within ``max_deg`` of it."""
+        lim = math.cos(math.radians(self._max))
+        if float(rim @ sun) >= lim and float(rings @ sun) >= lim:
+            self._err.append((el_deg, rim - sun, rings - sun))
+            self._all_w = None
 
     def place(
         self,
@@ -312,49 +344,54 @@ class LocatorChoice:
         lens: Any,
         t: float | None = None,
     ) -> Any:
-        """``cand`` (a :class:`.default.Candidate`), placed by its rings when this camera's
-        choice is the rings and their fix passes every gate of ``gates`` (:class:`.gates.Gate`;
-        the ephemeris's among them); the frame counts towards the choice either way.  Where
-        the rings are the choice but place no sun (a cloud in them) or not within the gates,
-        the rim's fix less its offset from the rings' (:meth:`rim_as_rings`).  Without the
-        ephemeris's gate (no site) the frame at POSIX ``t`` counts as sights of the sun's path
-        instead (:meth:`observe_path`).  ``R``: ENU from camera; ``lens``
+        """``cand`` (a :class:`.default.Candidate`), placed at the camera's weight between its
+        rim's fix and its rings' (:meth:`weight`) when that passes every gate of ``gates``
+        (:class:`.gates.Gate`; the ephemeris's among them); the frame counts towards the weight
+        either way.  Where the rings weigh but place no sun (a cloud in them) or not within the
+        gates, the rim's fix moved by that weight of its offset from the rings'
+        (:meth:`rim_as_rings`).  Without the ephemeris's gate (no site) the weight is 0 or 1,
+        as the sun's path chooses (:attr:`path_rings`), and the frame at POSIX ``t`` counts as
+        sights of that path (:meth:`observe_path`).  ``R``: ENU from camera; ``lens``
         (:class:`.lens.FisheyeLens`) puts the fix's centre in the image."""
         reading = cand.fit.sky_reading
         gate = next((g for g in gates if g.name == "ephemeris"), None)
         if cand.d_enu is None or R is None or up_cam is None or (gate is None and t is None):
             return cand
-        # chosen from the frames before: never from this frame's fixes
-        d, use = None, self.rings if gate is not None else self.path_rings
+        # weighed from the frames before: never from this frame's fixes
+        d, w = None, self.weight(float(cand.el_deg)) if gate is not None else float(self.path_rings)
         if reading is not None:
             self._frames += 1
-            if self.rim_settled and self._frames % self._every:
+            if w == 0.0 and self.rim_settled and self._frames % self._every:
                 return cand
             d = ring_direction(reading, up_cam)
         if d is not None:
             d_enu = R @ d
             if gate is not None:
-                self.observe(gate.distance_deg(cand.d_enu), gate.distance_deg(d_enu))
+                self.observe(float(cand.el_deg), cand.d_enu, d_enu, gate.centre)
             elif t is not None:
                 self.observe_path(float(t), cand.d_enu, d_enu)
             v, h = _vertical_basis(d, up_cam)
             el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
             self._offsets.append((el, float((cand.d_cam - d) @ v), float((cand.d_cam - d) @ h)))
-            if use and self._within(d, R, gates):
-                return self._placed(cand, d, R, lens, "ring_locator")
-        if use:
+            fix = _between(cand.d_cam, d, w)
+            if w > 0.0 and self._within(fix, R, gates):
+                return self._placed(cand, fix, R, lens, "ring_locator")
+        if w > 0.0:
             moved = self.rim_as_rings(cand.d_cam, float(cand.el_deg), up_cam)
-            if moved is not None and self._within(moved, R, gates):
-                return self._placed(cand, moved, R, lens, "rim_by_rings")
+            if moved is not None:
+                fix = _between(cand.d_cam, moved, w)
+                if self._within(fix, R, gates):
+                    return self._placed(cand, fix, R, lens, "rim_by_rings")
         return cand
 
     def rim_as_rings(self, rim: np.ndarray, el_deg: float, up_cam: np.ndarray) -> np.ndarray | None:
         """The rim's fix ``rim`` (camera frame) less its median offset from the rings' fixes
         on the frames before where both placed the sun within :data:`OFFSET_EL_DEG` of
-        ``el_deg`` (deg), or None with fewer than :data:`MIN_OFFSETS` of them.  Where the
-        rings read the sun better, the rim's error is mostly its sky model's, which keeps its
-        size and sign at an elevation: the third renderer's clouds with the site, 0.240 ->
-        0.21 deg RMS, where 187 suns the rings did not place read 0.316 by the rim."""
+        ``el_deg`` (deg), or None with fewer than :data:`MIN_OFFSETS` of them (the caller
+        moves the rim by its weight of that).  Where the rings read the sun better, the rim's
+        error is mostly its sky model's, which keeps its size and sign at an elevation: the
+        third renderer's clouds with the site, 0.240 -> 0.21 deg RMS, where 187 suns the rings
+        did not place read 0.316 by the rim."""
         near = [(dv, dh) for el, dv, dh in self._offsets if abs(el - el_deg) <= OFFSET_EL_DEG]
         if len(near) < MIN_OFFSETS:
             return None
@@ -379,6 +416,12 @@ class LocatorChoice:
         el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
         fit = replace(cand.fit, flags=[*cand.fit.flags, flag], centre_uv=(float(uv[0, 0]), float(uv[0, 1])))
         return replace(cand, fit=fit, d_cam=d, d_enu=d_enu, el_deg=el)
+
+
+def _between(a: np.ndarray, b: np.ndarray, w: float) -> np.ndarray:
+    """The unit direction ``w`` of the way from ``a`` to ``b`` (both unit vectors)."""
+    d = a + w * (b - a)
+    return d / np.linalg.norm(d)
 
 
 def _vertical_basis(d: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

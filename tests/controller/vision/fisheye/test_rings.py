@@ -8,7 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.rings import LocatorChoice, SkyReading, log_ring_offset, ring_direction
+from controller.vision.fisheye.rings import (
+    LocatorChoice,
+    SkyReading,
+    blend_weight,
+    log_ring_offset,
+    ring_direction,
+)
 
 RHO = math.radians(5.0)  # the rim's radius
 A = np.array([0.0, 0.0, 1.0])  # the reading's axis
@@ -126,65 +132,81 @@ def _angle_deg(a, b) -> float:
     return math.degrees(math.acos(min(1.0, float(a @ b) / float(np.linalg.norm(a) * np.linalg.norm(b)))))
 
 
-def test_the_choice_follows_the_fixes_that_agree_with_the_sun_and_not_a_frames_own():
-    c = LocatorChoice(window=4)  # the rings once they lead by half in sum or median of squares
-    assert not c.rings
-    c.observe(0.10, 0.02)
-    assert not c.rings  # one frame is no evidence
-    c.observe(0.10, 0.09)
-    assert c.rings  # sums 0.0085 against 0.02
-    c.observe(0.01, 0.2)
-    assert not c.rings  # sums 0.0485 against 0.0201, medians 0.0081 against 0.01
-    c.observe(2.0, 0.0)  # a fix beyond the gate: not counted
-    assert not c.rings
-    for _ in range(4):
-        c.observe(0.05, 0.035)  # the window forgets the first frames: 0.001225 against 0.0025
-    assert c.rings
-    c.observe(0.9, 0.95)  # a cloud's frame, both fixes far off: the sums would hand it to the rim
-    assert c.rings  # the medians do not
-    c.observe(0.05, 0.04)
-    c.observe(0.05, 0.04)  # medians 0.0016 against 0.0025: no longer under half
-    assert not c.rings
+def _enu(az_deg: float, el_deg: float) -> np.ndarray:
+    az, el = math.radians(az_deg), math.radians(el_deg)
+    return np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
+
+
+def _frame(c: LocatorChoice, el: float, rim_dv: float, rings_dv: float, across: float = 0.0) -> None:
+    """One frame at elevation ``el`` whose rim and rings read the sun ``rim_dv`` and
+    ``rings_dv`` deg high (both ``across`` deg east of it)."""
+    c.observe(el, _enu(180.0 - across, el + rim_dv), _enu(180.0 - across, el + rings_dv), _enu(180.0, el))
+
+
+def test_the_weight_is_where_between_the_two_fixes_the_sun_lies():
+    rim = np.array([[0.0, -0.001, 0.0]] * 5)  # 0.057 deg low
+    assert blend_weight(rim, rim + [0.0, 0.005, 0.0]) == pytest.approx(0.2)  # rings 0.23 high
+    assert blend_weight(rim, rim + [0.0, 0.001, 0.0]) == pytest.approx(1.0)  # rings on the sun
+    assert blend_weight(rim, rim + [0.0, 0.0005, 0.0]) == 1.0  # beyond them: held at the rings
+    assert blend_weight(rim * 0.0, rim + [0.0, 0.005, 0.0]) == 0.0  # the rim on the sun
+    assert blend_weight(rim, rim * 0.0 + [0.0, -0.003, 0.0]) == 0.0  # rings further low: the rim
+    # a cloud's frame, both fixes 1 deg off across the vertical, does not set the weight
+    cloud = np.array([[0.0174, -0.001, 0.0]])
+    assert blend_weight(np.vstack([rim, cloud]), np.vstack([rim + [0, 0.005, 0], cloud + [0, 0.01, 0]])) == (
+        pytest.approx(0.2)
+    )
+    assert blend_weight(
+        np.vstack([rim, cloud]), np.vstack([rim + [0, 0.005, 0], cloud + [0, 0.01, 0]]), trim_k=math.inf
+    ) == pytest.approx(0.156, abs=1e-3)  # untrimmed it would
+
+
+def test_the_weight_is_learned_from_the_frames_before_by_elevation_and_not_a_frames_own():
+    c = LocatorChoice()
+    assert c.weight(20.0) == 0.0 and not c.rings  # nothing learned: the rim
+    _frame(c, 20.0, -0.05, 0.2)
+    assert c.weight(20.0) == 0.0  # one frame is no evidence
+    for el in (19.0, 20.5, 21.0):  # the rim 0.05 deg low at 20 deg, the rings 0.2 high
+        _frame(c, el, -0.05, 0.2)
+    assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    for el in (50.0, 51.0, 52.0, 53.0):  # at 50 deg the rings read the sun, the rim 0.1 low
+        _frame(c, el, -0.1, 0.0)
+    assert c.weight(51.0) == pytest.approx(1.0) and c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    assert c.weight(35.0) == c.weight() and 0.2 < c.weight() < 1.0  # no band there: all frames
+    _frame(c, 20.0, -1.5, 0.2)  # a fix beyond max_deg: the frame is not counted
+    assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    assert c.rings == (c.weight() >= 0.5)
     single = LocatorChoice(min_frames=1)
-    single.observe(0.10, 0.02)
-    assert single.rings
+    _frame(single, 20.0, -0.1, 0.0)
+    assert single.weight(20.0) == 1.0 and single.rings
 
 
-def test_a_rim_far_off_on_some_frames_hands_the_choice_to_the_rings_by_the_sums():
-    c = LocatorChoice(window=4)
-    for _ in range(3):
-        c.observe(0.02, 0.03)  # the rim better on most frames: medians 0.0004 against 0.0009
-    assert not c.rings
-    c.observe(0.5, 0.1)  # and far off on one: sums 0.2512 against 0.0127
-    assert c.rings
-
-
-def test_the_rings_are_read_less_once_the_rim_leads_by_far():
+def test_the_rings_are_read_less_once_they_weigh_nothing():
     c = LocatorChoice(window=8, settled=4)
     for _ in range(3):
-        c.observe(0.01, 0.05)
+        _frame(c, 30.0, 0.01, 0.05)  # the rim on the sun (0.01 high), the rings further
     assert not c.rim_settled  # three frames: too few
-    c.observe(0.01, 0.05)
+    _frame(c, 30.0, 0.01, 0.05)
     assert c.rim_settled and not c.rings
-    c.observe(0.8, 0.6)  # the rim far off once: no longer settled by its sum (rings read again)
-    assert not c.rim_settled and not c.rings
+    for _ in range(30):
+        _frame(c, 30.0, -0.05, 0.0)  # the rings on the sun now: they weigh again
+    assert not c.rim_settled and c.rings
 
 
 def test_a_choice_made_always_takes_the_rings_and_never_settles_on_the_rim():
     c = LocatorChoice(window=8, settled=4, always=True)  # the calibration's rings pass
-    assert c.rings  # before any frame
+    assert c.rings and c.weight(30.0) == 1.0  # before any frame
     for _ in range(8):
-        c.observe(0.01, 0.05)  # the rim far better: a learned choice would settle on it
-    assert c.rings and not c.rim_settled
+        _frame(c, 30.0, 0.01, 0.05)  # the rim far better: a learned weight would be 0
+    assert c.rings and c.weight(30.0) == 1.0 and not c.rim_settled
 
 
-def test_the_calibration_days_choice_holds_until_frames_have_chosen():
+def test_the_calibration_days_choice_holds_until_frames_have_weighed():
     c = LocatorChoice(window=4, prior="rings")  # a bundle's [orientation] locator = "rings"
-    assert c.rings  # from the first frame
-    c.observe(0.02, 0.10)
-    assert c.rings  # one frame is no evidence
-    c.observe(0.02, 0.10)
-    assert not c.rings  # two frames where the rim agreed better: learned
+    assert c.rings and c.weight(30.0) == 1.0  # from the first frame
+    _frame(c, 30.0, 0.02, 0.10)
+    assert c.weight(30.0) == 1.0  # one frame is no evidence
+    _frame(c, 30.0, 0.02, 0.10)
+    assert c.weight(30.0) == 0.0 and not c.rings  # two frames where the rim agreed better
     assert not LocatorChoice(prior="rim").rings and not LocatorChoice().rings
 
 
@@ -216,6 +238,21 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     tight = [*gates, _Gate("sequence", A, 0.05)]  # the rings' fix is 0.1 deg from the anchor
     assert c.place(cand, tight, R, up, _Lens()) is cand
     assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up, _Lens()) is cand  # no site: never
+
+
+def test_place_puts_the_sun_where_the_frames_before_weighed_it_between_the_fixes():
+    """A camera whose sun lies midway between its rim's fix and its rings' (the rim 0.05 deg
+    one way, the rings 0.05 the other, as a wide glare's): after two frames, midway."""
+    reading, up, R, rings_fix = _rings_of_a_sun_off_the_axis()  # the rings 0.1 deg off the rim
+    sun = A + rings_fix
+    sun /= np.linalg.norm(sun)
+    cand, gates = _Cand(_Fit(reading, []), A, A, 90.0), [_Gate("ephemeris", sun, 1.0)]
+    c = LocatorChoice()
+    assert c.place(cand, gates, R, up, _Lens()) is cand and c.place(cand, gates, R, up, _Lens()) is cand
+    assert c.weight(90.0) == pytest.approx(0.5, abs=0.01)  # the rings fix their sun to 0.0013 deg
+    mid = c.place(cand, gates, R, up, _Lens())
+    assert "ring_locator" in mid.fit.flags and _angle_deg(mid.d_enu, sun) < 2e-3
+    assert _angle_deg(A, sun) == pytest.approx(0.05, abs=1e-4)
 
 
 def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from_them():
