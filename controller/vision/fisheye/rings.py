@@ -40,6 +40,13 @@ MAX_CLIP_ROUNDS = 8
 #: rim's fix of the pass before (deg): the product sky's correction of the rim is 0.2 deg at
 #: most on the third renderer's clear days
 MAX_SHIFT_DEG = 0.3
+#: nor farther than this share of the rim's radius, where it is more than MAX_SHIFT_DEG
+#: (0.3 deg of a 4-deg rim): the sky's shift of the rim grows with the radius (the second
+#: renderer's 5-deg wide glare, rims of 5.6-6.4 deg: the rim's and the rings' fixes up to
+#: 0.43 deg apart, the sun between them); only where the rings are smoother than
+#: SMOOTH_ROUGHNESS (that glare's 0.035-0.042; the third renderer's cloudy rings, whose
+#: fixes it let in 0.29-0.49 deg off, 0.11-0.31)
+SHIFT_PER_RHO, SMOOTH_ROUGHNESS = 0.075, 0.1
 #: without the site, the rings are chosen once their squared RMS about their own site is
 #: under this share of the rim's (:meth:`LocatorChoice.observe_path`); with it the weight
 #: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`)
@@ -161,7 +168,8 @@ def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
 def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None:
     """The sun's direction placed by ``reading``'s rings (:func:`log_ring_offset`), or None
     when they are too few, too rough for a clear sky, or place it farther than
-    :data:`MAX_SHIFT_DEG` from the reading's axis.  ``up_cam``: the zenith in the camera frame."""
+    :data:`MAX_SHIFT_DEG` from the reading's axis (:data:`SHIFT_PER_RHO` of the rim's radius
+    when that is more and the rings are smooth).  ``up_cam``: the zenith in the camera frame."""
     r = reading
     rough = ring_roughness(r.vals, r.chi, r.phi, r.rho, r.rays_ok, r.sky, r.contrast)
     if rough is None or rough > MAX_ROUGHNESS:
@@ -171,7 +179,10 @@ def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None
     sin_el = np.cos(r.chi)[None, :] * up_a + np.sin(r.chi)[None, :] * dirs_up[:, None]
     x = (np.arcsin(np.clip(sin_el, -1.0, 1.0)) - math.asin(up_a)) / r.rho
     eps = log_ring_offset(r, x)
-    if eps is None or math.degrees(math.hypot(eps[0], eps[1])) > MAX_SHIFT_DEG:
+    bound = (
+        MAX_SHIFT_DEG if rough > SMOOTH_ROUGHNESS else max(MAX_SHIFT_DEG, SHIFT_PER_RHO * math.degrees(r.rho))
+    )
+    if eps is None or math.degrees(math.hypot(eps[0], eps[1])) > bound:
         return None
     d = r.axis + eps[0] * r.e1 + eps[1] * r.e2
     return d / np.linalg.norm(d)

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
+from controller.vision.fisheye import rings
 from controller.vision.fisheye.rings import (
     LocatorChoice,
     SkyReading,
@@ -90,6 +91,18 @@ def test_rough_rings_or_a_far_fix_place_nothing():
     assert ring_direction(SkyReading(cloud, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
     far = product_sky((math.radians(0.5), 0.0))[0]  # the rings put the sun 0.5 deg off the axis
     assert ring_direction(SkyReading(far, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
+
+
+def test_a_smooth_sky_lets_the_rings_move_a_wide_rim_by_its_share_of_the_radius(monkeypatch):
+    """0.3 deg at most, or 7.5 % of the rim's radius (5 deg here: 0.375) where the rings are
+    smooth: the sky's shift of a rim grows with its radius."""
+    vals, chi, phi, up, _ = product_sky((math.radians(0.35), 0.0))
+    reading = reading_of(vals, chi, phi)
+    d = ring_direction(reading, up)
+    want = A + math.radians(0.35) * E1
+    assert d is not None and _angle_deg(d, want) < 0.01
+    monkeypatch.setattr(rings, "SMOOTH_ROUGHNESS", 0.0)  # as if a cloud roughened them
+    assert ring_direction(reading, up) is None
 
 
 class _Lens:
