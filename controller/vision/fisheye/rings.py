@@ -44,8 +44,8 @@ MAX_SHIFT_DEG = 0.3
 #: (0.3 deg of a 4-deg rim): the sky's shift of the rim grows with the radius (the second
 #: renderer's 5-deg wide glare, rims of 5.6-6.4 deg: the rim's and the rings' fixes up to
 #: 0.43 deg apart, the sun between them); only where the rings are smoother than
-#: SMOOTH_ROUGHNESS (that glare's 0.035-0.042; the third renderer's cloudy rings, whose
-#: fixes it let in 0.29-0.49 deg off, 0.11-0.31)
+#: SMOOTH_ROUGHNESS (that glare's 0.035-0.042; it let in four of the third renderer's
+#: cloudy rings, at 0.11-0.31, two of them 0.29 and 0.49 deg off)
 SHIFT_PER_RHO, SMOOTH_ROUGHNESS = 0.075, 0.1
 #: without the site, the rings are chosen once their squared RMS about their own site is
 #: under this share of the rim's (:meth:`LocatorChoice.observe_path`); with it the weight
