@@ -49,10 +49,8 @@ MAX_SHIFT_DEG = 0.3
 SHIFT_PER_RHO, SMOOTH_ROUGHNESS = 0.075, 0.1
 #: without the site, the rings are chosen once their squared RMS about their own site is
 #: under this share of the rim's (:meth:`LocatorChoice.observe_path`); with it the weight
-#: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`):
-#: one frame's weight weighs the next (two had left a camera's second frame to the rim: the
-#: third renderer's 0.19 deg at 14.6 deg, the power-law aureole's 0.13)
-LEAD, MIN_FRAMES = 0.5, 1
+#: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`)
+LEAD, MIN_FRAMES = 0.5, 2
 #: the weight is learned from the frames within BAND_DEG of the sun's elevation, at least
 #: MIN_BAND of them (else from all kept); frames whose blended fix is farther from the sun
 #: than TRIM_K times the median are left out (:func:`blend_weight`)
