@@ -36,6 +36,8 @@ from .small import gradient, median
 
 #: rounds of clipping the fit's outliers (3 MADs; it stops once they stop changing)
 MAX_CLIP_ROUNDS = 8
+#: the rings' light by elevation has a knot every KNOT_DEG of elevation (:func:`_elevation_basis`)
+KNOT_DEG = 5.0
 #: the rings' fix is not used where it lies farther than this from the reading's axis, the
 #: rim's fix of the pass before (deg): the product sky's correction of the rim is 0.2 deg at
 #: most on the third renderer's clear days
@@ -55,6 +57,15 @@ LEAD, MIN_FRAMES = 0.5, 2
 #: MIN_BAND of them (else from all kept); frames whose blended fix is farther from the sun
 #: than TRIM_K times the median are left out (:func:`blend_weight`)
 BAND_DEG, MIN_BAND, TRIM_K = 4.0, 4, 3.0
+#: the weight before it is learned, for a camera whose calibration day did not choose (a
+#: surveyed bundle, no ``locator``): halfway, the least that either fix can be wrong by
+#: (a camera's second frame: the third renderer's rim 0.19 deg off, halfway 0.10-0.12; the
+#: second renderer's rings 0.23 off, halfway 0.10)
+UNKNOWN_PRIOR = 0.5
+#: and, until then, the rings move such a camera's rim by this much at most (deg): half the
+#: most a product sky's rings have moved a clear day's rim (0.2); where the glare is the
+#: lens's their fix can be 0.4 deg off (the HIL's bright auto-exposed sky: 0.19-0.21 halfway)
+UNKNOWN_MAX_MOVE_DEG = 0.1
 #: where the rings weigh but place no sun, the rim's fix is moved by (its weight of) its median
 #: offset from the rings' on the frames both placed, the sun within this many degrees of
 #: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`)
@@ -99,11 +110,13 @@ def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
 
     Model of each ray's mean of ``ln vals`` over each ring (:data:`.skybg.RING_EDGES`): a
     level per ring, ``-d ln P / d chi * (eps_1 cos phi + eps_2 sin phi)`` with ``P`` the
-    rings' mean profile, and ``c1 x + c2 x^2 + c3 x^3 + c4 x (chi / rho - 1)``, ``x`` each
-    sample's elevation less the axis's over ``rho`` (same shape as ``vals``).  Least squares,
-    clipped at 3 MADs until the kept rows stop changing.  A ray's ring counts where all its
-    samples are on the sky and positive; a ring needs 6 such rays, the fit 3 rings.  None
-    when there is too little sky.
+    rings' mean profile, and the sky's light by elevation (:func:`_elevation_basis`), ``x``
+    each sample's elevation less the axis's over ``rho`` (same shape as ``vals``).  Least
+    squares, clipped at 3 MADs until the kept rows stop changing; then once more with ``P``
+    read from the samples less the fitted light by elevation, whose curvature across a wide
+    ring otherwise leaks into ``P``'s slope and so into the scale of ``eps``.  A ray's ring
+    counts where all its samples are on the sky and positive; a ring needs 6 such rays, the
+    fit 3 rings.  None when there is too little sky.
     """
     vals, chi, phi, rho = reading.vals, reading.chi, reading.phi, reading.rho
     good = reading.sky & reading.rays_ok[:, None] & np.isfinite(vals) & (vals > 0.0)
@@ -113,7 +126,6 @@ def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
     n_col = good.sum(axis=0)
     if not (n_col > 0).all():
         return None
-    dprof = gradient((lv * good).sum(axis=0) / n_col, chi)
     edges = np.searchsorted(chi, np.array(RING_EDGES) * rho)
     lo, hi = edges[:-1], edges[1:]
     wide = hi - lo >= 2
@@ -132,24 +144,57 @@ def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
         return None
     ray, ring = np.nonzero(ok[:, used])
     k = used.size
-    # design: a level per ring (one-hot), the glare's shift, the cubic in x and its term in
-    # the ring's radius; solved by its normal equations (k + 6 unknowns, ~200 rows)
-    A = np.zeros((ray.size, k + 6))
+    basis = _elevation_basis(x, x[good], chi / rho, rho)
+    m = basis.shape[0]
+    # design: a level per ring (one-hot), the glare's shift, the light by elevation; solved
+    # by its normal equations (k + 2 + m unknowns, ~200 rows)
+    n_par = k + 2 + m
+    A = np.zeros((ray.size, n_par))
     A[np.arange(ray.size), ring] = 1.0
+    A[:, k + 2 :] = (ring_sums(basis)[:, :, used] / n[used])[:, ray, ring].T
     y = (ring_sums(lv)[:, used] / n[used])[ray, ring]
-    xx = (ring_sums(x)[:, used] / n[used])[ray, ring]
-    d = (ring_sums(dprof) / n)[used][ring]
-    A[:, k] = -d * np.cos(phi)[ray]
-    A[:, k + 1] = -d * np.sin(phi)[ray]
-    A[:, k + 2] = xx
-    A[:, k + 3] = xx * xx
-    A[:, k + 4] = A[:, k + 3] * xx
-    A[:, k + 5] = xx * (ring_sums(chi) / n / rho - 1.0)[used][ring]
-    n_par = k + 6
     if y.size < 2 * n_par:
         return None
+
+    def solve(lv_of: np.ndarray) -> np.ndarray | None:
+        d = (ring_sums(gradient((lv_of * good).sum(axis=0) / n_col, chi)) / n)[used][ring]
+        A[:, k] = -d * np.cos(phi)[ray]
+        A[:, k + 1] = -d * np.sin(phi)[ray]
+        return _clipped_solve(A, y)
+
+    sol = solve(lv)
+    if sol is not None:  # again, P read less the light by elevation fitted
+        sol = solve(lv - np.tensordot(sol[k + 2 :], basis, axes=1))
+    return None if sol is None else sol[k : k + 2]
+
+
+def _elevation_basis(x: np.ndarray, x_sky: np.ndarray, c: np.ndarray, rho: float) -> np.ndarray:
+    """Columns (first axis) of the rings' light by elevation at samples ``x`` (elevation less
+    the axis's, over ``rho``; ``c``: the rings' ``chi / rho``): a cubic in ``x`` with a knot
+    every :data:`KNOT_DEG` of elevation over ``x_sky``'s span (the samples on the sky), and
+    ``x (c - 1)`` for the glare's share of the inner rings, which dims the gradation there.
+    A clear sky's gradation ``1 + a exp(b / cos Z)`` bends hardest 5-15 deg up; a wide glare's
+    rings span 40 deg of it, which one cubic leaves 0.03-0.3 deg off the sun in log light
+    alone (a product sky drawn on the third renderer's rings at 8-35 deg: 0.035 deg RMS with
+    Perez's gradation, 0.134 with CIE sky 12's; 0.0037 and 0.0055 with the knots)."""
+    step = math.radians(KNOT_DEG) / rho
+    knots = np.arange(float(x_sky.min()) + step, float(x_sky.max()) - step / 2, step)
+    out = np.empty((4 + knots.size, *x.shape))  # columns first: each a contiguous plane
+    out[0] = x
+    np.multiply(x, x, out=out[1])
+    np.multiply(out[1], x, out=out[2])
+    np.multiply(x, c[None, :] - 1.0, out=out[3])
+    if knots.size:
+        np.maximum(x[None] - knots[:, None, None], 0.0, out=out[4:])
+        out[4:] **= 3
+    return out
+
+
+def _clipped_solve(A: np.ndarray, y: np.ndarray) -> np.ndarray | None:
+    """Least squares of ``A sol = y`` by the normal equations, the rows more than 3 MADs off
+    left out until they stop changing (:data:`MAX_CLIP_ROUNDS`); None when singular."""
     keep = np.ones(y.size, bool)
-    sol = np.zeros(n_par)
+    sol = np.zeros(A.shape[1])
     for _ in range(MAX_CLIP_ROUNDS):
         Ak = A[keep]
         try:
@@ -159,10 +204,10 @@ def log_ring_offset(reading: SkyReading, x: np.ndarray) -> np.ndarray | None:
         res = np.abs(y - A @ sol)
         mad = 1.4826 * median(res[keep]) + 1e-9
         new = res <= 3.0 * mad
-        if (new == keep).all() or int(np.count_nonzero(new)) < 2 * n_par:
+        if (new == keep).all() or int(np.count_nonzero(new)) < 2 * A.shape[1]:
             break
         keep = new
-    return sol[k : k + 2]
+    return sol
 
 
 def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None:
@@ -238,7 +283,8 @@ class LocatorChoice:
         # each fix less the sun's direction (ENU) with the sun's elevation (deg), both measured
         self._err: deque[tuple[float, np.ndarray, np.ndarray]] = deque(maxlen=4 * window)
         self._always = always  # the rings, wherever they place the sun (no choice learned)
-        self._prior = prior == "rings"  # the calibration day's choice, until frames have chosen
+        # the calibration day's choice (rings 1, rim 0; none: halfway) until frames have chosen
+        self._prior = {"rings": 1.0, "rim": 0.0}.get(prior or "", UNKNOWN_PRIOR)
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
         self._all_w: float | None = None  # the weight over every frame kept (until the next)
@@ -268,7 +314,7 @@ class LocatorChoice:
         if self._always:
             return 1.0
         if len(self._err) < max(self._min, 1):
-            return 1.0 if self._prior else 0.0
+            return self._prior
         if el_deg is not None:
             near = [e for e in self._err if abs(e[0] - el_deg) <= BAND_DEG]
             if len(near) >= MIN_BAND:
@@ -286,15 +332,20 @@ class LocatorChoice:
 
     @property
     def path_rings(self) -> bool:
-        """Without the site: True when a site fitted to the rings' sights leaves under
-        ``lead`` times the squared RMS of one fitted to the rim's (:meth:`observe_path`);
-        before they are compared, as the calibration day chose (``prior``)."""
+        """Without the site: True when the rings' fix is taken (:meth:`path_weight` over half)."""
+        return self.path_weight() > 0.5
+
+    def path_weight(self) -> float:
+        """Without the site, the weight of the rings' fix: 1 when a site fitted to the rings'
+        sights leaves under ``lead`` times the squared RMS of one fitted to the rim's, else 0
+        (:meth:`observe_path`); before they are compared, as the calibration day chose
+        (``prior``)."""
         if self._always:
-            return True
+            return 1.0
         if self._path_sq is None:
             return self._prior
         rim, rings = self._path_sq
-        return rings < self._lead * rim
+        return float(rings < self._lead * rim)
 
     def observe_path(self, t: float, rim_enu: np.ndarray, rings_enu: np.ndarray) -> None:
         """Count one frame's two fixes (ENU) as sights of the sun at POSIX ``t``, without the
@@ -329,6 +380,10 @@ class LocatorChoice:
         if math.isfinite(min(sq)):
             self._path_sq = (sq[0], sq[1])
 
+    def _learned(self, with_site: bool) -> bool:
+        """Whether frames have set :meth:`weight` (with the site) or :meth:`path_weight`."""
+        return len(self._err) >= max(self._min, 1) if with_site else self._path_sq is not None
+
     @property
     def rim_settled(self) -> bool:
         """The rings have weighed nothing over ``settled`` frames at least: they are then read
@@ -361,7 +416,7 @@ class LocatorChoice:
         either way.  Where the rings weigh but place no sun (a cloud in them) or not within the
         gates, the rim's fix moved by that weight of its offset from the rings'
         (:meth:`rim_as_rings`).  Without the ephemeris's gate (no site) the weight is 0 or 1,
-        as the sun's path chooses (:attr:`path_rings`), and the frame at POSIX ``t`` counts as
+        as the sun's path chooses (:meth:`path_weight`; the prior until it has), and the frame at POSIX ``t`` counts as
         sights of that path (:meth:`observe_path`).  ``R``: ENU from camera; ``lens``
         (:class:`.lens.FisheyeLens`) puts the fix's centre in the image."""
         reading = cand.fit.sky_reading
@@ -369,7 +424,7 @@ class LocatorChoice:
         if cand.d_enu is None or R is None or up_cam is None or (gate is None and t is None):
             return cand
         # weighed from the frames before: never from this frame's fixes
-        d, w = None, self.weight(float(cand.el_deg)) if gate is not None else float(self.path_rings)
+        d, w = None, self.weight(float(cand.el_deg)) if gate is not None else self.path_weight()
         if reading is not None:
             self._frames += 1
             if w == 0.0 and self.rim_settled and self._frames % self._every:
@@ -377,6 +432,9 @@ class LocatorChoice:
             d = ring_direction(reading, up_cam)
         if d is not None:
             d_enu = R @ d
+            if self._prior == UNKNOWN_PRIOR and not self._learned(gate is not None):
+                apart = math.degrees(math.acos(min(1.0, float(cand.d_cam @ d))))
+                w = min(w, UNKNOWN_MAX_MOVE_DEG / max(apart, 1e-9))
             if gate is not None:
                 self.observe(float(cand.el_deg), cand.d_enu, d_enu, gate.centre)
             elif t is not None:

@@ -22,13 +22,21 @@ A = np.array([0.0, 0.0, 1.0])  # the reading's axis
 E1, E2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])
 
 
-def product_sky(eps: tuple[float, float], el_deg: float = 30.0, seed: int = 0, additive: bool = False):
-    """Rings 1.15-3.2 rim radii about ``A`` of a sky whose light is a circumsolar indicatrix
-    times a Perez-like gradation (or, ``additive``, the two summed), the sun ``eps`` (rad,
-    along E1, E2) off the axis; the zenith towards E2 at ``el_deg`` of the axis's elevation."""
+def product_sky(
+    eps: tuple[float, float],
+    el_deg: float = 30.0,
+    seed: int = 0,
+    additive: bool = False,
+    gradation_ab: tuple[float, float] = (2.0, -0.3),
+    rho: float = RHO,
+):
+    """Rings 1.15-3.2 rim radii (``rho``, rad) about ``A`` of a sky whose light is a
+    circumsolar indicatrix times a gradation ``1 + a exp(b / cos Z)`` (``gradation_ab``; or,
+    ``additive``, the two summed), the sun ``eps`` (rad, along E1, E2) off the axis; the
+    zenith towards E2 at ``el_deg`` of the axis's elevation."""
     rng = np.random.default_rng(seed)
     phi = np.arange(36) * (2 * math.pi / 36)
-    chi = np.arange(1.15 * RHO, 3.2 * RHO + 1e-9, 0.05 * RHO)
+    chi = np.arange(1.15 * rho, 3.2 * rho + 1e-9, 0.05 * rho)
     e = math.radians(el_deg)
     up = math.sin(e) * A + math.cos(e) * E2
     sun = A + eps[0] * E1 + eps[1] * E2
@@ -37,11 +45,11 @@ def product_sky(eps: tuple[float, float], el_deg: float = 30.0, seed: int = 0, a
     d = np.cos(chi)[None, :, None] * A + np.sin(chi)[None, :, None] * dirs[:, None, :]
     gamma = np.arccos(np.clip(d @ sun, -1, 1))
     cos_z = np.clip(d @ up, 1e-3, 1.0)
-    indicatrix = 1.0 + 40.0 * (gamma / RHO) ** -2.2
-    gradation = 1.0 + 2.0 * np.exp(-0.3 / cos_z)
+    indicatrix = 1.0 + 40.0 * (gamma / rho) ** -2.2
+    gradation = 1.0 + gradation_ab[0] * np.exp(gradation_ab[1] / cos_z)
     light = indicatrix + 10.0 * gradation if additive else indicatrix * gradation
     vals = 30.0 * light * (1.0 + rng.normal(0.0, 0.002, light.shape))
-    x = (np.arcsin(d @ up) - math.asin(float(A @ up))) / RHO
+    x = (np.arcsin(d @ up) - math.asin(float(A @ up))) / rho
     return vals, chi, phi, up, x
 
 
@@ -69,6 +77,22 @@ def test_the_rings_place_the_sun_in_a_product_sky(eps_deg, el_deg):
     assert math.degrees(math.acos(min(1.0, float(d @ (want / np.linalg.norm(want)))))) < 0.01
 
 
+@pytest.mark.parametrize("el_deg", [12.0, 16.0, 20.0])
+def test_a_wide_glares_rings_follow_a_clear_skys_gradation_down_to_the_horizon(monkeypatch, el_deg):
+    """A 7-deg rim's rings span 40 deg of CIE sky 12's gradation (a = -1, b = -0.32), which
+    bends hardest near the horizon: the knots every 5 deg of elevation place a sun 0.2 deg
+    off the axis to 0.01 deg; one cubic, as before them, leaves it 0.018-0.16 deg off."""
+    rho, eps = math.radians(7.0), (0.0, math.radians(0.2))
+    vals, chi, phi, up, x = product_sky(eps, el_deg, gradation_ab=(-1.0, -0.32), rho=rho)
+    sky = (np.cos(chi)[None, :] * up[2] + np.sin(chi)[None, :] * np.sin(phi)[:, None] * up[1]) > 0
+    reading = SkyReading(vals, chi, phi, rho, np.ones(phi.size, bool), sky, A, E1, E2, 6000.0)
+    got = log_ring_offset(reading, x)
+    assert got is not None and np.degrees(np.abs(got - np.array(eps))).max() < 0.01
+    monkeypatch.setattr(rings, "KNOT_DEG", 1e3)  # no knot: one cubic over the rings
+    one_cubic = log_ring_offset(reading, x)
+    assert one_cubic is not None and math.degrees(abs(float(one_cubic[1]) - eps[1])) > 0.015
+
+
 def test_in_an_additive_sky_the_rings_are_off_which_is_why_the_choice_is_learned():
     vals, chi, phi, up, x = product_sky((0.0, 0.0), 30.0, additive=True)
     got = log_ring_offset(reading_of(vals, chi, phi), x)
@@ -83,12 +107,19 @@ def test_too_little_sky_places_nothing():
     assert log_ring_offset(reading_of(np.zeros_like(vals), chi, phi), x) is None  # no light
 
 
-def test_rough_rings_or_a_far_fix_place_nothing():
+def test_rough_rings_or_a_far_fix_place_nothing_and_a_small_cloud_is_left_out():
     vals, chi, phi, up, x = product_sky((0.0, 0.0))
     ok, sky = np.ones(phi.size, bool), np.ones(vals.shape, bool)
-    cloud = vals.copy()
-    cloud[5:12, chi > 2.0 * RHO] *= 0.4  # a cloud over part of the outer rings
-    assert ring_direction(SkyReading(cloud, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
+
+    def clouded(rays: slice, factor: float) -> SkyReading:
+        cloud = vals.copy()
+        cloud[rays, chi > 2.0 * RHO] *= factor  # a cloud over part of the outer rings
+        return SkyReading(cloud, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0)
+
+    small = ring_direction(clouded(np.s_[5:12], 0.4), up)  # its rays clipped from the fit
+    assert small is not None and _angle_deg(small, A) < 0.01
+    assert ring_direction(clouded(np.s_[0:18], 0.4), up) is None  # half the rings: 1.2 deg off
+    assert ring_direction(clouded(np.s_[0:36:2], 0.2), up) is None  # rougher than a clear sky
     far = product_sky((math.radians(0.5), 0.0))[0]  # the rings put the sun 0.5 deg off the axis
     assert ring_direction(SkyReading(far, chi, phi, RHO, ok, sky, A, E1, E2, 6000.0), up) is None
 
@@ -175,9 +206,9 @@ def test_the_weight_is_where_between_the_two_fixes_the_sun_lies():
 
 def test_the_weight_is_learned_from_the_frames_before_by_elevation_and_not_a_frames_own():
     c = LocatorChoice()
-    assert c.weight(20.0) == 0.0 and not c.rings  # nothing learned: the rim
+    assert c.weight(20.0) == rings.UNKNOWN_PRIOR == 0.5  # nothing learned, nor chosen: halfway
     _frame(c, 20.0, -0.05, 0.2)
-    assert c.weight(20.0) == 0.0  # one frame is no evidence
+    assert c.weight(20.0) == 0.5  # one frame is no evidence
     for el in (19.0, 20.5, 21.0):  # the rim 0.05 deg low at 20 deg, the rings 0.2 high
         _frame(c, el, -0.05, 0.2)
     assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
@@ -220,7 +251,8 @@ def test_the_calibration_days_choice_holds_until_frames_have_weighed():
     assert c.weight(30.0) == 1.0  # one frame is no evidence
     _frame(c, 30.0, 0.02, 0.10)
     assert c.weight(30.0) == 0.0 and not c.rings  # two frames where the rim agreed better
-    assert not LocatorChoice(prior="rim").rings and not LocatorChoice().rings
+    assert LocatorChoice(prior="rim").weight(30.0) == 0.0 and not LocatorChoice(prior="rim").rings
+    assert LocatorChoice().weight(30.0) == 0.5 and not LocatorChoice().path_rings  # no choice made
 
 
 def _rings_of_a_sun_off_the_axis():
@@ -238,7 +270,7 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     reading, up, R, sun = _rings_of_a_sun_off_the_axis()
 
     cand = _Cand(_Fit(reading, []), A, A, 90.0)
-    c = LocatorChoice()
+    c = LocatorChoice(prior="rim")  # the calibration day chose the rim
     gates = [_Gate("ephemeris", sun, 1.0)]
     assert c.place(cand, gates, R, up, _Lens()) is cand  # nothing learned before this frame: the rim
     assert c.place(cand, gates, R, up, _Lens()) is cand  # one frame learned: not yet evidence
@@ -253,6 +285,31 @@ def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
     assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up, _Lens()) is cand  # no site: never
 
 
+def test_a_camera_whose_calibration_chose_nothing_starts_halfway_between_the_fixes():
+    """A surveyed bundle (no ``locator``): until two frames have weighed, the fix lies halfway
+    between the rim's and the rings', but 0.1 deg from the rim at most (the third renderer's
+    second frame at 1280: 0.188 deg by the rim, 0.116 halfway; our bright sky's rings 0.4 deg
+    off, where the rim read the sun)."""
+    reading, up, R, rings_fix = _rings_of_a_sun_off_the_axis()  # the rings 0.1 deg off the rim
+    cand, gates = _Cand(_Fit(reading, []), A, A, 90.0), [_Gate("ephemeris", rings_fix, 1.0)]
+    first = LocatorChoice().place(cand, gates, R, up, _Lens())
+    assert "ring_locator" in first.fit.flags
+    assert _angle_deg(first.d_enu, A) == pytest.approx(0.05, abs=2e-3)
+    assert _angle_deg(first.d_enu, rings_fix) == pytest.approx(0.05, abs=2e-3)
+    # rings 0.28 deg off the rim move it 0.1 deg at most (rings.UNKNOWN_MAX_MOVE_DEG)
+    vals, chi, phi, up_far, _ = product_sky((math.radians(0.28), 0.0))
+    far = SkyReading(vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6e3)
+    far_fix = ring_direction(far, up_far)
+    assert far_fix is not None and _angle_deg(far_fix, A) == pytest.approx(0.28, abs=0.01)
+    moved = LocatorChoice().place(
+        _Cand(_Fit(far, []), A, A, 90.0), [_Gate("ephemeris", far_fix, 1.0)], R, up_far, _Lens()
+    )
+    assert _angle_deg(moved.d_enu, A) == pytest.approx(rings.UNKNOWN_MAX_MOVE_DEG, abs=1e-3)
+    assert LocatorChoice(prior="rings").place(  # a calibrated choice is not held back
+        _Cand(_Fit(far, []), A, A, 90.0), [_Gate("ephemeris", far_fix, 1.0)], R, up_far, _Lens()
+    ).d_enu @ far_fix > math.cos(math.radians(0.005))
+
+
 def test_place_puts_the_sun_where_the_frames_before_weighed_it_between_the_fixes():
     """A camera whose sun lies midway between its rim's fix and its rings' (the rim 0.05 deg
     one way, the rings 0.05 the other, as a wide glare's): after two frames, midway."""
@@ -260,7 +317,7 @@ def test_place_puts_the_sun_where_the_frames_before_weighed_it_between_the_fixes
     sun = A + rings_fix
     sun /= np.linalg.norm(sun)
     cand, gates = _Cand(_Fit(reading, []), A, A, 90.0), [_Gate("ephemeris", sun, 1.0)]
-    c = LocatorChoice()
+    c = LocatorChoice(prior="rim")
     assert c.place(cand, gates, R, up, _Lens()) is cand and c.place(cand, gates, R, up, _Lens()) is cand
     assert c.weight(90.0) == pytest.approx(0.5, abs=0.01)  # the rings fix their sun to 0.0013 deg
     mid = c.place(cand, gates, R, up, _Lens())
