@@ -62,9 +62,8 @@ BAND_DEG, MIN_BAND, TRIM_K = 4.0, 4, 3.0
 #: (a camera's second frame: the third renderer's rim 0.19 deg off, halfway 0.10-0.12; the
 #: second renderer's rings 0.23 off, halfway 0.10)
 UNKNOWN_PRIOR = 0.5
-#: and, until then, the rings move such a camera's rim by this much at most (deg): half the
-#: most a product sky's rings have moved a clear day's rim (0.2); where the glare is the
-#: lens's their fix can be 0.4 deg off (the HIL's bright auto-exposed sky: 0.19-0.21 halfway)
+#: and the rings move its rim 0.1 deg at most (half the most a product sky's have moved a clear
+#: rim); a lens's glare can put their fix 0.4 deg off (the HIL's bright sky: 0.19-0.21 halfway)
 UNKNOWN_MAX_MOVE_DEG = 0.1
 #: where the rings weigh but place no sun, the rim's fix is moved by (its weight of) its median
 #: offset from the rings' on the frames both placed, the sun within this many degrees of
@@ -285,6 +284,7 @@ class LocatorChoice:
         self._always = always  # the rings, wherever they place the sun (no choice learned)
         # the calibration day's choice (rings 1, rim 0; none: halfway) until frames have chosen
         self._prior = {"rings": 1.0, "rim": 0.0}.get(prior or "", UNKNOWN_PRIOR)
+        self._unknown = prior not in ("rings", "rim") and not always  # no choice was made
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
         self._all_w: float | None = None  # the weight over every frame kept (until the next)
@@ -432,7 +432,7 @@ class LocatorChoice:
             d = ring_direction(reading, up_cam)
         if d is not None:
             d_enu = R @ d
-            if self._prior == UNKNOWN_PRIOR and not self._learned(gate is not None):
+            if self._unknown and not self._learned(gate is not None):
                 apart = math.degrees(math.acos(min(1.0, float(cand.d_cam @ d))))
                 w = min(w, UNKNOWN_MAX_MOVE_DEG / max(apart, 1e-9))
             if gate is not None:
