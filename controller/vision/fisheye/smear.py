@@ -33,6 +33,7 @@ from .blobs import Blob
 from .glare import GlareFit, GlareOptions, fit_glare
 from .lens import FisheyeLens
 from .radiometry import Radiometry
+from .small import median, median_rows
 
 MAX_ROWS = 80  # rows read each side (spread over it)
 MIN_ROWS = 3  # rows each side (above, below) that must see the smear
@@ -77,9 +78,12 @@ def column_smear(grey: np.ndarray, blobs: list[Blob], peak: float) -> np.ndarray
         ref = np.r_[0:nr, s1 - s0 - nr : s1 - s0]
         A = np.stack([np.ones_like(x), x, x * x], 1)
         block = grey[rows, s0:s1].astype(np.float32)
-        res = block - (block[:, ref] @ np.linalg.pinv(A[ref]).T) @ A.T
+        # each row less its quadratic through the reference columns: one product with the hat
+        # matrix that maps the reference columns to the fit on every column
+        hat = A @ np.linalg.solve(A[ref].T @ A[ref], A[ref].T)
+        res = block - block[:, ref] @ hat.T.astype(np.float32)  # grey levels: float32 holds them
         rms = np.sqrt(np.mean(res[:, ref] ** 2, axis=1))
-        ok = (rms <= max(3.0 * float(np.median(rms)), 2.0)) & (block.max(axis=1) < peak - 0.5)
+        ok = (rms <= max(3.0 * median(rms), 2.0)) & (block.max(axis=1) < peak - 0.5)
         rows, res = rows[ok], res[ok][:, nr + m : nr + m + bw]
         above = rows < yc
         if above.all() or not above.any():  # one side only: its nearer and its further half
@@ -91,8 +95,9 @@ def column_smear(grey: np.ndarray, blobs: list[Blob], peak: float) -> np.ndarray
             continue
         meds, floors = [], []
         for g in groups:
-            med = np.median(res[g], axis=0)
-            se = 1.4826 * np.median(np.abs(res[g] - med), axis=0) / math.sqrt(int(g.sum()))
+            cols = np.ascontiguousarray(res[g].T)  # a row per column: the medians along rows
+            med = median_rows(cols)
+            se = 1.4826 * median_rows(np.abs(cols - med[:, None])) / math.sqrt(int(g.sum()))
             meds.append(med)
             floors.append(np.maximum(SIGNIFICANCE * se, MIN_LEVEL))
         lo, hi = np.minimum(meds[0], meds[1]), np.maximum(meds[0], meds[1])
