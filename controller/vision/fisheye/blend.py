@@ -20,6 +20,7 @@ does not (they trade with the centre when an arc is missing).
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +33,12 @@ from .sphere import Vec3, tangent_frame
 #: neutral, so that it only decides where the rim cannot (near the centre of the field).
 ALPHA_PRIOR = 0.5
 ALPHA_SIGMA = 0.5
+#: A camera's blend, once learned (:class:`LearnedBlend`): from the accepted fits whose rim
+#: alone fixes it within LEARN_SIGMA (the last KEEP), at least MIN_LEARNED of them within
+#: BAND_DEG of the glare's angle off the optical axis; the learned prior LEARNED_SIGMA wide
+#: (the spread of a clear day's fits in such a band on the third renderer; 0.03 and 0.1 read
+#: its clouds worse: docs/fisheye-rounds.md, a thirtieth round)
+LEARN_SIGMA, MIN_LEARNED, KEEP, BAND_DEG, LEARNED_SIGMA = 0.1, 5, 200, 4.0, 0.05
 
 
 @dataclass
@@ -44,6 +51,7 @@ class BlendFit:
     inliers: np.ndarray  # mask over the rim points
     rms: float  # of the inliers' residuals
     residuals: np.ndarray  # of every rim point
+    alpha_sigma: float = math.inf  # the blend's one-sigma from the rim alone (no prior)
 
 
 def _probe(lens: FisheyeLens, a: Vec3):
@@ -56,14 +64,15 @@ def _probe(lens: FisheyeLens, a: Vec3):
     return e1, e2, got[0], got[1]
 
 
-def _refine(lens, XT, a, inl, k, floor, iters, s, alpha):
+def _refine(lens, XT, a, inl, k, floor, iters, s, alpha, prior=(ALPHA_PRIOR, ALPHA_SIGMA)):
     """Gauss-Newton on (axis, rho, alpha) over the inliers ``inl``, then median / MAD
     reselection, ``iters`` times; ``XT``: the rim points as rows (x, y, z, u, v, 1) of a
     (6, N) array (directions, pixels); ``s``: the lens's scale (rad per px).
 
     Each step solves the normal equations of the inliers' residuals and the prior on
-    ``alpha``; in floats where the values are few (the fit runs ~10 steps per pass), on
-    arrays laid out by row, so that each quantity is one contiguous run."""
+    ``alpha`` (``prior``: its mean and one-sigma); in floats where the values are few (the
+    fit runs ~10 steps per pass), on arrays laid out by row, so that each quantity is one
+    contiguous run."""
     got = _probe(lens, tuple(a.tolist()))
     if got is None:
         return None
@@ -98,14 +107,14 @@ def _refine(lens, XT, a, inl, k, floor, iters, s, alpha):
             r -= rho
             N = (JT @ JT.T).tolist()
             # the prior on alpha, weighed like one rim point at the fit's noise
-            w = max(floor, math.sqrt(N[4][4] / n)) / ALPHA_SIGMA
+            w = max(floor, math.sqrt(N[4][4] / n)) / prior[1]
             M = [row[:4] for row in N[:4]]
             M[3][3] += w * w
-            g = [-N[0][4], -N[1][4], -N[2][4], -N[3][4] - w * w * (alpha - ALPHA_PRIOR)]
+            g = [-N[0][4], -N[1][4], -N[2][4], -N[3][4] - w * w * (alpha - prior[0])]
             step = solve_spd(M, g)
             if step is None:
                 A = np.vstack([JT[:4].T, [0.0, 0.0, 0.0, w]])
-                b = np.concatenate([-r, [-w * (alpha - ALPHA_PRIOR)]])
+                b = np.concatenate([-r, [-w * (alpha - prior[0])]])
                 step = np.linalg.lstsq(A, b, rcond=None)[0].tolist()
             t1, t2, d_rho, d_alpha = step
             x, y, z = (a[j] + t1 * e1[j] + t2 * e2[j] for j in range(3))
@@ -130,7 +139,19 @@ def _refine(lens, XT, a, inl, k, floor, iters, s, alpha):
             break
         inl = new
     rms = math.sqrt(float(res[inl] @ res[inl]) / int(inl.sum())) if inl.any() else float("inf")
-    return BlendFit(np.array(a), rho, alpha, inl, rms, res)
+    return BlendFit(np.array(a), rho, alpha, inl, rms, res, _alpha_sigma(N, max(rms, floor)))
+
+
+def _alpha_sigma(N: list[list[float]], noise: float) -> float:
+    """The blend's one-sigma from the rim points alone: ``noise`` (rad) times the root of the
+    alpha entry of the inverse of their normal matrix (``N``'s first four rows and columns,
+    without the prior); infinite where the rim does not fix it."""
+    try:
+        cov = np.linalg.inv(np.array([row[:4] for row in N[:4]]))
+    except np.linalg.LinAlgError:
+        return math.inf
+    v = float(cov[3, 3])
+    return noise * math.sqrt(v) if v > 0.0 and math.isfinite(v) else math.inf
 
 
 def _frame_rows(a: Vec3, e1: Vec3, e2: Vec3, c: tuple[float, float]) -> np.ndarray:
@@ -165,12 +186,14 @@ def fit_blend(
     iters: int = 4,
     alpha0: float = ALPHA_PRIOR,
     scale_rad: float | None = None,
+    prior: tuple[float, float] = (ALPHA_PRIOR, ALPHA_SIGMA),
 ) -> BlendFit | None:
     """Robust fit of rim points (directions ``v`` (N, 3), pixels ``uv`` (N, 2)) from the
     axis ``a0`` and each inlier mask of ``starts``; the start whose fit keeps the most points
     within five noise floors wins (else the lowest truncated squared residual), as in
     :func:`.sphere.fit_cone`.  ``alpha0``: where the blend starts (a previous fit's);
-    ``scale_rad``: the lens's local scale near the glare (rad per px; computed if None)."""
+    ``scale_rad``: the lens's local scale near the glare (rad per px; computed if None);
+    ``prior``: the blend's prior (mean, one-sigma; a camera's own once learned)."""
     if scale_rad is None:
         c, ok = lens.project(a0[None, :])
         if not ok[0]:
@@ -185,7 +208,7 @@ def fit_blend(
         if m.sum() < 6 or any(np.array_equal(m, t) for t in tried):
             continue
         tried.append(m)
-        f = _refine(lens, XT, a0.copy(), m.copy(), k, floor_rad, iters, s, alpha0)
+        f = _refine(lens, XT, a0.copy(), m.copy(), k, floor_rad, iters, s, alpha0, prior)
         if f is not None:
             sols.append(f)
     if not sols:
@@ -223,3 +246,49 @@ def blended_excess(
     d_pix = np.hypot(uv[:, 0] - c[0, 0], uv[:, 1] - c[0, 1]).reshape(len(phi), len(chi))
     exc = alpha * (scale_rad * d_pix - chi[None, :])
     return np.where(ok.reshape(exc.shape), exc, 0.0)
+
+
+class LearnedBlend:
+    """A camera's blend, learned from its own accepted fits, by the angle off the optical axis
+    (the lens's squeeze, and so what the blend does to a rim, grows with it).
+
+    Near the centre of the field the rim cannot tell the two metrics apart and the neutral
+    prior decides; near the edge one frame can, but a cloud's light on one side of the rim
+    reads as a blend too (the third renderer's cloudy suns: alpha 0 -> 1 and 0.7-0.9 deg off,
+    docs/fisheye-rounds.md, a thirtieth round).  So the fits whose rim alone fixes the blend
+    within :data:`LEARN_SIGMA` are kept (the last :data:`KEEP`), and the median of those within
+    :data:`BAND_DEG` of a glare's angle off the axis, weighted by their precision, is its
+    prior, :data:`LEARNED_SIGMA` wide, once :data:`MIN_LEARNED` of them; before, the neutral
+    one.  With the site only (:class:`.default.FisheyeEstimator`), as the sky models' cloud
+    edges: without its ephemeris gate, rims that the prior makes regular include suns dimmed
+    by a cloud and read 1.2-1.8 deg off (the third renderer's clouds without the site: 5
+    false detections where there had been 1).
+    """
+
+    def __init__(self) -> None:
+        self._fits: deque[tuple[float, float, float]] = deque(maxlen=KEEP)
+
+    def prior(self, d_cam: np.ndarray) -> tuple[float, float]:
+        """The blend's prior (mean, one-sigma) for a glare in the direction ``d_cam`` (a unit
+        vector, camera frame: z the optical axis)."""
+        if len(self._fits) < MIN_LEARNED:
+            return ALPHA_PRIOR, ALPHA_SIGMA
+        th, a, s = np.array(self._fits).T
+        near = np.abs(th - _off_axis_deg(d_cam)) <= BAND_DEG
+        if int(np.count_nonzero(near)) < MIN_LEARNED:
+            return ALPHA_PRIOR, ALPHA_SIGMA
+        a, s = a[near], s[near]
+        order = np.argsort(a)
+        w = np.cumsum(1.0 / s[order] ** 2)
+        return float(a[order][np.searchsorted(w, 0.5 * w[-1])]), LEARNED_SIGMA
+
+    def observe(self, d_cam: np.ndarray, alpha: float, sigma: float) -> None:
+        """An accepted fit's axis (camera frame), its blend and the blend's one-sigma from the
+        rim alone."""
+        if sigma <= LEARN_SIGMA:
+            self._fits.append((_off_axis_deg(d_cam), alpha, sigma))
+
+
+def _off_axis_deg(d_cam: np.ndarray) -> float:
+    """The angle (deg) of the unit vector ``d_cam`` from the optical axis (camera z)."""
+    return math.degrees(math.acos(min(max(float(d_cam[2]), -1.0), 1.0)))

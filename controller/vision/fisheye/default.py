@@ -32,6 +32,7 @@ import numpy as np
 from ...calibration.fisheye_bundle import FisheyeBundle
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
+from .blend import LearnedBlend
 from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, with_sky_scale
@@ -47,18 +48,9 @@ from .selfsite import LearnedEphemeris, SiteFit, SiteFromSun
 from .smear import column_smear, fit_smeared
 
 #: Order in which a refused frame's reason is reported when candidates failed differently.
-REASON_ORDER = (
-    "lens_ghost",
-    "static_glare",
-    "glare_shrunk",
-    "below_horizon",
-    "irregular_glare",
-    "incomplete_glare",
-    "sky_dominated",
-    "low_contrast",
-    "glare_too_small",
-    "glare_too_large",
-    "no_rim",
+REASON_ORDER = tuple(
+    "lens_ghost static_glare glare_shrunk below_horizon irregular_glare incomplete_glare"
+    " sky_dominated low_contrast glare_too_small glare_too_large no_rim".split()
 )
 
 
@@ -162,6 +154,8 @@ class FisheyeEstimator(FramePipeline):
         self.site_from_sun = SiteFromSun() if learn else None  # own sights (:mod:`.selfsite`)
         self.learned: tuple[SiteFit, LearnedEphemeris] | None = None
         self.locator = LocatorChoice.of_camera(g, bundle.orientation)  # used with the site
+        # the rims' blend of metrics, learned (the camera's: kept); with the site only, see .blend
+        self.blend = LearnedBlend() if self.ephemeris is not None else None
         self._last: tuple[float, np.ndarray] | None = None
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
@@ -289,6 +283,8 @@ class FisheyeEstimator(FramePipeline):
                 self._refused_by_anchor = 0
                 self._anchors.append(self._last)
                 self._learn_site(float(t), best)
+                if self.blend is not None:
+                    self.blend.observe(best.fit.axis, best.fit.image_share, best.fit.image_share_sigma)
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 
@@ -296,7 +292,11 @@ class FisheyeEstimator(FramePipeline):
     def _measure(
         self, grey: np.ndarray, x: float, y: float, r: float, peak: float, opts: GlareOptions
     ) -> Candidate | None:
-        """The glare around (``x``, ``y``) fitted and judged, or None when no rim was found."""
+        """The glare around (``x``, ``y``) fitted and judged, or None when no rim was found;
+        the rim's blend of metrics has the camera's prior in that direction (:mod:`.blend`)."""
+        if self.blend is not None:
+            d, ok = self.lens.rays([[x, y]])
+            opts = replace(opts, blend_prior=self.blend.prior(d[0])) if ok[0] else opts
         fit = fit_smeared(grey, self.lens, (x, y, r), peak, opts, self._smear, self.up_cam, self.radiometry)
         return None if fit is None else self._judge(fit)
 

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .blend import ALPHA_PRIOR, blended_excess, fit_blend
+from .blend import ALPHA_PRIOR, ALPHA_SIGMA, blended_excess, fit_blend
 from .blobs import core_fill
 from .clearsky import clear_sky_trust, cloud_edges, ring_roughness, trusted_scale
 from .lens import FisheyeLens
@@ -74,21 +74,16 @@ class GlareOptions:
         after one that moved the axis less than ``sky_settled_deg``, and the fit does not
         end on an axis the sky was not read around unless the readings are spent.  The sky
         model's term for the axis's error (``-P' eps``) is a linearisation about the axis
-        it is read around: read on the first two passes only, a halo still 0.6 deg off the
-        sun at the second left the model 70 % too strong for the rest of the fit (the
-        second renderer's hard disk and halo: 0.111 deg RMS; 0.049 read at every pass).
-        Read at every pass, or while the axis still moves, a sky shaped by clouds changes
-        with the axis and the fit need not settle (our broken-cloud suite: 13 and 11 misses
-        instead of 8), or is read 0.8 deg off (a bloom at 20 deg: 0.31 deg off).  A reading
-        after the second that moves the settled axis by more than ``sky_unsettled_deg`` is a
-        cloud's, not a correction of the linearisation: the fit goes back to the settled axis
-        and its sky (without it, a dimmed sun in our broken-cloud suite wandered 2.9 deg and
-        a sunlit cloud's fleck was taken for it).  Not when that sky was read inside the glare
-        (``drop_stale_sky``: its innermost ring at or above the rim's level, so it was read
-        around a rim since outgrown): the second renderer's linear output, a 17-deg sun fitted
-        on a 2-deg core at first, settled at 3.8 deg with the sky read there (no dipole), and
-        read 0.74 deg low with a sigma of 0.22; now 0.06.  (The cloud's readings that this
-        rule is for began at 0.5-0.75 of the contrast.)
+        it is read around (read on the first two passes only, a halo 0.6 deg off the sun at
+        the second read 0.111 deg RMS; 0.049 read at every pass); read at every pass, a sky
+        shaped by clouds changes with the axis and the fit need not settle, or is read 0.8
+        deg off (docs/fisheye.md, step 4).  A reading after the second that moves the settled
+        axis by more than ``sky_unsettled_deg`` is a cloud's, not a correction of the
+        linearisation: the fit goes back to the settled axis and its sky (without it, a
+        dimmed sun in our broken-cloud suite wandered 2.9 deg).  Not when that sky was read
+        inside the glare (``drop_stale_sky``: its innermost ring at or above the rim's level,
+        so it was read around a rim since outgrown; the second renderer's linear output, a
+        17-deg sun fitted on a 2-deg core at first: 0.74 deg low, now 0.06).
     sky_scale : the sky's correction of each ray's rim level times this: a camera's, fitted
         with its rotation from a day of sun sights (bundle ``[orientation] sky_scale``;
         :func:`controller.calibration.fisheye_sky_scale.fit_sky_scale`).
@@ -104,9 +99,9 @@ class GlareOptions:
         ``sky_scale``: its frames keep the CCD smear's column in the rings (no removal), which
         reads as roughness on a clear day.
     column_smear : a frame-transfer CCD's column smear is read far from the glare and taken
-        off the rim's samples (:mod:`.smear`); on with a camera's sky calibration, which is
-        fitted so (alone it exposes more of the aureole's bias than it removes: docs).
+        off the rim's samples (:mod:`.smear`; on with a sky calibration, fitted so, or the site).
     cloud_edges : the sky models leave out a cloud's edge in the rings (:mod:`.clearsky`; with the site).
+    blend_prior : the rim's blend's prior, mean and one-sigma (:mod:`.blend`; a camera's own once learned).
     """
 
     level: float = 0.85
@@ -129,6 +124,7 @@ class GlareOptions:
     clear_sky_roughness: tuple[float, float] = (0.2, 0.5)
     column_smear: bool = False
     cloud_edges: bool = False
+    blend_prior: tuple[float, float] = (ALPHA_PRIOR, ALPHA_SIGMA)
 
 
 @dataclass
@@ -151,6 +147,7 @@ class GlareFit:
     smear: str | None = None
     flags: list[str] = field(default_factory=list)
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
+    image_share_sigma: float = math.inf  # its one-sigma from the rim alone (:class:`.blend.BlendFit`)
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
     sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
     sky_gap: bool = False  # the largest gap faces the horizon (or the zenith, near it), no rim found
@@ -248,7 +245,7 @@ def fit_glare(
     by_el: np.ndarray | None = None
     bg = bg_s = top_s = 0.0
     trust = 1.0  # in a clear sky around the glare (:mod:`.clearsky`)
-    alpha = 0.0
+    alpha, alpha_sd = 0.0, math.inf  # the blend (:mod:`.blend`) and its one-sigma from the rim
     reading: SkyReading | None = None  # the last reading of the sky (:mod:`.rings`)
 
     # -- pass 2: rays on the sphere around the axis ---------------------------------------
@@ -368,11 +365,13 @@ def fit_glare(
                 [inl, np.ones(len(inl), bool)],
                 k=opts.outlier_k,
                 floor_rad=floor,
-                alpha0=alpha if it else ALPHA_PRIOR,
+                alpha0=alpha if it else opts.blend_prior[0],
                 scale_rad=math.radians(dpp),
+                prior=opts.blend_prior,
             )
             if bf is not None:
-                a_new, rho, inl, rms, alpha = bf.axis, bf.rho, bf.inliers, bf.rms, bf.alpha
+                a_new, rho, inl, rms = bf.axis, bf.rho, bf.inliers, bf.rms
+                alpha, alpha_sd = bf.alpha, bf.alpha_sigma
         if not (math.isfinite(rho) and 0.0 < rho < _RHO_MAX):
             return None  # not a small circle: the edge of a flat patch, fitted as a vast or inverted one
         idx = np.flatnonzero(has)[inl]
@@ -439,6 +438,7 @@ def fit_glare(
         one_way_streak=bool(streak),
         flags=flags,
         image_share=alpha,
+        image_share_sigma=alpha_sd,
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
         sky_reading=reading,

@@ -9,7 +9,15 @@ import pytest
 from benchmarks.fisheye_suites import day_frames
 from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator, FisheyeLens
-from controller.vision.fisheye.blend import fit_blend
+from controller.vision.fisheye.blend import (
+    ALPHA_PRIOR,
+    ALPHA_SIGMA,
+    LEARN_SIGMA,
+    LEARNED_SIGMA,
+    MIN_LEARNED,
+    LearnedBlend,
+    fit_blend,
+)
 from controller.vision.fisheye.sphere import fit_cone, tangent_basis
 from hil.skycam import render_sky, seed_lens, sky_profile
 
@@ -120,3 +128,81 @@ def test_bloom_at_low_sun_is_found_more_often_and_never_far_off():
     assert len(frames) == 15
     assert len(errs) >= 27
     assert max(errs) < 0.2
+
+
+def _noisy(v: np.ndarray, uv: np.ndarray, seed: int = 5, px: float = 0.15):
+    uvn = uv + np.random.default_rng(seed).normal(0.0, px, uv.shape)
+    vn, ok = LENS.rays(uvn)
+    assert ok.all()
+    return vn, uvn
+
+
+def test_the_rim_alone_fixes_the_blend_near_the_edge_and_not_at_the_centre():
+    near_edge = _sun_near_the_edge()
+    centre = np.array([math.sin(math.radians(5.0)), 0.0, math.cos(math.radians(5.0))])
+    sigmas = []
+    for a in (near_edge, centre):
+        v, uv = _noisy(*_rim_round_on_the_sensor(a, 10.0))
+        fit = fit_blend(
+            LENS, v, uv, fit_cone(v, floor_rad=FLOOR)[0], [np.ones(len(v), bool)], floor_rad=FLOOR
+        )
+        assert fit is not None
+        sigmas.append(fit.alpha_sigma)
+    assert sigmas[0] < LEARN_SIGMA < sigmas[1]  # learned from near the edge only
+
+
+def test_the_blends_prior_is_the_one_given():
+    """A rim round on the sky, read with a tight prior on each metric: the prior holds the
+    blend, and the one on the wrong metric moves the centre (what a cloud's light does to a
+    rim when the blend is free: the third renderer's cloudy suns, alpha 0 -> 1)."""
+    a = _sun_near_the_edge()
+    v, uv = _noisy(*_rim_round_on_the_sky(a, 3.0))
+    start = fit_cone(v, floor_rad=FLOOR)[0]
+    fits = {
+        m: fit_blend(LENS, v, uv, start, [np.ones(len(v), bool)], floor_rad=FLOOR, alpha0=m, prior=(m, 0.01))
+        for m in (0.0, 1.0)
+    }
+    assert fits[0.0] is not None and fits[1.0] is not None
+    assert fits[0.0].alpha < 0.03 and fits[1.0].alpha > 0.97
+    assert angle_between_deg(fits[0.0].axis, a) < 0.01 < angle_between_deg(fits[1.0].axis, a)
+
+
+def _at(off_axis_deg: float) -> np.ndarray:
+    th = math.radians(off_axis_deg)
+    return np.array([math.sin(th), 0.0, math.cos(th)])
+
+
+def test_a_camera_learns_its_blend_by_the_angle_off_the_axis():
+    learned = LearnedBlend()
+    for k in range(MIN_LEARNED - 1):
+        learned.observe(_at(70.0 + 0.1 * k), 0.02, 0.03)
+    assert learned.prior(_at(70.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)  # too few yet
+    learned.observe(_at(70.5), 0.9, 0.5)  # the rim did not fix this one: not kept
+    assert learned.prior(_at(70.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)
+    learned.observe(_at(71.0), 0.04, 0.03)
+    assert learned.prior(_at(70.0)) == (pytest.approx(0.02), LEARNED_SIGMA)
+    # a cloud's swing (alpha 1, precise as it looks) is outweighed in the weighted median
+    learned.observe(_at(70.2), 1.0, 0.02)
+    learned.observe(_at(70.3), 1.0, 0.02)
+    assert learned.prior(_at(70.0))[0] < 0.05
+    for k in range(MIN_LEARNED):
+        learned.observe(_at(30.0 + 0.1 * k), 0.4, 0.05)
+    assert learned.prior(_at(31.0))[0] == pytest.approx(0.4)
+    assert learned.prior(_at(50.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)  # nothing within BAND_DEG
+
+
+def test_a_camera_learns_its_blend_with_the_site_only():
+    scn = sky_profile("seed", noise=True)
+    with_site = FisheyeEstimator(truth_bundle(scn))
+    without = FisheyeEstimator(truth_bundle(scn, site=False))
+    assert without.blend is None and with_site.blend is not None
+    low = [f for f in day_frames(scn, (2025, 3, 20), 15) if 8 <= f[2] <= 30]  # a morning and an evening
+    for t, az, el in low:
+        fr = render_sky(scn, t, rng=np.random.default_rng(1), sun=(az, el))
+        assert with_site.estimate_image(fr.image, t).found
+    # a low sun's band (66 deg off the axis) has seen enough: the HIL's glare is a quarter
+    # the lens's (image_weight), which the camera has learned
+    d_cam = scn.R_enu_from_cam.T @ azel_to_enu(*low[4][1:])
+    mean, sigma = with_site.blend.prior(d_cam)
+    assert sigma == LEARNED_SIGMA
+    assert mean == pytest.approx(scn.glare.image_weight, abs=0.03)
