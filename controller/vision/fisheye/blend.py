@@ -34,11 +34,13 @@ from .sphere import Vec3, tangent_frame
 ALPHA_PRIOR = 0.5
 ALPHA_SIGMA = 0.5
 #: A camera's blend, once learned (:class:`LearnedBlend`): from the accepted fits whose rim
-#: alone fixes it within LEARN_SIGMA (the last KEEP), at least MIN_LEARNED of them within
+#: alone fixes it within LEARN_SIGMA (one every STEP_S at most, the last KEEP: a day's worth
+#: of 30-s frames, so that an hour of cloud at a field camera's rate does not fill it),
+#: at least MIN_LEARNED of them within
 #: BAND_DEG of the glare's angle off the optical axis; the learned prior LEARNED_SIGMA wide
 #: (the spread of a clear day's fits in such a band on the third renderer; 0.03 and 0.1 read
 #: its clouds worse: docs/fisheye-rounds.md, a thirtieth round)
-LEARN_SIGMA, MIN_LEARNED, KEEP, BAND_DEG, LEARNED_SIGMA = 0.1, 5, 200, 4.0, 0.05
+LEARN_SIGMA, MIN_LEARNED, KEEP, STEP_S, BAND_DEG, LEARNED_SIGMA = 0.1, 5, 1000, 30.0, 4.0, 0.05
 
 
 @dataclass
@@ -267,6 +269,7 @@ class LearnedBlend:
 
     def __init__(self) -> None:
         self._fits: deque[tuple[float, float, float]] = deque(maxlen=KEEP)
+        self._last_t = -math.inf
 
     def prior(self, d_cam: np.ndarray) -> tuple[float, float]:
         """The blend's prior (mean, one-sigma) for a glare in the direction ``d_cam`` (a unit
@@ -282,11 +285,12 @@ class LearnedBlend:
         w = np.cumsum(1.0 / s[order] ** 2)
         return float(a[order][np.searchsorted(w, 0.5 * w[-1])]), LEARNED_SIGMA
 
-    def observe(self, d_cam: np.ndarray, alpha: float, sigma: float) -> None:
-        """An accepted fit's axis (camera frame), its blend and the blend's one-sigma from the
-        rim alone."""
-        if sigma <= LEARN_SIGMA:
+    def observe(self, d_cam: np.ndarray, alpha: float, sigma: float, t: float) -> None:
+        """An accepted fit's axis (camera frame), its blend, the blend's one-sigma from the rim
+        alone, and the frame's time (POSIX s)."""
+        if sigma <= LEARN_SIGMA and not t - self._last_t < STEP_S:
             self._fits.append((_off_axis_deg(d_cam), alpha, sigma))
+            self._last_t = t
 
 
 def _off_axis_deg(d_cam: np.ndarray) -> float:

@@ -284,7 +284,7 @@ class FisheyeEstimator(FramePipeline):
                 self._anchors.append(self._last)
                 self._learn_site(float(t), best)
                 if self.blend is not None:
-                    self.blend.observe(best.fit.axis, best.fit.image_share, best.fit.image_share_sigma)
+                    self.blend.observe(best.fit.axis, best.fit.image_share, best.fit.image_share_sigma, t)
             self.history.accepted(float(t), best.fit.radius_deg)
         return res
 

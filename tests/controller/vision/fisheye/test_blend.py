@@ -174,20 +174,26 @@ def _at(off_axis_deg: float) -> np.ndarray:
 
 def test_a_camera_learns_its_blend_by_the_angle_off_the_axis():
     learned = LearnedBlend()
+    clock = iter(range(0, 10**6, 60))  # a frame a minute
     for k in range(MIN_LEARNED - 1):
-        learned.observe(_at(70.0 + 0.1 * k), 0.02, 0.03)
+        learned.observe(_at(70.0 + 0.1 * k), 0.02, 0.03, next(clock))
     assert learned.prior(_at(70.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)  # too few yet
-    learned.observe(_at(70.5), 0.9, 0.5)  # the rim did not fix this one: not kept
+    learned.observe(_at(70.5), 0.9, 0.5, next(clock))  # the rim did not fix this one: not kept
     assert learned.prior(_at(70.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)
-    learned.observe(_at(71.0), 0.04, 0.03)
+    t = next(clock)
+    learned.observe(_at(71.0), 0.04, 0.03, t)
     assert learned.prior(_at(70.0)) == (pytest.approx(0.02), LEARNED_SIGMA)
     # a cloud's swing (alpha 1, precise as it looks) is outweighed in the weighted median
-    learned.observe(_at(70.2), 1.0, 0.02)
-    learned.observe(_at(70.3), 1.0, 0.02)
+    learned.observe(_at(70.2), 1.0, 0.02, next(clock))
+    learned.observe(_at(70.3), 1.0, 0.02, next(clock))
     assert learned.prior(_at(70.0))[0] < 0.05
-    for k in range(MIN_LEARNED):
-        learned.observe(_at(30.0 + 0.1 * k), 0.4, 0.05)
+    # three hours of a field camera's frames a second apart, higher in the sky: kept one every
+    # STEP_S, they leave the morning's in the camera's memory
+    t = next(clock)
+    for k in range(3 * 3600):
+        learned.observe(_at(30.0 + k / 3600.0), 0.4, 0.05, t + k)
     assert learned.prior(_at(31.0))[0] == pytest.approx(0.4)
+    assert learned.prior(_at(70.0))[0] < 0.05
     assert learned.prior(_at(50.0)) == (ALPHA_PRIOR, ALPHA_SIGMA)  # nothing within BAND_DEG
 
 
