@@ -34,12 +34,11 @@ from .sphere import Vec3, tangent_frame
 ALPHA_PRIOR = 0.5
 ALPHA_SIGMA = 0.5
 #: A camera's blend, once learned (:class:`LearnedBlend`): from the accepted fits whose rim
-#: alone fixes it within LEARN_SIGMA (one every STEP_S at most, the last KEEP: a day's worth
-#: of 30-s frames, so that an hour of cloud at a field camera's rate does not fill it),
-#: at least MIN_LEARNED of them within
-#: BAND_DEG of the glare's angle off the optical axis; the learned prior LEARNED_SIGMA wide
-#: (the spread of a clear day's fits in such a band on the third renderer; 0.03 and 0.1 read
-#: its clouds worse: docs/fisheye-rounds.md, a thirtieth round)
+#: alone fixes it within LEARN_SIGMA, one every STEP_S (s) at most, the last KEEP (a day of
+#: 30-s frames: a field camera's frames a second apart do not shorten its memory), at least
+#: MIN_LEARNED of them within BAND_DEG of the glare's angle off the optical axis; the learned
+#: prior is LEARNED_SIGMA wide (the spread of a clear day's fits in such a band on the third
+#: renderer; 0.03 and 0.1 read its clouds worse: docs/fisheye-rounds.md, a thirtieth round)
 LEARN_SIGMA, MIN_LEARNED, KEEP, STEP_S, BAND_DEG, LEARNED_SIGMA = 0.1, 5, 1000, 30.0, 4.0, 0.05
 
 
@@ -256,12 +255,12 @@ class LearnedBlend:
 
     Near the centre of the field the rim cannot tell the two metrics apart and the neutral
     prior decides; near the edge one frame can, but a cloud's light on one side of the rim
-    reads as a blend too (the third renderer's cloudy suns: alpha 0 -> 1 and 0.7-0.9 deg off,
+    reads as a blend too (the third renderer's cloudy suns: alpha 0 -> 1 and 0.5-0.9 deg low,
     docs/fisheye-rounds.md, a thirtieth round).  So the fits whose rim alone fixes the blend
-    within :data:`LEARN_SIGMA` are kept (the last :data:`KEEP`), and the median of those within
-    :data:`BAND_DEG` of a glare's angle off the axis, weighted by their precision, is its
-    prior, :data:`LEARNED_SIGMA` wide, once :data:`MIN_LEARNED` of them; before, the neutral
-    one.  With the site only (:class:`.default.FisheyeEstimator`), as the sky models' cloud
+    within :data:`LEARN_SIGMA` are kept (one every :data:`STEP_S`, the last :data:`KEEP`), and
+    the median of those within :data:`BAND_DEG` of a glare's angle off the axis, weighted by
+    their precision, is its prior, :data:`LEARNED_SIGMA` wide, once :data:`MIN_LEARNED` of
+    them; before, the neutral one.  With the site only (:class:`.default.FisheyeEstimator`), as the sky models' cloud
     edges: without its ephemeris gate, rims that the prior makes regular include suns dimmed
     by a cloud and read 1.2-1.8 deg off (the third renderer's clouds without the site: 5
     false detections where there had been 1).
