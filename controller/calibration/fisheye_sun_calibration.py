@@ -9,7 +9,7 @@ sky-correction scale with it (``heliotrack calibrate fisheye orientation``).
    measured by the rim and by the rings wherever they place the sun; each locator's fixes on
    the frames both placed get their own rotation.  When the rings' residual squared is under
    :data:`RINGS_LEAD` times the rim's (the share by which the camera's
-   :class:`~controller.vision.fisheye.rings.LocatorChoice` picks them at run time), the
+   :class:`~controller.vision.fisheye.locator.LocatorChoice` picks them at run time), the
    rings' rotation, fitted on all their fixes, is the calibration, with the sky as handed
    over: the rings read its product themselves, and the steps below scale the rim's
    correction, which they do not use.  The rim is compared as handed over, not as steps 3-5
@@ -39,7 +39,7 @@ from typing import Any, Literal
 import numpy as np
 
 from ..sun.source import Site
-from ..vision.fisheye.rings import LEAD
+from ..vision.fisheye.locator import LEAD
 from .fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 from .fisheye_orientation import OrientationFit, fit_orientation
 from .fisheye_sky_scale import SkyCalibrationFit, SkyScaleFit, fit_sky_calibration, fit_sky_scale
@@ -47,7 +47,7 @@ from .fisheye_sky_scale import SkyCalibrationFit, SkyScaleFit, fit_sky_calibrati
 #: the step between the two scales the frames are measured at
 SCALE_STEP = 0.25
 #: the rings are the calibration's locator when their residual squared is under this share of
-#: the rim's (step 2; the run-time choice's :data:`controller.vision.fisheye.rings.LEAD`)
+#: the rim's (step 2; the run-time choice's :data:`controller.vision.fisheye.locator.LEAD`)
 RINGS_LEAD = LEAD
 #: ... over at least this many frames that both placed
 MIN_BOTH = 12
@@ -222,7 +222,7 @@ def calibrate_from_sun(
             last = [f for f in _detect(at, frames, sky.scale) if f is not None]
             fit = _fit(last, sun_site, bundle, **kw)  # the lens's priors: the boards' values
             out = _with_fit(out, fit, site, method + lens + "+sky_scale", sky.scale)
-    if choice is not None:  # the camera starts with it (and goes on learning: .rings.LocatorChoice)
+    if choice is not None:  # the camera starts with it (and goes on learning: .locator.LocatorChoice)
         assert out.orientation is not None
         out = replace(out, orientation=replace(out.orientation, locator=choice.locator))
     return SunCalibration(out, fit, sky, len(found), len(first) - len(found), cal, choice)

@@ -213,7 +213,7 @@ def test_where_the_rings_refuse_a_cloudy_sun_the_rim_is_moved_by_its_offset_from
     Under a thin cloud the rings are too rough to place the sun, and the rim (lower still)
     is moved by its median offset from the rings' fixes near that elevation (development run:
     0.57, 0.56, 0.50 deg off as it reads; 0.38, 0.37, 0.31 moved)."""
-    from controller.vision.fisheye import rings
+    from controller.vision.fisheye import locator
 
     seq = clouds.SEQUENCES[3]
     frames = clouds.frame_times(seq, 2.0, 30.0)
@@ -228,9 +228,9 @@ def test_where_the_rings_refuse_a_cloudy_sun_the_rim_is_moved_by_its_offset_from
     cloudy = [scene.frame(*f) for f in lobe]
     assert all(truth["visibility"] == "visible" for _, truth in cloudy)
     bundle = fisheye_bundle_from_dict(clouds.bundles()["with site"])
-    errors, shipped = {}, rings.MIN_OFFSETS
+    errors, shipped = {}, locator.MIN_OFFSETS
     for min_offsets in (shipped, 10**6):  # as shipped; the rim left as it reads
-        monkeypatch.setattr(rings, "MIN_OFFSETS", min_offsets)
+        monkeypatch.setattr(locator, "MIN_OFFSETS", min_offsets)
         est = FisheyeEstimator(bundle)
         for (img, _), (t, _, _) in zip(taught, clear):
             assert est.estimate_image(img, t).found

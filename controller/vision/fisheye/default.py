@@ -40,10 +40,10 @@ from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_predicti
 from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
 from .lens import FisheyeLens
+from .locator import LocatorChoice
 from .pipeline import FramePipeline
 from .radiometry import Radiometry
 from .result import FisheyeResult, not_found
-from .rings import LocatorChoice
 from .selfsite import LearnedEphemeris, SiteFit, SiteFromSun
 from .smear import column_smear, fit_smeared
 

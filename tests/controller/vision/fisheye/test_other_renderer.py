@@ -10,7 +10,7 @@ from benchmarks import fisheye_other as other
 from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator
 from controller.vision.fisheye.default import FisheyeOptions
-from controller.vision.fisheye.rings import UNKNOWN_MAX_MOVE_DEG
+from controller.vision.fisheye.locator import UNKNOWN_MAX_MOVE_DEG
 
 
 def _run(look, days=((2025, 3, 20), (2025, 6, 21)), el_range=(5.0, 90.0), declared=False):
@@ -191,7 +191,7 @@ def test_a_hard_disk_and_halo_in_a_bright_sky_as_a_simple_renderer_draws_it():
     axis has settled, and refused where the sky's correction moves the centre over 1 deg
     (three frames at 18-19 deg, 0.13-0.20 off) or sigma exceeds 1 deg: 0.026.  The camera's
     first two frames, before it has weighed its rim against its rings, lie between them, the
-    rim moved 0.1 deg at most (``rings.UNKNOWN_MAX_MOVE_DEG``)."""
+    rim moved 0.1 deg at most (``locator.UNKNOWN_MAX_MOVE_DEG``)."""
     rows, rms = _bench_rms(other.SIMPLE, "simple look")
     assert len(rows) >= 45
     assert rms < 0.03

@@ -1,0 +1,283 @@
+"""Where between the rim's fix and the rings' a camera's sun lies (locator)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from controller.vision.fisheye import locator
+from controller.vision.fisheye.locator import LocatorChoice, blend_weight
+from controller.vision.fisheye.rings import SkyReading, ring_direction
+
+from .helpers import E1, E2, RHO, A, angle_deg, product_sky
+
+
+class _Lens:
+    """A pinhole of focal 100 px at (320, 240), as :meth:`.lens.FisheyeLens.project` answers."""
+
+    def project(self, d):
+        return 320.0 + 100.0 * d[:, :2] / d[:, 2:], np.ones(len(d), bool)
+
+
+class _Gate:
+    """A gate around ``centre`` (ENU) of ``radius_deg``, as :class:`.gates.Gate` measures."""
+
+    def __init__(self, name, centre, radius_deg, frame="enu"):
+        self.name, self.centre, self.radius_deg, self.frame = name, centre, radius_deg, frame
+
+    def distance_deg(self, v):
+        return math.degrees(math.acos(min(1.0, float(v @ self.centre))))
+
+
+@dataclass
+class _Fit:
+    """The parts of a :class:`.glare.GlareFit` that :meth:`LocatorChoice.place` reads."""
+
+    sky_reading: SkyReading | None
+    flags: list
+    centre_uv: tuple = (320.0, 240.0)
+
+
+@dataclass
+class _Cand:
+    """The parts of a :class:`.default.Candidate` that :meth:`LocatorChoice.place` reads."""
+
+    fit: _Fit
+    d_cam: np.ndarray
+    d_enu: np.ndarray
+    el_deg: float
+
+
+def _enu(az_deg: float, el_deg: float) -> np.ndarray:
+    az, el = math.radians(az_deg), math.radians(el_deg)
+    return np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
+
+
+def _frame(c: LocatorChoice, el: float, rim_dv: float, rings_dv: float, across: float = 0.0) -> None:
+    """One frame at elevation ``el`` whose rim and rings read the sun ``rim_dv`` and
+    ``rings_dv`` deg high (both ``across`` deg east of it)."""
+    c.observe(el, _enu(180.0 - across, el + rim_dv), _enu(180.0 - across, el + rings_dv), _enu(180.0, el))
+
+
+def test_the_weight_is_where_between_the_two_fixes_the_sun_lies():
+    rim = np.array([[0.0, -0.001, 0.0]] * 5)  # 0.057 deg low
+    assert blend_weight(rim, rim + [0.0, 0.005, 0.0]) == pytest.approx(0.2)  # rings 0.23 high
+    assert blend_weight(rim, rim + [0.0, 0.001, 0.0]) == pytest.approx(1.0)  # rings on the sun
+    assert blend_weight(rim, rim + [0.0, 0.0005, 0.0]) == 1.0  # beyond them: held at the rings
+    assert blend_weight(rim * 0.0, rim + [0.0, 0.005, 0.0]) == 0.0  # the rim on the sun
+    assert blend_weight(rim, rim * 0.0 + [0.0, -0.003, 0.0]) == 0.0  # rings further low: the rim
+    # a cloud's frame, both fixes 1 deg off across the vertical, does not set the weight
+    cloud = np.array([[0.0174, -0.001, 0.0]])
+    assert blend_weight(np.vstack([rim, cloud]), np.vstack([rim + [0, 0.005, 0], cloud + [0, 0.01, 0]])) == (
+        pytest.approx(0.2)
+    )
+    assert blend_weight(
+        np.vstack([rim, cloud]), np.vstack([rim + [0, 0.005, 0], cloud + [0, 0.01, 0]]), trim_k=math.inf
+    ) == pytest.approx(0.156, abs=1e-3)  # untrimmed it would
+
+
+def test_the_weight_is_learned_from_the_frames_before_by_elevation_and_not_a_frames_own():
+    c = LocatorChoice()
+    assert c.weight(20.0) == locator.UNKNOWN_PRIOR == 0.5  # nothing learned, nor chosen: halfway
+    _frame(c, 20.0, -0.05, 0.2)
+    assert c.weight(20.0) == 0.5  # one frame is no evidence
+    for el in (19.0, 20.5, 21.0):  # the rim 0.05 deg low at 20 deg, the rings 0.2 high
+        _frame(c, el, -0.05, 0.2)
+    assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    for el in (50.0, 51.0, 52.0, 53.0):  # at 50 deg the rings read the sun, the rim 0.1 low
+        _frame(c, el, -0.1, 0.0)
+    assert c.weight(51.0) == pytest.approx(1.0) and c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    assert c.weight(35.0) == c.weight() and 0.2 < c.weight() < 1.0  # no band there: all frames
+    _frame(c, 20.0, -1.5, 0.2)  # a fix beyond max_deg: the frame is not counted
+    assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
+    assert c.rings == (c.weight() >= 0.5)
+    single = LocatorChoice(min_frames=1)
+    _frame(single, 20.0, -0.1, 0.0)
+    assert single.weight(20.0) == 1.0 and single.rings
+
+
+def test_the_rings_are_read_less_once_they_weigh_nothing():
+    c = LocatorChoice(window=8, settled=4)
+    for _ in range(3):
+        _frame(c, 30.0, 0.01, 0.05)  # the rim on the sun (0.01 high), the rings further
+    assert not c.rim_settled  # three frames: too few
+    _frame(c, 30.0, 0.01, 0.05)
+    assert c.rim_settled and not c.rings
+    for _ in range(30):
+        _frame(c, 30.0, -0.05, 0.0)  # the rings on the sun now: they weigh again
+    assert not c.rim_settled and c.rings
+
+
+def test_a_choice_made_always_takes_the_rings_and_never_settles_on_the_rim():
+    c = LocatorChoice(window=8, settled=4, always=True)  # the calibration's rings pass
+    assert c.rings and c.weight(30.0) == 1.0  # before any frame
+    for _ in range(8):
+        _frame(c, 30.0, 0.01, 0.05)  # the rim far better: a learned weight would be 0
+    assert c.rings and c.weight(30.0) == 1.0 and not c.rim_settled
+
+
+def test_the_calibration_days_choice_holds_until_frames_have_weighed():
+    c = LocatorChoice(window=4, prior="rings")  # a bundle's [orientation] locator = "rings"
+    assert c.rings and c.weight(30.0) == 1.0  # from the first frame
+    _frame(c, 30.0, 0.02, 0.10)
+    assert c.weight(30.0) == 1.0  # one frame is no evidence
+    _frame(c, 30.0, 0.02, 0.10)
+    assert c.weight(30.0) == 0.0 and not c.rings  # two frames where the rim agreed better
+    assert LocatorChoice(prior="rim").weight(30.0) == 0.0 and not LocatorChoice(prior="rim").rings
+    assert LocatorChoice().weight(30.0) == 0.5 and not LocatorChoice().path_rings  # no choice made
+
+
+def _rings_of_a_sun_off_the_axis():
+    """A product sky's rings about ``A`` with the sun 0.1 deg off it along E1: the reading,
+    the zenith, ENU from camera (the identity) and the sun."""
+    vals, chi, phi, up, _ = product_sky((math.radians(0.1), 0.0))
+    reading = SkyReading(
+        vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6000.0
+    )
+    sun = A + math.radians(0.1) * E1
+    return reading, up, np.eye(3), sun / np.linalg.norm(sun)
+
+
+def test_place_uses_the_rings_once_they_lead_and_only_within_the_gates():
+    reading, up, R, sun = _rings_of_a_sun_off_the_axis()
+
+    cand = _Cand(_Fit(reading, []), A, A, 90.0)
+    c = LocatorChoice(prior="rim")  # the calibration day chose the rim
+    gates = [_Gate("ephemeris", sun, 1.0)]
+    assert c.place(cand, gates, R, up, _Lens()) is cand  # nothing learned before this frame: the rim
+    assert c.place(cand, gates, R, up, _Lens()) is cand  # one frame learned: not yet evidence
+    second = c.place(cand, gates, R, up, _Lens())
+    assert "ring_locator" in second.fit.flags
+    u, v = second.fit.centre_uv  # the fix's own centre in the image
+    assert u == pytest.approx(320.0 + 100.0 * second.d_cam[0] / second.d_cam[2])
+    assert v == pytest.approx(320.0 + 100.0 * second.d_cam[1] / second.d_cam[2])
+    assert math.degrees(math.acos(min(1.0, float(second.d_enu @ sun)))) < 0.01
+    tight = [*gates, _Gate("sequence", A, 0.05)]  # the rings' fix is 0.1 deg from the anchor
+    assert c.place(cand, tight, R, up, _Lens()) is cand
+    assert c.place(cand, [_Gate("prior", sun, 1.0)], R, up, _Lens()) is cand  # no site: never
+
+
+def test_a_camera_whose_calibration_chose_nothing_starts_halfway_between_the_fixes():
+    """A surveyed bundle (no ``locator``): until two frames have weighed, the fix lies halfway
+    between the rim's and the rings', but 0.1 deg from the rim at most (the third renderer's
+    second frame at 1280: 0.188 deg by the rim, 0.116 halfway; our bright sky's rings 0.4 deg
+    off, where the rim read the sun)."""
+    reading, up, R, rings_fix = _rings_of_a_sun_off_the_axis()  # the rings 0.1 deg off the rim
+    cand, gates = _Cand(_Fit(reading, []), A, A, 90.0), [_Gate("ephemeris", rings_fix, 1.0)]
+    first = LocatorChoice().place(cand, gates, R, up, _Lens())
+    assert "ring_locator" in first.fit.flags
+    assert angle_deg(first.d_enu, A) == pytest.approx(0.05, abs=2e-3)
+    assert angle_deg(first.d_enu, rings_fix) == pytest.approx(0.05, abs=2e-3)
+    # rings 0.28 deg off the rim move it 0.1 deg at most (locator.UNKNOWN_MAX_MOVE_DEG)
+    vals, chi, phi, up_far, _ = product_sky((math.radians(0.28), 0.0))
+    far = SkyReading(vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6e3)
+    far_fix = ring_direction(far, up_far)
+    assert far_fix is not None and angle_deg(far_fix, A) == pytest.approx(0.28, abs=0.01)
+    moved = LocatorChoice().place(
+        _Cand(_Fit(far, []), A, A, 90.0), [_Gate("ephemeris", far_fix, 1.0)], R, up_far, _Lens()
+    )
+    assert angle_deg(moved.d_enu, A) == pytest.approx(locator.UNKNOWN_MAX_MOVE_DEG, abs=1e-3)
+    for held in (LocatorChoice(prior="rings"), LocatorChoice(always=True)):  # a choice made, or
+        # the calibration's rings pass: not held back
+        fix = held.place(
+            _Cand(_Fit(far, []), A, A, 90.0), [_Gate("ephemeris", far_fix, 1.0)], R, up_far, _Lens()
+        )
+        assert angle_deg(fix.d_enu, far_fix) < 0.005
+
+
+def test_place_puts_the_sun_where_the_frames_before_weighed_it_between_the_fixes():
+    """A camera whose sun lies midway between its rim's fix and its rings' (the rim 0.05 deg
+    one way, the rings 0.05 the other, as a wide glare's): after two frames, midway."""
+    reading, up, R, rings_fix = _rings_of_a_sun_off_the_axis()  # the rings 0.1 deg off the rim
+    sun = A + rings_fix
+    sun /= np.linalg.norm(sun)
+    cand, gates = _Cand(_Fit(reading, []), A, A, 90.0), [_Gate("ephemeris", sun, 1.0)]
+    c = LocatorChoice(prior="rim")
+    assert c.place(cand, gates, R, up, _Lens()) is cand and c.place(cand, gates, R, up, _Lens()) is cand
+    assert c.weight(90.0) == pytest.approx(0.5, abs=0.01)  # the rings fix their sun to 0.0013 deg
+    mid = c.place(cand, gates, R, up, _Lens())
+    assert "ring_locator" in mid.fit.flags and angle_deg(mid.d_enu, sun) < 2e-3
+    assert angle_deg(A, sun) == pytest.approx(0.05, abs=1e-4)
+
+
+def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from_them():
+    """A camera that has chosen the rings, whose rim reads the sun 0.1 deg off where its
+    rings read it right: on a frame whose rings place no sun (here no reading at all, as
+    under a cloud that makes them rough) the rim's fix is moved by its median offset from
+    the rings', once three frames within 2 deg of its elevation have given it."""
+    reading, up, R, sun = _rings_of_a_sun_off_the_axis()
+    gates = [_Gate("ephemeris", sun, 1.0)]
+    seen, blind = _Cand(_Fit(reading, []), A, A, 90.0), _Cand(_Fit(None, []), A, A, 90.0)
+    c = LocatorChoice(prior="rings")  # the calibration day chose the rings
+    for _ in range(3):
+        assert c.place(blind, gates, R, up, _Lens()) is blind  # no offsets yet (then 1, then 2)
+        assert "ring_locator" in c.place(seen, gates, R, up, _Lens()).fit.flags
+    moved = c.place(blind, gates, R, up, _Lens())
+    assert "rim_by_rings" in moved.fit.flags and angle_deg(A, sun) == pytest.approx(0.1, abs=1e-6)
+    assert angle_deg(moved.d_enu, sun) < 0.01 and moved.d_cam is not A
+    u, v = moved.fit.centre_uv
+    assert u == pytest.approx(320.0 + 100.0 * moved.d_cam[0] / moved.d_cam[2])
+    low = _Cand(_Fit(None, []), A, A, 87.5)  # its elevation 2.5 deg from the offsets': none apply
+    assert c.place(low, gates, R, up, _Lens()) is low
+    assert c.place(blind, [*gates, _Gate("sequence", A, 0.05)], R, up, _Lens()) is blind  # beyond a gate
+    rim = LocatorChoice(prior="rim")  # a camera whose choice is the rim keeps its rim's fix
+    for _ in range(3):
+        rim.place(seen, [_Gate("ephemeris", A, 1.0)], R, up, _Lens())  # the rim on the sun here
+    assert not rim.rings and rim.place(blind, gates, R, up, _Lens()) is blind
+
+
+def _day_of_sights(bias_deg, step_s: float = 1200.0):
+    """A clear 20 Mar at 40 N: the sun every ``step_s`` while 5 deg up or more, (t, its ENU
+    direction, the same moved ``bias_deg(el)`` deg towards the horizon)."""
+    from controller.sun.source import Site
+    from controller.vision.fisheye.gates import Ephemeris
+
+    eph = Ephemeris(Site(latitude=40.0, longitude=-3.0, altitude=0.0))
+    t0 = 1773964800.0  # 2026-03-20 00:00 UTC
+    out = []
+    for t in np.arange(t0, t0 + 86400.0, step_s):
+        s = eph.direction(float(t))
+        el = math.degrees(math.asin(s[2]))
+        if el < 5.0:
+            continue
+        down = np.array([0.0, 0.0, -1.0]) - s * (-s[2])
+        down /= np.linalg.norm(down)
+        d = s + math.radians(bias_deg(el)) * down
+        out.append((float(t), s, d / np.linalg.norm(d), el))
+    return out
+
+
+def _sky_bias(el: float) -> float:
+    """A rim's sky-model error: 0.2 deg low at 20 deg, fading above and below (deg)."""
+    return 0.2 * math.exp(-(((el - 20.0) / 8.0) ** 2))
+
+
+def test_without_the_site_the_suns_own_path_chooses_the_locator_whose_sights_it_fits():
+    """The rim reads the sun 0.2 deg low around 20 deg (a sky model's error, which comes and
+    goes with the elevation) and the rings read it right: no site takes up the rim's error,
+    so the rings are chosen once 12 sights above 12 deg span an hour, and not before; and
+    the other way round when the rings are the ones in error."""
+    sights = _day_of_sights(_sky_bias)
+    c = LocatorChoice()
+    decided = None
+    for k, (t, s, biased, _) in enumerate(sights):
+        assert not c.path_rings or decided is not None
+        c.observe_path(t, biased, s)  # the rim's fix, the rings'
+        if c.path_rings and decided is None:
+            decided = k
+    above = [k for k, (_, _, _, el) in enumerate(sights) if el >= 12.0]
+    assert decided == above[11]  # the twelfth sight above 12 deg (over 3 h 40 min)
+    rim, rings = c._path_sq
+    assert rings < 1e-5 < 0.001 < rim  # deg^2 about each fitted site (the rings: SPA against the fit's sun)
+    other = LocatorChoice()
+    for t, s, biased, _ in sights:
+        other.observe_path(t, s, biased)  # the rim right, the rings 0.2 deg low
+    assert not other.path_rings
+    low = LocatorChoice()
+    for t, s, biased, el in sights:
+        if el < 12.0:
+            low.observe_path(t, biased, s)
+    assert low._path_sq is None  # under 12 deg the rim is cut by the horizon: no sight counts
