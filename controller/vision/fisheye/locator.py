@@ -28,9 +28,13 @@ from .rings import ring_direction
 #: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`)
 LEAD, MIN_FRAMES = 0.5, 2
 #: the weight is learned from the frames within BAND_DEG of the sun's elevation, at least
-#: MIN_BAND of them (else from all kept); frames whose blended fix is farther from the sun
-#: than TRIM_K times the median are left out (:func:`blend_weight`)
+#: MIN_BAND of them; frames whose blended fix is farther from the sun than TRIM_K times the
+#: median are left out (:func:`blend_weight`)
 BAND_DEG, MIN_BAND, TRIM_K = 4.0, 4, 3.0
+#: where fewer lie in the band (a low sun: a frame every 30 min sees two or three a day), from
+#: every frame kept as a weight linear in the air mass less one, once AIRMASS_MIN_FRAMES are
+#: kept (:func:`weight_by_airmass`); before that, one weight over them all
+AIRMASS_MIN_FRAMES = 8
 #: the weight before it is learned, for a camera whose calibration day did not choose (a
 #: surveyed bundle, no ``locator``): halfway, the least that either fix can be wrong by
 #: (a camera's second frame: the third renderer's rim 0.19 deg off, halfway 0.10-0.12; the
@@ -41,8 +45,9 @@ UNKNOWN_PRIOR = 0.5
 UNKNOWN_MAX_MOVE_DEG = 0.1
 #: where the rings weigh but place no sun, the rim's fix is moved by (its weight of) its median
 #: offset from the rings' on the frames both placed, the sun within this many degrees of
-#: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`)
-OFFSET_EL_DEG, MIN_OFFSETS = 2.0, 3
+#: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`), else
+#: the MIN_OFFSETS nearest in elevation, within NEAREST_OFFSET_DEG of it
+OFFSET_EL_DEG, MIN_OFFSETS, NEAREST_OFFSET_DEG = 2.0, 3, 8.0
 #: without the site, the choice by the sun's own path (:meth:`LocatorChoice.observe_path`):
 #: a sight of both fixes kept at most every PATH_STEP_S, for PATH_KEEP_S (s; 720 at most),
 #: the sun PATH_MIN_EL_DEG high at least; the paths are compared once PATH_MIN_SIGHTS span
@@ -58,18 +63,51 @@ def blend_weight(rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rou
     the weight refitted, ``rounds`` times at most: under broken cloud both fixes can be
     0.5-1 deg off, and those frames alone had set the weight (the third renderer's clouds:
     the clear reference after them 0.028 -> 0.066 deg untrimmed)."""
+    c = _trimmed_weight(rim, rings, np.ones((len(rim), 1)), trim_k, rounds)
+    return min(max(float(c[0]), 0.0), 1.0)
+
+
+def weight_by_airmass(
+    el_deg: np.ndarray, rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rounds: int = 5
+) -> np.ndarray:
+    """Coefficients ``(w0, w1)`` of a weight ``w0 + w1 (1 / sin(el) - 1)`` (clipped to [0, 1];
+    :func:`airmass_weight`) fitted as :func:`blend_weight` is, each frame at its sun's
+    elevation ``el_deg``.  A sky's pull on the rim grows with the air mass towards the horizon;
+    the rings' with the gradation's bend there: where the band of a low sun holds too few
+    frames, the frames above carry the trend down to it (the second renderer's power-law
+    aureole, whose suns at 5-11 deg were read by one weight over all frames, 0.39: 0.0324 -> 0.0224 deg RMS with the rim moved as :meth:`LocatorChoice.rim_as_rings` does)."""
+    x = 1.0 / np.sin(np.radians(np.maximum(el_deg, 1.0))) - 1.0
+    return _trimmed_weight(rim, rings, np.column_stack([np.ones(len(x)), x]), trim_k, rounds)
+
+
+def airmass_weight(c: np.ndarray, el_deg: float) -> float:
+    """The weight of :func:`weight_by_airmass`'s coefficients ``c`` at ``el_deg`` (deg)."""
+    x = 1.0 / math.sin(math.radians(max(el_deg, 1.0))) - 1.0
+    return min(max(float(c[0] + c[1] * x), 0.0), 1.0)
+
+
+def _trimmed_weight(rim: np.ndarray, rings: np.ndarray, basis: np.ndarray, trim_k: float, rounds: int):
+    """Coefficients ``c`` of the weights ``w_i = basis_i . c`` (clipped to [0, 1]) whose
+    fixes ``rim_i + w_i (rings_i - rim_i)`` lie closest to the sun by least squares, the
+    frames farther than ``trim_k`` times the median left out and refitted (:func:`blend_weight`)."""
     dg = rings - rim
+    a, b = np.einsum("ij,ij->i", dg, dg), np.einsum("ij,ij->i", rim, dg)
     keep = np.ones(len(rim), bool)
-    w = 0.0
+    c = np.zeros(basis.shape[1])
     for _ in range(rounds):
-        den = float(np.sum(dg[keep] * dg[keep]))
-        w = min(max(-float(np.sum(rim[keep] * dg[keep])) / max(den, 1e-18), 0.0), 1.0)
-        res = np.linalg.norm(rim + w * dg, axis=1)
+        B = basis[keep]
+        N, g = (B * a[keep, None]).T @ B, -(B * b[keep, None]).sum(axis=0)
+        try:
+            c = np.linalg.solve(N, g)
+        except np.linalg.LinAlgError:  # all fixes alike, or all frames at one elevation
+            c = np.linalg.lstsq(N, g, rcond=None)[0]
+        w = np.clip(basis @ c, 0.0, 1.0)
+        res = np.linalg.norm(rim + w[:, None] * dg, axis=1)
         new = res <= trim_k * float(np.median(res))
         if (new == keep).all() or not new.any():
             break
         keep = new
-    return w
+    return c
 
 
 class LocatorChoice:
@@ -107,6 +145,7 @@ class LocatorChoice:
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
         self._all_w: float | None = None  # the weight over every frame kept (until the next)
+        self._airmass: np.ndarray | None = None  # the same by the air mass (weight_by_airmass)
         # the rim's fix less the rings', along the vertical and across it (rad), by elevation (deg)
         self._offsets: deque[tuple[float, float, float]] = deque(maxlen=4 * window)
         # without the site: sights of both fixes (t, rim ENU, rings ENU), and the squared RMS
@@ -127,9 +166,11 @@ class LocatorChoice:
 
     def weight(self, el_deg: float | None = None) -> float:
         """The weight of the rings' fix (0 the rim's, 1 the rings'; :func:`blend_weight`) over
-        the frames within :data:`BAND_DEG` of ``el_deg``, or over all kept when they are fewer
-        than :data:`MIN_BAND` (or ``el_deg`` is None); before ``min_frames`` frames, as the
-        calibration day chose (``prior``); always 1 when so constructed (``always``)."""
+        the frames within :data:`BAND_DEG` of ``el_deg``; where they are fewer than
+        :data:`MIN_BAND`, by the air mass over all kept (:func:`weight_by_airmass`, once
+        :data:`AIRMASS_MIN_FRAMES` are kept), else (or ``el_deg`` None) one weight over all
+        kept; before ``min_frames`` frames, as the calibration day chose (``prior``); always 1
+        when so constructed (``always``)."""
         if self._always:
             return 1.0
         if len(self._err) < max(self._min, 1):
@@ -138,6 +179,15 @@ class LocatorChoice:
             near = [e for e in self._err if abs(e[0] - el_deg) <= BAND_DEG]
             if len(near) >= MIN_BAND:
                 return blend_weight(np.array([e[1] for e in near]), np.array([e[2] for e in near]))
+            if len(self._err) >= AIRMASS_MIN_FRAMES:
+                if self._airmass is None:
+                    err = self._err
+                    self._airmass = weight_by_airmass(
+                        np.array([e[0] for e in err]),
+                        np.array([e[1] for e in err]),
+                        np.array([e[2] for e in err]),
+                    )
+                return airmass_weight(self._airmass, el_deg)
         if self._all_w is None:
             err = self._err
             self._all_w = blend_weight(np.array([e[1] for e in err]), np.array([e[2] for e in err]))
@@ -218,7 +268,7 @@ class LocatorChoice:
         lim = math.cos(math.radians(self._max))
         if float(rim @ sun) >= lim and float(rings @ sun) >= lim:
             self._err.append((el_deg, rim - sun, rings - sun))
-            self._all_w = None
+            self._all_w = self._airmass = None
 
     def place(
         self,
@@ -275,12 +325,17 @@ class LocatorChoice:
     def rim_as_rings(self, rim: np.ndarray, el_deg: float, up_cam: np.ndarray) -> np.ndarray | None:
         """The rim's fix ``rim`` (camera frame) less its median offset from the rings' fixes
         on the frames before where both placed the sun within :data:`OFFSET_EL_DEG` of
-        ``el_deg`` (deg), or None with fewer than :data:`MIN_OFFSETS` of them (the caller
-        moves the rim by its weight of that).  Where the rings read the sun better, the rim's
-        error is mostly its sky model's, which keeps its size and sign at an elevation: the
+        ``el_deg`` (deg), else on the :data:`MIN_OFFSETS` nearest in elevation within
+        :data:`NEAREST_OFFSET_DEG`, or None with fewer (the caller moves the rim by its weight
+        of that).  Where the rings read the sun better, the rim's error is mostly its sky
+        model's, which keeps its size and sign at an elevation and changes slowly with it: the
         third renderer's clouds with the site, 0.240 -> 0.21 deg RMS, where 187 suns the rings
-        did not place read 0.316 by the rim."""
+        did not place read 0.316 by the rim; the second renderer's power-law aureole at 5 deg,
+        whose rings placed no sun below 7 (0.174 -> 0.016 deg)."""
         near = [(dv, dh) for el, dv, dh in self._offsets if abs(el - el_deg) <= OFFSET_EL_DEG]
+        if len(near) < MIN_OFFSETS:
+            nearest = sorted(self._offsets, key=lambda o: abs(o[0] - el_deg))[:MIN_OFFSETS]
+            near = [(dv, dh) for el, dv, dh in nearest if abs(el - el_deg) <= NEAREST_OFFSET_DEG]
         if len(near) < MIN_OFFSETS:
             return None
         dv, dh = np.median(np.array(near), axis=0)

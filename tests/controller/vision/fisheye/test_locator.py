@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controller.vision.fisheye import locator
-from controller.vision.fisheye.locator import LocatorChoice, blend_weight
+from controller.vision.fisheye.locator import LocatorChoice, airmass_weight, blend_weight, weight_by_airmass
 from controller.vision.fisheye.rings import SkyReading, ring_direction
 
 from .helpers import E1, E2, RHO, A, angle_deg, product_sky
@@ -90,13 +90,38 @@ def test_the_weight_is_learned_from_the_frames_before_by_elevation_and_not_a_fra
     for el in (50.0, 51.0, 52.0, 53.0):  # at 50 deg the rings read the sun, the rim 0.1 low
         _frame(c, el, -0.1, 0.0)
     assert c.weight(51.0) == pytest.approx(1.0) and c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
-    assert c.weight(35.0) == c.weight() and 0.2 < c.weight() < 1.0  # no band there: all frames
+    assert 0.2 < c.weight() < 1.0  # one weight over all frames
+    assert 0.2 < c.weight(35.0) < 1.0 and c.weight(35.0) != c.weight()  # no band: by the air mass
     _frame(c, 20.0, -1.5, 0.2)  # a fix beyond max_deg: the frame is not counted
     assert c.weight(20.0) == pytest.approx(0.2, abs=1e-3)
     assert c.rings == (c.weight() >= 0.5)
     single = LocatorChoice(min_frames=1)
     _frame(single, 20.0, -0.1, 0.0)
     assert single.weight(20.0) == 1.0 and single.rings
+
+
+def test_a_low_sun_with_no_band_of_its_own_is_weighed_by_the_air_mass():
+    """Frames every 30 min see a low sun two or three times a day: where its band holds too
+    few frames, the weight is the trend in the air mass over all frames, not their mean (the
+    rim pulled by the horizon's sky below 25 deg, the rings off above 40)."""
+    c = LocatorChoice()
+    for el in (15.0, 18.0, 21.0, 24.0):  # the rim 0.2 deg high, the rings on the sun
+        _frame(c, el, 0.2, 0.0)
+    for el in (40.0, 50.0, 60.0):  # the rim on the sun, the rings 0.1 deg high
+        _frame(c, el, 0.0, 0.1)
+    mean = c.weight()
+    assert 0.5 < mean < 1.0 and c.weight(8.0) == mean  # 7 frames: one weight over them all
+    _frame(c, 70.0, 0.0, 0.1)
+    assert c.weight() < mean < c.weight(8.0) == 1.0  # 8 frames: by the air mass, 8 deg as 15-24
+    trend = [c.weight(el) for el in (12.0, 19.0, 30.0, 50.0, 80.0)]  # a line in the air mass
+    assert trend == sorted(trend, reverse=True) and trend[1] > 0.9 and trend[3] < 0.3
+    assert (
+        airmass_weight(np.array([0.5, 0.0]), 30.0) == 0.5 and airmass_weight(np.array([0.0, 1.0]), 0.0) == 1.0
+    )
+    el = np.array([10.0, 20.0, 30.0, 60.0])
+    rim = np.array([[0.0, 0.0, 0.001]] * 4)
+    w0, w1 = weight_by_airmass(el, rim, rim * 0.0)  # the rings on the sun at every elevation
+    assert w0 == pytest.approx(1.0) and w1 == pytest.approx(0.0, abs=1e-9)
 
 
 def test_the_rings_are_read_less_once_they_weigh_nothing():
@@ -207,7 +232,8 @@ def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from
     """A camera that has chosen the rings, whose rim reads the sun 0.1 deg off where its
     rings read it right: on a frame whose rings place no sun (here no reading at all, as
     under a cloud that makes them rough) the rim's fix is moved by its median offset from
-    the rings', once three frames within 2 deg of its elevation have given it."""
+    the rings', once three frames within 2 deg of its elevation have given it, or else the
+    three nearest within 8 deg."""
     reading, up, R, sun = _rings_of_a_sun_off_the_axis()
     gates = [_Gate("ephemeris", sun, 1.0)]
     seen, blind = _Cand(_Fit(reading, []), A, A, 90.0), _Cand(_Fit(None, []), A, A, 90.0)
@@ -220,8 +246,10 @@ def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from
     assert angle_deg(moved.d_enu, sun) < 0.01 and moved.d_cam is not A
     u, v = moved.fit.centre_uv
     assert u == pytest.approx(320.0 + 100.0 * moved.d_cam[0] / moved.d_cam[2])
-    low = _Cand(_Fit(None, []), A, A, 87.5)  # its elevation 2.5 deg from the offsets': none apply
-    assert c.place(low, gates, R, up, _Lens()) is low
+    low = _Cand(_Fit(None, []), A, A, 83.0)  # 7 deg from the offsets': the three nearest apply
+    assert "rim_by_rings" in c.place(low, gates, R, up, _Lens()).fit.flags
+    lower = _Cand(_Fit(None, []), A, A, 81.0)  # 9 deg from them: none applies
+    assert c.place(lower, gates, R, up, _Lens()) is lower
     assert c.place(blind, [*gates, _Gate("sequence", A, 0.05)], R, up, _Lens()) is blind  # beyond a gate
     rim = LocatorChoice(prior="rim")  # a camera whose choice is the rim keeps its rim's fix
     for _ in range(3):
