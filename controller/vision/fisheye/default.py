@@ -36,7 +36,7 @@ from .blend import LearnedBlend
 from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, with_sky_scale
-from .gates import Ephemeris, Gate, GateOptions, prior_direction, track_prediction
+from .gates import Ephemeris, Gate, GateOptions, min_rim_share, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
 from .lens import FisheyeLens
@@ -273,7 +273,7 @@ class FisheyeEstimator(FramePipeline):
                 None, "imprecise_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
             )
         share = best.fit.inlier_fraction
-        if share < o.gates.unvouched_min_inlier_fraction and not gates:  # a weak rim, unchecked
+        if share < min_rim_share(o.gates, gates):  # a weak rim that nothing else vouches for
             return not_found(
                 None, "unvouched_glare", t, self.frame, self.algorithm, rim_share=round(share, 3)
             )

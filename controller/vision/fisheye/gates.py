@@ -12,7 +12,8 @@
   ``track_rate_deg_per_min`` plus the anchors' error carried along, not the sun's whole rate.
   With no gate at all (a sequence's first sun, or the first after a gap, without the site or
   a prior) only a fix whose rim held on ``unvouched_min_inlier_fraction`` of its rays is
-  reported: a weak one has nothing to vouch for it (``unvouched_glare``).
+  reported: a weak one has nothing to vouch for it (``unvouched_glare``).  With the sequence
+  gate alone, whose anchors are the camera's own fixes, ``sequence_min_inlier_fraction``.
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
@@ -68,6 +69,12 @@ class GateOptions:
     # on this share of its rays: a weak one has nothing to vouch for it (the third
     # renderer's clouds without the site: dimmed suns found 2.5 and 4.3 deg off, 55-57 %)
     unvouched_min_inlier_fraction: float = 0.7
+    # with the sequence gate alone a fix is reported only when its rim held on this share of
+    # its rays: the gate follows the camera's own fixes, and a sun that a cloud dims and cuts
+    # moves its rim's centre by steps within it (the third renderer's clouds without the
+    # site: dimmed suns found 1.16-1.29 deg off on 41-48 %; our clouds' visible suns, 0.34
+    # and 0.62 deg off on under half, and one 0.11 off)
+    sequence_min_inlier_fraction: float = 0.5
     # without the site but with the orientation: learn the site from the detections and gate
     # by its ephemeris once they agree (:mod:`.selfsite`)
     learn_site: bool = True
@@ -78,6 +85,17 @@ class GateOptions:
     # place every sun the rings can, with no choice learned (the calibration's pass that fits
     # the rings' own rotation: :mod:`controller.calibration.fisheye_sun_calibration`)
     rings_always: bool = False
+
+
+def min_rim_share(opts: GateOptions, gates: list[Gate]) -> float:
+    """The least share of its rays that a fix's rim must hold on to be reported behind
+    ``gates``: ``unvouched_min_inlier_fraction`` with no gate, ``sequence_min_inlier_fraction``
+    with the sequence gate alone (its anchors are the camera's own fixes), none with a gate
+    that does not come from them (the site's ephemeris, a learned site's, the caller's
+    prior)."""
+    if not gates:
+        return opts.unvouched_min_inlier_fraction
+    return 0.0 if any(g.name != "sequence" for g in gates) else opts.sequence_min_inlier_fraction
 
 
 def track_prediction(

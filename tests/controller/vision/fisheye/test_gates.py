@@ -7,7 +7,7 @@ import numpy as np
 from controller.sun.source import Site, solar_position
 from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator
-from controller.vision.fisheye.gates import Ephemeris, track_prediction
+from controller.vision.fisheye.gates import Ephemeris, Gate, GateOptions, min_rim_share, track_prediction
 
 from .helpers import small_scene, truth_bundle
 
@@ -100,3 +100,19 @@ def test_a_fitted_orientation_narrows_the_ephemeris_gate_by_its_own_error():
     surveyed = replace(b, orientation=replace(b.orientation, residual_deg=0.2))  # no frames: one
     (g,) = [g for g in FisheyeEstimator(surveyed)._gates(t, None) if g.name == "ephemeris"]
     assert math.isclose(g.radius_deg, 0.6)
+
+
+def test_a_weak_rim_is_reported_only_behind_a_gate_that_is_not_the_cameras_own_fixes():
+    """No gate: a rim must hold on 70 % of its rays; the sequence gate alone (anchored on the
+    camera's own fixes, which a dimmed sun's rim can lead off by steps): 50 %; the site's
+    ephemeris, a learned site's or the caller's prior vouch for any."""
+    o, up = GateOptions(), np.array([0.0, 0.0, 1.0])
+
+    def gate(name):
+        return Gate(name, up, 1.0, "enu")
+
+    assert min_rim_share(o, []) == o.unvouched_min_inlier_fraction == 0.7
+    assert min_rim_share(o, [gate("sequence")]) == o.sequence_min_inlier_fraction == 0.5
+    for other in ("ephemeris", "ephemeris_learned", "prior"):
+        assert min_rim_share(o, [gate(other), gate("sequence")]) == 0.0
+        assert min_rim_share(o, [gate(other)]) == 0.0
