@@ -301,8 +301,7 @@ def fit_glare(
             ok_r = rsky & rays_ok[ring_sel, None] & np.isfinite(rvals) & opts.cloud_edges
             clear = rsky & ~cloud_edges(rvals, ok_r, phi[ring_sel], bright=it > 0 and streak is None)
             dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, clear)
-            # the rings' fix (.rings) leaves a cloud's edge out as the sky models do
-            reading = SkyReading(
+            reading = SkyReading(  # the rings' fix (.rings) leaves a cloud's edge out too
                 rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], clear, a, e1, e2, top_s - bg
             )
             if it and opts.sky_calibration is not None:  # judged once centred (see GlareOptions)
