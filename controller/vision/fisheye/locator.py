@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -67,26 +67,39 @@ def blend_weight(rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rou
     return min(max(float(c[0]), 0.0), 1.0)
 
 
+class AirmassWeight(NamedTuple):
+    """A weight ``w0 + w1 x`` in the air mass less one, ``x = 1 / sin(el) - 1``, clipped to
+    [0, 1]; ``x`` is held within the frames' own ``(x_lo, x_hi)``, so that frames all near
+    one elevation, whose trend is loose, are not carried far beyond it."""
+
+    w0: float
+    w1: float
+    x_lo: float
+    x_hi: float
+
+    def at(self, el_deg: float) -> float:
+        """The weight for a sun ``el_deg`` (deg) high."""
+        x = min(max(1.0 / math.sin(math.radians(max(el_deg, 1.0))) - 1.0, self.x_lo), self.x_hi)
+        return min(max(self.w0 + self.w1 * x, 0.0), 1.0)
+
+
 def weight_by_airmass(
     el_deg: np.ndarray, rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rounds: int = 5
-) -> np.ndarray:
-    """Coefficients ``(w0, w1)`` of a weight ``w0 + w1 (1 / sin(el) - 1)`` (clipped to [0, 1];
-    :func:`airmass_weight`) fitted as :func:`blend_weight` is, each frame at its sun's
-    elevation ``el_deg``.  A sky's pull on the rim grows with the air mass towards the horizon;
-    the rings' with the gradation's bend there: where the band of a low sun holds too few
-    frames, the frames above carry the trend down to it (the second renderer's power-law
-    aureole, whose suns at 5-11 deg were read by one weight over all frames, 0.39: 0.0324 -> 0.0224 deg RMS with the rim moved as :meth:`LocatorChoice.rim_as_rings` does)."""
+) -> AirmassWeight:
+    """The :class:`AirmassWeight` fitted as :func:`blend_weight` is, each frame at its sun's
+    elevation ``el_deg`` (deg).  A sky's pull on the rim grows with the air mass towards the
+    horizon, the rings' with the gradation's bend there: where the band of a low sun holds
+    too few frames, the frames above carry the trend down to it (the second renderer's
+    power-law aureole, whose suns at 5-11 deg one weight over all frames had read at 0.39:
+    0.0324 -> 0.0224 deg RMS, the rim moved as :meth:`LocatorChoice.rim_as_rings` does)."""
     x = 1.0 / np.sin(np.radians(np.maximum(el_deg, 1.0))) - 1.0
-    return _trimmed_weight(rim, rings, np.column_stack([np.ones(len(x)), x]), trim_k, rounds)
+    c = _trimmed_weight(rim, rings, np.column_stack([np.ones(len(x)), x]), trim_k, rounds)
+    return AirmassWeight(float(c[0]), float(c[1]), float(x.min()), float(x.max()))
 
 
-def airmass_weight(c: np.ndarray, el_deg: float) -> float:
-    """The weight of :func:`weight_by_airmass`'s coefficients ``c`` at ``el_deg`` (deg)."""
-    x = 1.0 / math.sin(math.radians(max(el_deg, 1.0))) - 1.0
-    return min(max(float(c[0] + c[1] * x), 0.0), 1.0)
-
-
-def _trimmed_weight(rim: np.ndarray, rings: np.ndarray, basis: np.ndarray, trim_k: float, rounds: int):
+def _trimmed_weight(
+    rim: np.ndarray, rings: np.ndarray, basis: np.ndarray, trim_k: float, rounds: int
+) -> np.ndarray:
     """Coefficients ``c`` of the weights ``w_i = basis_i . c`` (clipped to [0, 1]) whose
     fixes ``rim_i + w_i (rings_i - rim_i)`` lie closest to the sun by least squares, the
     frames farther than ``trim_k`` times the median left out and refitted (:func:`blend_weight`)."""
@@ -145,7 +158,7 @@ class LocatorChoice:
         self._max, self._lead, self._min = max_deg, lead, min_frames
         self._settled, self._every, self._frames = settled, every, 0
         self._all_w: float | None = None  # the weight over every frame kept (until the next)
-        self._airmass: np.ndarray | None = None  # the same by the air mass (weight_by_airmass)
+        self._airmass: AirmassWeight | None = None  # the same by the air mass
         # the rim's fix less the rings', along the vertical and across it (rad), by elevation (deg)
         self._offsets: deque[tuple[float, float, float]] = deque(maxlen=4 * window)
         # without the site: sights of both fixes (t, rim ENU, rings ENU), and the squared RMS
@@ -187,7 +200,7 @@ class LocatorChoice:
                         np.array([e[1] for e in err]),
                         np.array([e[2] for e in err]),
                     )
-                return airmass_weight(self._airmass, el_deg)
+                return self._airmass.at(el_deg)
         if self._all_w is None:
             err = self._err
             self._all_w = blend_weight(np.array([e[1] for e in err]), np.array([e[2] for e in err]))

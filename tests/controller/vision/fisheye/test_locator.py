@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controller.vision.fisheye import locator
-from controller.vision.fisheye.locator import LocatorChoice, airmass_weight, blend_weight, weight_by_airmass
+from controller.vision.fisheye.locator import AirmassWeight, LocatorChoice, blend_weight, weight_by_airmass
 from controller.vision.fisheye.rings import SkyReading, ring_direction
 
 from .helpers import E1, E2, RHO, A, angle_deg, product_sky
@@ -115,13 +115,14 @@ def test_a_low_sun_with_no_band_of_its_own_is_weighed_by_the_air_mass():
     assert c.weight() < mean < c.weight(8.0) == 1.0  # 8 frames: by the air mass, 8 deg as 15-24
     trend = [c.weight(el) for el in (12.0, 19.0, 30.0, 50.0, 80.0)]  # a line in the air mass
     assert trend == sorted(trend, reverse=True) and trend[1] > 0.9 and trend[3] < 0.3
-    assert (
-        airmass_weight(np.array([0.5, 0.0]), 30.0) == 0.5 and airmass_weight(np.array([0.0, 1.0]), 0.0) == 1.0
-    )
     el = np.array([10.0, 20.0, 30.0, 60.0])
     rim = np.array([[0.0, 0.0, 0.001]] * 4)
-    w0, w1 = weight_by_airmass(el, rim, rim * 0.0)  # the rings on the sun at every elevation
-    assert w0 == pytest.approx(1.0) and w1 == pytest.approx(0.0, abs=1e-9)
+    w = weight_by_airmass(el, rim, rim * 0.0)  # the rings on the sun at every elevation
+    assert w.w0 == pytest.approx(1.0) and w.w1 == pytest.approx(0.0, abs=1e-9)
+    x = [1.0 / math.sin(math.radians(e)) - 1.0 for e in (60.0, 10.0)]
+    assert (w.x_lo, w.x_hi) == pytest.approx(x)
+    steep = AirmassWeight(0.0, 1.0, 0.2, 0.5)  # frames at 42-56 deg: their trend held to that span
+    assert steep.at(56.4) == pytest.approx(0.2, abs=1e-3) and steep.at(5.0) == steep.at(40.0) == 0.5
 
 
 def test_the_rings_are_read_less_once_they_weigh_nothing():
