@@ -89,7 +89,8 @@ def weight_by_airmass(
     """The :class:`AirmassWeight` fitted as :func:`blend_weight` is, each frame at its sun's
     elevation ``el_deg`` (deg).  A sky's pull on the rim grows with the air mass towards the
     horizon, the rings' with the gradation's bend there: where the band of a low sun holds
-    too few frames, the frames above carry the trend down to it (the second renderer's
+    too few frames, the frames on either side carry the trend to it, and below the lowest
+    the trend's weight there holds (:class:`AirmassWeight`; the second renderer's
     power-law aureole, whose suns at 5-11 deg one weight over all frames had read at 0.39:
     0.0324 -> 0.0224 deg RMS, the rim moved as :meth:`LocatorChoice.rim_as_rings` does)."""
     x = 1.0 / np.sin(np.radians(np.maximum(el_deg, 1.0))) - 1.0
