@@ -39,6 +39,13 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="hotspot only: direction from the hotspot, sub-pixel (default) or the paper's "
         "weights (the fisheye's paper pipeline is --algorithm seed)",
     )
+    p.add_argument(
+        "--causal",
+        action="store_true",
+        help="fisheye, default pipeline: read each frame by a camera that has learned from the "
+        "frames before it only, as `heliotrack run` does (default: the batch's first half by a "
+        "camera that has read its second half first; docs/fisheye.md, 'A batch of frames')",
+    )
     p.add_argument("images", nargs="+", type=Path, metavar="IMAGE")
     p.set_defaults(func=run)
 
@@ -55,6 +62,8 @@ def run(args: argparse.Namespace) -> int:
             )
 
         return estimate_fisheye.run(args)
+    if args.causal:
+        raise InputError("--causal is for the fisheye sky camera (--sensor fisheye); hotspot frames are read alone")
     from controller.calibration.bundle import load_bundle
     from controller.timestamps import parse_timestamp, time_from_name, to_iso
     from controller.vision import HotspotEstimator

@@ -4,7 +4,11 @@ The images of one call are one sequence: they are processed in time order (the t
 each from the timestamp in its file name, canonical form ``2026-03-20T10-15-00Z.png``, or
 from ``--time`` for a single image; images without a time keep their place after the
 timed ones), so the previous accepted detection gates the next (the paper's rule 3, in
-angle).
+angle).  The default pipeline reads the timed frames as a batch
+(:func:`controller.vision.fisheye.batch.estimate_batch`): the first half by a camera that
+has learned from the second half, so that no frame is read by a camera that has learned
+nothing; ``--causal`` reads each from the frames before it alone, as ``heliotrack run``
+does.  The lines are then printed once the batch is read.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import argparse
 import json
 import logging
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from controller.errors import InputError
@@ -37,11 +42,13 @@ def frame_times(images: list[Path], t_cli: float | None) -> list[tuple[float | N
 
 
 def make_estimator(calib: Path, algorithm: str):
+    """A function that makes a fresh estimator of ``algorithm`` for the bundle at ``calib``
+    (read and checked once)."""
     from controller.calibration.fisheye_bundle import load_fisheye_bundle
     from controller.vision.fisheye import FisheyeEstimator, SeedEstimator
 
     bundle = load_fisheye_bundle(calib)
-    return SeedEstimator(bundle) if algorithm == "seed" else FisheyeEstimator(bundle)
+    return (lambda: SeedEstimator(bundle)) if algorithm == "seed" else (lambda: FisheyeEstimator(bundle))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         # several fisheye images are one sequence, gated frame to frame: one time for all
         # would make every step a jump of zero seconds
         raise InputError("--time stamps a single image; several images take their times from their names")
-    est = make_estimator(args.calib, args.algorithm)
+    make = make_estimator(args.calib, args.algorithm)
     t_cli = parse_timestamp(args.time, "--time") if args.time else None
     order = frame_times(list(args.images), t_cli)
     if t_cli is None:
@@ -70,8 +77,7 @@ def run(args: argparse.Namespace) -> int:
             ", ..." if len(untimed) > 1 else "",
         )
     seen = GateTally()
-    for t, path in order:
-        d = est.estimate_file(path, t).to_json()
+    for t, d in measured(make, order, args.algorithm == "default" and not args.causal):
         if t is not None:
             d["time"] = to_iso(t)
         seen.add(d)
@@ -80,6 +86,26 @@ def run(args: argparse.Namespace) -> int:
     if seen.says_the_bundle_is_wrong():
         log.warning(seen.warning())
     return 0
+
+
+def measured(
+    make, order: list[tuple[float | None, Path]], batch: bool
+) -> Iterator[tuple[float | None, dict]]:
+    """(time, JSON line) of each frame of ``order``, in its order: the timed frames as one
+    batch when ``batch`` (:func:`controller.vision.fisheye.batch.estimate_batch`), else each
+    as it comes; the untimed ones after them, by the camera that read the timed ones in order."""
+    from controller.vision.fisheye.batch import estimate_batch
+
+    timed = [(t, p) for t, p in order if t is not None]
+    est = make()
+    rest: list[tuple[float | None, Path]] = list(order)
+    if batch and len(timed) > 1:
+        results = estimate_batch(make, timed, lambda e, f: e.estimate_file(f[1], f[0]), forward=est)
+        for (tt, _), r in zip(timed, results):
+            yield tt, r.to_json()
+        rest = rest[len(timed) :]  # the untimed: by ``est``, which has read the timed in order
+    for t, p in rest:
+        yield t, est.estimate_file(p, t).to_json()
 
 
 class GateTally:

@@ -539,3 +539,52 @@ def test_response_error_from_the_shell_has_no_traceback(tmp_path):
     )
     assert r.returncode == 2 and "Traceback" not in r.stderr
     assert "EV apart" in r.stderr and str(paths[0]) in r.stderr
+
+
+@pytest.fixture(scope="module")
+def third_day(tmp_path_factory):
+    """Five frames of the third renderer's Mar 20 morning (a sky that is a product: read cold,
+    halfway between the rim and the rings, its low suns are 0.07-0.08 deg off), named in the
+    canonical form, and its bundle (no ``locator`` choice)."""
+    import cv2
+
+    from benchmarks import fisheye_third as ft
+    from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict, save_fisheye_bundle
+    from controller.timestamps import format_name_time
+
+    out = tmp_path_factory.mktemp("third")
+    look = ft.LOOKS[0]
+    scene = ft.ThirdScene(look)
+    truth = {}
+    for t, az, el in ft.sun_frames(ft.DAYS[0], 60)[:5]:
+        rng = np.random.default_rng([look.width, look.height, int(t)])
+        path = out / f"{format_name_time(t)}.png"
+        cv2.imwrite(str(path), scene.render(ft.sun_enu(az, el), rng))
+        truth[str(path)] = azel_to_enu(az, el)
+    bundle = save_fisheye_bundle(fisheye_bundle_from_dict(ft.bundle_dict(look)), out / "third.toml")
+    return bundle, truth
+
+
+def test_a_batch_reads_its_first_frames_by_a_camera_that_has_learned_from_the_later_ones(third_day, capsys):
+    bundle, truth = third_day
+    argv = ["estimate", "--sensor", "fisheye", "--calib", str(bundle), *truth]
+    errors = {}
+    for mode in ("batch", "causal"):
+        assert main(argv + (["--causal"] if mode == "causal" else [])) == 0
+        got = lines(capsys)
+        assert [g["image"] for g in got] == list(truth) and all(g["found"] for g in got)
+        flagged = ["learned_from_later_frames" in g["quality"] for g in got]
+        assert flagged == ([True, True, False, False, False] if mode == "batch" else [False] * 5)
+        errors[mode] = [
+            float(angle_between_deg(azel_to_enu(g["az_deg"], g["el_deg"]), truth[g["image"]])) for g in got
+        ]
+    assert errors["causal"][0] > 0.05 and errors["batch"][0] < 0.02, errors
+    assert errors["batch"][2:] == errors["causal"][2:]
+
+
+def test_causal_is_refused_for_the_hotspot_sensor(installed, capsys):
+    out, _, _ = installed
+    frame = str(sorted((out / "day").glob("*.png"))[3])
+    assert main(["estimate", "--calib", "hotspot.toml", "--causal", frame]) == 2
+    out_, err = capsys.readouterr()
+    assert out_ == "" and "--causal is for the fisheye sky camera" in err and "Traceback" not in err

@@ -15,7 +15,7 @@ class FramePipeline:
     frame of the bundle's size, or a not-found result with the reason.
 
     Subclasses set ``algorithm``, ``frame`` ("enu" or "model") and ``shape`` (rows,
-    columns) and implement :meth:`estimate_image`.
+    columns) and implement :meth:`estimate_image` and :meth:`reset_sequence`.
     """
 
     algorithm: str
@@ -23,6 +23,10 @@ class FramePipeline:
     shape: tuple[int, int]
 
     def estimate_image(self, image, t: float | None = None, prior=None) -> FisheyeResult:
+        raise NotImplementedError
+
+    def reset_sequence(self) -> None:
+        """Start another sequence: the next frame is not gated by the last one's detection."""
         raise NotImplementedError
 
     def estimate_file(self, path: str | Path, t: float | None = None, prior=None) -> FisheyeResult:
