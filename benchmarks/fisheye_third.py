@@ -424,32 +424,56 @@ def score(records: Iterable[tuple[Any, float, float]]) -> dict:
     }
 
 
+#: the looks also read as ``heliotrack estimate`` reads a day given in one call (:func:`run_look`)
+PER_DAY_LOOKS = (LOOKS[0].name, LOOKS[1].name)
+
+
 def run_look(look: ThirdLook, step_min: int) -> dict:
     """Render the look's three days, a frame every ``step_min`` minutes, and score the
     default pipeline on them (one sequence a day), with the bundle as it is and without its
     ``[site]`` (a second camera on the same frames: the orientation known, the site not).
 
-    Returns :func:`score`'s, ``without_site`` (:func:`score`'s without the site), and
-    ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg).
+    Returns :func:`score`'s, ``without_site`` (:func:`score`'s without the site),
+    ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg), and for the looks in
+    :data:`PER_DAY_LOOKS`, ``per_day_calls``: the frames as ``heliotrack estimate`` reads a
+    day given in one call (a fresh camera a day), by :func:`score`, as a batch
+    (:func:`controller.vision.fisheye.batch.estimate_batch`) and with ``--causal``, with the
+    site and without it.
     """
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
+    from controller.vision.fisheye.batch import estimate_batch
 
     scene = ThirdScene(look)
     bundle = fisheye_bundle_from_dict(bundle_dict(look))
-    ests = (FisheyeEstimator(bundle), FisheyeEstimator(replace(bundle, site=None)))
+    bundles = {"": bundle, "_without_site": replace(bundle, site=None)}
+    ests = [FisheyeEstimator(b) for b in bundles.values()]
     records: tuple[list, list] = ([], [])
+    per_day = look.name in PER_DAY_LOOKS
+    calls: dict[str, list] = {f"{m}{k}": [] for m in ("batch", "causal") for k in bundles}
     for day in DAYS:
         for est in ests:
             est.reset_sequence()
+        frames = []
         for t, az, el in sun_frames(day, step_min):
             # a seed of its own per frame: the same frame in a quick and a full run
             rng = np.random.default_rng([look.width, look.height, int(t)])
             img = scene.render(sun_enu(az, el), rng)
             for est, rec in zip(ests, records):
                 rec.append((est.estimate_image(img, t), az, el))
+            if per_day:
+                frames.append((t, img, az, el))
+        for k, b in bundles.items() if per_day else ():
+            causal = FisheyeEstimator(b)
+            calls[f"causal{k}"] += [(causal.estimate_image(img, t), az, el) for t, img, az, el in frames]
+            batch = estimate_batch(
+                lambda b=b: FisheyeEstimator(b), frames, lambda e, f: e.estimate_image(f[1], f[0])
+            )
+            calls[f"batch{k}"] += [(r, az, el) for r, (_, _, az, el) in zip(batch, frames)]
     out = score(records[0])
     out["without_site"] = score(records[1])
+    if per_day:
+        out["per_day_calls"] = {k: score(v) for k, v in calls.items()}
     out["lens_fit_max_residual_px"] = round(kb_fit(scene.lens)[2], 5)
     return out
 

@@ -247,6 +247,24 @@ def fisheye_third(r: dict) -> list[Headline]:
                     ok=rms is not None and rms <= limit and ns["false_detections"] == 0,
                 )
             )
+    for key, label, limit in (
+        ("third renderer, dark exposure", "640 x 480", 0.03),
+        ("third renderer, dark exposure, 1280 x 960", "1280 x 960", 0.02),
+    ):
+        calls = looks.get(key, {}).get("per_day_calls")
+        for site, what in (("", "with the site"), ("_without_site", "without it")) if calls else ():
+            b, c = calls[f"batch{site}"], calls[f"causal{site}"]
+            rms = b["error"].get("rms_deg")
+            out.append(
+                Headline(
+                    name,
+                    f"dark exposure, a day a call of `heliotrack estimate`, {what}: batch (--causal), {label}",
+                    f"{fmt(rms, 3, ' deg')} ({fmt(c['error'].get('rms_deg'), 3, ' deg')}; "
+                    f"{fmt(b['false_detections'])} ({fmt(c['false_detections'])}) false)",
+                    f"<= {limit:g} deg",
+                    ok=rms is not None and rms <= limit and b["false_detections"] == 0,
+                )
+            )
     for key, label in (
         ("third renderer, as exposed", "as exposed (zenith grey 72)"),
         ("third renderer, as exposed, sRGB", "as exposed, sRGB declared in the bundle"),
