@@ -285,3 +285,36 @@ def test_where_the_rings_refuse_a_cloudy_sun_the_rim_is_moved_by_its_offset_from
         errors[min_offsets] = out
     for moved, left in zip(errors[shipped], errors[10**6]):
         assert moved < left - 0.1
+
+
+def test_a_dimmed_sun_minutes_after_the_last_anchor_is_not_vouched_for_by_a_wide_sequence_gate(scene):
+    """Without the site, a fresh camera: the sun of the Dec 21 afternoon sequence is found on
+    two frames 30 s apart (anchors), then dimmed (T 0.5-0.8) for 14 minutes; its rim at T 0.49
+    holds on 56 % of its rays, 1.5 deg from the sun, inside a sequence gate grown to 5.2 deg.
+    Such a gate vouches for little: the rim must hold on 70 %, as with no gate."""
+    from dataclasses import replace
+
+    from controller.vision.fisheye import FisheyeOptions
+    from controller.vision.fisheye.gates import GateOptions
+
+    seq = next(s for s in clouds.SEQUENCES if s.name == "broken cloud 0.7, Dec 21 afternoon")
+    frames = clouds.frame_times(seq, 2.0, 30.0)
+    clouds.set_up(scene, seq, frames[0][0], frames[-1][0])
+    t_false = 1797887820.0
+    todo = [f for f in frames if t_false - 900.0 <= f[0] <= t_false]
+    bundle = fisheye_bundle_from_dict(clouds.bundles()["without site"])
+    ests = {
+        "now": FisheyeEstimator(bundle),
+        "before": FisheyeEstimator(
+            bundle, FisheyeOptions(gates=replace(GateOptions(), sequence_vouch_max_deg=math.inf))
+        ),
+    }
+    last = {}
+    for t, az, el in todo:
+        img, truth = scene.frame(t, az, el)
+        last = {k: e.estimate_image(img, t) for k, e in ests.items()}
+    assert truth["visibility"] == "dimmed" and 0.45 < truth["transmittance"] < 0.55
+    before = last["before"]
+    assert before.found and before.quality[0] == "gate_sequence"
+    assert clouds.angle_deg(clouds.sun_enu(before.az_deg, before.el_deg), truth["sun_enu"]) > 1.0
+    assert not last["now"].found and last["now"].reason == "unvouched_glare"

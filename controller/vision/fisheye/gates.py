@@ -75,6 +75,12 @@ class GateOptions:
     # site: dimmed suns found 1.16-1.29 deg off on 41-48 %; our clouds' visible suns, 0.34
     # and 0.62 deg off on under half, and one 0.11 off)
     sequence_min_inlier_fraction: float = 0.5
+    # and only while that gate is this narrow (deg): it widens with the time since its anchor
+    # (0.3 deg a minute), and one 2-5 deg wide vouches for little (the third renderer's
+    # clouds without the site, a fresh camera a sequence: dimmed suns found 1.5 and 1.75 deg
+    # off on 56 and 62 % of their rays, 4 and 14 minutes after the last anchor); wider, a
+    # rim must hold on ``unvouched_min_inlier_fraction``
+    sequence_vouch_max_deg: float = 2.0
     # without the site but with the orientation: learn the site from the detections and gate
     # by its ephemeris once they agree (:mod:`.selfsite`)
     learn_site: bool = True
@@ -90,12 +96,14 @@ class GateOptions:
 def min_rim_share(opts: GateOptions, gates: list[Gate]) -> float:
     """The least share of its rays that a fix's rim must hold on to be reported behind
     ``gates``: ``unvouched_min_inlier_fraction`` with no gate, ``sequence_min_inlier_fraction``
-    with the sequence gate alone (its anchors are the camera's own fixes), none with a gate
-    that does not come from them (the site's ephemeris, a learned site's, the caller's
-    prior)."""
-    if not gates:
+    with the sequence gate alone (its anchors are the camera's own fixes) while it is at most
+    ``sequence_vouch_max_deg`` wide (wider, as with none), none with a gate that does not come
+    from them (the site's ephemeris, a learned site's, the caller's prior)."""
+    if any(g.name != "sequence" for g in gates):
+        return 0.0
+    if not gates or min(g.radius_deg for g in gates) > opts.sequence_vouch_max_deg:
         return opts.unvouched_min_inlier_fraction
-    return 0.0 if any(g.name != "sequence" for g in gates) else opts.sequence_min_inlier_fraction
+    return opts.sequence_min_inlier_fraction
 
 
 def track_prediction(

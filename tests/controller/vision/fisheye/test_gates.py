@@ -104,15 +104,20 @@ def test_a_fitted_orientation_narrows_the_ephemeris_gate_by_its_own_error():
 
 def test_a_weak_rim_is_reported_only_behind_a_gate_that_is_not_the_cameras_own_fixes():
     """No gate: a rim must hold on 70 % of its rays; the sequence gate alone (anchored on the
-    camera's own fixes, which a dimmed sun's rim can lead off by steps): 50 %; the site's
+    camera's own fixes, which a dimmed sun's rim can lead off by steps): 50 % while that gate
+    is at most 2 deg wide, 70 % when wider (minutes since its anchor); the site's
     ephemeris, a learned site's or the caller's prior vouch for any."""
     o, up = GateOptions(), np.array([0.0, 0.0, 1.0])
 
-    def gate(name):
-        return Gate(name, up, 1.0, "enu")
+    def gate(name, radius_deg=1.0):
+        return Gate(name, up, radius_deg, "enu")
 
     assert min_rim_share(o, []) == o.unvouched_min_inlier_fraction == 0.7
     assert min_rim_share(o, [gate("sequence")]) == o.sequence_min_inlier_fraction == 0.5
+    assert o.sequence_vouch_max_deg == 2.0
+    assert min_rim_share(o, [gate("sequence", 2.0)]) == 0.5
+    assert min_rim_share(o, [gate("sequence", 2.2)]) == 0.7  # 4 minutes after its anchor
+    assert min_rim_share(o, [gate("ephemeris", 1.0), gate("sequence", 5.2)]) == 0.0
     for other in ("ephemeris", "ephemeris_learned", "prior"):
         assert min_rim_share(o, [gate(other), gate("sequence")]) == 0.0
         assert min_rim_share(o, [gate(other)]) == 0.0
