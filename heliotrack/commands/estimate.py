@@ -63,7 +63,9 @@ def run(args: argparse.Namespace) -> int:
 
         return estimate_fisheye.run(args)
     if args.causal:
-        raise InputError("--causal is for the fisheye sky camera (--sensor fisheye); hotspot frames are read alone")
+        raise InputError(
+            "--causal is for the fisheye sky camera (--sensor fisheye); hotspot frames are read alone"
+        )
     from controller.calibration.bundle import load_bundle
     from controller.timestamps import parse_timestamp, time_from_name, to_iso
     from controller.vision import HotspotEstimator
