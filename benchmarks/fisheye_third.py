@@ -33,14 +33,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterable
 from dataclasses import dataclass, replace
-from typing import Any
 
 import cv2
 import numpy as np
 
-from .fisheye_suites import angle_deg, stats
+from .fisheye_suites import angle_deg as angle_deg  # the tests' and the clouds' bench's
+from .fisheye_third_score import FALSE_DEG, score, sun_enu
 
 DESCRIPTION = "fisheye sky camera on a third renderer (Perez sky, Moffat glare, Santiago): clear days"
 
@@ -65,8 +64,6 @@ GLARE_SAT_DEG = 2.0  # the glare alone reaches full scale this far from the sun
 GLARE_BETA = 2.5
 SMEAR = 0.04  # full scale, added to every column the saturated disk crosses
 #: a detection further than this from the sun is a false detection (as in fisheye_suites)
-FALSE_DEG = 1.0
-BANDS = ((5.0, 17.0), (17.0, 25.0), (25.0, 40.0), (40.0, 90.0))
 
 
 @dataclass(frozen=True)
@@ -113,13 +110,6 @@ def enu_from_camera() -> np.ndarray:
     a = math.radians(TILT_AXIS_AZ_DEG)
     tilt = cv2.Rodrigues(math.radians(TILT_DEG) * np.array([math.sin(a), math.cos(a), 0.0]))[0]
     return tilt @ head
-
-
-def sun_enu(az_deg, el_deg) -> np.ndarray:
-    """Unit direction(s), shape (..., 3), in (East, North, Up) of azimuth ``az_deg`` (deg,
-    clockwise from north) and elevation ``el_deg`` (deg, above the horizon)."""
-    az, el = np.radians(az_deg), np.radians(el_deg)
-    return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], -1)
 
 
 class TrueLens:
@@ -370,60 +360,6 @@ def sun_frames(day: str, step_min: int) -> list[tuple[float, float, float]]:
 
 
 # ---------------------------------------------------------------- scoring
-def score(records: Iterable[tuple[Any, float, float]]) -> dict:
-    """Counts and errors of a look's frames.
-
-    Parameters
-    ----------
-    records : iterable of (result, az_deg, el_deg)
-        Each frame's :class:`~controller.vision.fisheye.FisheyeResult` (``found``,
-        ``reason``, ``az_deg``, ``el_deg``, ``sigma_deg``) and the sun's true azimuth and
-        elevation (deg).
-
-    Returns
-    -------
-    dict
-        ``n_frames``; ``found``: found within :data:`FALSE_DEG` of the sun (the error
-        statistics are over these); ``false_detections``: found further off; ``not_found``:
-        counts by reason; ``error``: RMS, median, p95, max (deg); ``elevation_bands``: per
-        band of true elevation (:data:`BANDS`), count, RMS and mean signed elevation error
-        (reported minus true, deg: negative reads the sun low); ``frac_within_2sigma``.
-    """
-    n, false = 0, 0
-    not_found: dict[str, int] = {}
-    rows = []  # (true el, error, signed el error, sigma)
-    for res, az, el in records:
-        n += 1
-        if not res.found:
-            why = str(res.reason)
-            not_found[why] = not_found.get(why, 0) + 1
-            continue
-        r_az, r_el = float(res.az_deg), float(res.el_deg)
-        err = angle_deg(sun_enu(r_az, r_el), sun_enu(az, el))
-        if err > FALSE_DEG:
-            false += 1
-            continue
-        rows.append((el, err, r_el - el, float(res.sigma_deg or math.nan)))
-    a = np.array(rows) if rows else np.zeros((0, 4))
-    bands = {}
-    for lo, hi in BANDS:
-        m = (a[:, 0] >= lo) & ((a[:, 0] < hi) | (hi == BANDS[-1][1]))
-        bands[f"{lo:g}-{hi:g}"] = {
-            "n": int(m.sum()),
-            "rms_deg": round(float(np.sqrt(np.mean(a[m, 1] ** 2))), 4) if m.any() else None,
-            "mean_signed_el_error_deg": round(float(a[m, 2].mean()), 4) if m.any() else None,
-        }
-    return {
-        "n_frames": n,
-        "found": len(rows),
-        "not_found": dict(sorted(not_found.items())),
-        "false_detections": false,
-        "error": stats(a[:, 1]),
-        "elevation_bands": bands,
-        "frac_within_2sigma": round(float(np.mean(a[:, 1] < 2 * a[:, 3])), 3) if rows else None,
-    }
-
-
 #: the looks also read as ``heliotrack estimate`` reads a day given in one call (:func:`run_look`)
 PER_DAY_LOOKS = (LOOKS[0].name, LOOKS[1].name)
 
@@ -435,22 +371,20 @@ def run_look(look: ThirdLook, step_min: int) -> dict:
 
     Returns :func:`score`'s, ``without_site`` (:func:`score`'s without the site),
     ``lens_fit_max_residual_px`` (the bundle's KB fit, 0-95 deg), and for the looks in
-    :data:`PER_DAY_LOOKS`, ``per_day_calls``: the frames as ``heliotrack estimate`` reads a
-    day given in one call (a fresh camera a day), by :func:`score`, as a batch
-    (:func:`controller.vision.fisheye.batch.estimate_batch`) and with ``--causal``, with the
-    site and without it.
+    :data:`PER_DAY_LOOKS` ``per_day_calls``: :func:`score` of each day read as one call of
+    ``heliotrack estimate`` (:class:`.fisheye_calls.CallReadings`), with the site and without.
     """
     from controller.calibration.fisheye_bundle import fisheye_bundle_from_dict
     from controller.vision.fisheye import FisheyeEstimator
-    from controller.vision.fisheye.batch import estimate_batch
+
+    from .fisheye_calls import CallReadings
 
     scene = ThirdScene(look)
     bundle = fisheye_bundle_from_dict(bundle_dict(look))
-    bundles = {"": bundle, "_without_site": replace(bundle, site=None)}
-    ests = [FisheyeEstimator(b) for b in bundles.values()]
+    calls = CallReadings({"": bundle, "_without_site": replace(bundle, site=None)})
+    ests = [FisheyeEstimator(b) for b in calls.bundles.values()]
     records: tuple[list, list] = ([], [])
     per_day = look.name in PER_DAY_LOOKS
-    calls: dict[str, list] = {f"{m}{k}": [] for m in ("batch", "causal") for k in bundles}
     for day in DAYS:
         for est in ests:
             est.reset_sequence()
@@ -461,19 +395,13 @@ def run_look(look: ThirdLook, step_min: int) -> dict:
             img = scene.render(sun_enu(az, el), rng)
             for est, rec in zip(ests, records):
                 rec.append((est.estimate_image(img, t), az, el))
-            if per_day:
-                frames.append((t, img, az, el))
-        for k, b in bundles.items() if per_day else ():
-            causal = FisheyeEstimator(b)
-            calls[f"causal{k}"] += [(causal.estimate_image(img, t), az, el) for t, img, az, el in frames]
-            batch = estimate_batch(
-                lambda b=b: FisheyeEstimator(b), frames, lambda e, f: e.estimate_image(f[1], f[0])
-            )
-            calls[f"batch{k}"] += [(r, az, el) for r, (_, _, az, el) in zip(batch, frames)]
+            frames += [(t, img, az, el)] if per_day else []
+        if per_day:
+            calls.add_call(frames)
     out = score(records[0])
     out["without_site"] = score(records[1])
     if per_day:
-        out["per_day_calls"] = {k: score(v) for k, v in calls.items()}
+        out["per_day_calls"] = {k: score(v) for k, v in calls.records.items()}
     out["lens_fit_max_residual_px"] = round(kb_fit(scene.lens)[2], 5)
     return out
 
