@@ -24,9 +24,11 @@ demo: $(STAMP)
 
 # Two workers (pytest-xdist): CI's two cores.  Each worker is a session of its own (its
 # bus-lock folder too); every test's port, pty and folder is its own.  Serial, the suite
-# took 557-606 s here; in two workers 310 s, twice with no failure (2026-12-02).
+# took 557-606 s here; in two workers 310 s, twice with no failure (2026-12-02).  A
+# module's tests run on one worker, in order (loadscope): some follow one plant through
+# a shutdown and a restart (test_run_plant.py); under `load` a fresh clone's CI split them.
 test: $(STAMP) lint wheel-test
-	$(BIN)/python -m pytest -q -n 2
+	$(BIN)/python -m pytest -q -n 2 --dist loadscope
 
 # Lint, format and types first: they take seconds and fail fast.
 lint: $(STAMP)

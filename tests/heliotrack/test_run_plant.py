@@ -32,6 +32,9 @@ from tests.heliotrack.plant_emulators import (
 )
 
 PERIOD_S, HEARTBEAT_S = 1.0, 3.0
+# this module's tests run in order on one worker (`make test`: --dist loadscope): the kill -9
+# test resumes the stows that the graceful shutdown before it recorded (on a worker of its
+# own it had none: a fresh clone's CI, 2026-12-03)
 
 
 @pytest.fixture(scope="module")
