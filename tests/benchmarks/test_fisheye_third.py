@@ -231,12 +231,49 @@ def test_with_the_site_the_ccds_smear_is_taken_off_the_rings_that_place_a_high_s
     assert third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el)) < 0.03
 
 
+def test_without_the_site_the_smear_is_taken_off_once_the_camera_has_learned_its_site():
+    """The same high sun, the bundle without its site: a camera that has not learned the
+    site reads the rings with the smear in them, 0.05 deg off or more; once it has learned
+    the site from the sun (here from true sights of the hour before), its learned gate
+    stands in for the ephemeris's and it measures as with the site (``frames.sited``); with
+    ``sited_once_learned`` off, as before."""
+    from dataclasses import replace
+
+    from controller.vision.fisheye.default import FisheyeOptions
+    from controller.vision.fisheye.selfsite import LearnedEphemeris
+
+    day = third.sun_frames("2026-12-21", 5)
+    t, az, el = min(day, key=lambda f: abs(f[2] - 79.1))
+    img = third.ThirdScene(DARK_HD).render(third.sun_enu(az, el), np.random.default_rng([1280, 960, int(t)]))
+    bundle = fisheye_bundle_from_dict(third.bundle_dict(DARK_HD))
+    bundle = replace(bundle, site=None, orientation=replace(bundle.orientation, locator="rings"))
+    off = replace(FisheyeOptions(), gates=replace(FisheyeOptions().gates, sited_once_learned=False))
+    errs = {}
+    for key, est in (
+        ("cold", FisheyeEstimator(bundle)),
+        ("learned", FisheyeEstimator(bundle)),
+        ("learned, off", FisheyeEstimator(bundle, off)),
+    ):
+        if key != "cold":
+            assert est.site_from_sun is not None
+            for ts, a, e in (f for f in day if t - 3600.0 <= f[0] < t):
+                fit = est.site_from_sun.add(ts, third.sun_enu(a, e))
+            assert fit is not None and abs(fit.latitude - third.SITE[0]) < 0.1
+            est.learned = (fit, LearnedEphemeris(fit))
+        res = est.estimate_image(img, t)
+        assert res.found and "ring_locator" in res.quality, key
+        assert ("gate_ephemeris_learned" in res.quality) == (key != "cold")
+        errs[key] = third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el))
+    assert errs["learned"] < 0.03 < 0.05 < errs["cold"]
+    assert errs["learned, off"] == pytest.approx(errs["cold"], abs=1e-9)
+
+
 def test_without_the_site_the_suns_own_path_hands_this_skys_sun_to_its_rings():
     """Without the bundle's site there is no ephemeris to compare the rim and the rings by,
     but the sun's own path still judges them: the rim's sky model reads this sky's sun
     0.05-0.2 deg low at 15-30 deg and near right higher up, which no site fitted to its
-    sights takes up, while the rings' sights fit one. From the thirteenth frame above 12
-    deg (20-min frames) the rings place the sun: the afternoon reads 0.018 deg where the
+    sights takes up, while the rings' sights fit one. From the seventh frame above 12
+    deg (20-min frames, six sights over an hour and more) the rings place the sun: the afternoon reads 0.018 deg where the
     rim alone reads 0.11 (development run); before, the fix halfway between the two, closer
     than the rim's where they are 0.2 deg apart or less (0.1 deg moved at most)."""
     from dataclasses import replace

@@ -35,7 +35,7 @@ from ...sun.types import enu_to_azel
 from .blend import LearnedBlend
 from .blobs import find_blobs
 from .channel import FrameBuffers, glare_channel
-from .frames import load_mask, with_sky_scale
+from .frames import load_mask, sited, with_sky_scale
 from .gates import Ephemeris, Gate, GateOptions, min_rim_share, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
@@ -152,6 +152,7 @@ class FisheyeEstimator(FramePipeline):
         g = self.options.gates
         learn = self.R is not None and self.ephemeris is None and g.learn_site  # no site: from the sun's
         self.site_from_sun = SiteFromSun() if learn else None  # own sights (:mod:`.selfsite`)
+        self._sited = sited(self.options.glare) if learn and g.sited_once_learned else None
         self.learned: tuple[SiteFit, LearnedEphemeris] | None = None
         self.locator = LocatorChoice.of_camera(g, bundle.orientation)  # used with the site
         # the rims' blend of metrics, learned (the camera's: kept); with the site only, see .blend
@@ -160,12 +161,9 @@ class FisheyeEstimator(FramePipeline):
         self._refused_by_anchor = 0  # frames since the anchor in which it alone refused the sun
         self._anchors: deque[tuple[float, np.ndarray]] = deque(maxlen=16)  # the track's
         self.history = GlareHistory()
-        dpp0 = self.lens.deg_per_px(cam.cx, cam.cy)
-        lens_sig = 0.5 * (cam.rms_px or 0.0) * dpp0
+        lens_sig = 0.5 * (cam.rms_px or 0.0) * self.lens.deg_per_px(cam.cx, cam.cy)
         o = bundle.orientation
-        ori_sig = 0.0
-        if o is not None and o.residual_deg is not None:
-            ori_sig = o.residual_deg / math.sqrt(max(o.frames or 1, 1))
+        ori_sig = 0.0 if o is None or o.residual_deg is None else o.residual_deg / math.sqrt(o.frames or 1)
         self.sigma_cal = math.hypot(lens_sig, ori_sig)
 
     # -- sequence --------------------------------------------------------------------------
@@ -202,7 +200,8 @@ class FisheyeEstimator(FramePipeline):
         )
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
-        self._smear = column_smear(grey, blobs, float(peak)) if o.glare.column_smear else None
+        glare = self._sited if self._sited is not None and self.learned is not None else o.glare
+        self._smear = column_smear(grey, blobs, float(peak)) if glare.column_smear else None
         cands: list[Candidate] = []
         low = 0
         for blob in blobs:
@@ -215,12 +214,12 @@ class FisheyeEstimator(FramePipeline):
                 if self._below_horizon(x, y, r):
                     low += 1
                     continue
-                cand = self._measure(grey, x, y, r, float(peak), o.glare)
+                cand = self._measure(grey, x, y, r, float(peak), glare)
                 if cand is not None and cand.reason is not None and cand.fit.one_way_streak:
                     # a saturated cloud below (or above) a dimmed sun may pass for a streak
                     # that leaves one way; if the rim it leaves is not the sun's, drop it
                     cand = (
-                        self._measure(grey, x, y, r, float(peak), replace(o.glare, one_way_streaks=False))
+                        self._measure(grey, x, y, r, float(peak), replace(glare, one_way_streaks=False))
                         or cand
                     )
                 if cand is not None:

@@ -20,6 +20,7 @@ from ..imageio import read_image, to_uint8
 
 if TYPE_CHECKING:
     from .default import FisheyeOptions
+    from .glare import GlareOptions
 
 
 def load_frame(path: str | Path) -> tuple[np.ndarray | None, str | None]:
@@ -94,5 +95,14 @@ def with_sky_scale(
     if orientation.sky_calibration is not None:
         glare = replace(glare, sky_calibration=orientation.sky_calibration, column_smear=True)
     if site is not None and options.gates.ephemeris:
-        glare = replace(glare, cloud_edges=True, column_smear=True)
+        glare = sited(glare)
     return options if glare is options.glare else replace(options, glare=glare)
+
+
+def sited(glare: GlareOptions) -> GlareOptions:
+    """``glare`` (:class:`.glare.GlareOptions`) as a camera measures once an ephemeris gate
+    refuses a fix more than a degree off: a cloud's edge left out of the sky models, a CCD's
+    column smear taken off (:func:`with_sky_scale` says why each waits for that gate).  A
+    camera without the bundle's site measures so once it has learned the site from the sun
+    (:mod:`.selfsite`; ``GateOptions.sited_once_learned``)."""
+    return replace(glare, cloud_edges=True, column_smear=True)
