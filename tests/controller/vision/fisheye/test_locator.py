@@ -287,18 +287,27 @@ def _sky_bias(el: float) -> float:
 def test_without_the_site_the_suns_own_path_chooses_the_locator_whose_sights_it_fits():
     """The rim reads the sun 0.2 deg low around 20 deg (a sky model's error, which comes and
     goes with the elevation) and the rings read it right: no site takes up the rim's error,
-    so the rings are chosen once 12 sights above 12 deg span an hour, and not before; and
+    so the rings are chosen once 6 sights above 12 deg span an hour, and not before; and
     the other way round when the rings are the ones in error."""
+
+    def first_choice(sights) -> tuple[int | None, LocatorChoice]:
+        c = LocatorChoice()
+        decided = None
+        for k, (t, s, biased, _) in enumerate(sights):
+            assert not c.path_rings or decided is not None
+            c.observe_path(t, biased, s)  # the rim's fix, the rings'
+            if c.path_rings and decided is None:
+                decided = k
+        return decided, c
+
     sights = _day_of_sights(_sky_bias)
-    c = LocatorChoice()
-    decided = None
-    for k, (t, s, biased, _) in enumerate(sights):
-        assert not c.path_rings or decided is not None
-        c.observe_path(t, biased, s)  # the rim's fix, the rings'
-        if c.path_rings and decided is None:
-            decided = k
+    decided, c = first_choice(sights)
     above = [k for k, (_, _, _, el) in enumerate(sights) if el >= 12.0]
-    assert decided == above[11]  # the twelfth sight above 12 deg (over 3 h 40 min)
+    assert decided == above[5]  # the sixth sight above 12 deg (20-min frames: 1 h 40 min)
+    dense = _day_of_sights(_sky_bias, step_s=120.0)
+    decided_dense, _ = first_choice(dense)
+    above = [k for k, (_, _, _, el) in enumerate(dense) if el >= 12.0]
+    assert decided_dense == above[30]  # a sight every 2 min: the hour's span binds
     rim, rings = c._path_sq
     assert rings < 1e-5 < 0.001 < rim  # deg^2 about each fitted site (the rings: SPA against the fit's sun)
     other = LocatorChoice()
