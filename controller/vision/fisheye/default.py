@@ -200,6 +200,9 @@ class FisheyeEstimator(FramePipeline):
         )
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
+        if self.learned is not None and t is not None and self.site_from_sun is not None:
+            if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew (and
+                self.site_from_sun, self.learned = SiteFromSun(), None  # measure as without)
         glare = self._sited if self._sited is not None and self.learned is not None else o.glare
         self._smear = column_smear(grey, blobs, float(peak)) if glare.column_smear else None
         cands: list[Candidate] = []
@@ -422,9 +425,6 @@ class FisheyeEstimator(FramePipeline):
             if o is not None and o.residual_deg is not None:
                 slack = 2.0 * o.residual_deg / math.sqrt(max(o.frames or 1, 1))
             out.append(Gate("ephemeris", self.ephemeris.direction(t), g.ephemeris_deg - slack, "enu"))
-        if self.learned is not None and t is not None and self.site_from_sun is not None:
-            if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew
-                self.site_from_sun, self.learned = SiteFromSun(), None
         if self.learned is not None and t is not None:
             fit, eph = self.learned  # narrowed by the learned sun's own error (see .gates)
             slack = 2.0 * fit.rms_deg / math.sqrt(fit.n)
