@@ -289,9 +289,14 @@ def test_where_the_rings_refuse_a_cloudy_sun_the_rim_is_moved_by_its_offset_from
 
 def test_a_dimmed_sun_minutes_after_the_last_anchor_is_not_vouched_for_by_a_wide_sequence_gate(scene):
     """Without the site, a fresh camera: the sun of the Dec 21 afternoon sequence is found on
-    two frames 30 s apart (anchors), then dimmed (T 0.5-0.8) for 14 minutes; its rim at T 0.49
-    holds on 56 % of its rays, 1.5 deg from the sun, inside a sequence gate grown to 5.2 deg.
-    Such a gate vouches for little: the rim must hold on 70 %, as with no gate."""
+    two frames 30 s apart (anchors), then dimmed (T 0.5-0.8) for minutes, its rims bent by
+    the cloud, the sequence gate grown to several degrees.  Such a gate vouches for little:
+    a rim must hold on 70 % of its rays, as with no gate.  Which frames give such a weak rim
+    depends on the last bits of the floating point: with numpy's AVX-512 kernels off (an
+    AVX2 machine), the frame at T 0.49 holds on 56 %, 1.53 deg from the sun, and the wide
+    gate took it (a false detection); with them on, one at T 0.62 holds on 53 %, 0.24 deg
+    from the sun.  So over the half hour around it: the wide gate alone takes a weak rim
+    that the rule refuses, and the rule leaves no fix more than 1 deg from the sun."""
     from dataclasses import replace
 
     from controller.vision.fisheye import FisheyeOptions
@@ -301,7 +306,7 @@ def test_a_dimmed_sun_minutes_after_the_last_anchor_is_not_vouched_for_by_a_wide
     frames = clouds.frame_times(seq, 2.0, 30.0)
     clouds.set_up(scene, seq, frames[0][0], frames[-1][0])
     t_false = 1797887820.0
-    todo = [f for f in frames if t_false - 900.0 <= f[0] <= t_false]
+    todo = [f for f in frames if t_false - 900.0 <= f[0] <= t_false + 600.0]
     bundle = fisheye_bundle_from_dict(clouds.bundles()["without site"])
     ests = {
         "now": FisheyeEstimator(bundle),
@@ -309,12 +314,14 @@ def test_a_dimmed_sun_minutes_after_the_last_anchor_is_not_vouched_for_by_a_wide
             bundle, FisheyeOptions(gates=replace(GateOptions(), sequence_vouch_max_deg=math.inf))
         ),
     }
-    last = {}
+    unvouched, worst = [], 0.0
     for t, az, el in todo:
         img, truth = scene.frame(t, az, el)
-        last = {k: e.estimate_image(img, t) for k, e in ests.items()}
-    assert truth["visibility"] == "dimmed" and 0.45 < truth["transmittance"] < 0.55
-    before = last["before"]
-    assert before.found and before.quality[0] == "gate_sequence"
-    assert clouds.angle_deg(clouds.sun_enu(before.az_deg, before.el_deg), truth["sun_enu"]) > 1.0
-    assert not last["now"].found and last["now"].reason == "unvouched_glare"
+        now, before = (e.estimate_image(img, t) for e in ests.values())
+        if now.found:
+            worst = max(worst, clouds.angle_deg(clouds.sun_enu(now.az_deg, now.el_deg), truth["sun_enu"]))
+        if not now.found and now.reason == "unvouched_glare":
+            assert now.extra["rim_share"] < 0.7
+            unvouched.append(before)
+    assert unvouched and all(b.found and b.quality[0] == "gate_sequence" for b in unvouched)
+    assert worst < 1.0
