@@ -236,9 +236,11 @@ def test_without_the_site_the_smear_is_taken_off_once_the_camera_has_learned_its
     site reads the rings with the smear in them, 0.05 deg off or more; once it has learned
     the site from the sun (here from true sights of the hour before), its learned gate
     stands in for the ephemeris's and it measures as with the site (``frames.sited``); with
-    ``sited_once_learned`` off, as before.  A site last seen more than 2 h before the frame
-    is forgotten before the frame is measured: without its gate, the frame is measured as
-    without the site (the measures with it let through fixes only such a gate refuses)."""
+    ``sited_once_learned`` off, as before.  A site last seen 3 h before the frame is kept (a
+    night or a cloudy spell does not move the camera).  One whose gate has refused the sun
+    for 2 h since it was last seen is forgotten before the frame is measured: without its
+    gate, the frame is measured as without the site (the measures with it let through fixes
+    only such a gate refuses)."""
     from dataclasses import replace
 
     from controller.vision.fisheye.default import FisheyeOptions
@@ -255,22 +257,31 @@ def test_without_the_site_the_smear_is_taken_off_once_the_camera_has_learned_its
         ("cold", FisheyeEstimator(bundle)),
         ("learned", FisheyeEstimator(bundle)),
         ("learned, off", FisheyeEstimator(bundle, off)),
-        ("learned, stale", FisheyeEstimator(bundle)),
+        ("learned 3 h before", FisheyeEstimator(bundle)),
+        ("learned, then refusing", FisheyeEstimator(bundle)),
     ):
         if key != "cold":
             assert est.site_from_sun is not None
-            end = t - 3.0 * 3600.0 if key.endswith("stale") else t
+            end = t - 3.0 * 3600.0 if key != "learned" and key != "learned, off" else t
             for ts, a, e in (f for f in day if end - 3600.0 <= f[0] < end):
                 fit = est.site_from_sun.add(ts, third.sun_enu(a, e))
             assert fit is not None and abs(fit.latitude - third.SITE[0]) < 0.1
             est.learned = (fit, LearnedEphemeris(fit))
+        if key == "learned, then refusing":  # a glare 5 deg off the sun, 2.1 h before the frame
+            (gate,) = [g for g in est._gates(t - 7560.0, None) if g.name == "ephemeris_learned"]
+            off_sun = third.sun_enu(az, el - 5.0)
+            assert gate.distance_deg(off_sun) > gate.radius_deg
+            est.site_from_sun.gate_refused(t - 7560.0, [gate], [off_sun])
         res = est.estimate_image(img, t)
         assert res.found and "ring_locator" in res.quality, key
-        assert ("gate_ephemeris_learned" in res.quality) == (key in ("learned", "learned, off"))
+        refused = key in ("cold", "learned, then refusing")
+        assert ("gate_ephemeris_learned" not in res.quality) == refused, key
+        assert (est.learned is None) == refused, key
         errs[key] = third.angle_deg(third.sun_enu(res.az_deg, res.el_deg), third.sun_enu(az, el))
     assert errs["learned"] < 0.03 < 0.05 < errs["cold"]
     assert errs["learned, off"] == pytest.approx(errs["cold"], abs=1e-9)
-    assert errs["learned, stale"] == pytest.approx(errs["cold"], abs=1e-9)
+    assert errs["learned 3 h before"] < 0.03
+    assert errs["learned, then refusing"] == pytest.approx(errs["cold"], abs=1e-9)
 
 
 def test_without_the_site_the_suns_own_path_hands_this_skys_sun_to_its_rings():

@@ -200,9 +200,8 @@ class FisheyeEstimator(FramePipeline):
         )
         if sum(b.area_px for b in blobs) > 0.5 * grey.size:
             return not_found(None, "overexposed", t, self.frame, self.algorithm)
-        if self.learned is not None and t is not None and self.site_from_sun is not None:
-            if self.site_from_sun.stale(float(t)):  # no sight for hours: learn it anew (and
-                self.site_from_sun, self.learned = SiteFromSun(), None  # measure as without)
+        if self.learned is not None and self.site_from_sun is not None and self.site_from_sun.stale(t):
+            self.site_from_sun, self.learned = SiteFromSun(), None  # anew; measured as without
         glare = self._sited if self._sited is not None and self.learned is not None else o.glare
         self._smear = column_smear(grey, blobs, float(peak)) if glare.column_smear else None
         cands: list[Candidate] = []
@@ -245,6 +244,8 @@ class FisheyeEstimator(FramePipeline):
         ]
         if gates and not passing:
             self._release_a_stale_anchor(t, sun_like, gates)
+            if self.site_from_sun is not None:  # the learned site's gate's refusals
+                self.site_from_sun.gate_refused(t, gates, [c.d_enu for c in sun_like])
             near = min(
                 max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
             )

@@ -13,8 +13,12 @@ edge is then more than a degree from where the sun must be, whatever came before
 The fit is a robust least squares on (latitude, longitude) with SPA's geocentric sun
 (:func:`controller.sunpath.ephemeris.geocentric_sun`) and refraction, started from a grid;
 it is refitted every ``REFIT_EVERY`` sights once adopted.  Sights older than ``KEEP_S``
-are dropped, and a site with no sight within ``KEEP_S`` of a frame is forgotten and learned
-anew (a wrong one would otherwise refuse the sun, and so never be corrected by new sights).
+are dropped.  A site is the camera's: a night or an overcast day without a sight does not
+change it, so it is kept through them.  But once its gate has refused sun-like glares for
+``KEEP_S`` with no sight in between, it is forgotten and learned anew (a wrong one, or a
+camera moved or its clock stepped, would otherwise refuse the sun, and so never be
+corrected by new sights; a glint or a cloud's edge refused now and then is what the gate is
+for, and leaves it as it was).
 """
 
 from __future__ import annotations
@@ -113,21 +117,37 @@ class SiteFromSun:
         self.fit: SiteFit | None = None
         self._since_fit = 0
         self._start: tuple[float, float] | None = None  # the last fit's site, adopted or not
+        self._refused_at: float | None = None  # its gate's first refusal since the last sight
 
-    def stale(self, t: float) -> bool:
-        """No sight within ``KEEP_S`` of ``t``: a site adopted then may no longer be the
-        camera's (moved, or its clock stepped), and gating by it would shut the sun out."""
+    def gate_refused(self, t: float | None, gates: list, dirs: list) -> None:
+        """Note a frame at ``t`` whose sun-like glares (ENU unit vectors ``dirs``) the learned
+        site's gate (``ephemeris_learned`` among ``gates``, :class:`.gates.Gate`) all refused."""
+        for g in gates:
+            if g.name == "ephemeris_learned" and t is not None and self._refused_at is None:
+                if all(d is not None and g.distance_deg(d) > g.radius_deg for d in dirs):
+                    self._refused_at = float(t)
+
+    def stale(self, t: float | None) -> bool:
+        """The site's gate has refused sun-like glares for ``KEEP_S`` before ``t``, with no
+        sight within ``KEEP_S`` of it: the site may no longer be the camera's (moved, or its
+        clock stepped), and gating by it would shut the sun out.  Hours without a glare to
+        refuse (a night, an overcast day) leave it as it was."""
+        r = self._refused_at
+        if t is None or r is None or abs(t - r) < KEEP_S:
+            return False
         return not any(abs(t - s[0]) <= KEEP_S for s in self.sights)
 
     def add(self, t: float, d_enu: np.ndarray) -> SiteFit | None:
         """Record a sight; returns the site adopted (or still held), None until one is."""
         kept = [s for s in self.sights if abs(t - s[0]) <= KEEP_S]  # frames need not be in order
         self.sights = deque(kept + [(float(t), np.asarray(d_enu, float))], maxlen=self.sights.maxlen)
-        self._since_fit += 1
-        if len(self.sights) < MIN_SIGHTS or (self.fit is not None and self._since_fit < REFIT_EVERY):
+        self._since_fit, self._refused_at = self._since_fit + 1, None
+        ts = np.array([s[0] for s in self.sights])
+        # a site held (from the day before, say) is refitted on sights that could adopt one
+        short = len(ts) < MIN_SIGHTS or float(ts.max() - ts.min()) < MIN_SPAN_S
+        if len(ts) < MIN_SIGHTS or (self.fit is not None and (self._since_fit < REFIT_EVERY or short)):
             return self.fit
         self._since_fit = 0
-        ts = np.array([s[0] for s in self.sights])
         ds = np.array([s[1] for s in self.sights])
         got = fit_site(ts, ds, self._start, INLIER_DEG)
         if got is None:

@@ -80,8 +80,8 @@ def test_without_a_site_the_camera_learns_it_and_gates_by_it():
 
 def test_a_learned_site_that_no_longer_fits_the_camera_is_forgotten_after_two_hours():
     """Learned, then the frames' clock is 40 minutes fast: the sun is refused where the
-    learned site says it cannot be; two hours after the last sight the site is forgotten,
-    the sun found again and the site learned anew."""
+    learned site says it cannot be; two hours after its gate first refused the sun (with no
+    sight since) the site is forgotten, the sun found again and the site learned anew."""
     scn = small_scene(noise=True)
     t0 = utc(2025, 3, 20, 5, 0)
     est = FisheyeEstimator(truth_bundle(scn, site=False))
@@ -89,9 +89,30 @@ def test_a_learned_site_that_no_longer_fits_the_camera_is_forgotten_after_two_ho
         assert est.estimate_image(render_sky(scn, t0 + 120.0 * k).image, t0 + 120.0 * k).found
     assert est.learned is not None
     last = t0 + 720.0
-    for t in (last + 1200.0, last + 7000.0):  # 40 min fast: the sun of 40 min earlier
+    for t in (last + 1200.0, last + 8300.0):  # 40 min fast: the sun of 40 min earlier
         res = est.estimate_image(render_sky(scn, t - 2400.0).image, t)
         assert not res.found and res.reason == "gate_rejected", res.reason
-    t = last + 7300.0  # more than 2 h after the last sight
+    t = last + 8500.0  # more than 2 h after the first refusal
     res = est.estimate_image(render_sky(scn, t - 2400.0).image, t)
     assert res.found and est.learned is None
+
+
+def test_a_learned_site_is_kept_through_a_night_without_sights():
+    """A site learned one morning is the camera's the next: sights a night later do not
+    drop it while they are too few, or span too little time, to fit one of their own; once
+    they do, it is refitted on them.  (Before, 20 sights after the last fit the site was
+    refitted on the morning's first minutes and dropped for their short span.)"""
+    learner = SiteFromSun()
+    t0 = utc(2026, 3, 20, 13, 0)
+    day1 = t0 + 60.0 * np.arange(30)
+    for t, d in zip(day1, _sights(day1)):
+        learner.add(float(t), d)
+    held = learner.fit
+    assert held is not None and not learner.stale(float(day1[-1]) + 16 * 3600.0)  # no refusal
+    day2 = t0 + 86400.0 + 30.0 * np.arange(40)
+    for k, (t, d) in enumerate(zip(day2, _sights(day2))):
+        fit = learner.add(float(t), d)
+        assert fit is not None, k
+        if t - day2[0] < 600.0:
+            assert fit is held, k
+    assert fit is not held and fit.latitude == pytest.approx(SANTIAGO[0], abs=0.1)
