@@ -44,7 +44,7 @@ from .rings import SkyReading
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .small import clip_unit, gradient, median
 from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
-from .streak import rays_towards, streak_sides, streak_sides_at_core, streak_way
+from .streak import streak_along, streak_along_at_core, streak_rays
 
 
 @dataclass(frozen=True)
@@ -166,7 +166,6 @@ class GlareFit:
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
 _RHO_MAX = math.radians(45.0)  # no glare is this wide (the judge refuses radii over 20 deg)
 _COS_60DEG = 0.5
-_SIN_50DEG = math.sin(math.radians(50))
 
 
 def _crossings(
@@ -222,7 +221,7 @@ def fit_glare(
     # a saturated streak (bloom) costs the rays that run into it (the module's step 2).  The
     # candidate's disk is rough (a noisy plateau's inscribed disk is small and off centre):
     # a streak that leaves one way only is judged around the first pass's rim instead
-    streak = streak_way(streak_sides(grey, xc, yc, r, peak - 3))
+    streak, axis = streak_along(grey, xc, yc, r, peak - 3)
     if streak:
         streak = None
     dpp = lens.deg_per_px(xc, yc)
@@ -258,10 +257,9 @@ def fit_glare(
         e1, e2 = tangent_basis(a)
         dirs_t = cos_phi[:, None] * e1 + sin_phi[:, None] * e2  # the rays' directions at the axis
         up_a = 0.0 if up_cam is None else min(max(float(a @ up_cam), -1.0), 1.0)  # sin(elevation)
-        # the streak's rays: both ways, the near-vertical ones (by design: not counted in the
-        # rim's gaps); one way, those towards it (counted: that side of the rim is unseen)
-        vertical_ok = np.abs(sin_phi) < _SIN_50DEG if streak == 0.0 else np.ones(n_rays, bool)
-        rays_ok = vertical_ok & ~rays_towards(lens, a, e1, e2, phi, rho, streak) if streak else vertical_ok
+        # the streak's rays (along the image's columns, or its rows): both ways, those near its
+        # axis (by design: not in the rim's gaps); one way, those towards it (counted)
+        streak_ok, rays_ok = streak_rays(lens, a, e1, e2, phi, rho, streak, axis)
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         if rim_chi.size < 2:  # a step wider than the rim (a fit shrunk far inside the candidate)
             return None
@@ -387,7 +385,7 @@ def fit_glare(
         if it == 0 and streak is None and opts.one_way_streaks:
             uv0, ok0 = lens.project(a[None, :])
             if ok0[0]:
-                streak = streak_way(streak_sides_at_core(grey, float(uv0[0, 0]), float(uv0[0, 1]), peak - 3))
+                streak, axis = streak_along_at_core(grey, float(uv0[0, 0]), float(uv0[0, 1]), peak - 3)
         # settled: done, once the sky has been read around this axis (or read enough)
         if it >= 1 and moved < 0.5 * floor and (sky_pass or reads >= opts.sky_reads):
             break
@@ -409,7 +407,7 @@ def fit_glare(
     if not (0 <= xc < W and 0 <= yc < H):
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
-    gap_deg, gap_rays = _largest_gap(idx, vertical_ok)
+    gap_deg, gap_rays = _largest_gap(idx, streak_ok)
     # a one-sided streak's rays are in the gap (its rim is unseen there) but found no rim by
     # design: the sky's gap is judged on the gap's other rays
     sky_rays = gap_rays[rays_ok[gap_rays]]
@@ -423,7 +421,7 @@ def fit_glare(
         axis=a,
         radius_deg=math.degrees(rho),
         rms_deg=math.degrees(rms),
-        n_rays=int(vertical_ok.sum()),
+        n_rays=int(streak_ok.sum()),
         n_valid=int(has.sum()),
         n_inliers=len(idx),
         max_gap_deg=gap_deg,

@@ -16,6 +16,8 @@ import numpy as np
 
 from .lens import FisheyeLens
 
+_SIN_50DEG = math.sin(math.radians(50))
+
 
 def streak_sides(
     grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float
@@ -163,6 +165,47 @@ def streak_way(sides: tuple[bool | None, bool | None]) -> float | None:
     return 0.0 if held and all(held) else None
 
 
+def streak_along(
+    grey: np.ndarray, xc: float, yc: float, r: float, sat_level: float
+) -> tuple[float | None, int]:
+    """The glare's streak (:func:`streak_way` of :func:`streak_sides`) and the image axis it
+    runs along: 1, the columns; else 0, the rows (a sensor read out across the stored image:
+    a frame turned 90 deg, or a camera that writes its sensor's columns as rows).  The
+    way's sign is the axis's: -1 towards the smaller coordinate (up, or left)."""
+    way = streak_way(streak_sides(grey, xc, yc, r, sat_level))
+    if way is not None:
+        return way, 1
+    return streak_way(streak_sides(grey.T, yc, xc, r, sat_level)), 0
+
+
+def streak_along_at_core(
+    grey: np.ndarray, xc: float, yc: float, sat_level: float
+) -> tuple[float | None, int]:
+    """:func:`streak_along` with :func:`streak_sides_at_core`."""
+    way = streak_way(streak_sides_at_core(grey, xc, yc, sat_level))
+    if way is not None:
+        return way, 1
+    return streak_way(streak_sides_at_core(grey.T, yc, xc, sat_level)), 0
+
+
+def streak_rays(
+    lens: FisheyeLens,
+    a: np.ndarray,
+    e1: np.ndarray,
+    e2: np.ndarray,
+    phi: np.ndarray,
+    rho: float,
+    way: float | None,
+    axis: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The rays (angles ``phi`` about ``a``, ``e1`` near the camera's x) a streak
+    (:func:`streak_along`) leaves usable: by design (a streak both ways takes the rays within
+    50 deg of its axis, not counted in the rim's gaps), and those also not running into a
+    streak that leaves one way (counted: that side of the rim is unseen)."""
+    ok = np.abs(np.sin(phi) if axis else np.cos(phi)) < _SIN_50DEG if way == 0.0 else np.ones(len(phi), bool)
+    return ok, ok & ~rays_towards(lens, a, e1, e2, phi, rho, way, axis) if way else ok
+
+
 def rays_towards(
     lens: FisheyeLens,
     a: np.ndarray,
@@ -171,11 +214,13 @@ def rays_towards(
     phi: np.ndarray,
     rho: float,
     dv: float,
+    axis: int = 1,
     half_width_deg: float = 40.0,
 ) -> np.ndarray:
     """The rays (angles ``phi`` about ``a``) whose rim lies within ``half_width_deg`` of the
-    image's vertical, up (``dv`` < 0) or down (``dv`` > 0), from the glare's centre."""
+    image's ``axis`` (1: vertical, 0: horizontal), towards the smaller coordinate (``dv`` <
+    0: up, left) or the larger (``dv`` > 0), from the glare's centre."""
     pts = math.cos(rho) * a + math.sin(rho) * (np.cos(phi)[:, None] * e1 + np.sin(phi)[:, None] * e2)
     uv, _ = lens.project(np.vstack([a[None, :], pts]))
     d = uv[1:] - uv[0]
-    return dv * d[:, 1] > math.cos(math.radians(half_width_deg)) * np.hypot(d[:, 0], d[:, 1])
+    return dv * d[:, axis] > math.cos(math.radians(half_width_deg)) * np.hypot(d[:, 0], d[:, 1])

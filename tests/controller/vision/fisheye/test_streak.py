@@ -9,7 +9,15 @@ import pytest
 from controller.vision.fisheye import FisheyeLens
 from controller.vision.fisheye.skybg import sky_dipole
 from controller.vision.fisheye.sphere import tangent_basis
-from controller.vision.fisheye.streak import core_row, rays_towards, streak_sides_at_core, streak_way
+from controller.vision.fisheye.streak import (
+    core_row,
+    rays_towards,
+    streak_along,
+    streak_along_at_core,
+    streak_rays,
+    streak_sides_at_core,
+    streak_way,
+)
 
 SAT = 252.0
 
@@ -100,6 +108,43 @@ def test_the_rays_towards_a_streak_are_those_within_40_deg_of_the_images_vertica
     assert np.array_equal(up, np.abs(ang) < 40.0)
     assert np.array_equal(down, np.abs(ang) > 140.0)
     assert 14 <= up.sum() <= 18 and not (up & down).any()
+
+
+def test_a_streak_along_the_images_rows_is_found_as_one_along_its_columns():
+    """A frame turned 90 deg (a sensor read out across the stored image): the streak runs
+    along the rows, and is found on that axis, its way by the column coordinate, with the
+    same answers as the frame before the turn."""
+    for way in (-1, 1):
+        img, xx, yy = _glare()
+        _bloom(img, xx, yy, 100.0, 100.0, 8.0, way)
+        assert streak_along_at_core(img, 100.3, 100.2, SAT) == (float(way), 1)
+        assert streak_along_at_core(np.ascontiguousarray(img.T), 100.2, 100.3, SAT) == (float(way), 0)
+    img, xx, yy = _glare()
+    _bloom(_bloom(img, xx, yy, 100.0, 100.0, 8.0, -1, 3.0), xx, yy, 100.0, 100.0, 8.0, 1, 3.0)
+    assert streak_along(img, 100.0, 100.0, 8.0, SAT) == (0.0, 1)
+    assert streak_along(np.ascontiguousarray(img.T), 100.0, 100.0, 8.0, SAT) == (0.0, 0)
+    img, _, _ = _glare()
+    assert streak_along(img, 100.0, 100.0, 8.0, SAT)[0] is None
+    assert streak_along_at_core(img, 100.0, 100.0, SAT)[0] is None
+
+
+def test_a_streak_takes_the_rays_along_its_axis():
+    """Both ways: the rays within 50 deg of its axis, by design; one way: those towards it
+    (within 40 deg of the image's axis, that way)."""
+    lens = FisheyeLens(np.array([[160.0, 0, 319.5], [0, 160.0, 239.5], [0, 0, 1]]), np.zeros(4), 640, 480)
+    a = np.array([0.0, 0.0, 1.0])  # the image's centre: e1 is the image's x
+    e1, e2 = tangent_basis(a)
+    phi = np.arange(72) * (2 * math.pi / 72)
+    rho = math.radians(3.0)
+    deg = np.degrees(phi)
+    for axis, along in ((1, np.abs(np.sin(phi))), (0, np.abs(np.cos(phi)))):
+        ok, usable = streak_rays(lens, a, e1, e2, phi, rho, 0.0, axis)
+        assert np.array_equal(ok, along < math.sin(math.radians(50))) and np.array_equal(usable, ok)
+    ok, usable = streak_rays(lens, a, e1, e2, phi, rho, 1.0, 0)  # rightwards only
+    off = np.minimum(deg, 360.0 - deg)  # from the image's +x
+    assert ok.all() and not usable[off < 39.0].any() and usable[off > 41.0].all()
+    ok, usable = streak_rays(lens, a, e1, e2, phi, rho, None, 0)
+    assert ok.all() and usable.all()
 
 
 def test_the_skys_dipole_is_fitted_on_the_part_of_the_circle_a_streak_leaves():
