@@ -85,6 +85,7 @@ class OtherLook:
     post_noise: float = 0.0  # grey levels of Gaussian noise added after the clip and tone
     radiometry: str = "exact"  # the bundle's [radiometry]: "exact", "calibrated" or "none"
     exposure: float = 1.0  # relative exposure (brackets for the response's calibration)
+    turned: bool = False  # the frame turned 90 deg: a sensor read out across the stored image
 
 
 def kb_fit(sensor: Sensor = SENSOR) -> tuple[np.ndarray, np.ndarray]:
@@ -239,6 +240,8 @@ def render(look: OtherLook, t: float, rays, R, rng, sensor: Sensor = SENSOR) -> 
     if look.post_noise > 0:  # as a renderer that adds noise to its output would: the
         out = out + rng.standard_normal(out.shape) * look.post_noise  # plateau is noisy too
     img = np.ascontiguousarray(np.clip(np.rint(out), 0, 255).astype(np.uint8)[..., ::-1])
+    if look.turned:  # counter-clockwise: its bloom runs along the rows (:func:`bundle` turns too)
+        img = np.ascontiguousarray(np.rot90(img, 1))
     if look.jpeg and look.noise:
         img = cv2.imdecode(
             cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, look.jpeg])[1], cv2.IMREAD_COLOR
@@ -331,10 +334,12 @@ def bundle(R: np.ndarray, look: OtherLook | None = None, sensor: Sensor = SENSOR
     from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
 
     K, D = kb_fit(sensor)
-    f, cx, cy = sensor.f_eq, sensor.cx, sensor.cy
+    f, cx, cy, w, h = sensor.f_eq, sensor.cx, sensor.cy, sensor.width, sensor.height
+    if look is not None and look.turned:  # the image's (u, v) is the sensor's (v, w - 1 - u)
+        cx, cy, w, h, R = cy, w - 1 - cx, h, w, R @ np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1.0]])
     cam = CameraCal(
-        width=sensor.width,
-        height=sensor.height,
+        width=w,
+        height=h,
         fx=f,
         fy=f,
         cx=cx,
@@ -382,6 +387,9 @@ CLEAR_LOOKS = (
     ),
     OtherLook("other renderer, CIE sky type 15, circumsolar sky clipped", sky_type=15),
     SIMPLE,
+    # a sensor read out across the stored image (the frame turned 90 deg): the bloom along the rows
+    OtherLook("other renderer, upward bloom 2 radii, frame turned 90 deg", bloom=2.0, turned=True),
+    OtherLook("other renderer, upward bloom 4 radii, frame turned 90 deg", bloom=4.0, turned=True),
 )
 
 
