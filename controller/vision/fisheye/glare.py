@@ -259,7 +259,7 @@ def fit_glare(
         up_a = 0.0 if up_cam is None else min(max(float(a @ up_cam), -1.0), 1.0)  # sin(elevation)
         # the streak's rays (along the image's columns, or its rows): both ways, those near its
         # axis (by design: not in the rim's gaps); one way, those towards it (counted)
-        streak_ok, rays_ok = streak_rays(lens, a, e1, e2, phi, rho, streak, axis)
+        streak_ok, rays_ok = streak_rays((lens, a, e1, e2, phi, rho), streak, axis)
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         if rim_chi.size < 2:  # a step wider than the rim (a fit shrunk far inside the candidate)
             return None

@@ -192,22 +192,19 @@ def streak_along_at_core(
     return streak_way(streak_sides_at_core(grey.T, yc, xc, sat_level, short=False)), 0
 
 
-def streak_rays(
-    lens: FisheyeLens,
-    a: np.ndarray,
-    e1: np.ndarray,
-    e2: np.ndarray,
-    phi: np.ndarray,
-    rho: float,
-    way: float | None,
-    axis: int,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The rays (angles ``phi`` about ``a``, ``e1`` near the camera's x) a streak
-    (:func:`streak_along`) leaves usable: by design (a streak both ways takes the rays within
-    50 deg of its axis, not counted in the rim's gaps), and those also not running into a
-    streak that leaves one way (counted: that side of the rim is unseen)."""
+#: a glare's rim rays: the lens, the axis ``a``, its tangents ``e1``, ``e2``, the rays' angles ``phi``, ``rho``
+RimGeometry = tuple[FisheyeLens, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]
+
+
+def streak_rays(geometry: RimGeometry, way: float | None, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rays a streak (:func:`streak_along`) leaves usable, ``geometry`` being
+    :func:`rays_towards`'s ``(lens, a, e1, e2, phi, rho)`` (``e1`` near the camera's x): by
+    design (a streak both ways takes the rays within 50 deg of its axis, not counted in the
+    rim's gaps), and those also not running into a streak that leaves one way (counted:
+    that side of the rim is unseen)."""
+    phi = geometry[4]
     ok = np.abs(np.sin(phi) if axis else np.cos(phi)) < _SIN_50DEG if way == 0.0 else np.ones(len(phi), bool)
-    return ok, ok & ~rays_towards(lens, a, e1, e2, phi, rho, way, axis) if way else ok
+    return ok, ok & ~rays_towards(*geometry, way, axis) if way else ok
 
 
 def rays_towards(

@@ -138,12 +138,12 @@ def test_a_streak_takes_the_rays_along_its_axis():
     rho = math.radians(3.0)
     deg = np.degrees(phi)
     for axis, along in ((1, np.abs(np.sin(phi))), (0, np.abs(np.cos(phi)))):
-        ok, usable = streak_rays(lens, a, e1, e2, phi, rho, 0.0, axis)
+        ok, usable = streak_rays((lens, a, e1, e2, phi, rho), 0.0, axis)
         assert np.array_equal(ok, along < math.sin(math.radians(50))) and np.array_equal(usable, ok)
-    ok, usable = streak_rays(lens, a, e1, e2, phi, rho, 1.0, 0)  # rightwards only
+    ok, usable = streak_rays((lens, a, e1, e2, phi, rho), 1.0, 0)  # rightwards only
     off = np.minimum(deg, 360.0 - deg)  # from the image's +x
     assert ok.all() and not usable[off < 39.0].any() and usable[off > 41.0].all()
-    ok, usable = streak_rays(lens, a, e1, e2, phi, rho, None, 0)
+    ok, usable = streak_rays((lens, a, e1, e2, phi, rho), None, 0)
     assert ok.all() and usable.all()
 
 
