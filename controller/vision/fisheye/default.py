@@ -76,18 +76,18 @@ class FisheyeOptions:
     carries that model's error on its radius straight into its centre (second renderer,
     wide glare, 15-19 deg: 0.15-0.70 deg off with 100-113 deg gaps; 83-97 deg gaps within
     0.05).  A cloud's gap is of rays whose rims it pulled in (outliers): ``max_gap_deg``.
-    A glare whose centre the sky's correction of its rim moved by more than
-    ``max_sky_move_deg`` is refused (``sky_dominated``): that centre is the sky model's, whose
-    extrapolation from the rings to the rim is good to 5-15 % (a 1-deg move: 0.05-0.15 deg).
-    Measured on 12 clear-sky looks of both renderers: the 9 frames that moved 1.1-1.6 deg read
-    0.08-0.21 deg off (a hard-edged disk in a bright sky at 18-19 deg, at both sizes; CIE sky
-    type 15 clipping about the sun at 27 deg); the 26 that moved 0.6-0.96 deg read within 0.11.
-    A sun whose own sigma exceeds ``max_sigma_deg`` is refused (``imprecise_glare``): no gate
-    or loop can use it, and a wrong one that size is what it stands for (a rim held on 35 %
-    of its rays at 14.5 deg, sigma 1.8, 0.89 off; our bright sky at 22-24 deg, sigma 1.2-1.3,
-    0.10-0.14 off).  Under ``near_horizon_deg`` the bound is ``max_sigma_near_horizon_deg``:
-    there the error is the elevation model's, the same way frame after frame (CIE sky type
-    10 at 5-10 deg: sigma 0.53-0.90, all read 0.09-0.42 high), which a filter takes for noise.
+    A glare whose centre the sky's correction of its rim moved more than ``max_sky_move_deg``
+    (its first harmonic on the rays, as measured; sigma takes the fitted move, :mod:`.sphere`)
+    is refused (``sky_dominated``): that centre is the sky model's, good to 5-15 % (a 1-deg
+    move: 0.05-0.15 deg). On 12 clear looks of both renderers the 9 frames that moved 1.1-1.6
+    deg read 0.08-0.21 deg off (a hard-edged disk in a bright sky at 18-19 deg, both sizes; CIE
+    sky 15 clipping about a sun at 27 deg); the 26 that moved 0.6-0.96 deg, within 0.11.
+    A sun whose own sigma exceeds ``max_sigma_deg`` is refused (``imprecise_glare``): no gate or
+    loop can use it, and a wrong one that size is what it stands for (a rim held on 35 % of its
+    rays at 14.5 deg, sigma 1.8, 0.89 off; our bright sky at 22-24 deg, sigma 1.2-1.3, 0.10-0.14
+    off).  Under ``near_horizon_deg`` the bound is ``max_sigma_near_horizon_deg``: there the
+    error is the elevation model's, the same way frame after frame (CIE sky type 10 at 5-10
+    deg: sigma 0.53-0.90, all read 0.09-0.42 high), which a filter takes for noise.
     """
 
     glare: GlareOptions = field(default_factory=GlareOptions)
@@ -322,7 +322,7 @@ class FisheyeEstimator(FramePipeline):
             or (fit.radius_px < o.small_glare_px and fit.inlier_fraction < o.small_min_inlier_fraction)
         ):
             reason = "incomplete_glare"
-        elif fit.sky_move_deg > o.max_sky_move_deg:
+        elif fit.sky_harmonic_deg > o.max_sky_move_deg:
             reason = "sky_dominated"
         elif fit.contrast < o.min_contrast:
             reason = "low_contrast"

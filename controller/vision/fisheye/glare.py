@@ -43,7 +43,7 @@ from .radiometry import Radiometry, illumination_about, rim_shift
 from .rings import SkyReading
 from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
 from .small import clip_unit, gradient, median
-from .sphere import CLIP_MARGIN, fit_cone, sample_sphere, tangent_basis
+from .sphere import CLIP_MARGIN, centre_move, fit_cone, sample_sphere, tangent_basis
 from .streak import streak_along, streak_along_at_core, streak_rays
 
 
@@ -149,7 +149,8 @@ class GlareFit:
     image_share: float = 0.0  # how much the glare is round in the image rather than on the sky
     image_share_sigma: float = math.inf  # its one-sigma from the rim alone (:class:`.blend.BlendFit`)
     last_move_deg: float = 0.0  # how far the last pass moved the axis (unsettled if large)
-    sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre
+    sky_move_deg: float = 0.0  # how far the sky's correction moved the rim's centre (fitted)
+    sky_harmonic_deg: float = 0.0  # its first harmonic over the rim's rays (.default's rule)
     sky_gap: bool = False  # the largest gap faces the horizon (or the zenith, near it), no rim found
     one_way_streak: bool = False  # the rays towards a streak that leaves one way were left out
     sky_reading: SkyReading | None = None  # the rings of the last reading (:mod:`.rings`)
@@ -392,12 +393,10 @@ def fit_glare(
     flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
     flags += ["sky_by_elevation"] if by_el is not None else []
     # how far the sky's correction moved the rim's centre: its error is a share of it
-    sky_move = 0.0
+    sky_move = sky_harmonic = 0.0
     if idx.size >= 3:
         moves = -np.asarray(shift * np.ones(n_rays))[idx] / np.maximum(slope[idx], 1e-9)
-        c1 = 2.0 * float(np.mean(moves * cos_phi[idx]))
-        s1 = 2.0 * float(np.mean(moves * sin_phi[idx]))
-        sky_move = math.hypot(c1, s1)
+        sky_move, sky_harmonic = centre_move(moves, cos_phi[idx], sin_phi[idx])
     if alpha >= 0.75:
         flags.append("round_in_image")
     uv, okp = lens.project(a[None, :])
@@ -439,6 +438,7 @@ def fit_glare(
         image_share_sigma=alpha_sd,
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
+        sky_harmonic_deg=math.degrees(sky_harmonic),
         sky_reading=reading,
     )
 

@@ -295,3 +295,36 @@ def test_the_simple_look_draws_a_hard_saturated_disk_and_a_halo_under_full_scale
     ring = grey[(chi > 3.4) & (chi < 3.8)]
     assert ring.size > 10 and ring.max() < 250
     assert other.bundle(R, other.SIMPLE).radiometry is None  # linear, evenly lit: nothing to declare
+
+
+def test_a_rim_cut_on_the_horizons_side_carries_the_skys_correction_into_its_sigma_in_full():
+    """The wide glare (5 deg) at 1280 x 960 next to a sun 18.5 deg high: the rays towards the
+    horizon find no rim, and the arc left is moved by the sky's correction as a circle fitted
+    to it is (:func:`.sphere.centre_move`), three times what the first harmonic of the moves
+    over its rays says; the uncertainty takes that move."""
+    from controller.vision.fisheye.channel import glare_channel
+    from controller.vision.fisheye.glare import fit_glare
+
+    sensor = other.SENSOR.scaled(2.0)
+    look = other.OtherLook("wide glare", sat_radius_deg=5.0)
+    rays, R = other.pixel_rays(sensor), other.rotation()
+    est = FisheyeEstimator(other.bundle(R, look, sensor))
+    t = other.utc_midnight(2025, 12, 21) + 15.0 * 3600.0
+    img, truth = other.render(look, t, rays, R, np.random.default_rng(int(t)), sensor)
+    assert 18.0 < truth["el_deg"] < 19.0
+    uv, _ = est.lens.project((est.R.T @ truth["sun_enu"])[None, :])
+    grey = glare_channel(img)
+    fit = fit_glare(
+        grey, est.lens, *uv[0], 30.0, float(grey.max()), est.options.glare,
+        up_cam=est.up_cam, radiometry=est.radiometry,
+    )  # fmt: skip
+    assert fit is not None and fit.sky_gap and fit.max_gap_deg > 90.0
+    assert fit.sky_move_deg > 2.0 * fit.sky_harmonic_deg > 0.2
+    # sigma with the sky's share and without it: the difference is that share of the move
+    sigmas = []
+    for share in (0.5, 0.0):
+        opts = replace(FisheyeOptions(), sky_sigma_share=share, max_sigma_deg=5.0)
+        res = FisheyeEstimator(other.bundle(R, look, sensor), opts).estimate_image(img, t)
+        assert res.found
+        sigmas.append(res.sigma_deg)
+    assert np.sqrt(sigmas[0] ** 2 - sigmas[1] ** 2) == pytest.approx(0.5 * fit.sky_move_deg, rel=0.1)
