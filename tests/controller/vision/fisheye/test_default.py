@@ -404,10 +404,13 @@ def _zenith_fit(est, **kw):
 
 def test_a_centre_the_skys_correction_moved_over_a_degree_is_refused():
     """Where the sky's correction of the rim moves its centre by more than 1 deg, the centre
-    is the sky model's (good to 5-15 % of that move), not the glare's."""
+    is the sky model's (good to 5-15 % of that move), not the glare's.  The move is judged by
+    its first harmonic on the rim's rays, the measure the bound was set on; on an arc the
+    fitted move is larger and enters sigma only (docs/fisheye-rounds.md, thirty-sixth round)."""
     est = FisheyeEstimator(truth_bundle(small_scene()))
-    assert est._judge(_zenith_fit(est, sky_move_deg=0.9)).reason is None
-    assert est._judge(_zenith_fit(est, sky_move_deg=1.2)).reason == "sky_dominated"
+    assert est._judge(_zenith_fit(est, sky_move_deg=0.9, sky_harmonic_deg=0.9)).reason is None
+    assert est._judge(_zenith_fit(est, sky_move_deg=1.2, sky_harmonic_deg=1.2)).reason == "sky_dominated"
+    assert est._judge(_zenith_fit(est, sky_move_deg=1.2, sky_harmonic_deg=0.6)).reason is None
 
 
 def test_a_rim_as_rough_as_a_thin_clouds_halo_is_not_the_sun():
