@@ -5,8 +5,10 @@ Method (see docs/fisheye.md):
 1. **Candidates** (:mod:`.blobs`): the near-saturated blobs and their inscribed disks.
 2. **Rim.**  From a centre, rays sample the grey image bilinearly every half pixel; the rim
    point of a ray is where it first falls below a level between the peak and the local
-   sky (linear interpolation between samples).  A plane fitted to the sky around the glare
-   removes the background's gradient first (a sky brighter on one side would shift the rim).
+   sky (linear interpolation between samples).  The sky read on rings outside the rim
+   (:mod:`.rimsky`: its dipole, or its model by elevation where the horizon cuts the rings)
+   raises each ray's level by what it adds there (a sky brighter on one side would shift
+   the rim).
    A column smear (a CCD's frame transfer, :mod:`.smear`) is taken off the samples with
    a camera's sky calibration (``smear``); a saturated streak (bloom, :mod:`.streak`) costs the rays that
    run into it, whose rims it hides: the near-vertical rays when it leaves both ways,
@@ -30,19 +32,16 @@ Method (see docs/fisheye.md):
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .blend import ALPHA_PRIOR, ALPHA_SIGMA, blended_excess, fit_blend
+from .blend import ALPHA_PRIOR, ALPHA_SIGMA, fit_blend
 from .blobs import core_fill
-from .clearsky import clear_sky_trust, cloud_edges, ring_roughness, trusted_scale
 from .lens import FisheyeLens
-from .radiometry import Radiometry, illumination_about, rim_shift
+from .radiometry import Radiometry
+from .rimsky import SkyBehind, faces_horizon, read_sky, rim_levels
 from .rings import SkyReading
-from .skybg import calibrated_scale, sky_by_elevation, sky_dipole
-from .small import clip_unit, gradient, median
 from .sphere import CLIP_MARGIN, centre_move, fit_cone, sample_sphere, tangent_basis
 from .streak import streak_along, streak_along_at_core, streak_rays
 
@@ -61,7 +60,7 @@ class GlareOptions:
         elevation, a ray whose level the sky raises by more than this fraction of the
         glare's contrast is not used (the model extrapolates there, towards the horizon).
     max_ray_level, min_level : where the sky raises a ray on the horizon's side (within 60
-        deg of down the vertical through the glare; :func:`horizon_side_excess`) above
+        deg of down the vertical through the glare; :func:`.rimsky.horizon_side_excess`) above
         ``max_ray_level`` (a fraction of the contrast), the whole rim's level is lowered
         until it does not, but not under ``min_level``.  Next to a low sun the sky plus the
         glare clips on the horizon's side before the glare alone reaches ``level``: there
@@ -166,7 +165,6 @@ class GlareFit:
 
 _SIN_RIM_MIN = math.sin(math.radians(2.5))
 _RHO_MAX = math.radians(45.0)  # no glare is this wide (the judge refuses radii over 20 deg)
-_COS_60DEG = 0.5
 
 
 def _crossings(
@@ -241,26 +239,22 @@ def fit_glare(
     has = np.zeros(n_rays, bool)
     rms = float("inf")
     moved = 0.0
-    dipole = np.zeros(2)
-    by_el: np.ndarray | None = None
-    bg = bg_s = top_s = 0.0
-    trust = 1.0  # in a clear sky around the glare (:mod:`.clearsky`)
+    sky = SkyBehind()  # the last reading of the sky behind the rim (:mod:`.rimsky`)
     alpha, alpha_sd = 0.0, math.inf  # the blend (:mod:`.blend`) and its one-sigma from the rim
-    reading: SkyReading | None = None  # the last reading of the sky (:mod:`.rings`)
 
     # -- pass 2: rays on the sphere around the axis ---------------------------------------
     step = math.radians(max(opts.step_px, 0.04 * r) * dpp)  # ~25 samples across a radius
     ring_sel = np.arange(0, n_rays, max(1, n_rays // 36))
     lo_f, hi_f = 0.5, 1.7
     reads, settled, unsettled = 0, math.radians(opts.sky_settled_deg), math.radians(opts.sky_unsettled_deg)
-    read_inside, kept_stale = False, False  # the last reading's rings began inside the glare
+    kept_stale = False  # the settled fit's sky was read inside the glare
     for it in range(opts.max_passes):
         e1, e2 = tangent_basis(a)
         dirs_t = cos_phi[:, None] * e1 + sin_phi[:, None] * e2  # the rays' directions at the axis
-        up_a = 0.0 if up_cam is None else min(max(float(a @ up_cam), -1.0), 1.0)  # sin(elevation)
+        geometry = (lens, a, e1, e2, phi, rho)
         # the streak's rays (along the image's columns, or its rows): both ways, those near its
         # axis (by design: not in the rim's gaps); one way, those towards it (counted)
-        streak_ok, rays_ok = streak_rays((lens, a, e1, e2, phi, rho), streak, axis)
+        streak_ok, rays_ok = streak_rays(geometry, streak, axis)
         rim_chi = np.arange(lo_f * rho, hi_f * rho, step)
         if rim_chi.size < 2:  # a step wider than the rim (a fit shrunk far inside the candidate)
             return None
@@ -269,108 +263,50 @@ def fit_glare(
         sky_pass = it < 2 or (reads < opts.sky_reads and moved < settled)
         reads += int(sky_pass)
         if sky_pass and it >= 2:  # a settled fit, kept in case the new reading unsettles it
-            kept = (a, rho, dipole, by_el, bg, bg_s, top_s, trust, reading)
-            kept_stale = read_inside and opts.drop_stale_sky
+            kept = (a, rho, sky)
+            kept_stale = sky.inside and opts.drop_stale_sky
         grids = [(phi, rim_chi)]
         if sky_pass:
             ring_chi = np.arange(1.15 * rho, 3.2 * rho + 4 * step, 3 * step)
             grids.append((phi[ring_sel], ring_chi))
-        sm = None if smear is None else (smear, peak - CLIP_MARGIN, (1.0 - opts.level) * (peak - bg))
+        sm = None if smear is None else (smear, peak - CLIP_MARGIN, (1.0 - opts.level) * (peak - sky.bg))
         samples = sample_sphere(grey, lens, a, e1, e2, up_cam, grids, sm)
         vals = np.where(samples[0][1], samples[0][0], np.nan)  # no rim below the horizon
         if sky_pass:
-            rvals, rsky = samples[1]
-            if radiometry is not None:  # the sky in light, as the centre's illumination sees it
-                rvals = radiometry.to_light(rvals) / illumination_about(
-                    radiometry, a, e1, e2, phi[ring_sel], ring_chi
-                )
-            if alpha > 0.0:  # the rings at equal blended distance, to first order
-                with np.errstate(all="ignore"), warnings.catch_warnings():
-                    warnings.simplefilter("ignore", RuntimeWarning)
-                    prof = np.nanmean(np.where(rsky, rvals, np.nan), axis=0)
-                if np.isfinite(prof).all():
-                    exc = blended_excess(lens, a, e1, e2, phi[ring_sel], ring_chi, alpha, math.radians(dpp))
-                    rvals = rvals - gradient(prof, ring_chi)[None, :] * exc
-            outer = rvals[:, -3:][rsky[:, -3:] & np.isfinite(rvals[:, -3:])]
-            if outer.size < 8:
-                return None
-            bg = median(outer)  # in the sky model's units (grey, or light)
-            top_s = peak if radiometry is None else float(radiometry.to_light(peak))
-            # the sky models read the sky around a cloud's edge; a bloom's dome is no edge
-            ok_r = rsky & rays_ok[ring_sel, None] & np.isfinite(rvals) & opts.cloud_edges
-            clear = rsky & ~cloud_edges(rvals, ok_r, phi[ring_sel], bright=it > 0 and streak is None)
-            dipole = sky_dipole(rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], top_s - bg, clear)
-            reading = SkyReading(  # the rings' fix (.rings) leaves a cloud's edge out too
-                rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], clear, a, e1, e2, top_s - bg
+            read = read_sky(
+                samples[1],
+                ring_chi,
+                (lens, a, e1, e2, phi[ring_sel], rho),
+                rays_ok[ring_sel],
+                None if up_cam is None else dirs_t[ring_sel] @ up_cam,
+                peak,
+                opts,
+                sky,
+                first=it == 0,
+                streak_free=streak is None,
+                alpha=alpha,
+                dpp=dpp,
+                up_cam=up_cam,
+                radiometry=radiometry,
             )
-            if it and opts.sky_calibration is not None:  # judged once centred (see GlareOptions)
-                rough = ring_roughness(
-                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], rsky, top_s - bg
-                )
-                trust = clear_sky_trust(rough, *opts.clear_sky_roughness)
-            by_el = None
-            if up_cam is not None and not rsky.all():
-                # rings cut by the horizon: model the sky by elevation instead of a dipole
-                el0 = math.asin(up_a)
-                sin_el = (
-                    np.cos(ring_chi)[None, :] * float(a @ up_cam)
-                    + np.sin(ring_chi)[None, :] * (dirs_t[ring_sel] @ up_cam)[:, None]
-                )
-                xr = (np.arcsin(np.clip(sin_el, -1, 1)) - el0) / rho
-                by_el = sky_by_elevation(
-                    rvals, ring_chi, phi[ring_sel], rho, rays_ok[ring_sel], clear, xr, top_s - bg
-                )
-            bg_s = bg
-            if radiometry is not None:
-                bg = float(radiometry.to_grey(bg_s))
-            inner = samples[1][0][:, ring_chi < 1.4 * rho][rsky[:, ring_chi < 1.4 * rho]]
-            read_inside = inner.size > 0 and median(inner) >= bg + opts.level * (peak - bg)
-        if by_el is not None:
-            sin_k = math.cos(rho) * float(a @ up_cam) + math.sin(rho) * (dirs_t @ up_cam)
-            xk = (np.arcsin(clip_unit(sin_k)) - math.asin(up_a)) / rho
-            shift = by_el[0] * xk + by_el[1] * xk**2 + by_el[2] * xk**3
-        else:
-            shift = dipole[0] * cos_phi + dipole[1] * sin_phi
-        k_cam = calibrated_scale(opts.sky_calibration, by_el is not None, a, up_cam)
-        k_sky = opts.sky_scale * trusted_scale(k_cam, trust)  # the calibration, as far as the sky is clear
-        shift_s = k_sky * shift * np.ones(n_rays)  # in the sky model's units
-        # keep every ray's level under the clip, so that the rim stays whole (see GlareOptions)
-        shift = rim_shift(radiometry, shift_s, bg + opts.level * (peak - bg), a, e1, e2, phi, rho)
-        top = horizon_side_excess(shift, phi, a, e1, e2, up_cam) / max(peak - bg, 1e-6)
-        f_level = min(opts.level, max(opts.max_ray_level - top, opts.min_level))
-        if f_level != opts.level:
-            shift = rim_shift(radiometry, shift_s, bg + f_level * (peak - bg), a, e1, e2, phi, rho)
-        level = bg + f_level * (peak - bg) + shift
+            if read is None:
+                return None
+            sky = read
+        dirs_up = None if up_cam is None else dirs_t @ up_cam
+        level, shift, shift_s = rim_levels(sky, geometry, dirs_up, peak, opts, up_cam, radiometry)
         chi_c, has, slope = _crossings(vals, rim_chi, level)
-        has &= rays_ok & (level < bg + 0.95 * (peak - bg))  # a sky this bright hides the rim
-        if by_el is not None:  # near the horizon the sky model extrapolates: a large
-            has &= np.abs(shift_s) <= opts.max_horizon_shift * (top_s - bg_s)  # shift is a guess
-        if up_cam is not None:  # the last degrees above the horizon change too fast to model
-            sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * (dirs_t @ up_cam)
+        has &= rays_ok & (level < sky.bg + 0.95 * (peak - sky.bg))  # a sky this bright hides the rim
+        if sky.by_el is not None:  # near the horizon the sky model extrapolates: a large
+            has &= np.abs(shift_s) <= opts.max_horizon_shift * (sky.top_s - sky.bg_s)  # shift is a guess
+        if dirs_up is not None:  # the last degrees above the horizon change too fast to model
+            sin_rim = np.cos(chi_c) * float(a @ up_cam) + np.sin(chi_c) * dirs_up
             has &= sin_rim > _SIN_RIM_MIN
         if has.sum() < 8:
             return None
         pts = np.cos(chi_c)[:, None] * a + np.sin(chi_c)[:, None] * dirs_t
-        a_new, rho, inl, rms, _ = fit_cone(pts[has], k=opts.outlier_k, floor_rad=floor)
-        # the centre: the rim read as a circle in a blend of the sky's and the sensor's
-        # metrics (:mod:`.blend`), from the cone's inliers and from every rim point
-        uv_rim, ok_rim = lens.project(pts[has])
-        if ok_rim.all():
-            bf = fit_blend(
-                lens,
-                pts[has],
-                uv_rim,
-                a_new,
-                [inl, np.ones(len(inl), bool)],
-                k=opts.outlier_k,
-                floor_rad=floor,
-                alpha0=alpha if it else opts.blend_prior[0],
-                scale_rad=math.radians(dpp),
-                prior=opts.blend_prior,
-            )
-            if bf is not None:
-                a_new, rho, inl, rms = bf.axis, bf.rho, bf.inliers, bf.rms
-                alpha, alpha_sd = bf.alpha, bf.alpha_sigma
+        a_new, rho, inl, rms, blend = _fit_rim(lens, pts[has], opts, floor, dpp, alpha if it else None)
+        if blend is not None:
+            alpha, alpha_sd = blend
         if not (math.isfinite(rho) and 0.0 < rho < _RHO_MAX):
             return None  # not a small circle: the edge of a flat patch, fitted as a vast or inverted one
         idx = np.flatnonzero(has)[inl]
@@ -380,7 +316,7 @@ def fit_glare(
             # a reading that moves a settled axis this far is a cloud's, not a correction of
             # the linearisation: back to the settled fit and its sky, no more readings, and
             # one more pass to refit the rim there (on the last pass, the fit is left unsettled)
-            a, rho, dipole, by_el, bg, bg_s, top_s, trust, reading = kept
+            a, rho, sky = kept
             reads = opts.sky_reads
         lo_f, hi_f = 0.7, 1.45  # the rim is known now: sample around it only
         if it == 0 and streak is None and opts.one_way_streaks:
@@ -390,8 +326,8 @@ def fit_glare(
         # settled: done, once the sky has been read around this axis (or read enough)
         if it >= 1 and moved < 0.5 * floor and (sky_pass or reads >= opts.sky_reads):
             break
-    flags = ["sky_dipole"] if float(np.linalg.norm(dipole)) > 2.0 else []
-    flags += ["sky_by_elevation"] if by_el is not None else []
+    flags = ["sky_dipole"] if float(np.linalg.norm(sky.dipole)) > 2.0 else []
+    flags += ["sky_by_elevation"] if sky.by_el is not None else []
     # how far the sky's correction moved the rim's centre: its error is a share of it
     sky_move = sky_harmonic = 0.0
     if idx.size >= 3:
@@ -413,8 +349,8 @@ def fit_glare(
     # the sky's gap faces the horizon; near it, where the sky is modelled by elevation and
     # the model's guesses at the rim's top and bottom are dropped, it may face the zenith too
     mid = float(phi[gap_rays[gap_rays.size // 2]]) if gap_rays.size else 0.0
-    faces_sky = _faces_horizon(mid, a, e1, e2, up_cam) or (
-        by_el is not None and _faces_horizon(mid + math.pi, a, e1, e2, up_cam)
+    faces_sky = faces_horizon(mid, a, e1, e2, up_cam) or (
+        sky.by_el is not None and faces_horizon(mid + math.pi, a, e1, e2, up_cam)
     )
     return GlareFit(
         axis=a,
@@ -428,8 +364,8 @@ def fit_glare(
         centre_uv=(xc, yc),
         radius_px=r_fit,
         peak=peak,
-        background=bg,
-        core_fill=core_fill(grey, (xc, yc), r_fit, bg + opts.level * (peak - bg)),
+        background=sky.bg,
+        core_fill=core_fill(grey, (xc, yc), r_fit, sky.bg + opts.level * (peak - sky.bg)),
         deg_per_px=dpp,
         smear=None if streak is None else "bloom",
         one_way_streak=bool(streak),
@@ -439,46 +375,38 @@ def fit_glare(
         last_move_deg=math.degrees(moved),
         sky_move_deg=math.degrees(sky_move),
         sky_harmonic_deg=math.degrees(sky_harmonic),
-        sky_reading=reading,
+        sky_reading=sky.reading,
     )
 
 
-def horizon_side_excess(
-    shift: np.ndarray,
-    phi: np.ndarray,
-    a: np.ndarray,
-    e1: np.ndarray,
-    e2: np.ndarray,
-    up_cam: np.ndarray | None,
-) -> float:
-    """The sky's largest raise of a ray's level (grey levels) when that ray points within
-    60 deg of the horizon (down the vertical through the glare), else 0.
-
-    ``shift``: each ray's raise; ``phi``: the rays' angles about the axis ``a`` in the
-    tangent basis (``e1``, ``e2``); ``up_cam``: the zenith in the camera frame.  The clear
-    sky next to a low sun brightens towards the horizon, and that is the side where the rim
-    clips; a raise on another side is a cloud's, which a lower rim would follow into the
-    cloud.  Without the orientation the horizon is unknown: 0.
-    """
-    if up_cam is None or shift.size == 0:
-        return 0.0
-    k = int(np.argmax(shift))
-    if not _faces_horizon(float(phi[k]), a, e1, e2, up_cam):
-        return 0.0
-    return max(float(shift[k]), 0.0)
-
-
-def _faces_horizon(
-    phi: float, a: np.ndarray, e1: np.ndarray, e2: np.ndarray, up_cam: np.ndarray | None
-) -> bool:
-    """Whether the ray at angle ``phi`` about the axis ``a`` (tangent basis ``e1``, ``e2``)
-    points within 60 deg of down the vertical through it (False without the orientation)."""
-    if up_cam is None:
-        return False
-    ray = math.cos(phi) * e1 + math.sin(phi) * e2
-    down = float(up_cam @ a) * a - up_cam  # the zenith's opposite, in the tangent plane
-    n = float(np.linalg.norm(down))
-    return n >= 1e-9 and float(ray @ down) >= n * _COS_60DEG
+def _fit_rim(
+    lens: FisheyeLens, pts: np.ndarray, opts: GlareOptions, floor: float, dpp: float, alpha: float | None
+) -> tuple[np.ndarray, float, np.ndarray, float, tuple[float, float] | None]:
+    """The rim points ``pts`` (unit vectors, camera frame) fitted: a small circle on the
+    sphere (:func:`.sphere.fit_cone`, residuals under ``floor`` rad not told apart), then
+    read as a circle in a blend of the sky's and the sensor's metrics (:mod:`.blend`) from
+    the cone's inliers and from every point, starting from the blend ``alpha`` (None: the
+    prior's, on the first pass).  (axis, radius rad, inliers, RMS rad, the blend and its
+    one-sigma or None when the blend was not fitted)."""
+    a, rho, inl, rms, _ = fit_cone(pts, k=opts.outlier_k, floor_rad=floor)
+    uv, ok = lens.project(pts)
+    if not ok.all():
+        return a, rho, inl, rms, None
+    bf = fit_blend(
+        lens,
+        pts,
+        uv,
+        a,
+        [inl, np.ones(len(inl), bool)],
+        k=opts.outlier_k,
+        floor_rad=floor,
+        alpha0=opts.blend_prior[0] if alpha is None else alpha,
+        scale_rad=math.radians(dpp),
+        prior=opts.blend_prior,
+    )
+    if bf is None:
+        return a, rho, inl, rms, None
+    return bf.axis, bf.rho, bf.inliers, bf.rms, (bf.alpha, bf.alpha_sigma)
 
 
 def _largest_gap(idx: np.ndarray, usable: np.ndarray) -> tuple[float, np.ndarray]:

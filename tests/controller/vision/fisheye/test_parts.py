@@ -242,7 +242,7 @@ def test_seed_offsets_and_direction_on_a_rendered_frame():
 def test_only_a_raise_on_the_horizons_side_lowers_the_rim():
     """The clear sky next to a low sun brightens towards the horizon, where the rim clips;
     a raise pointing elsewhere is a cloud's, and the rim's level stays."""
-    from controller.vision.fisheye.glare import horizon_side_excess
+    from controller.vision.fisheye.rimsky import horizon_side_excess
 
     a = np.array([0.0, math.sin(math.radians(60)), math.cos(math.radians(60))])  # 30 deg up
     up = np.array([0.0, 0.0, 1.0])
@@ -267,18 +267,18 @@ def test_the_fit_ends_on_an_axis_the_sky_was_read_around(monkeypatch):
     import controller.vision.fisheye.glare as glare
 
     events: list[str] = []
-    tangent, dipole = glare.tangent_basis, glare.sky_dipole
+    tangent, read = glare.tangent_basis, glare.read_sky
 
     def counting_tangent(a):
         events.append("pass")
         return tangent(a)
 
-    def counting_dipole(*args, **kw):
+    def counting_read(*args, **kw):
         events.append("sky")
-        return dipole(*args, **kw)
+        return read(*args, **kw)
 
     monkeypatch.setattr(glare, "tangent_basis", counting_tangent)
-    monkeypatch.setattr(glare, "sky_dipole", counting_dipole)
+    monkeypatch.setattr(glare, "read_sky", counting_read)
     scn = small_scene(scale=1.0)
     t = utc(2025, 3, 20, 4, 0)  # a low sun: the axis settles after the first two readings
     res = FisheyeEstimator(truth_bundle(scn)).estimate_image(render_sky(scn, t).image, t)
