@@ -380,49 +380,6 @@ def test_a_saturated_cloud_below_a_dimmed_sun_is_not_a_streak_that_hides_it():
             assert res.found and err_deg(res, fr.truth) < 1.0
 
 
-def _zenith_fit(est, **kw):
-    """A clean glare fit at the zenith (well above the horizon), with ``kw`` changed."""
-    from controller.vision.fisheye.glare import GlareFit
-
-    args = dict(
-        axis=est.R.T @ np.array([0.0, 0.0, 1.0]),
-        radius_deg=3.0,
-        rms_deg=0.01,
-        n_rays=96,
-        n_valid=96,
-        n_inliers=96,
-        max_gap_deg=4.0,
-        centre_uv=(160.0, 120.0),
-        radius_px=8.0,
-        peak=255.0,
-        background=100.0,
-        core_fill=1.0,
-        deg_per_px=0.7,
-    )
-    return GlareFit(**{**args, **kw})
-
-
-def test_a_centre_the_skys_correction_moved_over_a_degree_is_refused():
-    """Where the sky's correction of the rim moves its centre by more than 1 deg, the centre
-    is the sky model's (good to 5-15 % of that move), not the glare's.  The move is judged by
-    its first harmonic on the rim's rays, the measure the bound was set on; on an arc the
-    fitted move is larger and enters sigma only (docs/fisheye-rounds.md, thirty-sixth round)."""
-    est = FisheyeEstimator(truth_bundle(small_scene()))
-    assert est._judge(_zenith_fit(est, sky_move_deg=0.9, sky_harmonic_deg=0.9)).reason is None
-    assert est._judge(_zenith_fit(est, sky_move_deg=1.2, sky_harmonic_deg=1.2)).reason == "sky_dominated"
-    assert est._judge(_zenith_fit(est, sky_move_deg=1.2, sky_harmonic_deg=0.6)).reason is None
-
-
-def test_a_rim_as_rough_as_a_thin_clouds_halo_is_not_the_sun():
-    """A sun's rim is round to 1.8 % of its radius (p95 of our broken-cloud suite); a thin
-    cloud's bright halo around a dimmed sun, fitted 1-5 deg off it, is rough by 4 % in the
-    median and up to 10 % (the third renderer's clouds)."""
-    est = FisheyeEstimator(truth_bundle(small_scene()))
-    glare = dict(radius_deg=5.0, radius_px=5.0 / 0.3, deg_per_px=0.3)
-    assert est._judge(_zenith_fit(est, rms_deg=0.018 * 5.0, **glare)).reason is None
-    assert est._judge(_zenith_fit(est, rms_deg=0.07 * 5.0, **glare)).reason == "irregular_glare"
-
-
 def test_a_sun_placed_no_better_than_the_sigma_limit_is_no_observation():
     from controller.vision.fisheye.default import FisheyeOptions
 
