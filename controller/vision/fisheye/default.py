@@ -33,7 +33,7 @@ from ...calibration.fisheye_bundle import FisheyeBundle
 from ...sun.source import Site
 from ...sun.types import enu_to_azel
 from .blend import LearnedBlend
-from .blobs import find_blobs
+from .blobs import Blob, find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, sited, with_sky_scale
 from .gates import Ephemeris, Gate, min_rim_share, prior_direction, track_prediction
@@ -126,40 +126,12 @@ class FisheyeEstimator(FramePipeline):
             self.site_from_sun, self.learned = SiteFromSun(), None  # anew; measured as without
         glare = self._sited if self._sited is not None and self.learned is not None else o.glare
         self._smear = column_smear(grey, blobs, float(peak)) if glare.column_smear else None
-        cands: list[Candidate] = []
-        low = 0
-        for blob in blobs:
-            for x, y, r in blob.centres:
-                if any(
-                    math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
-                    for c in cands
-                ):
-                    continue  # another centre of a glare already measured
-                if self._below_horizon(x, y, r):
-                    low += 1
-                    continue
-                cand = self._measure(grey, x, y, r, float(peak), glare)
-                if cand is not None and cand.reason is not None and cand.fit.one_way_streak:
-                    # a saturated cloud below (or above) a dimmed sun may pass for a streak
-                    # that leaves one way; if the rim it leaves is not the sun's, drop it
-                    cand = (
-                        self._measure(grey, x, y, r, float(peak), replace(glare, one_way_streaks=False))
-                        or cand
-                    )
-                if cand is not None:
-                    cands.append(cand)
+        cands, low = self._candidates(grey, blobs, float(peak), glare)
         sun_like = [c for c in cands if c.reason is None]
         if t is not None and sun_like:
             sun_like = self._motion_vetoes(t, sun_like, prior)
         if not sun_like:
-            reasons = Counter(c.reason for c in cands)
-            if not cands:  # blobs below the horizon explain the frame only when alone
-                reasons["below_horizon"] += low
-            why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
-            extra: dict[str, float | int] = {"candidates": len(cands) + low}
-            if cands:  # how wide the widest refused glare was: tens of degrees is the sky's
-                extra["glare_radius_deg"] = round(max(c.fit.radius_deg for c in cands), 2)  # patch
-            return not_found(None, why, t, self.frame, self.algorithm, **extra)
+            return self._no_sun(cands, low, t)
         gates = self._gates(t, prior)
         passing = [
             c for c in sun_like if all(g.distance_deg(self._in(c, g.frame)) <= g.radius_deg for g in gates)
@@ -173,22 +145,12 @@ class FisheyeEstimator(FramePipeline):
             )
             beyond: dict[str, object] = {"gates": [g.name for g in gates], "beyond_gate_deg": round(near, 3)}
             return not_found(None, "gate_rejected", t, self.frame, self.algorithm, **beyond)
-        passing.sort(key=lambda c: -c.fit.radius_deg)
         flags = ["several_candidates"] if len(sun_like) > 1 else []
-        best = passing[0]
-        if len(passing) > 1 and passing[1].fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg:
-            close = [c for c in passing if c.fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg]
-            movers = [c for c in close if t is not None and self.history.moves_like_the_sun(t, self._gd(c))]
-            if gates:
-                g = gates[0]
-                best = min(passing, key=lambda c: g.distance_deg(self._in(c, g.frame)))
-            elif len(movers) == 1:
-                best = movers[0]
-                flags.append("chosen_by_motion")
-            else:
-                return not_found(
-                    None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
-                )
+        best = self._choose(passing, gates, t, flags)
+        if best is None:
+            return not_found(
+                None, "ambiguous_candidates", t, self.frame, self.algorithm, candidates=len(passing)
+            )
         if self.locator is not None and t is not None:  # a camera whose sky is a product (.rings)
             best = self.locator.place(best, gates, self.R, self.up_cam, self.lens, float(t))
         res = self._result(best, t, flags + [f"gate_{g.name}" for g in gates])
@@ -203,17 +165,82 @@ class FisheyeEstimator(FramePipeline):
                 None, "unvouched_glare", t, self.frame, self.algorithm, rim_share=round(share, 3)
             )
         if t is not None:
-            if share >= o.gates.anchor_min_inlier_fraction:
-                self._last = (float(t), self._gd(best))
-                self._refused_by_anchor = 0
-                self._anchors.append(self._last)
-                self._learn_site(float(t), best)
-                if self.blend is not None:
-                    self.blend.observe(best.fit.axis, best.fit.image_share, best.fit.image_share_sigma, t)
-            self.history.accepted(float(t), best.fit.radius_deg)
+            self._accepted(best, float(t))
         return res
 
     # -- internals ---------------------------------------------------------------------------
+    def _candidates(
+        self, grey: np.ndarray, blobs: list[Blob], peak: float, glare: GlareOptions
+    ) -> tuple[list[Candidate], int]:
+        """Each blob's inscribed-disk centres fitted and judged (one fit per glare), and how
+        many were left unfitted, wholly below the horizon."""
+        cands: list[Candidate] = []
+        low = 0
+        for blob in blobs:
+            for x, y, r in blob.centres:
+                if any(
+                    math.hypot(x - c.fit.centre_uv[0], y - c.fit.centre_uv[1]) < c.fit.radius_px
+                    for c in cands
+                ):
+                    continue  # another centre of a glare already measured
+                if self._below_horizon(x, y, r):
+                    low += 1
+                    continue
+                cand = self._measure(grey, x, y, r, peak, glare)
+                if cand is not None and cand.reason is not None and cand.fit.one_way_streak:
+                    # a saturated cloud below (or above) a dimmed sun may pass for a streak
+                    # that leaves one way; if the rim it leaves is not the sun's, drop it
+                    cand = self._measure(grey, x, y, r, peak, replace(glare, one_way_streaks=False)) or cand
+                if cand is not None:
+                    cands.append(cand)
+        return cands, low
+
+    def _no_sun(self, cands: list[Candidate], low: int, t: float | None) -> FisheyeResult:
+        """The frame's refusal when no candidate was sun-like: the first reason of
+        :data:`.visibility.REASON_ORDER` among them (``no_rim`` when none was fitted)."""
+        reasons = Counter(c.reason for c in cands)
+        if not cands:  # blobs below the horizon explain the frame only when alone
+            reasons["below_horizon"] += low
+        why = next((r for r in REASON_ORDER if reasons.get(r)), "no_rim")
+        extra: dict[str, float | int] = {"candidates": len(cands) + low}
+        if cands:  # how wide the widest refused glare was: tens of degrees is the sky's patch
+            extra["glare_radius_deg"] = round(max(c.fit.radius_deg for c in cands), 2)
+        return not_found(None, why, t, self.frame, self.algorithm, **extra)
+
+    def _choose(
+        self, passing: list[Candidate], gates: list[Gate], t: float | None, flags: list[str]
+    ) -> Candidate | None:
+        """The sun among the candidates that passed every gate: the clearly largest glare;
+        among glares of about one size, the one nearest the first gate's centre, or without
+        gates the only one that moves like the sun (flagged ``chosen_by_motion``); None when
+        nothing tells them apart."""
+        o = self.options
+        passing.sort(key=lambda c: -c.fit.radius_deg)
+        best = passing[0]
+        if len(passing) > 1 and passing[1].fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg:
+            close = [c for c in passing if c.fit.radius_deg * o.ambiguity_ratio > best.fit.radius_deg]
+            movers = [c for c in close if t is not None and self.history.moves_like_the_sun(t, self._gd(c))]
+            if gates:
+                g = gates[0]
+                return min(passing, key=lambda c: g.distance_deg(self._in(c, g.frame)))
+            if len(movers) != 1:
+                return None
+            flags.append("chosen_by_motion")
+            return movers[0]
+        return best
+
+    def _accepted(self, best: Candidate, t: float) -> None:
+        """Keep a detection at ``t``: it anchors the sequence's gate, counts as a sight of the
+        site and of the rim's blend when its rim is whole enough, and as the sun's glare seen."""
+        if best.fit.inlier_fraction >= self.options.gates.anchor_min_inlier_fraction:
+            self._last = (t, self._gd(best))
+            self._refused_by_anchor = 0
+            self._anchors.append(self._last)
+            self._learn_site(t, best)
+            if self.blend is not None:
+                self.blend.observe(best.fit.axis, best.fit.image_share, best.fit.image_share_sigma, t)
+        self.history.accepted(t, best.fit.radius_deg)
+
     def _measure(
         self, grey: np.ndarray, x: float, y: float, r: float, peak: float, opts: GlareOptions
     ) -> Candidate | None:

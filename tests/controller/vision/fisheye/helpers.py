@@ -9,6 +9,7 @@ import numpy as np
 
 from controller.calibration.camera import CameraCal
 from controller.calibration.fisheye_bundle import FisheyeBundle, OrientationCal, SiteCal, as_mat3
+from controller.vision.fisheye.glare import GlareFit
 from hil.skycam import sky_profile
 
 
@@ -75,3 +76,23 @@ def product_sky(
 def angle_deg(a, b) -> float:
     """The angle between two directions (deg; not necessarily unit vectors)."""
     return math.degrees(math.acos(min(1.0, float(a @ b) / float(np.linalg.norm(a) * np.linalg.norm(b)))))
+
+
+def glare_fit(axis=(0.0, 0.0, 1.0), **kw) -> GlareFit:
+    """A clean, whole glare rim 3 deg in radius around ``axis`` (camera frame), ``kw`` changed."""
+    args = dict(
+        axis=np.asarray(axis, float) / np.linalg.norm(axis),
+        radius_deg=3.0,
+        rms_deg=0.0,
+        n_rays=96,
+        n_valid=96,
+        n_inliers=96,
+        max_gap_deg=4.0,
+        centre_uv=(160.0, 120.0),
+        radius_px=8.0,
+        peak=255.0,
+        background=100.0,
+        core_fill=1.0,
+        deg_per_px=0.4,
+    )
+    return GlareFit(**{**args, **kw})

@@ -1,6 +1,7 @@
 """The default fisheye pipeline on frames of the HIL sky camera (half-size, fast)."""
 
 import json
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -391,3 +392,37 @@ def test_a_sun_placed_no_better_than_the_sigma_limit_is_no_observation():
     res = strict.estimate_image(img, t)
     assert not res.found and res.reason == "imprecise_glare"
     assert res.extra["sigma_deg"] > 0.001
+
+
+def test_the_sun_among_glares_that_pass_every_gate_is_the_clearly_largest_else_told_apart():
+    """Among candidates of about one size (within ``ambiguity_ratio``), a gate's centre picks
+    the nearest; without gates only the one glare that moves like the sun is taken
+    (``chosen_by_motion``), else nothing is (``ambiguous_candidates``)."""
+    from controller.vision.fisheye.gates import Gate
+    from controller.vision.fisheye.visibility import judge
+
+    from .helpers import glare_fit
+
+    est = FisheyeEstimator(truth_bundle(small_scene()))
+    R = est.R
+    east, west = (
+        R.T @ np.array([1.0, 0.0, 1.0]) / math.sqrt(2),
+        R.T @ np.array([-1.0, 0.0, 1.0]) / math.sqrt(2),
+    )
+
+    def cands(r_east, r_west):
+        return [
+            judge(glare_fit(east, radius_deg=r_east), est.options, R),
+            judge(glare_fit(west, radius_deg=r_west), est.options, R),
+        ]
+
+    flags: list[str] = []
+    assert est._choose(cands(3.0, 4.0), [], None, flags).d_cam @ west > 0.99  # clearly larger
+    assert flags == []
+    near_east = Gate("prior", R @ east, 2.0, "enu")
+    assert est._choose(cands(3.0, 3.2), [near_east], None, flags).d_cam @ east > 0.99
+    est.history.moves_like_the_sun = lambda t, d: bool(d @ (R @ east) > 0.99)
+    assert est._choose(cands(3.0, 3.2), [], 0.0, flags).d_cam @ east > 0.99
+    assert flags == ["chosen_by_motion"]
+    est.history.moves_like_the_sun = lambda t, d: True
+    assert est._choose(cands(3.0, 3.2), [], 0.0, []) is None

@@ -6,28 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from controller.vision.fisheye.glare import GlareFit
 from controller.vision.fisheye.visibility import FisheyeOptions, glare_sigma, judge
 
-
-def fit(axis=(0.0, 0.0, 1.0), **kw) -> GlareFit:
-    """A clean, whole glare rim 3 deg in radius around ``axis`` (camera frame), ``kw`` changed."""
-    args = dict(
-        axis=np.asarray(axis, float) / np.linalg.norm(axis),
-        radius_deg=3.0,
-        rms_deg=0.0,
-        n_rays=96,
-        n_valid=96,
-        n_inliers=96,
-        max_gap_deg=4.0,
-        centre_uv=(160.0, 120.0),
-        radius_px=8.0,
-        peak=255.0,
-        background=100.0,
-        core_fill=1.0,
-        deg_per_px=0.4,
-    )
-    return GlareFit(**{**args, **kw})
+from .helpers import glare_fit as fit
 
 
 def test_a_whole_round_rim_is_placed_to_the_floor_and_the_cameras_calibration():
