@@ -27,6 +27,7 @@ from ..clock import Clock, RealClock
 from ..errors import ConfigError
 from ..timestamps import CANONICAL_EXAMPLE, time_from_name
 from ..vision.imageio import read_image
+from .mount_watch import MountWatch
 from .types import SunObservation
 
 log = logging.getLogger("heliotrack.camera")
@@ -371,7 +372,9 @@ class CameraSunSensor:
     reaches the estimator, nor does the frame it had last time (``same frame``: a camera
     slower than the loop's looks must not count one measurement twice).  ``outcomes``
     counts what each look gave: ``found``, ``no frame`` (the source had none, or none
-    recent), ``same frame``, or the reason the frame was refused.
+    recent), ``same frame``, or the reason the frame was refused; a camera whose glares are
+    refused off the sun by one angle, frame after frame, is said once to have moved
+    (:class:`.mount_watch.MountWatch`).
 
     ``interval_s``: :meth:`observations` looks once per interval (0: at every call).
     ``colour``: hand the estimator the frame in colour (BGR; the fisheye's pipelines) rather
@@ -398,6 +401,7 @@ class CameraSunSensor:
         self.prior = prior
         self.outcomes: Counter[str] = Counter()
         self.last_outcome = ""
+        self.mount = MountWatch()  # its glares refused off the sun by one angle: said once
         self._last_frame: tuple[float, str] | None = None
         self._last_look = -math.inf
 
@@ -444,6 +448,9 @@ class CameraSunSensor:
             self._outcome(f"estimator_error: {kind}")
             return None
         self._outcome("found" if obs is not None else getattr(result, "reason", "") or "not found")
+        said = self.mount.observe(frame.time, result)
+        if said:
+            (log.warning if self.mount.moved else log.info)("%s camera: %s", self.name, said)
         return obs
 
     def _outcome(self, what: str) -> None:

@@ -114,3 +114,18 @@ def test_a_bundle_calibrated_at_another_site_does_not_blind_the_loops_camera(tmp
     assert s["camera_frames"].get("found", 0) >= 14, s["camera_frames"]
     said = " ".join(r.getMessage() for r in caplog.records)
     assert "is not the plant's -33.9000, 18.4000: the plant's is used" in said, said
+
+
+def test_a_sky_camera_turned_since_its_calibration_is_said_to_have_moved(tmp_path, caplog):
+    """The world's sky camera turned 2 deg from the heading its bundle was calibrated at:
+    every frame is refused by the ephemeris gate, the loop tracks on the filter, and the
+    operator is told once that the camera's mount has moved (it had been silent)."""
+    text = scenario(tmp_path).read_text()
+    assert "yaw_deg = 17.0" in text
+    cfg = tmp_path / "turned.toml"
+    cfg.write_text(text.replace("yaw_deg = 17.0", "yaw_deg = 19.0"))
+    caplog.set_level("INFO", logger="heliotrack.camera")
+    s = simulate(tmp_path, cfg, start="2024-03-20T06:00:00+00:00", hours=1.0)
+    assert s["camera_frames"].get("gate_rejected", 0) >= 25 and not s["camera_frames"].get("found")
+    said = [r.getMessage() for r in caplog.records if "likely moved on its mount" in r.getMessage()]
+    assert len(said) == 1 and said[0].startswith("fisheye camera: its last 16 glares, over 30 min"), said

@@ -144,6 +144,9 @@ class FisheyeEstimator(FramePipeline):
                 max(g.distance_deg(self._in(c, g.frame)) - g.radius_deg for g in gates) for c in sun_like
             )
             beyond: dict[str, object] = {"gates": [g.name for g in gates], "beyond_gate_deg": round(near, 3)}
+            off = self._off_the_sun(sun_like, gates)
+            if off is not None:  # one offset frame after frame: the camera moved (.mount_watch)
+                beyond["glare_offset_deg"] = off
             return not_found(None, "gate_rejected", t, self.frame, self.algorithm, **beyond)
         flags = ["several_candidates"] if len(sun_like) > 1 else []
         best = self._choose(passing, gates, t, flags)
@@ -228,6 +231,19 @@ class FisheyeEstimator(FramePipeline):
             flags.append("chosen_by_motion")
             return movers[0]
         return best
+
+    def _off_the_sun(self, cands: list[Candidate], gates: list[Gate]) -> list[float] | None:
+        """Where the glare of ``cands`` nearest the sun lies from where the sun must be (the
+        ephemeris gate's centre): [along the horizon towards larger azimuth, up] (deg), or None
+        without that gate (:mod:`controller.sun.mount_watch`)."""
+        eph = next((g for g in gates if g.name == "ephemeris"), None)
+        if eph is None:
+            return None
+        near = min((self._in(c, "enu") for c in cands), key=eph.distance_deg)  # ENU: the gate needs R
+        az_s, el_s = (float(v) for v in enu_to_azel(eph.centre))
+        az_c, el_c = (float(v) for v in enu_to_azel(near))
+        along = ((az_c - az_s + 180.0) % 360.0 - 180.0) * math.cos(math.radians(el_s))
+        return [round(along, 3), round(el_c - el_s, 3)]
 
     def _accepted(self, best: Candidate, t: float) -> None:
         """Keep a detection at ``t``: it anchors the sequence's gate, counts as a sight of the

@@ -426,3 +426,31 @@ def test_the_sun_among_glares_that_pass_every_gate_is_the_clearly_largest_else_t
     assert flags == ["chosen_by_motion"]
     est.history.moves_like_the_sun = lambda t, d: True
     assert est._choose(cands(3.0, 3.2), [], 0.0, []) is None
+
+
+def test_a_camera_turned_since_its_calibration_says_where_its_refused_glares_lie():
+    """A camera turned 2 deg about the vertical since its bundle was written sees the sun
+    2 deg along the horizon (times the cosine of its elevation) from where it must be: each
+    frame is refused by the ephemeris gate, with that offset (``glare_offset_deg``), which
+    the loop's camera watches (controller.sun.mount_watch)."""
+    from controller.sun.mount_watch import MountWatch
+
+    scn = small_scene()
+    R = np.asarray(scn.enu_from_camera, float)
+    turn = np.array(
+        [[math.cos(0.0349), -math.sin(0.0349), 0.0], [math.sin(0.0349), math.cos(0.0349), 0.0], [0, 0, 1.0]]
+    )
+    moved = scn.with_(enu_from_camera=tuple(map(tuple, (turn @ R).tolist())))  # 2 deg about the zenith
+    est, watch = FisheyeEstimator(truth_bundle(scn)), MountWatch()
+    said, offsets = [], []
+    for k in range(14):
+        t = utc(2025, 3, 20, 5, 0) + 150.0 * k  # the sun 30-40 deg up
+        res = est.estimate_image(render_sky(moved, t).image, t)
+        assert not res.found and res.reason == "gate_rejected"
+        offsets.append(res.extra["glare_offset_deg"])
+        said.append(watch.observe(t, res))
+    along, up = np.median(np.array(offsets), axis=0)
+    el = render_sky(scn, utc(2025, 3, 20, 5, 15)).truth["el_deg"]
+    # the camera turned counter-clockwise seen from above: the sky it sees, clockwise
+    assert abs(along - 2.0 * math.cos(math.radians(el))) < 0.15 and abs(up) < 0.15
+    assert [k for k, s in enumerate(said) if s] == [12]
