@@ -4,7 +4,7 @@ The fisheye's ephemeris gate refuses a glare more than a degree from where the s
 (the plant's site and the bundle's rotation).  A camera bumped or re-mounted since its
 orientation was calibrated sees the sun there every clear frame, each frame is
 ``gate_rejected``, and the loop tracks on the ephemeris: safe, but without a word (a
-bundle calibrated at another site had done the same, docs/fisheye.md, "In the loop").
+bundle calibrated at another site had done the same, docs/fisheye.md, "The fisheye in the loop").
 What tells a moved camera from a bright cloud's edge is that its glares sit off the sun
 by the same offset frame after frame (a rotation of the camera moves the whole sky), while
 clouds' edges scatter; a wrong site or clock would look alike, and the sentence says so.  :class:`MountWatch` reads each result's ``glare_offset_deg`` (the
