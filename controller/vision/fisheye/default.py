@@ -234,12 +234,15 @@ class FisheyeEstimator(FramePipeline):
 
     def _off_the_sun(self, cands: list[Candidate], gates: list[Gate]) -> list[float] | None:
         """Where the glare of ``cands`` nearest the sun lies from where the sun must be (the
-        ephemeris gate's centre): [along the horizon towards larger azimuth, up] (deg), or None
-        without that gate (:mod:`controller.sun.mount_watch`)."""
+        ephemeris gate's centre): [along the horizon towards larger azimuth, up] (deg); None
+        without that gate, or when it did not refuse that glare (another gate did:
+        :mod:`controller.sun.mount_watch` reads only the ephemeris's refusals)."""
         eph = next((g for g in gates if g.name == "ephemeris"), None)
         if eph is None:
             return None
         near = min((self._in(c, "enu") for c in cands), key=eph.distance_deg)  # ENU: the gate needs R
+        if eph.distance_deg(near) <= eph.radius_deg:
+            return None
         az_s, el_s = (float(v) for v in enu_to_azel(eph.centre))
         az_c, el_c = (float(v) for v in enu_to_azel(near))
         along = ((az_c - az_s + 180.0) % 360.0 - 180.0) * math.cos(math.radians(el_s))

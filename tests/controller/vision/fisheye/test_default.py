@@ -454,3 +454,27 @@ def test_a_camera_turned_since_its_calibration_says_where_its_refused_glares_lie
     # the camera turned counter-clockwise seen from above: the sky it sees, clockwise
     assert abs(along - 2.0 * math.cos(math.radians(el))) < 0.15 and abs(up) < 0.15
     assert [k for k, s in enumerate(said) if s] == [12]
+
+
+def test_only_the_ephemeris_gates_own_refusals_carry_the_glares_offset():
+    """A glare within the ephemeris gate that another gate refused (the filter's prior) says
+    nothing of the camera's mount: no offset then."""
+    from controller.vision.fisheye.gates import Gate
+    from controller.vision.fisheye.visibility import judge
+
+    from .helpers import glare_fit
+
+    est = FisheyeEstimator(truth_bundle(small_scene()))
+    sun = np.array([0.0, math.cos(math.radians(40.0)), math.sin(math.radians(40.0))])  # due north, 40 deg up
+    eph = Gate("ephemeris", sun, 1.0, "enu")
+
+    def glare(d_az):
+        a = math.radians(d_az)
+        d = np.array([math.sin(a) * sun[1], math.cos(a) * sun[1], sun[2]])
+        return judge(glare_fit(est.R.T @ d), est.options, est.R)
+
+    assert est._off_the_sun([glare(0.6)], [eph]) is None  # 0.46 deg off: within the gate
+    assert est._off_the_sun([glare(0.6), glare(2.0)], [eph, Gate("prior", sun, 0.1, "enu")]) is None
+    off = est._off_the_sun([glare(2.0)], [eph])
+    assert off is not None and off[0] == pytest.approx(2.0 * math.cos(math.radians(40.0)), abs=0.01)
+    assert abs(off[1]) < 0.01
