@@ -3,7 +3,8 @@
 Validates the plant file, opens every link and asks every configured device who it is: each
 drive its axis count, protocol and firmware versions, uptime, the round-trip time of its
 requests, fault word and position; the pyranometer and the anemometer a reading; the
-camera a frame (its size against the calibration bundle's).  One row per device, printed as soon as it is known: ``ok`` and
+camera a frame (its size against the calibration bundle's; the sky camera's sun against
+where the sun must be).  One row per device, printed as soon as it is known: ``ok`` and
 what the device said, or what failed.  Exit 0 only if every device answered, 1 otherwise
 (2 for a bad file).
 
@@ -321,4 +322,40 @@ def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, 
         return False, f"{text}, the calibration bundle expects {width}x{height}"
     grey = grey8(frame.image)
     judged = judge_frame(grey) if grey is not None else "unsupported_image_format"
-    return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")
+    if judged or name != "fisheye":
+        return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")
+    ok, said = _sky_camera_orientation(config, bundle, frame)
+    return ok, f"{text}; {said}"
+
+
+def _sky_camera_orientation(config: Config, bundle, frame) -> tuple[bool, str]:
+    """The sky camera's ``frame`` read by its estimator, with the plant's site as the loop
+    reads it: how far the sun it finds lies from where the sun must be, or, where the
+    ephemeris gate refused its glare, that offset, which says the camera has moved since its
+    orientation was calibrated (or the site or the clock is off; a failed row).  With no
+    sun in view (night, cloud) there is nothing to check."""
+    import math
+
+    from controller.sun.types import angle_between_deg, azel_to_enu
+    from controller.vision.fisheye import FisheyeEstimator
+    from heliotrack.sun_sources import plant_site_bundle
+
+    est = FisheyeEstimator(plant_site_bundle(config, bundle))
+    res = est.estimate_image(frame.image, frame.time)
+    if res.found and res.az_deg is not None and res.el_deg is not None:
+        if est.ephemeris is None:
+            return True, "the sun found (no site to check the camera's orientation against)"
+        off = float(
+            angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), est.ephemeris.direction(frame.time))
+        )
+        return True, f"the sun found {off:.2f} deg from where it must be"
+    glare = res.extra.get("glare_offset_deg")
+    if glare is not None:
+        along, up = glare
+        return False, (
+            f"the sun-like glare nearest the sun is {math.hypot(along, up):.2f} deg from where the sun "
+            f"must be ({along:+.2f} deg along the horizon, {up:+.2f} up): if the sun was in a clear sky, "
+            "the camera has moved since its orientation was calibrated (heliotrack calibrate fisheye "
+            "orientation), or the plant's site or the clock is off"
+        )
+    return True, f"no sun to check its orientation against ({res.reason})"
