@@ -343,8 +343,9 @@ def _sky_camera_orientation(config: Config, bundle, frame) -> tuple[bool, str]:
     est = FisheyeEstimator(plant_site_bundle(config, bundle))
     res = est.estimate_image(frame.image, frame.time)
     if res.found and res.az_deg is not None and res.el_deg is not None:
-        if est.ephemeris is None:
-            return True, "the sun found (no site to check the camera's orientation against)"
+        if est.ephemeris is None:  # no site known, or a bundle without [orientation]
+            missing = "no site" if est.R is not None else "no orientation in its bundle"
+            return True, f"the sun found ({missing} to check the camera's orientation against)"
         off = float(
             angle_between_deg(azel_to_enu(res.az_deg, res.el_deg), est.ephemeris.direction(frame.time))
         )
