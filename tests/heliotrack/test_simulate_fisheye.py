@@ -128,4 +128,6 @@ def test_a_sky_camera_turned_since_its_calibration_is_said_to_have_moved(tmp_pat
     s = simulate(tmp_path, cfg, start="2024-03-20T06:00:00+00:00", hours=1.0)
     assert s["camera_frames"].get("gate_rejected", 0) >= 25 and not s["camera_frames"].get("found")
     said = [r.getMessage() for r in caplog.records if "likely moved on its mount" in r.getMessage()]
-    assert len(said) == 1 and said[0].startswith("fisheye camera: its last 16 glares, over 30 min"), said
+    assert len(said) == 1 and said[0].startswith(
+        "fisheye camera: its glares of the last 30 min (16 frames)"
+    ), said

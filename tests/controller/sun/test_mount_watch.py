@@ -45,6 +45,13 @@ def test_too_few_or_too_short_or_broken_by_a_sun_found_says_nothing():
         assert w.observe(150.0 * k, res) is None  # a sun found every 10 frames: the mount is right
 
 
+def test_a_fast_camera_is_judged_over_the_same_half_hour():
+    w = MountWatch()
+    said = [w.observe(1.0 * k, refused((0.0, -1.3))) for k in range(3600)]  # a frame a second
+    assert [k for k, s in enumerate(said) if s] == [1800]
+    assert "the last 30 min (181 frames)" in said[1800]
+
+
 def test_frames_without_a_glare_neither_count_nor_reset():
     w = MountWatch()
     dark = SimpleNamespace(found=False, reason="no_sun_glare", extra={})
