@@ -27,8 +27,10 @@ from typing import TYPE_CHECKING, TextIO
 from heliotrack.logs import add_log_options
 
 if TYPE_CHECKING:
+    from controller.calibration.fisheye_bundle import FisheyeBundle
     from controller.clock import Clock
     from controller.config import Config, TrackerConfig
+    from controller.sun.camera import CameraFrame
 
 log = logging.getLogger("heliotrack.check")
 
@@ -301,7 +303,7 @@ def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, 
     """A frame from camera ``name`` (``hotspot``, ``fisheye``), and its size against its
     calibration bundle's."""
     from controller.calibration.bundle import load_bundle
-    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+    from controller.calibration.fisheye_bundle import FisheyeBundle, load_fisheye_bundle
     from controller.sun.camera import grey8, judge_frame
     from heliotrack.sun_sources import open_frame_source
 
@@ -322,13 +324,13 @@ def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, 
         return False, f"{text}, the calibration bundle expects {width}x{height}"
     grey = grey8(frame.image)
     judged = judge_frame(grey) if grey is not None else "unsupported_image_format"
-    if judged or name != "fisheye":
+    if judged or not isinstance(bundle, FisheyeBundle):
         return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")
     ok, said = _sky_camera_orientation(config, bundle, frame)
     return ok, f"{text}; {said}"
 
 
-def _sky_camera_orientation(config: Config, bundle, frame) -> tuple[bool, str]:
+def _sky_camera_orientation(config: Config, bundle: FisheyeBundle, frame: CameraFrame) -> tuple[bool, str]:
     """The sky camera's ``frame`` read by its estimator, with the plant's site as the loop
     reads it: how far the sun it finds lies from where the sun must be, or, where the
     ephemeris gate refused its glare, that offset, which says the camera has moved since its
