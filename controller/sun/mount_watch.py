@@ -60,10 +60,10 @@ class MountWatch:
         if ts[-1] - ts[0] < self.span_s:
             return None
         xy = np.array([(o[1], o[2]) for o in self._offsets])
-        med = np.median(xy, axis=0)
-        if float(np.median(np.hypot(*(xy - med).T))) > self.max_spread:
+        med = one_offset(xy, self.max_spread)
+        if med is None:
             return None  # glares all over the sky: clouds' edges, not the camera
-        self.moved = (float(med[0]), float(med[1]))
+        self.moved = med
         return (
             f"its glares of the last {(ts[-1] - ts[0]) / 60:.0f} min ({len(xy)} frames) were all refused "
             f"{math.hypot(*self.moved):.2f} deg from where the sun must be, by the same offset "
@@ -72,3 +72,13 @@ class MountWatch:
             "fisheye orientation), unless the plant's site or clock is off; the loop tracks "
             "without it meanwhile"
         )
+
+
+def one_offset(offsets: np.ndarray, max_spread_deg: float = MAX_SPREAD_DEG) -> tuple[float, float] | None:
+    """The median of ``offsets`` (n x 2, deg: along the horizon, up) when they lie about it
+    within ``max_spread_deg`` (their median distance from it), else None: one offset, as a
+    camera turned on its mount gives, not the scatter of clouds' edges."""
+    med = np.median(offsets, axis=0)
+    if float(np.median(np.hypot(*(offsets - med).T))) > max_spread_deg:
+        return None
+    return float(med[0]), float(med[1])

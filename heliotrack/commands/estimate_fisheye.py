@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import math
 import sys
 from collections.abc import Iterator
 from pathlib import Path
@@ -83,7 +84,10 @@ def run(args: argparse.Namespace) -> int:
         seen.add(d)
         sys.stdout.write(json.dumps(d) + "\n")
         sys.stdout.flush()
-    if seen.says_the_bundle_is_wrong():
+    turned = seen.turned_by()
+    if turned is not None:
+        log.warning(seen.turned_warning(turned))
+    elif seen.says_the_bundle_is_wrong():
         log.warning(seen.warning())
     return 0
 
@@ -122,12 +126,16 @@ class GateTally:
     def __init__(self) -> None:
         self.glare = 0  # frames with a sun-like glare: found, or refused by a gate
         self.beyond: list[float] = []
+        self.offsets: list[tuple[float, float]] = []  # the ephemeris gate's refused glares (deg)
 
     def add(self, d: dict) -> None:
         if d.get("found"):
             self.glare += 1
         elif d.get("reason") == "gate_rejected":
             self.glare += 1
+            off = d.get("glare_offset_deg")
+            if isinstance(off, list) and len(off) == 2:
+                self.offsets.append((float(off[0]), float(off[1])))
             far = d.get("beyond_gate_deg")
             if (
                 "ephemeris" in d.get("gates", ())
@@ -135,6 +143,27 @@ class GateTally:
                 and far > self.MIN_BEYOND_DEG
             ):
                 self.beyond.append(float(far))
+
+    def turned_by(self) -> tuple[float, float] | None:
+        """The one offset (deg: along the horizon, up) by which the ephemeris gate refused at
+        least :data:`MIN_FRAMES` glares, half the frames with one or more, or None
+        (:func:`controller.sun.mount_watch.one_offset`)."""
+        import numpy as np
+
+        from controller.sun.mount_watch import one_offset
+
+        if len(self.offsets) < self.MIN_FRAMES or 2 * len(self.offsets) < self.glare:
+            return None
+        return one_offset(np.array(self.offsets))
+
+    def turned_warning(self, off: tuple[float, float]) -> str:
+        return (
+            f"{len(self.offsets)} of the {self.glare} frames with a sun-like glare were refused by "
+            f"the ephemeris gate, their glares all {math.hypot(*off):.2f} deg from where the sun must "
+            f"be by one offset ({off[0]:+.2f} deg along the horizon, {off[1]:+.2f} up): the camera has "
+            "turned since its orientation was calibrated (heliotrack calibrate fisheye orientation), "
+            "or the bundle's [site] or the frames' times are off"
+        )
 
     def says_the_bundle_is_wrong(self) -> bool:
         return len(self.beyond) >= self.MIN_FRAMES and 2 * len(self.beyond) >= self.glare

@@ -588,3 +588,36 @@ def test_causal_is_refused_for_the_hotspot_sensor(installed, capsys):
     assert main(["estimate", "--calib", "hotspot.toml", "--causal", frame]) == 2
     out_, err = capsys.readouterr()
     assert out_ == "" and "--causal is for the fisheye sky camera" in err and "Traceback" not in err
+
+
+def test_frames_of_a_camera_turned_since_its_calibration_are_said_to_be_off_by_one_offset(
+    installed, capsys, tmp_path, caplog
+):
+    """The installer's camera turned 2 deg about the vertical after its orientation was
+    calibrated: every glare is refused by the ephemeris gate, about 1.2 deg off (the heading
+    times the cosine of the sun's elevation), short of the 2 deg beyond the gate that says a
+    wrong bundle; the warning gives the one offset they share (+1.18 deg along the horizon)."""
+    from controller.timestamps import time_from_name
+    from hil.skycam import render_sky
+
+    out, bundle, _ = installed
+    scn = sky_profile("seed")
+    R = np.asarray(scn.enu_from_camera, float)
+    c, s = math.cos(math.radians(2.0)), math.sin(math.radians(2.0))
+    turned = scn.with_(
+        enu_from_camera=tuple(map(tuple, (np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]]) @ R).tolist()))
+    )
+    folder = tmp_path / "turned"
+    folder.mkdir()
+    import cv2
+
+    for p in sorted((out / "day").glob("*.png"))[4:10]:
+        cv2.imwrite(str(folder / p.name), render_sky(turned, time_from_name(p.name)).image)
+    caplog.set_level("WARNING", logger="heliotrack.estimate")
+    frames = sorted(folder.glob("*.png"))
+    assert main(["estimate", "--sensor", "fisheye", "--calib", str(bundle), *map(str, frames)]) == 0
+    got = lines(capsys)
+    assert all(g.get("reason") == "gate_rejected" and "glare_offset_deg" in g for g in got), got
+    said = " ".join(r.getMessage() for r in caplog.records)
+    assert "6 of the 6 frames" in said and "by one offset" in said and "has turned" in said, said
+    assert "transposed matrix" not in said
