@@ -24,7 +24,8 @@ import numpy as np
 from .rings import ring_direction
 
 #: without the site, the rings are chosen once their squared RMS about their own site is
-#: under this share of the rim's (:meth:`LocatorChoice.observe_path`); with it the weight
+#: under this share of the rim's, the rim once its is under this share of theirs, and between
+#: the two the choice stays open (:meth:`LocatorChoice.observe_path`); with it the weight
 #: between the two is learned once this many frames have both fixes (:class:`LocatorChoice`)
 LEAD, MIN_FRAMES = 0.5, 2
 #: the weight is learned from the frames within BAND_DEG of the sun's elevation, at least
@@ -170,6 +171,7 @@ class LocatorChoice:
         # of a site fitted to each (rim, rings) once they span enough of the sun's path
         self._path: deque[tuple[float, np.ndarray, np.ndarray]] = deque(maxlen=720)
         self._path_sq: tuple[float, float] | None = None
+        self._path_choice: float | None = None  # the last comparison that told them apart: 1 rings, 0 rim
         self._path_new = 0
 
     @classmethod
@@ -224,15 +226,12 @@ class LocatorChoice:
 
     def path_weight(self) -> float:
         """Without the site, the weight of the rings' fix: 1 when a site fitted to the rings'
-        sights leaves under ``lead`` times the squared RMS of one fitted to the rim's, else 0
-        (:meth:`observe_path`); before they are compared, as the calibration day chose
-        (``prior``)."""
+        sights left under ``lead`` times the squared RMS of one fitted to the rim's, 0 when the
+        rim's left under ``lead`` times theirs, at the last comparison that told them apart
+        (:meth:`observe_path`); before one has, as the calibration day chose (``prior``)."""
         if self._always:
             return 1.0
-        if self._path_sq is None:
-            return self._prior
-        rim, rings = self._path_sq
-        return float(rings < self._lead * rim)
+        return self._prior if self._path_choice is None else self._path_choice
 
     def observe_path(self, t: float, rim_enu: np.ndarray, rings_enu: np.ndarray) -> None:
         """Count one frame's two fixes (ENU) as sights of the sun at POSIX ``t``, without the
@@ -242,7 +241,15 @@ class LocatorChoice:
         own site (:func:`.selfsite.fit_site`), and the residuals are compared as the squared
         angles to the ephemeris are with the site (third renderer, 20-min frames: the rim's
         site fitted to 0.09-0.11 deg, the rings' to 0.016-0.032, their errors 0.10-0.14 and
-        0.014-0.032; the second renderer's look as described 0.010-0.021 and 0.065-0.075)."""
+        0.014-0.032; the second renderer's look as described 0.010-0.021 and 0.065-0.075).
+
+        Where the sun keeps to a few degrees of elevation all day (20 Mar at 70 N: 12-20 deg),
+        a sky model's error that grows towards noon has the shape of a change of latitude and
+        a site takes it up: the third renderer's rim, 0.2 deg off at noon, fits its own site
+        to 0.037-0.047 deg, the rings to 0.028-0.033.  A comparison that leaves neither under
+        ``lead`` times the other tells nothing: it neither chooses nor undoes an earlier
+        choice, and a camera that has never chosen stays halfway (0.0942 -> 0.0574 deg RMS
+        there, docs/fisheye-rounds.md, a thirty-eighth round)."""
         from .selfsite import MIN_SHARE, fit_site
 
         if self._path and t - self._path[-1][0] < PATH_STEP_S:
@@ -266,10 +273,14 @@ class LocatorChoice:
             sq.append(fit[0].rms_deg ** 2 if ok and fit is not None else math.inf)
         if math.isfinite(min(sq)):
             self._path_sq = (sq[0], sq[1])
+            if sq[1] < self._lead * sq[0]:
+                self._path_choice = 1.0
+            elif sq[0] < self._lead * sq[1]:
+                self._path_choice = 0.0
 
     def _learned(self, with_site: bool) -> bool:
         """Whether frames have set :meth:`weight` (with the site) or :meth:`path_weight`."""
-        return len(self._err) >= max(self._min, 1) if with_site else self._path_sq is not None
+        return len(self._err) >= max(self._min, 1) if with_site else self._path_choice is not None
 
     @property
     def rim_settled(self) -> bool:

@@ -319,3 +319,50 @@ def test_without_the_site_the_suns_own_path_chooses_the_locator_whose_sights_it_
         if el < 12.0:
             low.observe_path(t, biased, s)
     assert low._path_sq is None  # under 12 deg the rim is cut by the horizon: no sight counts
+
+
+def _two_sites_day(t0: float, rim_lat: float = 40.2, noise_deg: float = 0.03):
+    """A clear day from ``t0`` at 40 N, a sight every 20 min while 12 deg up or more: (t, the
+    rim's fix: the sun of a site at ``rim_lat``, the rings' fix: the sun), both moved by the
+    same ``noise_deg`` scatter, so that each fits its own site equally well."""
+    from controller.sun.source import Site
+    from controller.vision.fisheye.gates import Ephemeris
+
+    sun = Ephemeris(Site(latitude=40.0, longitude=-3.0, altitude=0.0))
+    shifted = Ephemeris(Site(latitude=rim_lat, longitude=-3.0, altitude=0.0))
+    rng = np.random.default_rng(7)
+    out = []
+    for t in np.arange(t0, t0 + 86400.0, 1200.0):
+        s = sun.direction(float(t))
+        if s[2] < math.sin(math.radians(12.5)):
+            continue
+        kick = rng.standard_normal(3) * math.radians(noise_deg)
+        moved = [d + kick - (kick @ d) * d for d in (shifted.direction(float(t)), s)]
+        out.append((float(t), *(m / np.linalg.norm(m) for m in moved)))
+    return out
+
+
+def test_without_the_site_a_path_that_fits_both_locators_alike_leaves_the_choice_open():
+    """Where a sky model's error has the shape of a change of latitude, the rim's sights fit a
+    site as well as the rings' fit theirs: no choice is made, the camera stays halfway with
+    its move bounded as before any comparison, and a choice made on an earlier day that told
+    them apart is kept."""
+    t0 = 1773964800.0  # 2026-03-20 00:00 UTC
+    open_ = LocatorChoice()
+    for t, rim, rings in _two_sites_day(t0):
+        open_.observe_path(t, rim, rings)
+    rim_sq, rings_sq = open_._path_sq
+    assert 0.5 < rings_sq / rim_sq < 2.0  # compared, and alike
+    assert open_.path_weight() == locator.UNKNOWN_PRIOR and not open_._learned(False)
+    told = LocatorChoice()
+    for t, s, biased, _ in _day_of_sights(_sky_bias):
+        told.observe_path(t, biased, s)  # the rings right: chosen
+    assert told.path_weight() == 1.0
+    for t, rim, rings in _two_sites_day(t0 + 3 * 86400.0):  # past the sights kept (48 h)
+        told.observe_path(t, rim, rings)
+    rim_sq, rings_sq = told._path_sq
+    assert 0.5 < rings_sq / rim_sq < 2.0 and told.path_weight() == 1.0
+    rim_right = LocatorChoice()
+    for t, s, biased, _ in _day_of_sights(_sky_bias):
+        rim_right.observe_path(t, s, biased)  # the rim right, the rings 0.2 deg low
+    assert rim_right.path_weight() == 0.0 and rim_right._learned(False)
