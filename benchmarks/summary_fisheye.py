@@ -265,6 +265,32 @@ def fisheye_third(r: dict) -> list[Headline]:
                     ok=rms is not None and rms <= limit and b["false_detections"] == 0,
                 )
             )
+    for site, res in r.get("other_sites", {}).items():
+        where = f"dark exposure at {site} ({res['latitude']:.1f} deg lat), 640 x 480"
+        rms = res["error"].get("rms_deg")
+        out.append(
+            Headline(
+                name,
+                f"{where}: clear-sky RMS with the site",
+                f"{fmt(rms, 3, ' deg')} ({found(res)}; {fmt(res['false_detections'])} false)",
+                "<= 0.03 deg",
+                ok=rms is not None and rms <= 0.03 and res["false_detections"] == 0,
+            )
+        )
+        ns, nb = res["without_site"], res.get("per_day_calls", {}).get("batch_without_site", {})
+        on, batch = ns["error"].get("rms_deg"), nb.get("error", {}).get("rms_deg")
+        out.append(
+            Headline(
+                name,
+                f"{where}: no site in the bundle, online / a day a call (batch)",
+                f"{fmt(on, 3)} / {fmt(batch, 3)} deg ({fmt(ns['false_detections'])} false)",
+                "<= 0.03 deg",
+                ok=on is not None
+                and batch is not None
+                and max(on, batch) <= 0.03
+                and ns["false_detections"] == 0,
+            )
+        )
     for key, label in (
         ("third renderer, as exposed", "as exposed (zenith grey 72)"),
         ("third renderer, as exposed, sRGB", "as exposed, sRGB declared in the bundle"),

@@ -213,6 +213,44 @@ def test_summary_rows_judge_the_dark_exposure_and_only_report_the_as_exposed_loo
     ]
 
 
+def test_summary_rows_judge_the_other_sites_with_and_without_the_site_in_the_bundle():
+    site = {
+        "latitude": 69.65,
+        **_look(80, 83, 0.0297),
+        "without_site": _look(80, 83, 0.0574),
+        "per_day_calls": {"batch_without_site": _look(80, 83, 0.0287)},
+    }
+    r = {"looks": {}, "acceptance": {}, "other_sites": {"Tromso": site}}
+    rows = [(h.figure, h.value, h.ok) for h in summary_rows(r) if "Tromso" in h.figure]
+    assert rows == [
+        (
+            "dark exposure at Tromso (69.7 deg lat), 640 x 480: clear-sky RMS with the site",
+            "0.0297 deg (found 80 of 83; 0 false)",
+            True,
+        ),
+        (
+            "dark exposure at Tromso (69.7 deg lat), 640 x 480: no site in the bundle, online / a day a call (batch)",
+            "0.0574 / 0.0287 deg (0 false)",
+            False,
+        ),
+    ]
+    site["without_site"] = _look(80, 83, 0.029)
+    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure] == [True, True]
+    site["false_detections"] = 1  # a false detection fails the row whatever the RMS
+    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure] == [False, True]
+
+
+def test_the_other_sites_frames_are_their_own_suns():
+    """Tromso keeps the sun up through 21 Jun's night and down through 21 Dec's day; the bundle
+    carries the site it is read at."""
+    june = third.sun_frames("2026-06-21", 60, third.OTHER_SITES["Tromso"])
+    assert len(june) >= 20 and min(el for _, _, el in june) >= third.MIN_EL_DEG
+    assert third.sun_frames("2026-12-21", 60, third.OTHER_SITES["Tromso"]) == []
+    assert len(third.sun_frames("2026-06-21", 60)) < 12  # Santiago's winter day
+    b = third.bundle_dict(third.LOOKS[0], third.OTHER_SITES["Oslo"])
+    assert b["site"] == {"latitude": 59.91, "longitude": 10.75, "altitude": 20.0}
+
+
 def test_with_the_site_the_ccds_smear_is_taken_off_the_rings_that_place_a_high_sun():
     """The third renderer at 1280 x 960, its highest sun of 21 Dec (79 deg): the CCD's smear
     runs down the rings' column through the sun, and the rings, read with it, put the sun
