@@ -52,13 +52,35 @@ OFFSET_EL_DEG, MIN_OFFSETS, NEAREST_OFFSET_DEG = 2.0, 3, 8.0
 #: without the site, the choice by the sun's own path (:meth:`LocatorChoice.observe_path`):
 #: a sight of both fixes kept at most every PATH_STEP_S, for PATH_KEEP_S (s; 720 at most),
 #: the sun PATH_MIN_EL_DEG high at least; the paths are compared once PATH_MIN_SIGHTS span
-#: PATH_MIN_SPAN_S (s), and again every PATH_EVERY sights.  The span is what tells a sky
+#: PATH_MIN_SPAN_S (s) and one of them is PATH_LOW_EL_DEG high at most, then at every sight
+#: until a comparison chooses, and every PATH_EVERY sights after.  The span is what tells a sky
 #: model's bend from a path; six sights (twelve numbers for a site's two) suffice, and at a
 #: frame every few minutes the span binds; where frames are 20-30 min apart, twelve sights
 #: had left a winter day's first half halfway between the fixes (the third renderer's clear
-#: days without the site, a day a call: 0.0302 -> 0.0201 deg at 640 x 480)
+#: days without the site, a day a call: 0.0302 -> 0.0201 deg at 640 x 480).  A sky model's
+#: error grows with the air mass: over sights all above 30 deg (air mass under 2) a rim it
+#: barely moves fits its site best, and was chosen for the low sun where it is 0.2 deg off
+#: (the third renderer at Quito, 21 Dec's afternoon read first as a batch's second half: the
+#: rim 0.0115 deg about its site, the rings 0.0584, over six sights at 58-67 deg; 0.0549 ->
+#: 0.0142 deg at 1280 x 960).  A comparison chooses only when its ratio is one that chance
+#: leaves with probability PATH_SIGNIFICANCE at most (:func:`path_lead`), and under LEAD
 PATH_STEP_S, PATH_KEEP_S, PATH_MIN_EL_DEG = 120.0, 172800.0, 12.0
 PATH_MIN_SIGHTS, PATH_MIN_SPAN_S, PATH_EVERY = 6, 3600.0, 5
+PATH_LOW_EL_DEG, PATH_SIGNIFICANCE = 30.0, 0.01
+
+
+def path_lead(sights: int, significance: float = PATH_SIGNIFICANCE) -> float:
+    """The share of one locator's squared RMS about its own site under which the other's
+    chooses it, from ``sights`` sights: the ratio of two such sums of squares (two numbers a
+    sight, two a site: ``2 sights - 2`` degrees of freedom each) that chance alone leaves
+    under it with probability ``significance`` (0.21 for 6 sights, 0.34 for 11, 0.51 for 26).
+    Six sights at 12-18 deg had chosen the rim of the third renderer at 70 N, its squared
+    RMS 0.22 of the rings' (0.2 deg off until the sixteenth sight, 1280 x 960); six sights
+    need 0.21.  The errors are a sky model's, not independent draws: the level is a guide."""
+    from scipy.stats import f
+
+    dof = max(2 * sights - 2, 1)
+    return float(1.0 / f.ppf(1.0 - significance, dof, dof))
 
 
 def blend_weight(rim: np.ndarray, rings: np.ndarray, trim_k: float = TRIM_K, rounds: int = 5) -> float:
@@ -247,9 +269,10 @@ class LocatorChoice:
         a sky model's error that grows towards noon has the shape of a change of latitude and
         a site takes it up: the third renderer's rim, 0.2 deg off at noon, fits its own site
         to 0.037-0.047 deg, the rings to 0.028-0.033.  A comparison that leaves neither under
-        ``lead`` times the other tells nothing: it neither chooses nor undoes an earlier
-        choice, and a camera that has never chosen stays halfway (0.0942 -> 0.0574 deg RMS
-        there, docs/fisheye-rounds.md, a thirty-eighth round)."""
+        its lead (:func:`path_lead`, ``lead`` at most) times the other tells nothing: it
+        neither chooses nor undoes an earlier choice, and a camera that has never chosen stays
+        halfway (0.0942 -> 0.0553 deg RMS there at 640 x 480, 0.0883 -> 0.0534 at 1280 x 960;
+        docs/fisheye-rounds.md, a thirty-eighth round)."""
         from .selfsite import MIN_SHARE, fit_site
 
         if self._path and t - self._path[-1][0] < PATH_STEP_S:
@@ -263,19 +286,23 @@ class LocatorChoice:
         ts = np.array([p[0] for p in self._path])
         if len(ts) < PATH_MIN_SIGHTS or ts[-1] - ts[0] < PATH_MIN_SPAN_S:
             return
-        if self._path_sq is not None and self._path_new < PATH_EVERY:
+        if min(float(p[1][2]) for p in self._path) > math.sin(math.radians(PATH_LOW_EL_DEG)):
+            return
+        if self._path_choice is not None and self._path_new < PATH_EVERY:
             return
         self._path_new = 0
-        sq = []
+        sq, used = [], len(ts)
         for k in (1, 2):
             fit = fit_site(ts, np.array([p[k] for p in self._path]))
             ok = fit is not None and fit[0].n >= MIN_SHARE * len(ts)
             sq.append(fit[0].rms_deg ** 2 if ok and fit is not None else math.inf)
+            used = min(used, fit[0].n) if ok and fit is not None else used
         if math.isfinite(min(sq)):
             self._path_sq = (sq[0], sq[1])
-            if sq[1] < self._lead * sq[0]:
+            lead = min(self._lead, path_lead(used, PATH_SIGNIFICANCE))
+            if sq[1] < lead * sq[0]:
                 self._path_choice = 1.0
-            elif sq[0] < self._lead * sq[1]:
+            elif sq[0] < lead * sq[1]:
                 self._path_choice = 0.0
 
     def _learned(self, with_site: bool) -> bool:

@@ -321,10 +321,11 @@ def test_without_the_site_the_suns_own_path_chooses_the_locator_whose_sights_it_
     assert low._path_sq is None  # under 12 deg the rim is cut by the horizon: no sight counts
 
 
-def _two_sites_day(t0: float, rim_lat: float = 40.2, noise_deg: float = 0.03):
+def _two_sites_day(t0: float, rim_lat: float = 40.2, noise_deg: float = 0.03, rim_scale: float = 1.0):
     """A clear day from ``t0`` at 40 N, a sight every 20 min while 12 deg up or more: (t, the
     rim's fix: the sun of a site at ``rim_lat``, the rings' fix: the sun), both moved by the
-    same ``noise_deg`` scatter, so that each fits its own site equally well."""
+    same ``noise_deg`` scatter (the rim's times ``rim_scale``), so that each fits its own
+    site equally well (or the rim ``rim_scale`` times worse)."""
     from controller.sun.source import Site
     from controller.vision.fisheye.gates import Ephemeris
 
@@ -337,7 +338,9 @@ def _two_sites_day(t0: float, rim_lat: float = 40.2, noise_deg: float = 0.03):
         if s[2] < math.sin(math.radians(12.5)):
             continue
         kick = rng.standard_normal(3) * math.radians(noise_deg)
-        moved = [d + kick - (kick @ d) * d for d in (shifted.direction(float(t)), s)]
+        moved = [
+            d + k * kick - k * (kick @ d) * d for d, k in ((shifted.direction(float(t)), rim_scale), (s, 1.0))
+        ]
         out.append((float(t), *(m / np.linalg.norm(m) for m in moved)))
     return out
 
@@ -366,3 +369,41 @@ def test_without_the_site_a_path_that_fits_both_locators_alike_leaves_the_choice
     for t, s, biased, _ in _day_of_sights(_sky_bias):
         rim_right.observe_path(t, s, biased)  # the rim right, the rings 0.2 deg low
     assert rim_right.path_weight() == 0.0 and rim_right._learned(False)
+
+
+def test_without_the_site_sights_of_a_high_sun_alone_are_not_compared():
+    """A sky model's error grows with the air mass: sights all above 30 deg (a batch's second
+    half read first, from noon down) are not compared, however many; from the first at or
+    under 30 deg they are, and while no comparison has chosen, at every sight."""
+    c = LocatorChoice()
+    compared = []
+    noon = 1773964800.0 + 12.3 * 3600.0  # 20 Mar at 40 N, 3 W: the sun 50 deg up
+    for t, rim, rings in _two_sites_day(noon):
+        if t > noon + 12 * 3600.0:
+            break  # the afternoon only
+        before = c._path_sq
+        c.observe_path(t, rim, rings)
+        compared.append((math.degrees(math.asin(rings[2])), c._path_sq is not before))
+    assert not any(done for el, done in compared if el > 30.0)
+    low = [done for el, done in compared if el <= 30.0]
+    assert len(low) >= 5 and all(low) and c.path_weight() == locator.UNKNOWN_PRIOR  # alike: none chosen
+
+
+def test_a_choice_from_few_sights_must_be_clearer():
+    """The share under which one locator's squared RMS chooses the other's grows with the
+    sights it rests on (1 % significance for ``2 n - 2`` degrees of freedom each), up to
+    ``LEAD``: six sights need a ratio of 0.21, twenty-six the 0.5 of before."""
+    assert locator.path_lead(6) == pytest.approx(0.206, abs=0.001)
+    assert locator.path_lead(11) == pytest.approx(0.340, abs=0.001)
+    assert locator.path_lead(26) > locator.LEAD
+    assert [locator.path_lead(n) for n in (6, 11, 16, 21)] == sorted(
+        locator.path_lead(n) for n in (6, 11, 16, 21)
+    )
+    c = LocatorChoice()
+    for t, rim, rings in _two_sites_day(1773964800.0, rim_scale=1.8):  # the rim scattered 1.8 times as far
+        c.observe_path(t, rim, rings)
+        if c._path_sq is not None:
+            break
+    rim_sq, rings_sq = c._path_sq
+    assert locator.path_lead(len(c._path)) < rings_sq / rim_sq < locator.LEAD  # under 0.5, not clear enough
+    assert len(c._path) == 6 and c.path_weight() == locator.UNKNOWN_PRIOR
