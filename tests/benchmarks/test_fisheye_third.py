@@ -214,30 +214,48 @@ def test_summary_rows_judge_the_dark_exposure_and_only_report_the_as_exposed_loo
 
 
 def test_summary_rows_judge_the_other_sites_with_and_without_the_site_in_the_bundle():
-    site = {
-        "latitude": 69.65,
-        **_look(80, 83, 0.0297),
-        "without_site": _look(80, 83, 0.0574),
-        "per_day_calls": {"batch_without_site": _look(80, 83, 0.0287)},
-    }
-    r = {"looks": {}, "acceptance": {}, "other_sites": {"Tromso": site}}
-    rows = [(h.figure, h.value, h.ok) for h in summary_rows(r) if "Tromso" in h.figure]
+    def at(rms, without, batch):
+        return {
+            **_look(80, 83, rms),
+            "without_site": _look(80, 83, without),
+            "per_day_calls": {"batch_without_site": _look(80, 83, batch)},
+        }
+
+    looks = {"640 x 480": at(0.0297, 0.0574, 0.0287), "1280 x 960": at(0.0243, 0.019, 0.0335)}
+    r = {"looks": {}, "acceptance": {}, "other_sites": {"Tromso": {"latitude": 69.65, "looks": looks}}}
+    rows = [
+        (h.figure.split(", ", 1)[1], h.value, h.target, h.ok) for h in summary_rows(r) if "Tromso" in h.figure
+    ]
     assert rows == [
         (
-            "dark exposure at Tromso (69.7 deg lat), 640 x 480: clear-sky RMS with the site",
+            "640 x 480: clear-sky RMS with the site",
             "0.0297 deg (found 80 of 83; 0 false)",
+            "<= 0.03 deg",
             True,
         ),
         (
-            "dark exposure at Tromso (69.7 deg lat), 640 x 480: no site in the bundle, online / a day a call (batch)",
+            "640 x 480: no site in the bundle, online / a day a call (batch)",
             "0.0574 / 0.0287 deg (0 false)",
+            "<= 0.03 deg",
+            False,
+        ),
+        (
+            "1280 x 960: clear-sky RMS with the site",
+            "0.0243 deg (found 80 of 83; 0 false)",
+            "<= 0.02 deg",
+            False,
+        ),
+        (
+            "1280 x 960: no site in the bundle, online / a day a call (batch)",
+            "0.019 / 0.0335 deg (0 false)",
+            "<= 0.02 deg",
             False,
         ),
     ]
-    site["without_site"] = _look(80, 83, 0.029)
-    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure] == [True, True]
-    site["false_detections"] = 1  # a false detection fails the row whatever the RMS
-    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure] == [False, True]
+    looks["640 x 480"]["without_site"] = _look(80, 83, 0.029)
+    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure][:2] == [True, True]
+    looks["640 x 480"]["false_detections"] = 1  # a false detection fails the row whatever the RMS
+    assert [h.ok for h in summary_rows(r) if "Tromso" in h.figure][:2] == [False, True]
 
 
 def test_the_other_sites_frames_are_their_own_suns():
