@@ -38,9 +38,7 @@ mask = "mask.png"   # optional (top level); relative paths resolve against this 
 
 from __future__ import annotations
 
-import datetime as dt
 import math
-import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -51,6 +49,7 @@ from ..errors import ConfigError
 from ..schema import Where, internal, load, load_file, setting
 from .camera import CameraCal
 from .checked_write import write_if_valid
+from .toml_write import camera_section, notes_section, relative_path, toml_value
 
 Vec3 = tuple[float, float, float]
 
@@ -299,119 +298,57 @@ def bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> Calibrati
     return replace(b, path=path)
 
 
-# ------------------------------------------------------------------------------------------
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
-
-
-def _string(s: str) -> str:
-    """A TOML basic string: quotes, backslashes and control characters escaped."""
-    out = ['"']
-    for ch in s:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return "".join(out) + '"'
-
-
-def _key(k: str) -> str:
-    return k if _BARE_KEY.fullmatch(k) else _string(k)
-
-
-def _fmt(v: Any) -> str:
-    """A TOML value (anything a loaded bundle holds, ``[notes]`` included)."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, (str, Path)):
-        return _string(str(v))
-    if isinstance(v, (dt.datetime, dt.date, dt.time)):
-        return v.isoformat()
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_fmt(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{_key(str(k))} = {_fmt(x)}" for k, x in v.items()) + "}"
-    raise TypeError(type(v))
-
-
 def bundle_to_toml(b: CalibrationBundle, folder: Path | None = None) -> str:
     """Serialise; paths are written relative to ``folder`` when inside it."""
 
     def rel(p: Path) -> str:
-        if folder is not None:
-            try:
-                return str(Path(p).resolve().relative_to(Path(folder).resolve()))
-            except ValueError:
-                pass
-        return str(p)
+        return relative_path(p, folder)
 
     out = ["# heliotrack hotspot-sensor calibration bundle (see docs/hotspot.md)"]
     if b.mask is not None:
-        out.append(f"mask = {_fmt(rel(b.mask))}")
+        out.append(f"mask = {toml_value(rel(b.mask))}")
     c = b.camera
-    out += (
-        ["", "[camera]"]
-        + ([f"model = {_fmt(c.model)}"] if c.model != "pinhole" else [])
-        + [
-            f"width = {c.width}",
-            f"height = {c.height}",
-            f"fx = {_fmt(c.fx)}",
-            f"fy = {_fmt(c.fy)}",
-            f"cx = {_fmt(c.cx)}",
-            f"cy = {_fmt(c.cy)}",
-            f"dist = {_fmt(list(c.dist))}",
-        ]
-    )
-    if c.rms_px is not None:
-        out.append(f"rms_px = {_fmt(c.rms_px)}")
+    out += camera_section(c, c.model if c.model != "pinhole" else None)
     if b.surface is not None:
         s = b.surface
-        out += ["", "[surface]", f"kind = {_fmt(s.kind)}"]
+        out += ["", "[surface]", f"kind = {toml_value(s.kind)}"]
         if s.kind == "sphere":
-            out += [f"center = {_fmt(list(s.center))}", f"radius = {_fmt(s.radius)}"]
+            out += [f"center = {toml_value(list(s.center))}", f"radius = {toml_value(s.radius)}"]
             if s.rmse_m is not None:
-                out.append(f"rmse_m = {_fmt(s.rmse_m)}")
+                out.append(f"rmse_m = {toml_value(s.rmse_m)}")
             if s.radial_poly is not None:
                 out += [
                     f"radial_poly_degree = {s.radial_poly_degree}",
-                    f"radial_poly = {_fmt(list(s.radial_poly))}",
+                    f"radial_poly = {toml_value(list(s.radial_poly))}",
                 ]
         else:
             assert s.cloud is not None  # a cloud surface names its file (checked on load)
-            out.append(f"cloud = {_fmt(rel(s.cloud))}")
+            out.append(f"cloud = {toml_value(rel(s.cloud))}")
         if s.min_z is not None:
-            out.append(f"min_z = {_fmt(s.min_z)}")
+            out.append(f"min_z = {toml_value(s.min_z)}")
     if b.pose is not None:
         p = b.pose
         out += ["", "[pose]"]
         if p.rvec is not None:
-            out += [f"rvec = {_fmt(p.rvec)}", f"tvec = {_fmt(p.tvec)}"]
+            out += [f"rvec = {toml_value(p.rvec)}", f"tvec = {toml_value(p.tvec)}"]
             if p.rms_px is not None:
-                out.append(f"rms_px = {_fmt(p.rms_px)}")
+                out.append(f"rms_px = {toml_value(p.rms_px)}")
         else:
             out += [
-                f"markers_model = {_fmt(p.markers_model)}",
-                f"markers_image = {_fmt(p.markers_image)}",
+                f"markers_model = {toml_value(p.markers_model)}",
+                f"markers_image = {toml_value(p.markers_image)}",
             ]
     if b.level is not None:
         out += ["", "[level]"]
         if b.level.zenith_model is not None:
-            out.append(f"zenith_model = {_fmt(b.level.zenith_model)}")
+            out.append(f"zenith_model = {toml_value(b.level.zenith_model)}")
         else:
-            out.append(f"plumb_lines_image = {_fmt(b.level.plumb_lines_image)}")
+            out.append(f"plumb_lines_image = {toml_value(b.level.plumb_lines_image)}")
     if b.azimuth_offset_deg is not None:
-        out += ["", "[azimuth]", f"offset_deg = {_fmt(b.azimuth_offset_deg)}"]
+        out += ["", "[azimuth]", f"offset_deg = {toml_value(b.azimuth_offset_deg)}"]
     if b.lobe_coeff_deg is not None:
-        out += ["", "[lobe]", f"coeff_deg = {_fmt(b.lobe_coeff_deg)}"]
-    if b.notes:
-        out += ["", "[notes]"]
-        for k, v in b.notes.items():
-            out.append(f"{_key(str(k))} = {_fmt(v)}")
+        out += ["", "[lobe]", f"coeff_deg = {toml_value(b.lobe_coeff_deg)}"]
+    out += notes_section(b.notes)
     return "\n".join(out) + "\n"
 
 

@@ -51,6 +51,7 @@ from ..errors import ConfigError
 from ..schema import Where, internal, load, load_file, setting
 from .camera import CameraCal
 from .checked_write import write_if_valid
+from .toml_write import camera_section, notes_section, relative_path, toml_value
 
 Vec3 = tuple[float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
@@ -263,88 +264,52 @@ def fisheye_bundle_from_dict(doc: dict[str, Any], path: Path | None = None) -> F
     return replace(load(FisheyeBundle, doc, str(path) if path is not None else None), path=path)
 
 
-def _fmt(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        return repr(float(v))
-    if isinstance(v, (str, Path)):
-        s = str(v).replace("\\", "\\\\").replace('"', '\\"')
-        return f'"{s}"'
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_fmt(x) for x in v) + "]"
-    raise TypeError(type(v))
-
-
 def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
     """Serialise; the mask's path is written relative to ``folder`` when inside it."""
     out = ["# heliotrack fisheye sky-camera calibration bundle (see docs/fisheye.md)"]
     if b.mask is not None:
-        m = Path(b.mask)
-        if folder is not None:
-            try:
-                m = m.resolve().relative_to(Path(folder).resolve())
-            except ValueError:
-                pass
-        out.append(f"mask = {_fmt(m)}")
-    c = b.camera
-    out += [
-        "",
-        "[camera]",
-        'model = "fisheye"',
-        f"width = {c.width}",
-        f"height = {c.height}",
-        f"fx = {_fmt(c.fx)}",
-        f"fy = {_fmt(c.fy)}",
-        f"cx = {_fmt(c.cx)}",
-        f"cy = {_fmt(c.cy)}",
-        f"dist = {_fmt(list(c.dist))}",
-    ]
-    if c.rms_px is not None:
-        out.append(f"rms_px = {_fmt(c.rms_px)}")
+        out.append(f"mask = {toml_value(relative_path(b.mask, folder))}")
+    out += camera_section(b.camera, "fisheye")
     o = b.orientation
     if o is not None:
         out += [
             "",
             "[orientation]",
-            "enu_from_camera = [" + ", ".join(_fmt(list(r)) for r in o.enu_from_camera) + "]",
+            "enu_from_camera = [" + ", ".join(toml_value(list(r)) for r in o.enu_from_camera) + "]",
         ]
         if o.residual_deg is not None:
-            out.append(f"residual_deg = {_fmt(o.residual_deg)}")
+            out.append(f"residual_deg = {toml_value(o.residual_deg)}")
         if o.method is not None:
-            out.append(f"method = {_fmt(o.method)}")
+            out.append(f"method = {toml_value(o.method)}")
         if o.frames is not None:
             out.append(f"frames = {int(o.frames)}")
         if o.sky_scale != 1.0:
-            out.append(f"sky_scale = {_fmt(o.sky_scale)}")
+            out.append(f"sky_scale = {toml_value(o.sky_scale)}")
         if o.sky_calibration is not None:
-            out.append(f"sky_calibration = {_fmt(list(o.sky_calibration))}")
+            out.append(f"sky_calibration = {toml_value(list(o.sky_calibration))}")
         if o.locator is not None:
-            out.append(f"locator = {_fmt(o.locator)}")
+            out.append(f"locator = {toml_value(o.locator)}")
     r = b.radiometry
     if r is not None:
-        out += ["", "[radiometry]", f"response = {_fmt(r.response)}"]
+        out += ["", "[radiometry]", f"response = {toml_value(r.response)}"]
         if r.gamma is not None:
-            out.append(f"gamma = {_fmt(r.gamma)}")
+            out.append(f"gamma = {toml_value(r.gamma)}")
         if r.table is not None:
-            out.append(f"table = {_fmt(list(r.table))}")
+            out.append(f"table = {toml_value(list(r.table))}")
         if r.vignetting:
-            out.append(f"vignetting = {_fmt(list(r.vignetting))}")
+            out.append(f"vignetting = {toml_value(list(r.vignetting))}")
         if r.method is not None:
-            out.append(f"method = {_fmt(r.method)}")
+            out.append(f"method = {toml_value(r.method)}")
     if b.site is not None:
         s = b.site
         out += [
             "",
             "[site]",
-            f"latitude = {_fmt(s.latitude)}",
-            f"longitude = {_fmt(s.longitude)}",
-            f"altitude = {_fmt(s.altitude)}",
+            f"latitude = {toml_value(s.latitude)}",
+            f"longitude = {toml_value(s.longitude)}",
+            f"altitude = {toml_value(s.altitude)}",
         ]
-    if b.notes:
-        out += ["", "[notes]"] + [f"{k} = {_fmt(v)}" for k, v in b.notes.items()]
+    out += notes_section(b.notes)
     return "\n".join(out) + "\n"
 
 
