@@ -32,6 +32,7 @@ BENCHMARKS: tuple[str, ...] = (
     "fisheye",
     "fisheye_third",
     "fisheye_third_clouds",
+    "fisheye_fourth",
     "fisheye_selfcal",
     "soak",
 )

@@ -14,6 +14,7 @@ from pathlib import Path
 from heliotrack.resources import writable_home
 
 from .summary_fisheye import fisheye as _fisheye
+from .summary_fisheye import fisheye_fourth as _fisheye_fourth
 from .summary_fisheye import fisheye_selfcal as _fisheye_selfcal
 from .summary_fisheye import fisheye_third as _fisheye_third
 from .summary_fisheye import fisheye_third_clouds as _fisheye_third_clouds
@@ -314,6 +315,7 @@ EXTRACTORS: dict[str, Callable[[dict], list[Headline]]] = {
     "fisheye": _fisheye,
     "fisheye_third": _fisheye_third,
     "fisheye_third_clouds": _fisheye_third_clouds,
+    "fisheye_fourth": _fisheye_fourth,
     "fisheye_selfcal": _fisheye_selfcal,
 }
 

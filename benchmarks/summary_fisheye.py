@@ -328,8 +328,15 @@ def fisheye_third(r: dict) -> list[Headline]:
 def fisheye_third_clouds(r: dict) -> list[Headline]:
     """Rows of ``heliotrack bench fisheye_third_clouds``: false detections, misses of a
     visible sun and the RMS where it is visible, with the bundle's site and without it."""
+    return cloud_pass_rows("fisheye_third_clouds", r["passes"])
+
+
+def cloud_pass_rows(name: str, passes: dict, label: str = "") -> list[Headline]:
+    """Three rows a pass of a broken-cloud suite (:class:`.fisheye_third_clouds.Scorer`'s
+    summaries by pass name): false detections, misses of a visible sun, the RMS where it is
+    visible; ``label`` goes before each row's text."""
     out = []
-    for key, p in r["passes"].items():
+    for key, p in passes.items():
         c, err, acc = p["total"]["counts"], p["total"]["error_where_visible"], p["acceptance"]
         rows = (
             (
@@ -353,10 +360,30 @@ def fisheye_third_clouds(r: dict) -> list[Headline]:
             ),
         )
         out += [
-            Headline("fisheye_third_clouds", f"{what}, {key}", value, target, ok=acc.get(flag))
+            Headline(name, f"{label}{what}, {key}", value, target, ok=acc.get(flag))
             for what, value, target, flag in rows
         ]
     return out
+
+
+def fisheye_fourth(r: dict) -> list[Headline]:
+    """Rows of ``heliotrack bench fisheye_fourth``: each look's clear days read with the
+    bundle's site and without it, against the target for its size; its broken cloud."""
+    name, acc, out = "fisheye_fourth", r["acceptance"], []
+    for look, res in r["clear"].items():
+        target = r["looks"][look]["target_deg"]
+        for site, s in (("with site", res), ("without site", res["without_site"])):
+            out.append(
+                Headline(
+                    name,
+                    f"{look}: clear-sky RMS, {site}",
+                    f"{fmt(s['error'].get('rms_deg'), 3, ' deg')} (found {s['found']} of {s['n_frames']};"
+                    f" {fmt(s['false_detections'])} false)",
+                    f"<= {target:g} deg",
+                    ok=acc.get(f"{look}: {site}"),
+                )
+            )
+    return out + cloud_pass_rows(name, r["clouds"]["passes"], f"broken cloud ({r['clouds']['look']}): ")
 
 
 def fisheye_selfcal(r: dict) -> list[Headline]:
