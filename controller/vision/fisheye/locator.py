@@ -354,7 +354,7 @@ class LocatorChoice:
             self._frames += 1
             if w == 0.0 and self.rim_settled and self._frames % self._every:
                 return cand
-            d = ring_direction(reading, up_cam)
+            d = ring_direction(reading, up_cam, by_airmass=gate is not None)
         if d is not None:
             d_enu = R @ d
             if self._unknown and not self._learned(gate is not None):

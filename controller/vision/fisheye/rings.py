@@ -43,6 +43,15 @@ MAX_SHIFT_DEG = 0.3
 #: SMOOTH_ROUGHNESS (that glare's 0.035-0.042; it let in four of the third renderer's
 #: cloudy rings, at 0.11-0.31, two of them 0.29 and 0.49 deg off)
 SHIFT_PER_RHO, SMOOTH_ROUGHNESS = 0.075, 0.1
+#: with the site (the ephemeris gate behind the fix) that share grows with the air mass over
+#: SHIFT_AIRMASS_REF (the sun 42 deg high), SHIFT_AIRMASS_MAX times at most: around a low sun
+#: the sky is most of the light at the rim (the fourth renderer's suns at 17-25 deg, rims of
+#: 4-6 deg and rings at roughness 0.05-0.08: the two fixes 0.25-0.8 deg apart, the sun about
+#: a third of the way from the rim, read 0.19 deg RMS by the rim alone, 0.07 so).  Without
+#: the site the sun's own path chooses between the two fixes, and wider bounds let a cloudy
+#: sequence's low rings sway that choice (the third renderer's clear frames after its
+#: clouds: 0.0215 -> 0.0557 deg)
+SHIFT_AIRMASS_REF, SHIFT_AIRMASS_MAX = 1.5, 2.0
 #: nor where the rings are rougher than a clear sky's (:func:`.clearsky.ring_roughness`;
 #: the third renderer's clear days read up to 0.30 with its CCD smear's column in them)
 MAX_ROUGHNESS = 0.35
@@ -177,11 +186,13 @@ def _clipped_solve(A: np.ndarray, y: np.ndarray) -> np.ndarray | None:
     return sol
 
 
-def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None:
+def ring_direction(reading: SkyReading, up_cam: np.ndarray, by_airmass: bool = False) -> np.ndarray | None:
     """The sun's direction placed by ``reading``'s rings (:func:`log_ring_offset`), or None
     when they are too few, too rough for a clear sky, or place it farther than
     :data:`MAX_SHIFT_DEG` from the reading's axis (:data:`SHIFT_PER_RHO` of the rim's radius
-    when that is more and the rings are smooth).  ``up_cam``: the zenith in the camera frame."""
+    when that is more and the rings are smooth; ``by_airmass``, with the site, that share
+    grown by the air mass: :data:`SHIFT_AIRMASS_REF`).  ``up_cam``: the zenith in the camera
+    frame."""
     r = reading
     rough = ring_roughness(r.vals, r.chi, r.phi, r.rho, r.rays_ok, r.sky, r.contrast)
     if rough is None or rough > MAX_ROUGHNESS:
@@ -191,8 +202,11 @@ def ring_direction(reading: SkyReading, up_cam: np.ndarray) -> np.ndarray | None
     sin_el = np.cos(r.chi)[None, :] * up_a + np.sin(r.chi)[None, :] * dirs_up[:, None]
     x = (np.arcsin(np.clip(sin_el, -1.0, 1.0)) - math.asin(up_a)) / r.rho
     eps = log_ring_offset(r, x)
+    grow = min(max(1.0 / max(up_a, 0.05) / SHIFT_AIRMASS_REF, 1.0), SHIFT_AIRMASS_MAX) if by_airmass else 1.0
     bound = (
-        MAX_SHIFT_DEG if rough > SMOOTH_ROUGHNESS else max(MAX_SHIFT_DEG, SHIFT_PER_RHO * math.degrees(r.rho))
+        MAX_SHIFT_DEG
+        if rough > SMOOTH_ROUGHNESS
+        else max(MAX_SHIFT_DEG, SHIFT_PER_RHO * grow * math.degrees(r.rho))
     )
     if eps is None or math.degrees(math.hypot(eps[0], eps[1])) > bound:
         return None

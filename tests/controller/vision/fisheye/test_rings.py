@@ -94,3 +94,17 @@ def test_a_smooth_sky_lets_the_rings_move_a_wide_rim_by_its_share_of_the_radius(
     assert d is not None and angle_deg(d, want) < 0.01
     monkeypatch.setattr(rings, "SMOOTH_ROUGHNESS", 0.0)  # as if a cloud roughened them
     assert ring_direction(reading, up) is None
+
+
+def test_with_the_site_a_low_suns_rings_may_move_its_rim_by_a_share_growing_with_the_air_mass():
+    """The sky's shift of a rim grows with the air mass too: with the site (the ephemeris
+    gate behind the fix) a smooth sky's rings move a rim 20 deg high by up to 7.5 % of its
+    radius times the air mass over 1.5 (twice that at most): 0.73 deg of a 5-deg rim there,
+    0.375 without the site or for a sun 60 deg high."""
+    vals, chi, phi, up, _ = product_sky((math.radians(0.6), 0.0), el_deg=20.0)
+    reading = reading_of(vals, chi, phi)
+    d = ring_direction(reading, up, by_airmass=True)
+    assert d is not None and angle_deg(d, A + math.radians(0.6) * E1) < 0.01
+    assert ring_direction(reading, up) is None  # without the site: 7.5 % of the radius
+    vals, chi, phi, up, _ = product_sky((math.radians(0.6), 0.0), el_deg=60.0)
+    assert ring_direction(reading_of(vals, chi, phi), up, by_airmass=True) is None
