@@ -19,6 +19,8 @@ from typing import Any
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 
+from controller.calibration.toml_write import toml_string
+
 #: ``HELIOTRACK_FUZZ_SCALE=20 pytest tests/fuzz`` searches 20 times longer (not in CI).
 SCALE = float(os.environ.get("HELIOTRACK_FUZZ_SCALE", "1"))
 
@@ -87,18 +89,6 @@ toml_values = st.recursive(
 documents = st.dictionaries(keys, toml_values, max_size=6)
 
 
-def _string(s: str) -> str:
-    out = []
-    for ch in s:
-        if ch in '"\\':
-            out.append("\\" + ch)
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\u{ord(ch):04x}")
-        else:
-            out.append(ch)
-    return '"' + "".join(out) + '"'
-
-
 def dumps_value(v: Any) -> str:
     """One TOML value, inline (tables as inline tables)."""
     if isinstance(v, bool):
@@ -112,19 +102,19 @@ def dumps_value(v: Any) -> str:
             return "inf" if v > 0 else "-inf"
         return repr(v)
     if isinstance(v, str):
-        return _string(v)
+        return toml_string(v)
     if isinstance(v, (dt.datetime, dt.date, dt.time)):
         return v.isoformat()
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(dumps_value(x) for x in v) + "]"
     if isinstance(v, dict):
-        return "{" + ", ".join(f"{_string(str(k))} = {dumps_value(x)}" for k, x in v.items()) + "}"
+        return "{" + ", ".join(f"{toml_string(str(k))} = {dumps_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(type(v))
 
 
 def dumps(doc: dict[str, Any]) -> str:
     """A TOML document: one ``key = value`` line per top-level key."""
-    return "".join(f"{_string(str(k))} = {dumps_value(v)}\n" for k, v in doc.items())
+    return "".join(f"{toml_string(str(k))} = {dumps_value(v)}\n" for k, v in doc.items())
 
 
 # -- mutations of a valid document ----------------------------------------------------------
