@@ -36,14 +36,14 @@ from .fisheye_fourth_world import (
     THETA_MAX,
     CloudSpec,
     Look,
-    _enu,
-    _fbm,
-    _rot,
     airmass,
     build_pose,
+    enu_of,
+    fbm_field,
     hg,
     kb_fit,
     lens_r_unit,
+    rotation_about,
     srgb_encode,
     sun_position,
 )
@@ -103,7 +103,7 @@ class FourthScene:
         # clouds
         if clouds is not None:
             crng = np.random.default_rng([7331, int(clouds.seed)])
-            n = _fbm(self.TILE_N, self.TILE_KM, 3.3, 1 / 8.0, crng)
+            n = fbm_field(self.TILE_N, self.TILE_KM, 3.3, 1 / 8.0, crng)
             cover = float(np.clip(clouds.cover, 0.0, 1.0))
             thr = np.quantile(n, 1 - cover) if cover > 0 else n.max() + 1
             top = np.quantile(n, 0.999)
@@ -259,7 +259,7 @@ class FourthScene:
     def truth(self, t_posix: float) -> dict:
         az, el = sun_position(t_posix, self.site)
         az, el = float(az[0]), float(el[0])
-        s = _enu(az, el)
+        s = enu_of(az, el)
         T = 1.0
         if self.clouds is not None and el > 0:
             tau = self._sun_tau(t_posix, s, el)
@@ -371,10 +371,10 @@ class FourthScene:
         ph = t - k * period
         if ph < dur:
             r = np.random.default_rng([4242, self.seed, int(k) & 0x7FFFFFFF])
-            p0 = _enu(r.uniform(0, 360), r.uniform(15, 40))
-            axis = np.cross(p0, _enu(r.uniform(0, 360), r.uniform(20, 80)))
+            p0 = enu_of(r.uniform(0, 360), r.uniform(15, 40))
+            axis = np.cross(p0, enu_of(r.uniform(0, 360), r.uniform(20, 80)))
             axis /= np.linalg.norm(axis)
-            p = _rot(axis, math.radians(0.5 * ph)) @ p0
+            p = rotation_about(axis, math.radians(0.5 * ph)) @ p0
             if p[2] > 0.05:
                 uv = self.project(p)
                 dd = np.hypot(self.uu - uv[0], self.vv - uv[1])

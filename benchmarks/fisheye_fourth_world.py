@@ -214,12 +214,12 @@ def srgb_encode(x):
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
-def _enu(az_deg, el_deg):
+def enu_of(az_deg, el_deg):
     az, el = np.radians(az_deg), np.radians(el_deg)
     return np.stack([np.cos(el) * np.sin(az), np.cos(el) * np.cos(az), np.sin(el)], -1)
 
 
-def _rot(axis, ang):
+def rotation_about(axis, ang):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.eye(3) + math.sin(ang) * K + (1 - math.cos(ang)) * K @ K
@@ -232,7 +232,7 @@ def build_pose():
     x = np.cross(y, z)
     M0 = np.stack([x, y, z], 1)
     a = np.array([math.sin(math.radians(TILT_AZ)), math.cos(math.radians(TILT_AZ)), 0.0])
-    R = _rot(np.cross(z, a), math.radians(TILT_DEG))
+    R = rotation_about(np.cross(z, a), math.radians(TILT_DEG))
     return R @ M0
 
 
@@ -253,7 +253,7 @@ def hg(cosx, g):
     return (1 - g * g) / np.power(1 + g * g - 2 * g * cosx, 1.5)
 
 
-def _fbm(n, tile_km, beta, k0, rng):
+def fbm_field(n, tile_km, beta, k0, rng):
     k = np.fft.fftfreq(n, d=tile_km / n)
     kk = np.sqrt(k[:, None] ** 2 + k[None, :] ** 2)
     amp = (kk**2 + k0**2) ** (-beta / 4)
