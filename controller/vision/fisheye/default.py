@@ -194,6 +194,11 @@ class FisheyeEstimator(FramePipeline):
                     # a saturated cloud below (or above) a dimmed sun may pass for a streak
                     # that leaves one way; if the rim it leaves is not the sun's, drop it
                     cand = self._measure(grey, x, y, r, peak, replace(glare, one_way_streaks=False)) or cand
+                elif cand is not None and cand.reason == "incomplete_glare" and cand.fit.short_bloom:
+                    # a small glare's short spill up and down its columns: measured as a
+                    # bloom both ways, kept only if that rim passes (step 7)
+                    bloomed = self._measure(grey, x, y, r, peak, replace(glare, column_bloom=True))
+                    cand = bloomed if bloomed is not None and bloomed.reason is None else cand
                 if cand is not None:
                     cands.append(cand)
         return cands, low

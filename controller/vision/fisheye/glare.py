@@ -43,7 +43,7 @@ from .radiometry import Radiometry
 from .rimsky import SkyBehind, faces_horizon, read_sky, rim_levels
 from .rings import SkyReading
 from .sphere import CLIP_MARGIN, centre_move, fit_cone, sample_sphere, tangent_basis
-from .streak import streak_along, streak_along_at_core, streak_rays
+from .streak import short_bloom_both_ways, streak_along, streak_along_at_core, streak_rays
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,9 @@ class GlareOptions:
         off the rim's samples (:mod:`.smear`; on with a sky calibration, fitted so, or the site).
     cloud_edges : the sky models leave out a cloud's edge in the rings (:mod:`.clearsky`; with the site).
     blend_prior : the rim's blend's prior, mean and one-sigma (:mod:`.blend`; a camera's own once learned).
+    column_bloom : measure the glare as one with a bloom both ways along the image's columns
+        (the rays near the vertical left out, as for a streak both ways): a small glare's
+        short spill, which its first measure shows (:attr:`GlareFit.short_bloom`).
     """
 
     level: float = 0.85
@@ -114,6 +117,7 @@ class GlareOptions:
     max_ray_level: float = 0.90
     min_level: float = 0.75
     one_way_streaks: bool = True
+    column_bloom: bool = False
     sky_reads: int = 3
     sky_settled_deg: float = 0.1
     sky_unsettled_deg: float = 0.25
@@ -152,6 +156,7 @@ class GlareFit:
     sky_harmonic_deg: float = 0.0  # its first harmonic over the rim's rays (.default's rule)
     sky_gap: bool = False  # the largest gap faces the horizon (or the zenith, near it), no rim found
     one_way_streak: bool = False  # the rays towards a streak that leaves one way were left out
+    short_bloom: bool = False  # its misses are a short bloom's both ways along the columns
     sky_reading: SkyReading | None = None  # the rings of the last reading (:mod:`.rings`)
 
     @property
@@ -220,7 +225,7 @@ def fit_glare(
     # a saturated streak (bloom) costs the rays that run into it (the module's step 2).  The
     # candidate's disk is rough (a noisy plateau's inscribed disk is small and off centre):
     # a streak that leaves one way only is judged around the first pass's rim instead
-    streak, axis = streak_along(grey, xc, yc, r, peak - 3)
+    streak, axis = (0.0, 1) if opts.column_bloom else streak_along(grey, xc, yc, r, peak - 3)
     if streak:
         streak = None
     dpp = lens.deg_per_px(xc, yc)
@@ -343,6 +348,9 @@ def fit_glare(
         return None
     r_fit = max(math.degrees(rho) / dpp, 1.0)
     gap_deg, gap_rays = _largest_gap(idx, streak_ok)
+    kept_rays = np.zeros(n_rays, bool)
+    kept_rays[idx] = True
+    short_bloom = streak is None and short_bloom_both_ways(geometry, chi_c, has, kept_rays)
     # a one-sided streak's rays are in the gap (its rim is unseen there) but found no rim by
     # design: the sky's gap is judged on the gap's other rays
     sky_rays = gap_rays[rays_ok[gap_rays]]
@@ -369,6 +377,7 @@ def fit_glare(
         deg_per_px=dpp,
         smear=None if streak is None else "bloom",
         one_way_streak=bool(streak),
+        short_bloom=short_bloom,
         flags=flags,
         image_share=alpha,
         image_share_sigma=alpha_sd,

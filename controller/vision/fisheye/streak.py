@@ -207,6 +207,30 @@ def streak_rays(geometry: RimGeometry, way: float | None, axis: int) -> tuple[np
     return ok, ok & ~rays_towards(*geometry, way, axis) if way else ok
 
 
+def short_bloom_both_ways(
+    geometry: RimGeometry, chi: np.ndarray, has: np.ndarray, inliers: np.ndarray
+) -> bool:
+    """Whether a rim's misses are a short bloom's both ways along the image's columns: a
+    sensor that spills a small glare's charge up and down its columns lengthens the glare
+    there by a pixel or two, too little for a streak (:func:`streak_sides_at_core`), but on
+    a rim a few pixels wide enough to push the rays within 50 deg of the vertical outwards.
+
+    ``geometry``: the rim's :data:`RimGeometry`; ``chi``: each ray's rim (rad from the
+    axis), ``has``: whether it found one, ``inliers``: whether the fit kept it.  True when,
+    up and down alike, at least a third of the rays within 50 deg of the vertical found a
+    rim the fit did not keep beyond the fitted radius, and at least 80 % of the others were
+    kept (the fourth renderer's high suns, rims of 4 px: 29-33 of 48 rays kept, its two
+    cones' rays out; docs/fisheye.md, step 7).  A cloud's fleck is rough all round, and a
+    cloud's edge joined to a glare lies to one side."""
+    lens, a, e1, e2, phi, rho = geometry
+    up, down = (rays_towards(lens, a, e1, e2, phi, rho, dv, 1, 50.0) for dv in (-1.0, 1.0))
+    across = ~(up | down)
+    out = has & ~inliers & (chi > rho)
+    if not (up.any() and down.any() and across.any()):
+        return False
+    return bool(np.mean(out[up]) >= 1 / 3 and np.mean(out[down]) >= 1 / 3 and np.mean(inliers[across]) >= 0.8)
+
+
 def rays_towards(
     lens: FisheyeLens,
     a: np.ndarray,

@@ -12,6 +12,7 @@ from controller.vision.fisheye.sphere import tangent_basis
 from controller.vision.fisheye.streak import (
     core_row,
     rays_towards,
+    short_bloom_both_ways,
     streak_along,
     streak_along_at_core,
     streak_rays,
@@ -108,6 +109,36 @@ def test_the_rays_towards_a_streak_are_those_within_40_deg_of_the_images_vertica
     assert np.array_equal(up, np.abs(ang) < 40.0)
     assert np.array_equal(down, np.abs(ang) > 140.0)
     assert 14 <= up.sum() <= 18 and not (up & down).any()
+
+
+def test_a_short_bloom_both_ways_is_a_rim_pushed_out_up_and_down_alone():
+    """The rays within 50 deg of the image's vertical, up and down alike, reach beyond the
+    fitted rim (a third of them at least) while the others keep to it: a short spill both
+    ways.  Misses on one side only (a cloud's edge), inwards (a dark cloud) or across the
+    columns (a rough fleck) are not."""
+    lens = FisheyeLens(np.array([[160.0, 0, 319.5], [0, 160.0, 239.5], [0, 0, 1]]), np.zeros(4), 640, 480)
+    a = np.array([0.0, 0.0, 1.0])  # the image's centre: e1 is the image's x, e2 its y (down)
+    e1, e2 = tangent_basis(a)
+    phi = np.arange(48) * (2 * math.pi / 48)
+    rho = math.radians(1.3)
+    geometry = (lens, a, e1, e2, phi, rho)
+    off_vertical = np.degrees(np.arccos(np.abs(np.sin(phi))))
+    up, down = np.sin(phi) < 0, np.sin(phi) > 0
+
+    def rim(out_up, out_down, push=1.3, out_across=0):
+        """Each ray's rim (rad), whether it found one, whether the fit kept it."""
+        chi, kept = np.full(48, rho), np.ones(48, bool)
+        for rays, n in ((up & (off_vertical < 30.0), out_up), (down & (off_vertical < 30.0), out_down),
+                        (off_vertical > 60.0, out_across)):  # fmt: skip
+            out = np.flatnonzero(rays)[:n]
+            chi[out] *= push
+            kept[out] = False
+        return chi, np.ones(48, bool), kept
+
+    assert short_bloom_both_ways(geometry, *rim(6, 6))
+    assert not short_bloom_both_ways(geometry, *rim(6, 0))  # one side: a cloud's edge
+    assert not short_bloom_both_ways(geometry, *rim(6, 6, push=0.7))  # inwards: a dark cloud
+    assert not short_bloom_both_ways(geometry, *rim(6, 6, out_across=5))  # rough all round: a fleck
 
 
 def test_a_streak_along_the_images_rows_is_found_as_one_along_its_columns():
