@@ -4,6 +4,8 @@ bench's rows."""
 
 import ast
 import math
+from dataclasses import replace
+from datetime import datetime
 from pathlib import Path
 
 import cv2
@@ -122,6 +124,23 @@ def test_a_high_suns_small_glare_that_blooms_up_and_down_is_found():
     d = np.array([np.cos(np.radians(r.el_deg)) * np.sin(np.radians(r.az_deg)),
                   np.cos(np.radians(r.el_deg)) * np.cos(np.radians(r.az_deg)), np.sin(np.radians(r.el_deg))])  # fmt: skip
     assert math.degrees(math.acos(min(1.0, float(d @ s)))) < 0.02
+
+
+def test_a_wide_fix_that_only_the_cameras_own_fixes_vouch_for_is_not_reported():
+    """The broken cloud of a winter noon, without the site: at 09:32:30 a cloud's glow cuts the
+    sun's rim, and the fix behind the sequence's own gate alone lies 1.07 deg off with a sigma
+    of 0.55. No gate holds it within 1 deg of the sun, and its sigma does not either at 3
+    sigma: it is refused (``unvouched_glare``), where the fixes before it are reported."""
+    i, seq = next((i, s) for i, s in enumerate(cloud_sequences()) if s["name"] == "winter_noon_c40")
+    scene = FourthScene(fourth.CLOUD_LOOK, site=fourth.SITE, clouds=seq["clouds"], distractors=seq["distractors"], seed=i)  # fmt: skip
+    b = fisheye_bundle_from_dict(scene.bundle())
+    est = FisheyeEstimator(replace(b, site=None))
+    t0 = datetime.fromisoformat(seq["start_utc"]).timestamp()
+    rs = [est.estimate_image(scene.frame(t0 + 30.0 * j)[0], t0 + 30.0 * j) for j in range(6)]
+    assert [r.found for r in rs[:5]] == [False, True, False, True, False]
+    assert rs[3].sigma_deg < 1.0 / 3.0 and "gate_sequence" in rs[3].quality
+    assert not rs[5].found and rs[5].reason == "unvouched_glare"
+    assert rs[5].extra["sigma_deg"] > 1.0 / 3.0
 
 
 def _score(rms, found=90, false=0):

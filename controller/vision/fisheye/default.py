@@ -36,7 +36,7 @@ from .blend import LearnedBlend
 from .blobs import Blob, find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, sited, with_sky_scale
-from .gates import Ephemeris, Gate, min_rim_share, prior_direction, track_prediction
+from .gates import Ephemeris, Gate, max_self_vouched_sigma, min_rim_share, prior_direction, track_prediction
 from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
 from .lens import FisheyeLens
@@ -166,6 +166,10 @@ class FisheyeEstimator(FramePipeline):
         if share < min_rim_share(o.gates, gates):  # a weak rim that nothing else vouches for
             return not_found(
                 None, "unvouched_glare", t, self.frame, self.algorithm, rim_share=round(share, 3)
+            )
+        if res.sigma_deg is not None and res.sigma_deg > max_self_vouched_sigma(o.gates, gates):
+            return not_found(  # nor a wide sigma: 1 deg at 3 sigma, with no gate to hold it
+                None, "unvouched_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
             )
         if t is not None:
             self._accepted(best, float(t))

@@ -81,6 +81,11 @@ class GateOptions:
     # off on 56 and 62 % of their rays, 4 and 14 minutes after the last anchor); wider, a
     # rim must hold on ``unvouched_min_inlier_fraction``
     sequence_vouch_max_deg: float = 2.0
+    # behind no gate but the camera's own (the sequence's, or none) a fix is reported only
+    # when its sigma puts it within ``ephemeris_deg`` of the sun at 3 sigma: no gate holds it
+    # there (the fourth renderer's clouds without the site: visible suns cut by a cloud's glow
+    # found 1.07 and 1.10 deg off with sigmas 0.55 and 0.34, and 0.67-1.0 deg off with 0.37-0.47)
+    self_vouched_max_sigma_deg: float = 1.0 / 3.0
     # without the site but with the orientation: learn the site from the detections and gate
     # by its ephemeris once they agree (:mod:`.selfsite`)
     learn_site: bool = True
@@ -109,6 +114,16 @@ def min_rim_share(opts: GateOptions, gates: list[Gate]) -> float:
     if not gates or min(g.radius_deg for g in gates) > opts.sequence_vouch_max_deg:
         return opts.unvouched_min_inlier_fraction
     return opts.sequence_min_inlier_fraction
+
+
+def max_self_vouched_sigma(opts: GateOptions, gates: list[Gate]) -> float:
+    """The largest sigma (deg) of a fix reported behind ``gates``: ``self_vouched_max_sigma_deg``
+    when none of them comes from outside the camera's own fixes (no gate, or the sequence's
+    alone), else no bound (the site's ephemeris, a learned site's or the caller's prior holds
+    the fix within its radius of the sun)."""
+    if any(g.name != "sequence" for g in gates):
+        return math.inf
+    return opts.self_vouched_max_sigma_deg
 
 
 def track_prediction(

@@ -316,7 +316,9 @@ def test_without_a_site_a_sunlit_cloud_fleck_beside_a_hidden_sun_is_not_the_sun(
 def _seq14_fleck(unvouched: float = 0.7):
     """The fleck of the test above, its small-glare rules switched off (its rim's share, and
     its size, which the sky read again once settled puts under 0.8 deg); its rim held on 31
-    of 48 rays.  Returns (scene, estimator, t0, rng, the first frame's result)."""
+    of 48 rays.  ``unvouched`` 0 also lifts the bound on a self-vouched fix's sigma (the sun
+    beside the cloud in the next frames is read with sigma 0.39 deg).  Returns (scene,
+    estimator, t0, rng, the first frame's result)."""
     from controller.vision.fisheye.gates import GateOptions
     from hil.skycam import sky_profile
 
@@ -324,7 +326,10 @@ def _seq14_fleck(unvouched: float = 0.7):
     t0 = 1742473800.0
     rng = np.random.default_rng(int(t0) & 0xFFFF)
     opts = replace(FisheyeOptions(), small_min_inlier_fraction=0.0, min_radius_deg=0.0)
-    opts = replace(opts, gates=GateOptions(unvouched_min_inlier_fraction=unvouched))
+    sigma = GateOptions().self_vouched_max_sigma_deg if unvouched else math.inf
+    opts = replace(
+        opts, gates=GateOptions(unvouched_min_inlier_fraction=unvouched, self_vouched_max_sigma_deg=sigma)
+    )
     est = FisheyeEstimator(truth_bundle(scn, site=False), opts)
     return scn, est, t0, rng, est.estimate_image(render_sky(scn, t0, rng=rng).image, t0)
 
@@ -368,8 +373,9 @@ def test_a_saturated_cloud_below_a_dimmed_sun_is_not_a_streak_that_hides_it():
 
     seq, frames = cloud_sequences(sky_profile("seed"), quick=False)[11]
     for unvouched in (0.0, 0.7):
-        opts = replace(FisheyeOptions(), gates=GateOptions(unvouched_min_inlier_fraction=unvouched))
-        est = FisheyeEstimator(bench_bundle(seq, site=False), opts)
+        sigma = GateOptions().self_vouched_max_sigma_deg if unvouched else math.inf  # 0.37 deg here
+        gates = GateOptions(unvouched_min_inlier_fraction=unvouched, self_vouched_max_sigma_deg=sigma)
+        est = FisheyeEstimator(bench_bundle(seq, site=False), replace(FisheyeOptions(), gates=gates))
         rng = np.random.default_rng(int(frames[0][0]) & 0xFFFF)
         for t, kw in frames[:4]:
             fr = render_sky(seq, t, rng=rng, **kw)

@@ -7,7 +7,14 @@ import numpy as np
 from controller.sun.source import Site, solar_position
 from controller.sun.types import angle_between_deg, azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator
-from controller.vision.fisheye.gates import Ephemeris, Gate, GateOptions, min_rim_share, track_prediction
+from controller.vision.fisheye.gates import (
+    Ephemeris,
+    Gate,
+    GateOptions,
+    max_self_vouched_sigma,
+    min_rim_share,
+    track_prediction,
+)
 
 from .helpers import small_scene, truth_bundle
 
@@ -121,3 +128,20 @@ def test_a_weak_rim_is_reported_only_behind_a_gate_that_is_not_the_cameras_own_f
     for other in ("ephemeris", "ephemeris_learned", "prior"):
         assert min_rim_share(o, [gate(other), gate("sequence")]) == 0.0
         assert min_rim_share(o, [gate(other)]) == 0.0
+
+
+def test_a_wide_sigma_is_reported_only_behind_a_gate_that_is_not_the_cameras_own_fixes():
+    """No gate, or the sequence's alone: a fix must be within 1 deg of the sun at 3 sigma
+    (sigma <= 1/3 deg); the site's ephemeris, a learned site's or the caller's prior hold any
+    fix they let through within their radius, so there is no such bound behind them."""
+    o, up = GateOptions(), np.array([0.0, 0.0, 1.0])
+
+    def gate(name, radius_deg=1.0):
+        return Gate(name, up, radius_deg, "enu")
+
+    assert max_self_vouched_sigma(o, []) == o.self_vouched_max_sigma_deg
+    assert math.isclose(o.self_vouched_max_sigma_deg * 3.0, o.ephemeris_deg)
+    assert max_self_vouched_sigma(o, [gate("sequence", 1.2)]) == o.self_vouched_max_sigma_deg
+    for other in ("ephemeris", "ephemeris_learned", "prior"):
+        assert max_self_vouched_sigma(o, [gate(other), gate("sequence")]) == math.inf
+        assert max_self_vouched_sigma(o, [gate(other)]) == math.inf
