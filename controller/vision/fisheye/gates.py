@@ -14,6 +14,9 @@
   a prior) only a fix whose rim held on ``unvouched_min_inlier_fraction`` of its rays is
   reported: a weak one has nothing to vouch for it (``unvouched_glare``).  With the sequence
   gate alone, whose anchors are the camera's own fixes, ``sequence_min_inlier_fraction``.
+  Behind either, a fix's sigma must also be at most ``self_vouched_max_sigma_deg``, 1 deg at
+  3 sigma (:func:`max_self_vouched_sigma`): the sequence gate, 1.3-1.4 deg wide around a
+  well-predicted sun, lets through a fix 1.1 deg off.
 * **Prior gate**: a prediction handed in by the caller (in the loop: the sun-path filter's),
   ``max(min_deg, k_sigma * sigma + base_deg)`` around it.
 * **Ephemeris gate**: with the site (bundle ``[site]``), the time and the orientation known,
