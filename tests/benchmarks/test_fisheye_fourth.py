@@ -140,7 +140,7 @@ def test_a_wide_fix_that_only_the_cameras_own_fixes_vouch_for_is_not_reported():
     assert [r.found for r in rs[:5]] == [False, True, False, True, False]
     assert rs[3].sigma_deg < 1.0 / 3.0 and "gate_sequence" in rs[3].quality
     assert not rs[5].found and rs[5].reason == "unvouched_glare"
-    assert rs[5].extra["sigma_deg"] > 1.0 / 3.0
+    assert rs[5].extra["fix_sigma_deg"] > 1.0 / 3.0
 
 
 def _score(rms, found=90, false=0):

@@ -160,7 +160,7 @@ class FisheyeEstimator(FramePipeline):
         bound = o.max_sigma_near_horizon_deg if "near_horizon" in res.quality else o.max_sigma_deg
         if res.sigma_deg is not None and res.sigma_deg > bound:
             return not_found(
-                None, "imprecise_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
+                None, "imprecise_glare", t, self.frame, self.algorithm, fix_sigma_deg=round(res.sigma_deg, 3)
             )
         share = best.fit.inlier_fraction
         if share < min_rim_share(o.gates, gates):  # a weak rim that nothing else vouches for
@@ -169,7 +169,7 @@ class FisheyeEstimator(FramePipeline):
             )
         if res.sigma_deg is not None and res.sigma_deg > max_self_vouched_sigma(o.gates, gates):
             return not_found(  # nor a wide sigma: 1 deg at 3 sigma, with no gate to hold it
-                None, "unvouched_glare", t, self.frame, self.algorithm, sigma_deg=round(res.sigma_deg, 3)
+                None, "unvouched_glare", t, self.frame, self.algorithm, fix_sigma_deg=round(res.sigma_deg, 3)
             )
         if t is not None:
             self._accepted(best, float(t))

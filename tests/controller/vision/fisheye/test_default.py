@@ -397,7 +397,9 @@ def test_a_sun_placed_no_better_than_the_sigma_limit_is_no_observation():
     strict = FisheyeEstimator(truth_bundle(scn), replace(FisheyeOptions(), max_sigma_deg=0.001))
     res = strict.estimate_image(img, t)
     assert not res.found and res.reason == "imprecise_glare"
-    assert res.extra["sigma_deg"] > 0.001
+    assert res.extra["fix_sigma_deg"] > 0.001
+    line = res.to_json()  # the refused fix's sigma, not an observation's
+    assert line["sigma_deg"] is None and line["fix_sigma_deg"] == res.extra["fix_sigma_deg"]
 
 
 def test_the_sun_among_glares_that_pass_every_gate_is_the_clearly_largest_else_told_apart():
