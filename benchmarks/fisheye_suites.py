@@ -21,6 +21,8 @@ from datetime import UTC, datetime
 
 import numpy as np
 
+from .angular_error import error_stats
+
 DEFINITIONS = {
     "error": "angle between the reported direction and pvlib SPA's apparent sun direction (ENU)",
     "visible": "cloud beam transmittance on the sun's line of sight >= 0.9",
@@ -71,17 +73,7 @@ def result_error(res, truth: dict, lens=None) -> float:
     return angle_deg(azel_to_enu(res.az_deg, res.el_deg), truth["sun_enu"])
 
 
-def stats(errs) -> dict:
-    e = np.asarray([x for x in errs if x is not None and np.isfinite(x)], float)
-    if e.size == 0:
-        return {"n": 0}
-    return {
-        "n": int(e.size),
-        "rms_deg": round(float(np.sqrt(np.mean(e**2))), 4),
-        "median_deg": round(float(np.median(e)), 4),
-        "p95_deg": round(float(np.percentile(e, 95)), 4),
-        "max_deg": round(float(e.max()), 4),
-    }
+stats = error_stats  # the fisheye benches' name for it
 
 
 def day_frames(scn, day: tuple[int, int, int], step_min: int, min_el: float = 5.0):

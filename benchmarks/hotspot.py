@@ -27,6 +27,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from .angular_error import error_stats
+
 DESCRIPTION = "hotspot sensor accuracy (4 seasons, 2 profiles, error sources) and Algorithm 1 timing"
 
 DAYS = [(2025, 3, 20), (2025, 6, 21), (2025, 9, 22), (2025, 12, 21)]
@@ -70,19 +72,6 @@ def _measured_zenith(scn):
     return z, len(lines)
 
 
-def _stats(errs):
-    e = np.asarray(errs, float)
-    if e.size == 0:
-        return {"n": 0}
-    return {
-        "n": int(e.size),
-        "rms_deg": round(float(np.sqrt(np.mean(e**2))), 4),
-        "median_deg": round(float(np.median(e)), 4),
-        "p95_deg": round(float(np.percentile(e, 95)), 4),
-        "max_deg": round(float(e.max()), 4),
-    }
-
-
 def accuracy(profile_name: str, source: str, step_min: int) -> dict:
     from controller.sun.types import angle_between_deg, azel_to_enu
     from controller.vision import HotspotEstimator
@@ -122,7 +111,7 @@ def accuracy(profile_name: str, source: str, step_min: int) -> dict:
                     sig.append(e / r.sigma_deg)
     out = {"frames": n_frames}
     for k in ests:
-        out[k] = _stats(errs[k]) | {"not_found": notfound[k]}
+        out[k] = error_stats(errs[k]) | {"not_found": notfound[k]}
     if sig:
         out["default"]["frac_within_2sigma"] = round(float(np.mean(np.asarray(sig) < 2)), 3)
     if zen is not None:
@@ -223,7 +212,7 @@ def chain_accuracy(profile_name: str, bumps_m: float, step_min: int) -> dict:
                     continue
                 errs[k].append(float(angle_between_deg(azel_to_enu(r.az_deg, r.el_deg), fr.truth["sun_enu"])))
     for k in ests:
-        out[k] |= _stats(errs[k]) | {"not_found": nf[k]}
+        out[k] |= error_stats(errs[k]) | {"not_found": nf[k]}
     return out
 
 
