@@ -18,7 +18,11 @@ change it, so it is kept through them.  But once its gate has refused sun-like g
 ``KEEP_S`` with no sight in between, it is forgotten and learned anew (a wrong one, or a
 camera moved or its clock stepped, would otherwise refuse the sun, and so never be
 corrected by new sights; a glint or a cloud's edge refused now and then is what the gate is
-for, and leaves it as it was).
+for, and leaves it as it was).  The refusals must run on: two more than ``REFUSAL_GAP_S``
+apart (a night between them) start the count again.  Before, a glare refused at dusk had
+the site forgotten at the next dawn, two hours after it with no sight between: the fourth
+renderer's physical sun, refused near sunset, had the next day's first fix taken behind no
+gate at all, 1.10 deg off.
 """
 
 from __future__ import annotations
@@ -39,6 +43,8 @@ MIN_SIGHTS, MIN_SPAN_S = 6, 600.0
 MIN_SHARE, INLIER_DEG, MAX_RMS_DEG = 0.7, 0.5, 0.3
 #: sights older than this (s) are dropped; an adopted site is refitted every REFIT_EVERY sights
 KEEP_S, REFIT_EVERY = 7200.0, 20
+#: refusals of the site's gate further apart than this (s) are not one run of them (a night)
+REFUSAL_GAP_S = 10800.0
 
 
 @dataclass(frozen=True)
@@ -117,23 +123,27 @@ class SiteFromSun:
         self.fit: SiteFit | None = None
         self._since_fit = 0
         self._start: tuple[float, float] | None = None  # the last fit's site, adopted or not
-        self._refused_at: float | None = None  # its gate's first refusal since the last sight
+        # its gate's run of refusals since the last sight: (the first, the latest), POSIX s
+        self._refusals: tuple[float, float] | None = None
 
     def gate_refused(self, t: float | None, gates: list, dirs: list) -> None:
         """Note a frame at ``t`` whose sun-like glares (ENU unit vectors ``dirs``) the learned
         site's gate (``ephemeris_learned`` among ``gates``, :class:`.gates.Gate`) all refused."""
         for g in gates:
-            if g.name == "ephemeris_learned" and t is not None and self._refused_at is None:
+            if g.name == "ephemeris_learned" and t is not None:
                 if all(d is not None and g.distance_deg(d) > g.radius_deg for d in dirs):
-                    self._refused_at = float(t)
+                    run = self._refusals
+                    on = run is not None and abs(float(t) - run[1]) <= REFUSAL_GAP_S
+                    self._refusals = (run[0] if on and run is not None else float(t), float(t))
 
     def stale(self, t: float | None) -> bool:
         """The site's gate has refused sun-like glares for ``KEEP_S`` before ``t``, with no
-        sight within ``KEEP_S`` of it: the site may no longer be the camera's (moved, or its
-        clock stepped), and gating by it would shut the sun out.  Hours without a glare to
-        refuse (a night, an overcast day) leave it as it was."""
-        r = self._refused_at
-        if t is None or r is None or abs(t - r) < KEEP_S:
+        sight within ``KEEP_S`` of it and no gap of ``REFUSAL_GAP_S`` in the refusals or after
+        the latest: the site may no longer be the camera's (moved, or its clock stepped), and
+        gating by it would shut the sun out.  Hours without a glare to refuse (a night, an
+        overcast day) leave it as it was."""
+        run = self._refusals
+        if t is None or run is None or abs(t - run[1]) > REFUSAL_GAP_S or abs(t - run[0]) < KEEP_S:
             return False
         return not any(abs(t - s[0]) <= KEEP_S for s in self.sights)
 
@@ -141,7 +151,7 @@ class SiteFromSun:
         """Record a sight; returns the site adopted (or still held), None until one is."""
         kept = [s for s in self.sights if abs(t - s[0]) <= KEEP_S]  # frames need not be in order
         self.sights = deque(kept + [(float(t), np.asarray(d_enu, float))], maxlen=self.sights.maxlen)
-        self._since_fit, self._refused_at = self._since_fit + 1, None
+        self._since_fit, self._refusals = self._since_fit + 1, None
         ts = np.array([s[0] for s in self.sights])
         # a site held (from the day before, say) is refitted on sights that could adopt one
         short = len(ts) < MIN_SIGHTS or float(ts.max() - ts.min()) < MIN_SPAN_S

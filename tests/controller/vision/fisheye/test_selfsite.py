@@ -9,7 +9,7 @@ import pytest
 
 from controller.sun.types import azel_to_enu
 from controller.vision.fisheye import FisheyeEstimator, FisheyeOptions
-from controller.vision.fisheye.gates import GateOptions
+from controller.vision.fisheye.gates import Gate, GateOptions
 from controller.vision.fisheye.selfsite import SiteFromSun, fit_site
 from hil.skycam import render_sky
 
@@ -116,3 +116,32 @@ def test_a_learned_site_is_kept_through_a_night_without_sights():
         if t - day2[0] < 600.0:
             assert fit is held, k
     assert fit is not held and fit.latitude == pytest.approx(SANTIAGO[0], abs=0.1)
+
+
+def test_a_glare_refused_at_dusk_does_not_make_the_site_forgotten_by_the_next_dawn():
+    """The site's gate refuses a low glare at dusk, and nothing is seen all night: at dawn,
+    14 hours on, the site is still the camera's (before, two hours after a refusal with no
+    sight between had it forgotten, whatever lay between).  Refusals that run on for two
+    hours, each within three of the one before, still forget it."""
+    learner = SiteFromSun()
+    t0 = utc(2026, 3, 20, 13, 0)
+    day1 = t0 + 60.0 * np.arange(30)
+    for t, d in zip(day1, _sights(day1)):
+        learner.add(float(t), d)
+    assert learner.fit is not None
+    sun = _sights([day1[-1]])[0]
+    gate = Gate("ephemeris_learned", sun, 0.9, "enu")
+    off = azel_to_enu(10.0, 80.0)  # a glare nowhere near the sun
+    dusk = float(day1[-1]) + 5 * 3600.0
+    learner.gate_refused(dusk, [gate], [off])
+    assert not learner.stale(dusk + 14 * 3600.0)  # dawn
+    learner.gate_refused(dusk + 14 * 3600.0, [gate], [off])  # and one refused at dawn
+    assert not learner.stale(dusk + 14 * 3600.0 + 60.0)  # starts a run of its own
+    for k in range(1, 13):  # then refused every 10 min for two hours
+        learner.gate_refused(dusk + 14 * 3600.0 + 600.0 * k, [gate], [off])
+    assert learner.stale(dusk + 14 * 3600.0 + 7260.0)
+    near = SiteFromSun()  # a glare the gate lets through is no refusal
+    near.sights, near.fit = learner.sights, learner.fit
+    for k in range(14):
+        near.gate_refused(dusk + 600.0 * k, [gate], [sun])
+    assert not near.stale(dusk + 8000.0)
