@@ -21,6 +21,7 @@ from controller.sun.camera import CallableFrameSource, FrameSource
 from hil.camera import Site as CameraSite
 from hil.panelcam import PanelCamera
 
+from .renderers import cloud_layer
 from .scenario import ScenarioConfig
 from .world import World
 
@@ -56,6 +57,7 @@ def panel_frames(
             axis_tilt=row.axis_tilt if row is not None else 0.0,
             scale=cam_cfg.scale,
             noise=cam_cfg.noise,
+            clouds=cloud_layer(config) if cam_cfg.clouds else None,
         )
 
         def angles(name: str = tr.name) -> list[float]:

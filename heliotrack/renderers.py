@@ -9,12 +9,16 @@ scenario and the clouds' beam transmittance at a time and returns ``render(t) ->
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from controller.config import Config
 
 from .scenario import ScenarioConfig
+
+if TYPE_CHECKING:
+    from hil.skycam import CloudField
 
 #: render(t) -> image (uint8, grey or BGR), t in POSIX s.
 Render = Callable[[float], np.ndarray]
@@ -38,19 +42,28 @@ def _hotspot(config: ScenarioConfig, transmittance: Transmittance) -> Render:
     return render
 
 
+def cloud_layer(config: ScenarioConfig) -> CloudField | None:
+    """The procedural cloud layer every sky-looking camera of the scenario draws (the sky
+    camera, the panel cameras): none when every day is clear, a deck when every day is
+    overcast, else broken cumulus.  The sun's own dimming follows the scenario's beam
+    transmittance, not this layer (as for the hotspot camera)."""
+    from hil.skycam import CloudField
+
+    kinds = set(config.hil.skies)
+    if kinds == {"clear"}:
+        return None
+    return CloudField(coverage=1.0, tau_max=20.0) if kinds == {"overcast"} else CloudField(coverage=0.45)
+
+
 def _fisheye(config: ScenarioConfig, transmittance: Transmittance) -> Render:
     """The sky camera (``hil/skycam``) at the scenario's site, with a procedural cloud layer
     on cloudy days whose sun is dimmed by the scenario's own beam transmittance (so a cloud
     that hides the sun from the world hides it from every camera)."""
     from hil.camera import Site as CameraSite
-    from hil.skycam import CloudField, orientation, render_sky, sky_profile
+    from hil.skycam import orientation, render_sky, sky_profile
 
-    site, cam, kinds = config.site, config.hil.skycam, set(config.hil.skies)
-    clouds = None
-    if cam.clouds and kinds != {"clear"}:  # a deck when every day is overcast, else cumulus
-        clouds = (
-            CloudField(coverage=1.0, tau_max=20.0) if kinds == {"overcast"} else CloudField(coverage=0.45)
-        )
+    site, cam = config.site, config.hil.skycam
+    clouds = cloud_layer(config) if cam.clouds else None
     scn = sky_profile(
         cam.profile,
         noise=cam.noise,

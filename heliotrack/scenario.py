@@ -293,6 +293,11 @@ class HilPanelCamera:
 
     scale: float = setting(0.5, doc="Pixels per side relative to 640 x 480 (0.5: 320 x 240).", gt=0.1, le=2)
     noise: bool = setting(True, doc="Shot and read noise, and JPEG q90.")
+    clouds: bool = setting(
+        True,
+        doc="Draw the sky camera's procedural cloud layer on cloudy days (sunlit edges, "
+        "thin cloud over the sun); the sun's own visibility follows the scenario's sky.",
+    )
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -27,7 +27,7 @@ import numpy as np
 
 from . import truth
 from .camera.scene import Site
-from .skycam import render_sky, seed_lens, sky_profile
+from .skycam import CloudField, render_sky, seed_lens, sky_profile
 from .skycam.scene import Matrix3
 
 
@@ -76,7 +76,8 @@ class PanelCamera:
     ``kind``: ``"dual-axis"`` or ``"single-axis"``; ``axis_azimuth``/``axis_tilt``: the
     row's geometry (single-axis); ``angles``: the panel's true angles (deg, with the
     mounting offset: ``DriveFirmware.panel_angles()``); ``transmittance``: the clouds' beam
-    transmittance over the sun (0: hidden, 1: clear).
+    transmittance over the sun (0: hidden, 1: clear); ``clouds``: the cloud layer drawn in
+    the frame (None: a clear sky), the one the sky camera draws.
     """
 
     kind: str
@@ -85,9 +86,12 @@ class PanelCamera:
     axis_tilt: float = 0.0
     scale: float = 0.5
     noise: bool = True
+    clouds: CloudField | None = None
 
     def __post_init__(self) -> None:
-        self.scene = sky_profile("seed", noise=self.noise).with_(lens=panel_lens(self.scale), site=self.site)
+        self.scene = sky_profile("seed", noise=self.noise).with_(
+            lens=panel_lens(self.scale), site=self.site, clouds=self.clouds
+        )
 
     def enu_from_camera(self, angles: list[float]) -> np.ndarray:
         if self.kind == "dual-axis":
