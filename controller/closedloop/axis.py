@@ -61,6 +61,20 @@ class ClosedLoopAxis:
         self.correction = 0.0
         self._t: float | None = None
 
+    def _seen(self, error_deg: float | None) -> bool:
+        return error_deg is not None and math.isfinite(error_deg) and abs(error_deg) <= self.max_error_deg
+
+    def admits(
+        self, t: float, error_deg: float | None, position_deg: float, frame_reference_deg: float
+    ) -> bool:
+        """Whether the learner would take this frame's offset (assisted mode): a row refuses
+        a frame that any of its axes refuses (a glint straight above the sun is off in
+        elevation only, and is no sight of the sun in azimuth either)."""
+        if not self._seen(error_deg):
+            return False
+        assert error_deg is not None
+        return self.learner.admits(t, position_deg + error_deg - frame_reference_deg)
+
     def update(
         self,
         t: float,
@@ -68,6 +82,8 @@ class ClosedLoopAxis:
         position_deg: float,
         reference_deg: float | None = None,
         frame_reference_deg: float | None = None,
+        *,
+        veto: bool = False,
     ) -> AxisCommand:
         """One cycle at POSIX ``t``.
 
@@ -75,9 +91,10 @@ class ClosedLoopAxis:
         ``position_deg``: the drive's reported angle; ``reference_deg``: the open-loop angle
         for an aligned row (required in the assisted mode); ``frame_reference_deg``: that
         angle at the frame's time when the setpoint aims later (the loop's lead), for the
-        offset's measurement (default: ``reference_deg``).
+        offset's measurement (default: ``reference_deg``); ``veto``: another axis of the row
+        refused the frame (assisted mode: it counts as refused here too).
         """
-        seen = error_deg is not None and math.isfinite(error_deg) and abs(error_deg) <= self.max_error_deg
+        seen = self._seen(error_deg)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = t
         if self.setpoint is None:
@@ -90,15 +107,24 @@ class ClosedLoopAxis:
             self.pid.reset()
             return AxisCommand(self.setpoint, "hold", 0.0, 0.0)
         before = self.learner.estimate_deg
+        trusted = False
         if seen:
             assert error_deg is not None
             at_frame = reference_deg if frame_reference_deg is None else frame_reference_deg
-            self.learner.update(t, position_deg + error_deg - at_frame)
+            # a frame whose offset the learner refuses is no sight of the sun (a cloud's
+            # sunlit edge, a glint): the PID must not chase it either.  One such frame had
+            # stepped a row's correction by 3 deg, which then took half an hour to decay
+            # (docs/fisheye.md, the panel loop under broken cloud).  A real change of the
+            # offset is the learner's to take: it restarts after a run of refusals.
+            trusted = self.learner.update(t, position_deg + error_deg - at_frame, veto=veto)
+        if trusted:
+            assert error_deg is not None
             # bumpless: what the learner took over leaves the correction
             self.correction += self.pid.step(error_deg) - (self.learner.estimate_deg - before)
             source = "camera"
         else:
-            self.learner.predict(t)
+            if not seen:
+                self.learner.predict(t)
             self.pid.reset()
             if self.correction_decay_s > 0 and dt > 0:
                 self.correction *= math.exp(-dt / self.correction_decay_s)

@@ -68,14 +68,26 @@ class OffsetLearner:
             self.variance += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
         self.last_t = t if self.last_t is None else max(self.last_t, t)
 
-    def update(self, t: float, z_deg: float) -> bool:
-        """Add one measurement ``z`` (deg) at POSIX ``t``; False when it was refused."""
+    def admits(self, t: float, z_deg: float) -> bool:
+        """Whether a measurement ``z`` (deg) at POSIX ``t`` passes the gate; changes nothing."""
+        if not math.isfinite(z_deg):
+            return False
+        if self.accepted == 0:
+            return True
+        var = self.variance
+        if self.last_t is not None and t > self.last_t:
+            var += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
+        return (z_deg - self.estimate_deg) ** 2 <= self.gate_sigma**2 * (var + self.meas_sigma_deg**2)
+
+    def update(self, t: float, z_deg: float, *, veto: bool = False) -> bool:
+        """Add one measurement ``z`` (deg) at POSIX ``t``; False when it was refused: by the
+        gate, or by ``veto`` (the frame was refused on another axis of the same row)."""
         if not math.isfinite(z_deg):
             return False
         self.predict(t)
         r = self.meas_sigma_deg**2
         innov = z_deg - self.estimate_deg
-        if self.accepted > 0 and innov**2 > self.gate_sigma**2 * (self.variance + r):
+        if veto or not self.admits(t, z_deg):
             self.refused += 1
             self.refused_run += 1
             if self.refused_run >= self.restart_after:

@@ -219,11 +219,18 @@ class ClosedLoopController(Controller):
                     ax.setpoint = p
         targets = []
         source = "hold"
+        frefs = m.frame_reference if m.frame_reference is not None else reference
+        veto = (
+            assisted
+            and m.errors is not None
+            and not all(ax.admits(m.t, e, p, f) for ax, e, p, f in zip(row.axes, m.errors, m.position, frefs))
+        )
+        if veto:
+            row.frames_seen["refused"] += 1  # found, but no sight of the sun by the learned offset
         for k, ax in enumerate(row.axes):
             err = m.errors[k] if m.errors is not None else None
             if assisted:
-                fref = m.frame_reference[k] if m.frame_reference is not None else None
-                cmd = ax.update(m.t, err, m.position[k], reference[k], fref)
+                cmd = ax.update(m.t, err, m.position[k], reference[k], frefs[k], veto=veto)
             else:
                 cmd = ax.update(m.t, err, m.position[k])
             source = cmd.source

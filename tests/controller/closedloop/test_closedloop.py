@@ -27,17 +27,29 @@ def sun_angle(t: float) -> float:
 
 
 def simulate(
-    mode: str, delta: float, *, gap=(6 * 3600.0, 8 * 3600.0), noise=0.02, speed=1.0, eph_error=0.0, seed=0
+    mode: str,
+    delta: float,
+    *,
+    gap=(6 * 3600.0, 8 * 3600.0),
+    noise=0.02,
+    speed=1.0,
+    eph_error=0.0,
+    seed=0,
+    glint_every=0,
 ):
     """A position servo (``speed`` deg/s) whose panel sits ``delta`` off its encoder; the camera
-    sees the sun except during ``gap``.  Returns (times, pointing errors, seen) and the axis."""
+    sees the sun except during ``gap``, and from the second hour every ``glint_every``-th
+    frame (0: none) is a false detection 5 deg off the sun, in the gap too (a cloud's
+    sunlit edge).  Returns (times, pointing errors, seen) and the axis."""
     rng = np.random.default_rng(seed)
     ax = ClosedLoopAxis(mode=mode)
     pos = 0.0
     rows = []
-    for t in np.arange(0.0, DAY, PERIOD):
+    for k, t in enumerate(np.arange(0.0, DAY, PERIOD)):
         seen = not gap[0] <= t < gap[1]
         err = sun_angle(t) - (pos + delta) + rng.normal(0, noise) if seen else None
+        if glint_every and t > 3600 and k % glint_every == 0:
+            err = sun_angle(t) + 5.0 - (pos + delta)
         ref = sun_angle(t + PERIOD / 2) + eph_error if mode == "assisted" else None
         cmd = ax.update(t, err, pos, ref)
         pos += float(np.clip(cmd.setpoint_deg - pos, -speed * PERIOD, speed * PERIOD))
@@ -83,6 +95,17 @@ def test_assisted_mode_learns_the_offset_and_keeps_it_through_a_gap(delta):
     assert np.percentile(e[learned & seen], 95) <= 0.2
     assert e[~seen].max() <= 0.3
     assert ax.learner.estimate_deg == pytest.approx(-delta, abs=0.05)
+
+
+def test_assisted_mode_does_not_chase_a_glint_the_learner_refuses():
+    # one frame in 37 is a glint 5 deg off (a cloud's sunlit edge), gap included: each one
+    # had stepped the correction by 3 deg, half an hour to decay
+    t, e, _, ax = simulate("assisted", 1.5, glint_every=37)
+    learned = t > 3600
+    assert np.percentile(e[learned], 95) <= 0.2
+    assert e[learned].max() <= 0.3
+    assert ax.learner.refused >= 100
+    assert ax.learner.estimate_deg == pytest.approx(-1.5, abs=0.05)
 
 
 def test_open_loop_with_the_offset_misses_by_the_offset():

@@ -106,3 +106,25 @@ def test_the_assisted_correction_does_not_wind_up_against_a_limit():
         assert side * pos <= abs(ref) + 0.7 + 1e-9
     assert row.axes[0].learner.estimate_deg == pytest.approx(1.5 * side, abs=0.05)
     assert abs(row.axes[0].correction) < 0.5, row.axes[0].correction
+
+
+def test_a_glint_refused_on_one_axis_is_refused_on_the_other():
+    ctl = controller()
+    est = ctl.sun.estimate(T)
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
+    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
+    az, el = row.axes
+    for k in range(30):  # the row has learned that it sits on the sun
+        ctl._t = T + 10 * k
+        row.measured = Measurement(ctl._t, list(ref), [0.0, 0.0], list(ref))
+        base_targets(ctl)
+    assert az.learner.learned and el.learner.learned
+    az_before, az_refused = az.correction, az.learner.refused
+    # a sunlit cloud edge straight above the sun: on the sun in azimuth, 4 deg off in elevation
+    ctl._t = T + 300
+    row.measured = Measurement(ctl._t, list(ref), [0.05, 4.0], list(ref))
+    base_targets(ctl)
+    assert el.learner.refused == 1 and az.learner.refused == az_refused + 1
+    assert az.correction == pytest.approx(az_before)  # the PID did not step on it either
+    assert abs(el.correction) < 0.01
+    assert row.frames_seen["refused"] == 1
