@@ -98,3 +98,27 @@ def test_closed_loop_settings_are_checked(change, where):
     with pytest.raises(ConfigError) as err:
         parse_scenario(data, OFFSET)
     assert where in str(err.value)
+
+
+def test_the_panel_cameras_draw_the_sky_cameras_clouds_on_a_cloudy_day():
+    from types import SimpleNamespace
+
+    from heliotrack.panel_loop import panel_frames
+    from heliotrack.scenario import load_scenario
+
+    class Panel:  # a world whose panels face the sun's quarter at 45 deg
+        def panel_angles(self):
+            return [120.0, 45.0]
+
+    world = SimpleNamespace(firmwares={"dual-1": Panel(), "row-1": Panel()})
+    t = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    clouds = load_scenario(REPO / "config" / "hil-closedloop-clouds.toml")
+    assert clouds.hil.skies == ("partly-cloudy",) and clouds.hil.panel_camera.clouds
+    images = {}
+    for name, cfg in (("clouds", clouds), ("clear", load_scenario(OFFSET))):
+        frame = panel_frames(cfg, world, lambda _t: 1.0)["dual-1"].grab(t)  # type: ignore[arg-type]
+        assert frame is not None
+        images[name] = frame.image.astype(float)
+    # the same panel, sun and seeded noise but for the cloud layer (0 with clouds = false)
+    changed = np.abs(images["clouds"] - images["clear"]).max(axis=-1) > 20
+    assert changed.mean() > 0.05

@@ -36,16 +36,20 @@ def simulate(
     eph_error=0.0,
     seed=0,
     glint_every=0,
+    slip=None,
 ):
     """A position servo (``speed`` deg/s) whose panel sits ``delta`` off its encoder; the camera
     sees the sun except during ``gap``, and from the second hour every ``glint_every``-th
     frame (0: none) is a false detection 5 deg off the sun, in the gap too (a cloud's
-    sunlit edge).  Returns (times, pointing errors, seen) and the axis."""
+    sunlit edge); ``slip`` = (t, deg): the panel slips that much more at t.  Returns
+    (times, pointing errors, seen) and the axis."""
     rng = np.random.default_rng(seed)
     ax = ClosedLoopAxis(mode=mode)
     pos = 0.0
     rows = []
     for k, t in enumerate(np.arange(0.0, DAY, PERIOD)):
+        if slip is not None and t == slip[0]:
+            delta += slip[1]
         seen = not gap[0] <= t < gap[1]
         err = sun_angle(t) - (pos + delta) + rng.normal(0, noise) if seen else None
         if glint_every and t > 3600 and k % glint_every == 0:
@@ -106,6 +110,16 @@ def test_assisted_mode_does_not_chase_a_glint_the_learner_refuses():
     assert e[learned].max() <= 0.3
     assert ax.learner.refused >= 100
     assert ax.learner.estimate_deg == pytest.approx(-1.5, abs=0.05)
+
+
+def test_assisted_mode_follows_a_slipped_panel_once_the_learner_restarts():
+    # a coupling slips 1 deg at 10:00 (t = 4 h): the learner refuses the new offset for 20
+    # frames (200 s), which the PID does not chase either, then restarts on it
+    t, e, _, ax = simulate("assisted", 1.5, gap=(0.0, 0.0), slip=(4 * 3600.0, 1.0))
+    after = t >= 4 * 3600.0
+    assert e[after & (t < 4 * 3600.0 + 150)].min() > 0.8  # the slip, before the restart
+    assert e[after & (t > 4 * 3600.0 + 600)].max() <= 0.2
+    assert ax.learner.estimate_deg == pytest.approx(-2.5, abs=0.05)
 
 
 def test_open_loop_with_the_offset_misses_by_the_offset():
