@@ -31,8 +31,11 @@ CLOSEDLOOP_DEFINITIONS = {
     "the loop learned per axis (deg; for a panel sitting d off its encoder it should be -d: "
     "mount_offset_deg is the world's d); setpoints counts the cycles by what set the "
     "target (camera: the fuzzy PID on a frame with the sun; learned: reference + learned "
-    "offset without the camera; hold: the paper's setpoint held; reference: the sun "
-    "source's target); frames counts the panel camera's outcomes",
+    "offset without the camera, or with a frame the offset learner refused; settling: "
+    "reference + learned offset + correction while the drive is more than 0.5 deg from its "
+    "last target, the frame unused; hold: the paper's setpoint held; reference: the sun "
+    "source's target); frames counts the panel camera's outcomes (refused: found, but "
+    "refused by the learned offset)",
 }
 
 

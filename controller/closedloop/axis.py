@@ -84,6 +84,7 @@ class ClosedLoopAxis:
         frame_reference_deg: float | None = None,
         *,
         veto: bool = False,
+        settled: bool = True,
     ) -> AxisCommand:
         """One cycle at POSIX ``t``.
 
@@ -92,7 +93,9 @@ class ClosedLoopAxis:
         for an aligned row (required in the assisted mode); ``frame_reference_deg``: that
         angle at the frame's time when the setpoint aims later (the loop's lead), for the
         offset's measurement (default: ``reference_deg``); ``veto``: another axis of the row
-        refused the frame (assisted mode: it counts as refused here too).
+        refused the frame (assisted mode: it counts as refused here too); ``settled``: the
+        drive has reached its last target (assisted mode: a frame taken on the way is not
+        used, and the correction holds).
         """
         seen = self._seen(error_deg)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
@@ -106,6 +109,16 @@ class ClosedLoopAxis:
                 return AxisCommand(self.setpoint, "camera", 0.0, 0.0)
             self.pid.reset()
             return AxisCommand(self.setpoint, "hold", 0.0, 0.0)
+        if not settled:
+            # on its way from stow or back from backtracking the drive lags its target by
+            # degrees: that error is the slew's, not the pointing's, and a frame far off
+            # the axis, taken while moving, measures the offset badly (three such frames
+            # once taught the learner an offset 0.5 deg wrong, which then refused the right
+            # ones for 20 frames while the PID, stepped on the slew, held the row 7 deg off)
+            self.learner.predict(t)
+            self.pid.reset()
+            self.setpoint = reference_deg + self.learner.estimate_deg + self.correction
+            return AxisCommand(self.setpoint, "settling", self.learner.estimate_deg, self.correction)
         before = self.learner.estimate_deg
         trusted = False
         if seen:

@@ -56,6 +56,8 @@ log = logging.getLogger("heliotrack.closedloop")
 LIMIT_MARGIN_DEG = 0.5
 #: How often the learned offsets are saved (s of the controller's clock).
 SAVE_EVERY_S = 3600.0
+#: A drive farther than this (deg) from its last target is still on its way (assisted mode).
+SETTLE_DEG = 0.5
 
 
 def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
@@ -90,6 +92,7 @@ class RowLoop:
     axes: list[ClosedLoopAxis]
     measured: Measurement | None = None
     active: bool = False  # steered by the loop in the previous cycle
+    sent: list[float] | None = None  # the targets of the previous cycle, clamped (None: not ours)
     sources: Counter = field(default_factory=Counter)
     frames_seen: Counter = field(default_factory=Counter)
 
@@ -100,6 +103,11 @@ class RowLoop:
             if ax.mode == "paper":
                 ax.setpoint = None
         self.active = False
+        self.sent = None
+
+    def settled(self, position: list[float]) -> bool:
+        """The drive has reached the targets this loop sent it last cycle."""
+        return self.sent is not None and all(abs(p - s) <= SETTLE_DEG for p, s in zip(position, self.sent))
 
 
 class ClosedLoopController(Controller):
@@ -210,7 +218,9 @@ class ClosedLoopController(Controller):
                 for ax in row.axes:
                     ax.learner.predict(self._t)
                 row.sources["learned"] += 1
-                return [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)], backtracking
+                follow = [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)]
+                row.sent = clamp_targets(cfg, follow)
+                return follow, backtracking
             row.sources["reference"] += 1
             return reference, backtracking
         if not row.active:
@@ -220,8 +230,10 @@ class ClosedLoopController(Controller):
         targets = []
         source = "hold"
         frefs = m.frame_reference if m.frame_reference is not None else reference
+        settled = row.settled(m.position)
         veto = (
             assisted
+            and settled
             and m.errors is not None
             and not all(ax.admits(m.t, e, p, f) for ax, e, p, f in zip(row.axes, m.errors, m.position, frefs))
         )
@@ -230,7 +242,7 @@ class ClosedLoopController(Controller):
         for k, ax in enumerate(row.axes):
             err = m.errors[k] if m.errors is not None else None
             if assisted:
-                cmd = ax.update(m.t, err, m.position[k], reference[k], frefs[k], veto=veto)
+                cmd = ax.update(m.t, err, m.position[k], reference[k], frefs[k], veto=veto, settled=settled)
             else:
                 cmd = ax.update(m.t, err, m.position[k])
             source = cmd.source
@@ -246,6 +258,7 @@ class ClosedLoopController(Controller):
                 # the learned offset past the limit stays, the limit's own due
                 ax.correction -= math.copysign(min(abs(t - c), abs(ax.correction)), t - c)
         row.active = True
+        row.sent = clamped
         row.sources[source] += 1
         return clamped, backtracking
 

@@ -57,6 +57,10 @@ def test_assisted_adds_the_learned_offset_and_the_correction_to_the_reference():
     est = ctl.sun.estimate(T)
     row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
     ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[1][0][0]
+    # the loop's first cycle only sends the drive its target: no frame is used on the way
+    row.measured = Measurement(T, [ref - 20.0], [21.5], [ref])
+    _, out = base_targets(ctl)
+    assert out[1][0][0] == pytest.approx(ref) and row.axes[0].learner.accepted == 0
     # the panel sits at the reference, and the camera sees the sun 1.5 deg further on
     row.measured = Measurement(T, [ref], [1.5], [ref])
     _, out = base_targets(ctl)
@@ -70,7 +74,7 @@ def test_assisted_adds_the_learned_offset_and_the_correction_to_the_reference():
     ctl._t = T + 10
     _, out = base_targets(ctl)
     assert out[1][0][0] == pytest.approx(ref + learned + row.axes[0].correction, abs=1e-9)
-    assert row.sources == {"camera": 1, "learned": 1}
+    assert row.sources == {"settling": 1, "camera": 1, "learned": 1}
 
 
 def test_the_papers_setpoint_is_held_inside_the_limits():
@@ -114,7 +118,7 @@ def test_a_glint_refused_on_one_axis_is_refused_on_the_other():
     row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
     ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
     az, el = row.axes
-    for k in range(30):  # the row has learned that it sits on the sun
+    for k in range(31):  # the row has learned that it sits on the sun (the first: settling)
         ctl._t = T + 10 * k
         row.measured = Measurement(ctl._t, list(ref), [0.0, 0.0], list(ref))
         base_targets(ctl)
@@ -128,3 +132,24 @@ def test_a_glint_refused_on_one_axis_is_refused_on_the_other():
     assert az.correction == pytest.approx(az_before)  # the PID did not step on it either
     assert abs(el.correction) < 0.01
     assert row.frames_seen["refused"] == 1
+
+
+def test_a_frame_taken_while_the_drive_is_on_its_way_is_not_used():
+    ctl = controller()
+    est = ctl.sun.estimate(T)
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
+    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
+    az, el = row.axes
+    for k in range(12):  # coming from stow, face up: 1 deg a cycle closer, the sun far off the axis
+        ctl._t = T + 10 * k
+        pos = [ref[0] - 12.0 + k, ref[1] + 12.0 - k]
+        row.measured = Measurement(ctl._t, pos, [ref[0] - pos[0] + 0.4, ref[1] - pos[1] - 0.6], list(ref))
+        _, out = base_targets(ctl)
+        assert out[0][0] == pytest.approx(list(ref))  # the target, no correction stepped on the slew
+    assert az.learner.accepted == 0 and el.learner.accepted == 0
+    assert row.sources == {"settling": 12}
+    ctl._t = T + 120  # arrived: the frame measures the offset
+    row.measured = Measurement(ctl._t, list(ref), [0.4, -0.6], list(ref))
+    base_targets(ctl)
+    assert az.learner.estimate_deg == pytest.approx(0.4, abs=0.01)
+    assert el.learner.estimate_deg == pytest.approx(-0.6, abs=0.01)
