@@ -37,11 +37,13 @@ def simulate(
     seed=0,
     glint_every=0,
     slip=None,
+    drift_deg_per_h=0.0,
 ):
     """A position servo (``speed`` deg/s) whose panel sits ``delta`` off its encoder; the camera
     sees the sun except during ``gap``, and from the second hour every ``glint_every``-th
     frame (0: none) is a false detection 5 deg off the sun, in the gap too (a cloud's
-    sunlit edge); ``slip`` = (t, deg): the panel slips that much more at t.  Returns
+    sunlit edge); ``slip`` = (t, deg): the panel slips that much more at t;
+    ``drift_deg_per_h``: the offset drifts so, all day (a structure warming).  Returns
     (times, pointing errors, seen) and the axis."""
     rng = np.random.default_rng(seed)
     ax = ClosedLoopAxis(mode=mode)
@@ -50,6 +52,7 @@ def simulate(
     for k, t in enumerate(np.arange(0.0, DAY, PERIOD)):
         if slip is not None and t == slip[0]:
             delta += slip[1]
+        delta += drift_deg_per_h * PERIOD / 3600.0
         seen = not gap[0] <= t < gap[1]
         err = sun_angle(t) - (pos + delta) + rng.normal(0, noise) if seen else None
         if glint_every and t > 3600 and k % glint_every == 0:
@@ -120,6 +123,17 @@ def test_assisted_mode_follows_a_slipped_panel_once_the_learner_restarts():
     assert e[after & (t < 4 * 3600.0 + 150)].min() > 0.8  # the slip, before the restart
     assert e[after & (t > 4 * 3600.0 + 600)].max() <= 0.2
     assert ax.learner.estimate_deg == pytest.approx(-2.5, abs=0.05)
+
+
+def test_assisted_mode_follows_an_offset_that_drifts_through_the_day():
+    # 0.1 deg/h (1.2 deg over the day), five times the learner's random walk at 1 h and
+    # every hour after; the 2-hour gap leaves the row 0.2 deg behind at most
+    t, e, seen, ax = simulate("assisted", 1.5, drift_deg_per_h=0.1)
+    learned = t > 3600
+    assert np.percentile(e[learned & seen], 95) <= 0.2
+    assert e[~seen].max() <= 0.3
+    assert ax.learner.refused == 0
+    assert ax.learner.estimate_deg == pytest.approx(-(1.5 + 1.2), abs=0.05)
 
 
 def test_open_loop_with_the_offset_misses_by_the_offset():
