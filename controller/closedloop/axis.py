@@ -10,7 +10,8 @@ Two modes:
   the camera's residual error.  When the learner's estimate moves, the correction moves
   the other way by the same amount (bumpless), so the correction tends to zero as the
   offset is learned.  Without the sun, the correction decays and the learned offset keeps
-  the row on the sun through the gap.
+  the row on the sun through the gap; so it does on a frame the learner refuses (a glint
+  is no sun), and the correction holds while the drive is still on its way.
 
 Angles in degrees; ``error`` is the sun minus the boresight along the axis, so a positive
 error asks for a larger setpoint.  The axis's geometry (which camera component is the

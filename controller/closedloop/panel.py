@@ -13,7 +13,8 @@ Each cycle at time ``t``, before the setpoints (:meth:`ClosedLoopController._obs
 Then (:meth:`ClosedLoopController.targets`), only in TRACK mode and with no stow order,
 each axis's :class:`~.axis.ClosedLoopAxis` replaces the open-loop target: ``paper``, the
 setpoint moves by the fuzzy PID's step; ``assisted``, reference + learned offset + the
-PID's correction.  Everything else is the plain controller's: a weather stow, night stow,
+PID's correction, using a frame only once the drive has reached its last target
+(:data:`SETTLE_DEG`) and only if the learner takes its offset on every axis of the row.  Everything else is the plain controller's: a weather stow, night stow,
 DIFFUSE and an operator's manual setpoint outrank the loop, and every target is clamped to
 the axis's limits on its way to the wire.  While a row backtracks, or its reference is at
 an axis limit (the camera's error then is not a pointing error), it follows the reference
