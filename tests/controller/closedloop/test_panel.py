@@ -112,11 +112,16 @@ def test_the_assisted_correction_does_not_wind_up_against_a_limit():
     assert abs(row.axes[0].correction) < 0.5, row.axes[0].correction
 
 
+def dual_axis_row(ctl: ClosedLoopController):
+    """The dual-axis tracker's loop and its reference (az, el) at T."""
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
+    est = ctl.sun.estimate(T)
+    return row, Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
+
+
 def test_a_glint_refused_on_one_axis_is_refused_on_the_other():
     ctl = controller()
-    est = ctl.sun.estimate(T)
-    row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
-    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
+    row, ref = dual_axis_row(ctl)
     az, el = row.axes
     for k in range(31):  # the row has learned that it sits on the sun (the first: settling)
         ctl._t = T + 10 * k
@@ -136,9 +141,7 @@ def test_a_glint_refused_on_one_axis_is_refused_on_the_other():
 
 def test_a_frame_taken_while_the_drive_is_on_its_way_is_not_used():
     ctl = controller()
-    est = ctl.sun.estimate(T)
-    row = next(r for r in ctl.rows if r.runtime.cfg.name == "dual-1")
-    ref = Controller.targets(ctl, est, ModeDecision(ControlMode.TRACK, "sun up"), None)[0][0]
+    row, ref = dual_axis_row(ctl)
     az, el = row.axes
     for k in range(12):  # coming from stow, face up: 1 deg a cycle closer, the sun far off the axis
         ctl._t = T + 10 * k
