@@ -35,7 +35,8 @@ CLOSEDLOOP_DEFINITIONS = {
     "reference + learned offset + correction while the drive is more than 0.5 deg from its "
     "last target, the frame unused; hold: the paper's setpoint held; reference: the sun "
     "source's target); frames counts the panel camera's outcomes (refused: found, but "
-    "refused by the learned offset)",
+    "refused by the learned offset; implausible: found, but measuring an offset beyond "
+    "[closedloop] max_offset_deg)",
 }
 
 

@@ -50,6 +50,7 @@ class ClosedLoopAxis:
         learner: OffsetLearner | None = None,
         correction_decay_s: float = 600.0,
         max_error_deg: float = 90.0,
+        max_offset_deg: float = 90.0,
     ):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
@@ -58,12 +59,20 @@ class ClosedLoopAxis:
         self.learner = learner if learner is not None else OffsetLearner()
         self.correction_decay_s = correction_decay_s
         self.max_error_deg = max_error_deg
+        self.max_offset_deg = max_offset_deg
         self.setpoint: float | None = None
         self.correction = 0.0
         self._t: float | None = None
 
     def _seen(self, error_deg: float | None) -> bool:
         return error_deg is not None and math.isfinite(error_deg) and abs(error_deg) <= self.max_error_deg
+
+    def plausible(self, error_deg: float | None, position_deg: float, frame_reference_deg: float) -> bool:
+        """Whether the frame measures an offset this axis could have (``max_offset_deg``)."""
+        if not self._seen(error_deg):
+            return False
+        assert error_deg is not None
+        return abs(position_deg + error_deg - frame_reference_deg) <= self.max_offset_deg
 
     def admits(
         self, t: float, error_deg: float | None, position_deg: float, frame_reference_deg: float

@@ -59,6 +59,9 @@ LIMIT_MARGIN_DEG = 0.5
 SAVE_EVERY_S = 3600.0
 #: A drive farther than this (deg) from its last target is still on its way (assisted mode).
 SETTLE_DEG = 0.5
+#: A run of refused frames is one new offset only while each stays this close (deg, every
+#: axis) to the run's mean: a reflection's offset drifts at the sun's rate, a slip's does not.
+REFUSAL_SPREAD_DEG = 0.3
 
 
 def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
@@ -94,6 +97,7 @@ class RowLoop:
     measured: Measurement | None = None
     active: bool = False  # steered by the loop in the previous cycle
     sent: list[float] | None = None  # the targets of the previous cycle, clamped (None: not ours)
+    refusals: list[list[float]] = field(default_factory=list)  # offsets of the refused run
     sources: Counter = field(default_factory=Counter)
     frames_seen: Counter = field(default_factory=Counter)
 
@@ -145,6 +149,7 @@ class ClosedLoopController(Controller):
                     mode=cl.mode,
                     learner=self.misalignment.learner(tr.cfg.name, name),
                     max_error_deg=max_err,
+                    max_offset_deg=cl.max_offset_deg,
                 )
                 for name in axis_names(tr.cfg)
             ]
@@ -232,16 +237,32 @@ class ClosedLoopController(Controller):
         source = "hold"
         frefs = m.frame_reference if m.frame_reference is not None else reference
         settled = row.settled(m.position)
+        errors = m.errors
+        if (
+            assisted
+            and settled
+            and errors is not None
+            and not all(ax.plausible(e, p, f) for ax, e, p, f in zip(row.axes, errors, m.position, frefs))
+        ):
+            # an offset no row has (a reflection that stays lit while a cloud hides the sun):
+            # not even a refusal, or a run of them would restart the learner on the reflection
+            # and steer the row onto it (docs/fisheye.md, the panel loop and a reflection)
+            row.frames_seen["implausible"] += 1
+            errors = None
         veto = (
             assisted
             and settled
-            and m.errors is not None
-            and not all(ax.admits(m.t, e, p, f) for ax, e, p, f in zip(row.axes, m.errors, m.position, frefs))
+            and errors is not None
+            and not all(ax.admits(m.t, e, p, f) for ax, e, p, f in zip(row.axes, errors, m.position, frefs))
         )
         if veto:
             row.frames_seen["refused"] += 1  # found, but no sight of the sun by the learned offset
+            assert errors is not None
+            self._count_refusal(row, [p + e - f for e, p, f in zip(errors, m.position, frefs)])
+        elif errors is not None and settled:
+            row.refusals.clear()  # the learners take this frame: their runs end
         for k, ax in enumerate(row.axes):
-            err = m.errors[k] if m.errors is not None else None
+            err = errors[k] if errors is not None else None
             if assisted:
                 cmd = ax.update(m.t, err, m.position[k], reference[k], frefs[k], veto=veto, settled=settled)
             else:
@@ -262,6 +283,20 @@ class ClosedLoopController(Controller):
         row.sent = clamped
         row.sources[source] += 1
         return clamped, backtracking
+
+    @staticmethod
+    def _count_refusal(row: RowLoop, offsets: list[float]) -> None:
+        """Keep a run of refusals going (the learners restart on its 20th) only while its
+        frames agree on one offset on every axis; otherwise this frame starts a new run.
+        Without this, a reflection lit while a cloud hid the sun restarted a row's learner
+        on itself and steered the row 5 deg off for 16 minutes (docs/fisheye.md)."""
+        if row.refusals:
+            mean = [sum(z) / len(row.refusals) for z in zip(*row.refusals)]
+            if any(abs(z - c) > REFUSAL_SPREAD_DEG for z, c in zip(offsets, mean)):
+                row.refusals.clear()
+                for ax in row.axes:
+                    ax.learner.refused_run = 0  # this frame's refusal starts the run anew
+        row.refusals.append(offsets)
 
     # -- persistence and figures ------------------------------------------------------------
     def _save(self) -> None:

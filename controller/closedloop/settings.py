@@ -45,3 +45,12 @@ class ClosedLoopConfig:
         gt=0,
         le=90,
     )
+    max_offset_deg: float = setting(
+        5.0,
+        doc="The largest misalignment the assisted loop learns, per axis: a frame that would "
+        "measure more is no sight of the sun (a reflection that stays lit while a cloud hides "
+        "the sun), and is not used.",
+        unit="deg",
+        gt=0,
+        le=30,
+    )

@@ -156,3 +156,41 @@ def test_a_frame_taken_while_the_drive_is_on_its_way_is_not_used():
     base_targets(ctl)
     assert az.learner.estimate_deg == pytest.approx(0.4, abs=0.01)
     assert el.learner.estimate_deg == pytest.approx(-0.6, abs=0.01)
+
+
+@pytest.mark.parametrize("drift, restarts", [(0.0, True), (0.04, False)])
+def test_a_run_of_refusals_restarts_the_learner_only_on_one_offset(drift, restarts):
+    # 25 refused frames 3 deg off the learned offset: a panel that slipped gives the same
+    # offset each time (the learner restarts on it); a reflection lit while a cloud hides the
+    # sun gives one that moves at the sun's rate (0.04 deg a 10-s frame): never a restart
+    ctl = controller()
+    row, ref = dual_axis_row(ctl)
+    for k in range(31):
+        ctl._t = T + 10 * k
+        row.measured = Measurement(ctl._t, list(ref), [0.0, 0.0], list(ref))
+        base_targets(ctl)
+    for k in range(25):
+        ctl._t = T + 310 + 10 * k
+        row.measured = Measurement(ctl._t, list(ref), [3.0 + drift * k, 1.0 - drift * k], list(ref))
+        base_targets(ctl)
+    az, el = row.axes
+    assert row.frames_seen["refused"] >= 20
+    if restarts:
+        assert az.learner.estimate_deg == pytest.approx(3.0, abs=0.05)
+        assert el.learner.estimate_deg == pytest.approx(1.0, abs=0.05)
+    else:
+        assert az.learner.estimate_deg == pytest.approx(0.0, abs=0.01)
+        assert el.learner.estimate_deg == pytest.approx(0.0, abs=0.01)
+
+
+def test_a_frame_measuring_an_offset_no_row_has_is_not_even_a_refusal():
+    ctl = controller()
+    row, ref = dual_axis_row(ctl)
+    az, el = row.axes
+    for k in range(60):  # a reflection 20 deg off, lit for ten minutes while a cloud hides the sun
+        ctl._t = T + 10 * k
+        row.measured = Measurement(ctl._t, list(ref), [20.0, -3.0], list(ref))
+        _, out = base_targets(ctl)
+    assert out[0][0] == pytest.approx(list(ref))  # the reference and the (unlearned) offset
+    assert az.learner.accepted == 0 and az.learner.refused == 0 and el.learner.refused == 0
+    assert row.frames_seen["implausible"] == 59  # the first cycle was the drive's settling
