@@ -14,7 +14,10 @@ Then (:meth:`ClosedLoopController.targets`), only in TRACK mode and with no stow
 each axis's :class:`~.axis.ClosedLoopAxis` replaces the open-loop target: ``paper``, the
 setpoint moves by the fuzzy PID's step; ``assisted``, reference + learned offset + the
 PID's correction, using a frame only once the drive has reached its last target
-(:data:`SETTLE_DEG`) and only if the learner takes its offset on every axis of the row.  Everything else is the plain controller's: a weather stow, night stow,
+(:data:`SETTLE_DEG`), only if its offset is one a row can have (``max_offset_deg``) and
+only if the learner takes that offset on every axis of the row (a run of refusals restarts
+the learner only on one offset, :data:`REFUSAL_SPREAD_DEG`).  Everything else is the plain
+controller's: a weather stow, night stow,
 DIFFUSE and an operator's manual setpoint outrank the loop, and every target is clamped to
 the axis's limits on its way to the wire.  While a row backtracks, or its reference is at
 an axis limit (the camera's error then is not a pointing error), it follows the reference
