@@ -122,3 +122,33 @@ def test_the_panel_cameras_draw_the_sky_cameras_clouds_on_a_cloudy_day():
     # the same panel, sun and seeded noise but for the cloud layer (0 with clouds = false)
     changed = np.abs(images["clouds"] - images["clear"]).max(axis=-1) > 20
     assert changed.mean() > 0.05
+
+
+def test_a_reflection_lit_while_a_cloud_hides_the_sun_does_not_capture_a_row(monkeypatch):
+    """A sun-sized reflection fixed in the sky (a window, a neighbour's panel), drawn in every
+    panel camera and lit while a cloud hides the sun.  It had restarted the row's learner on
+    itself after 20 refusals: the row ended 30 deg off (docs/fisheye-rounds.md, the
+    forty-third round)."""
+    import heliotrack.panel_loop as panel_loop
+    from heliotrack.scenario import load_scenario
+    from hil.panelcam import PanelCamera
+    from hil.skycam.distractors import SpecularReflection
+
+    class Reflecting(PanelCamera):
+        def __post_init__(self) -> None:
+            super().__post_init__()
+            self.scene = self.scene.with_(distractors=(SpecularReflection(180.0, 10.0, strength=1.0),))
+
+    monkeypatch.setattr(panel_loop, "PanelCamera", Reflecting)
+    cfg = load_scenario(REPO / "config" / "hil-closedloop-clouds.toml")
+    r, s = run(cfg, "2024-03-20T06:00:00+00:00", 2.0, WindowedRun)
+    row = s["closedloop"]["rows"]["row-1"]
+    assert row["frames"].get("implausible", 0) > 50  # the reflection, seen alone
+    assert row["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
+    t0 = datetime(2024, 3, 20, 6, 30, tzinfo=UTC).timestamp()
+    for name in ("row-1", "dual-1"):
+        samples = np.array(r.samples[name])
+        late = samples[samples[:, 0] >= t0, 1]
+        assert late.size > 1000 and late.max() < 1.0, name  # never steered onto it
+    late_row = np.array(r.samples["row-1"])
+    assert np.percentile(late_row[late_row[:, 0] >= t0, 1], 95) <= 0.2
