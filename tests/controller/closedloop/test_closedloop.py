@@ -157,6 +157,21 @@ def test_learner_refuses_a_false_detection_and_persists(tmp_path):
     assert again.learner("row-1", "rotation").variance == pytest.approx(lr.variance)
 
 
+def test_a_first_frame_off_does_not_have_the_right_ones_refused():
+    lr = OffsetLearner()
+    lr.update(0.0, -1.06)  # the first frame, 0.44 deg off (a sun under cloud)
+    taken = [lr.update(10.0 * k, -1.5 + 0.01 * math.sin(k)) for k in range(1, 12)]
+    assert all(taken)
+    assert lr.estimate_deg == pytest.approx(-1.5, abs=0.06)
+    assert not lr.update(200.0, -1.0)  # and the gate is on again
+
+
+def test_a_learner_saved_before_the_start_count_is_taken_as_started():
+    old = {"estimate_deg": -1.5, "variance": 1e-4, "last_t": 0.0, "accepted": 300}
+    lr = OffsetLearner.from_dict(old)
+    assert not lr.update(10.0, 2.0)  # gated at once, not a start
+
+
 def test_learner_restarts_when_the_offset_really_moved():
     lr = OffsetLearner(restart_after=5)
     for k in range(20):
