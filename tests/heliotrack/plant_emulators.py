@@ -14,9 +14,11 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
 from pathlib import Path
 
 import cv2
+import numpy as np
 
 from firmware_protocol import Mode, Status, register
 from firmware_protocol.canopen import mirror_index
@@ -298,3 +300,37 @@ def wait_for(predicate, timeout: float, step: float = 0.1):
         if got or time.monotonic() >= deadline:
             return got
         time.sleep(step)
+
+
+def zenith_sun_site(t: float) -> tuple[float, float]:
+    """(latitude, longitude) in deg where the sun stands near the zenith at POSIX ``t``."""
+    import pvlib
+
+    doy = datetime.fromtimestamp(t, UTC).timetuple().tm_yday
+    lat = float(np.degrees(pvlib.solarposition.declination_spencer71(doy)))
+    eot_min = float(pvlib.solarposition.equation_of_time_spencer71(doy))
+    lon = ((12.0 - (t % 86400) / 3600.0 - eot_min / 60.0) * 15.0 + 180.0) % 360.0 - 180.0
+    return round(lat, 4), round(lon, 4)
+
+
+@dataclass
+class CameraDrive:
+    proc: subprocess.Popen
+    port: int  # Modbus TCP on 127.0.0.1
+    site: tuple[float, float]  # (latitude, longitude), deg
+
+
+def start_camera_drive(folder: Path, *extra: str) -> CameraDrive:
+    """``hil drive --link tcp --axes 1 --panel-camera folder ...``, its first line read."""
+    site = zenith_sun_site(time.time())
+    proc = subprocess.Popen(
+        [*HELIOTRACK, "hil", "drive", "--link", "tcp", "--axes", "1", "--heartbeat-timeout", "0"]
+        + ["--panel-camera", str(folder), "--site", str(site[0]), str(site[1]), *extra],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env(),
+    )
+    first = proc.stdout.readline().strip()
+    assert first.startswith("TCP 127.0.0.1:"), (first, proc.stderr.read() if proc.poll() is not None else "")
+    return CameraDrive(proc, int(first.rsplit(":", 1)[1]), site)
