@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -129,10 +130,31 @@ class MisalignmentStore:
     def __init__(self, path: str | Path | None = None):
         self.path = Path(path) if path is not None else None
         self.learners: dict[str, dict[str, OffsetLearner]] = {}
+        #: What loading the file said (a warning), "" when it loaded or did not exist yet.
+        self.note = ""
         if self.path is not None and self.path.exists():
-            data = json.loads(self.path.read_text())
-            for row, axes in data.get("rows", {}).items():
-                self.learners[row] = {ax: OffsetLearner.from_dict(d) for ax, d in axes.items()}
+            self._load(self.path)
+
+    def _load(self, path: Path) -> None:
+        """The file's learners; a file that is not one is moved aside (kept, never lost) and
+        the offsets are learned anew; one that cannot be read is left alone and not written."""
+        try:
+            text = path.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            self.note = f"{path}: learned row offsets not read ({exc}); learning anew, not saved"
+            self.path = None
+            return
+        try:
+            self.learners = parse_learners(json.loads(text))
+        except (ValueError, TypeError, AttributeError) as exc:
+            self.learners = {}
+            aside = path.with_name(f"{path.name}.invalid-{time.strftime('%Y%m%dT%H%M%SZ', time.gmtime())}")
+            try:
+                path.rename(aside)
+                self.note = f"{path}: not a file of learned row offsets ({exc}); kept it as {aside.name}; learning anew"
+            except OSError as err:
+                self.note = f"{path}: not a file of learned row offsets ({exc}); could not move it aside ({err.strerror}); learning anew, not saved"
+                self.path = None
 
     def learner(self, row: str, axis: str) -> OffsetLearner:
         return self.learners.setdefault(row, {}).setdefault(axis, OffsetLearner())
@@ -150,3 +172,37 @@ class MisalignmentStore:
             }
         }
         return atomic_write(p, json.dumps(data, indent=1) + "\n")
+
+
+def parse_learners(data: object) -> dict[str, dict[str, OffsetLearner]]:
+    """The learners of a saved ``{"rows": {row: {axis: learner}}}``.
+
+    Raises
+    ------
+    ValueError
+        Not that shape, a key a learner does not have, or a learner whose estimate or
+        variance is not a finite number (a variance must be > 0).
+    """
+    if not isinstance(data, dict) or not isinstance(data.get("rows", {}), dict):
+        raise ValueError('no {"rows": {...}} object')
+    out: dict[str, dict[str, OffsetLearner]] = {}
+    for row, axes in data.get("rows", {}).items():
+        if not isinstance(axes, dict) or not all(isinstance(d, dict) for d in axes.values()):
+            raise ValueError(f"row {row!r}: not an object of axes")
+        for ax, d in axes.items():
+            unknown = sorted(set(d) - set(OffsetLearner.__dataclass_fields__))
+            if unknown:  # a misspelt key would reset what it names to its default, unsaid
+                raise ValueError(f"row {row!r}, axis {ax!r}: unknown key(s) {', '.join(unknown)}")
+            bad = [
+                k
+                for k, v in d.items()
+                if not (v is None and k == "last_t")
+                and (isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v))
+            ]
+            if bad:
+                raise ValueError(f"row {row!r}, axis {ax!r}: {', '.join(bad)} not a finite number")
+        out[row] = {ax: OffsetLearner.from_dict(d) for ax, d in axes.items()}
+        for ax, lr in out[row].items():
+            if lr.variance <= 0:
+                raise ValueError(f"row {row!r}, axis {ax!r}: variance {lr.variance!r}, not > 0")
+    return out

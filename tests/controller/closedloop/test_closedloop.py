@@ -157,6 +157,47 @@ def test_learner_refuses_a_false_detection_and_persists(tmp_path):
     assert again.learner("row-1", "rotation").variance == pytest.approx(lr.variance)
 
 
+@pytest.mark.parametrize(
+    "text",
+    [
+        "{not json",
+        '["rows"]',
+        '{"rows": {"row-1": 3}}',
+        '{"rows": {"row-1": {"rotation": {"estimate_deg": "NaN", "variance": 1e-4}}}}',
+        '{"rows": {"row-1": {"rotation": {"estimate_deg": 1.0, "variance": 0.0, "last_t": 0.0, "accepted": 5}}}}',
+        '{"rows": {"row-1": {"rotation": {"estimate_deg": 1.0, "varience": 1.0}}}}',
+        '{"rows": {"row-1": {"rotation": {"estimate_deg": 1.0, "last_t": "noon"}}}}',
+    ],
+    ids=[
+        "not json",
+        "a list",
+        "a row not an object",
+        "NaN",
+        "zero variance",
+        "a misspelt key",
+        "a time as text",
+    ],
+)
+def test_a_file_of_learned_offsets_that_is_not_one_is_kept_aside(tmp_path, text):
+    path = tmp_path / "offsets.json"
+    path.write_text(text.replace('"NaN"', "NaN"))
+    store = MisalignmentStore(path)
+    assert store.learners == {} and "not a file of learned row offsets" in store.note
+    (aside,) = tmp_path.glob("offsets.json.invalid-*")
+    assert aside.read_text() == text.replace('"NaN"', "NaN")  # kept as it was
+    assert store.path == path  # learned anew, and saved where it was
+    store.learner("row-1", "rotation").update(0.0, -1.5)
+    store.save()
+    assert MisalignmentStore(path).learner("row-1", "rotation").estimate_deg == pytest.approx(-1.5, abs=0.01)
+
+
+def test_a_file_of_learned_offsets_that_cannot_be_read_is_left_alone(tmp_path):
+    path = tmp_path / "offsets.json"
+    path.mkdir()  # reads fail (IsADirectoryError) as a file without permission would
+    store = MisalignmentStore(path)
+    assert "not read" in store.note and store.path is None and path.is_dir()
+
+
 def test_a_first_frame_off_does_not_have_the_right_ones_refused():
     lr = OffsetLearner()
     lr.update(0.0, -1.06)  # the first frame, 0.44 deg off (a sun under cloud)
