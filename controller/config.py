@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-from .closedloop.settings import ClosedLoopConfig
+from .closedloop.settings import TRACKER_FIELD, ClosedLoopConfig
 from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .drives.registry import link_config_types
@@ -335,6 +335,17 @@ class Config:
         for i, name in enumerate(self.closedloop.trackers if self.closedloop is not None else ()):
             if name not in names:
                 raise at.child("closedloop").child("trackers").item(i).error("a tracker name", name)
+        cl = self.closedloop
+        looped = (cl.trackers or names) if cl is not None and cl.enabled else ()
+        if cl is not None and cl.frames != "hil" and len(looped) > 1 and TRACKER_FIELD not in cl.frames:
+            raise (
+                at.child("closedloop")
+                .child("frames")
+                .error(
+                    f'one camera per panel: "{TRACKER_FIELD}" in it ({len(looped)} trackers in the loop)',
+                    cl.frames,
+                )
+            )
         return c
 
     def _check_state_paths(self, at: Where) -> None:

@@ -100,6 +100,7 @@ class RowLoop:
     measured: Measurement | None = None
     active: bool = False  # steered by the loop in the previous cycle
     sent: list[float] | None = None  # the targets of the previous cycle, clamped (None: not ours)
+    sent_t: float | None = None  # when a setpoint last went to the row (s, the controller's clock)
     refusals: list[list[float]] = field(default_factory=list)  # offsets of the refused run
     sources: Counter = field(default_factory=Counter)
     frames_seen: Counter = field(default_factory=Counter)
@@ -112,6 +113,12 @@ class RowLoop:
                 ax.setpoint = None
         self.active = False
         self.sent = None
+
+    def fresh(self, frame_t: float, t: float, period_s: float) -> bool:
+        """A frame taken at ``frame_t`` shows the panel where it is at ``t``: taken after
+        the row's last setpoint (within a period when there was none) and not after ``t``."""
+        since = self.sent_t if self.sent_t is not None else t - period_s
+        return since < frame_t <= t
 
     def settled(self, position: list[float]) -> bool:
         """The drive has reached the targets this loop sent it last cycle."""
@@ -139,6 +146,8 @@ class ClosedLoopController(Controller):
         self.closedloop = cl
         bundle = load_fisheye_bundle(cl.calibration)
         self.misalignment = MisalignmentStore(cl.state)
+        if self.misalignment.note:
+            log.warning("closed loop: %s", self.misalignment.note)
         names = set(cl.trackers) if cl.trackers else {tr.cfg.name for tr in self.trackers}
         max_err = cl.max_error_deg if cl.mode == "assisted" else 90.0
         self.rows: list[RowLoop] = []
@@ -157,6 +166,15 @@ class ClosedLoopController(Controller):
                 for name in axis_names(tr.cfg)
             ]
             self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], FisheyeEstimator(bundle), axes))
+            if any(ax.learner.accepted for ax in axes):
+                log.info(
+                    "closed loop: %s starts from its learned offset %s (%s)",
+                    tr.cfg.name,
+                    ", ".join(
+                        f"{n} {ax.learner.estimate_deg:+.3f} deg" for n, ax in zip(axis_names(tr.cfg), axes)
+                    ),
+                    cl.state,
+                )
         self._t = math.nan
         self._saved_at = -math.inf
 
@@ -180,14 +198,23 @@ class ClosedLoopController(Controller):
             log.debug("%s: position not read: %s", tr.cfg.name, exc)
             return None
         position = [a.actual_deg for a in state.axes][: tr.cfg.axes]
-        reference = None
-        if est is not None:
-            seam = lowest_sun_azimuth(self.config.site.latitude)
-            reference = sp.tracking(est, [tr.cfg], [state], seam)[0][0]
+        seam = lowest_sun_azimuth(self.config.site.latitude)
+
+        def reference_at(e: SunEstimate | None) -> list[float] | None:
+            return sp.tracking(e, [tr.cfg], [state], seam)[0][0] if e is not None else None
+
+        reference = reference_at(est)
         frame = await asyncio.to_thread(row.frames.grab, t)
         if frame is None:
             row.frames_seen["no frame"] += 1
             return Measurement(t, position, None, reference)
+        if not row.fresh(frame.time, t, self.config.control.period_s):
+            # taken before the row's last setpoint (a camera slower than the loop, or the
+            # same frame again): its error is one the loop has already corrected
+            row.frames_seen["stale frame"] += 1
+            return Measurement(t, position, None, reference)
+        if frame.time != t:  # a live camera's frame: the sun where it was when the frame was taken
+            reference = reference_at(self.sun.estimate(frame.time, now=t))
         res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None)
         if not res.found or res.d_cam is None:
             row.frames_seen[res.reason or "not found"] += 1
@@ -203,6 +230,8 @@ class ClosedLoopController(Controller):
         tracking = order is None and decision.mode == ControlMode.TRACK
         for row in self.rows:
             i = row.runtime.index
+            if math.isfinite(self._t):
+                row.sent_t = self._t  # whatever this cycle sends may move the panel
             if not tracking:
                 row.restart()
                 continue

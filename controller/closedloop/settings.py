@@ -7,11 +7,14 @@ the normal, and a fuzzy PID per axis moves the setpoint (:mod:`.axis`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
-from ..schema import setting
+from ..schema import Where, setting
+
+#: The placeholder of ``[closedloop] frames`` that names each tracker's own camera.
+TRACKER_FIELD = "{tracker}"
 
 ClosedLoopMode = Literal["assisted", "paper"]
 
@@ -31,8 +34,15 @@ class ClosedLoopConfig:
         doc="The panel cameras' lens bundle (fisheye TOML without [orientation]; docs/fisheye.md).",
         path="file",
     )
-    frames: Literal["hil"] = setting(
-        "hil", doc='Where the panel cameras\' frames come from: "hil" (rendered by the simulator).'
+    frames: str = setting(
+        "hil",
+        doc='Where the panel cameras\' frames come from: "hil" (rendered by the simulator), or '
+        'for `heliotrack run` each camera\'s folder of timestamped images, "device:N" or '
+        'stream URL, with "{tracker}" standing for the tracker\'s name (e.g. '
+        '"/srv/panelcams/{tracker}"; needed when several trackers are in the loop). A frame is '
+        "used only if it was taken after the row's last setpoint. Relative paths are from "
+        "this file's folder.",
+        nonempty=True,
     )
     trackers: tuple[str, ...] = setting((), doc="Trackers with a panel camera (empty: every tracker).")
     state: Path | None = setting(
@@ -54,3 +64,21 @@ class ClosedLoopConfig:
         gt=0,
         le=30,
     )
+
+    def __schema_check__(self, at: Where) -> ClosedLoopConfig:
+        try:
+            spec = self.frames.format(tracker="x")
+        except (KeyError, IndexError, ValueError):
+            raise at.child("frames").error(
+                'a camera address whose only field is "{tracker}" (write other braces twice)', self.frames
+            ) from None
+        if self.frames == "hil" or spec.startswith("device:") or "://" in spec:
+            return self
+        folder = Path(self.frames).expanduser()
+        if not folder.is_absolute():
+            folder = at.folder / folder  # not resolved: "{tracker}" need not exist yet
+        return replace(self, frames=str(folder))
+
+    def camera(self, tracker: str) -> str:
+        """The frames of ``tracker``'s panel camera (``frames`` with its name filled in)."""
+        return self.frames.format(tracker=tracker)

@@ -194,3 +194,70 @@ def test_a_frame_measuring_an_offset_no_row_has_is_not_even_a_refusal():
     assert out[0][0] == pytest.approx(list(ref))  # the reference and the (unlearned) offset
     assert az.learner.accepted == 0 and az.learner.refused == 0 and el.learner.refused == 0
     assert row.frames_seen["implausible"] == 59  # the first cycle was the drive's settling
+
+
+def row_state(angle: float):
+    from controller.drives.base import AxisState, DriveState
+    from firmware_protocol import Fault, Mode, Status
+
+    axis = AxisState(angle, angle, 0.0, Status.AT_TARGET, Fault(0), Mode.AUTO)
+    return DriveState(1, (axis,))
+
+
+@pytest.mark.parametrize(
+    ("frame_dt", "used"),
+    [(-5.0, True), (-12.0, False), (-25.0, False), (1.0, False)],
+    ids=["after the last setpoint", "before it", "the frame before that", "from the future"],
+)
+def test_a_live_cameras_frame_is_used_only_if_taken_since_the_last_setpoint(frame_dt, used):
+    """A real camera's frame carries its own time: one taken before the row's last setpoint
+    (a camera slower than the loop, the same file read twice) shows an error the loop has
+    already corrected, and stepping on it again overshoots."""
+    import asyncio
+
+    import numpy as np
+
+    from controller.sun.camera import CameraFrame
+
+    ctl = controller()
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    row.runtime.drive.read_state = mock.AsyncMock(return_value=row_state(10.0))
+    row.runtime.configured = True
+    t = T + 10.0
+    row.sent_t = T  # the last cycle's setpoint went at T
+    image = np.zeros((240, 320, 3), np.uint8)
+    row.frames.grab.return_value = CameraFrame(image, t + frame_dt, "f.png")
+    row.estimator = mock.Mock()
+    row.estimator.estimate_image.return_value = mock.Mock(found=False, d_cam=None, reason="no_sun_glare")
+    m = asyncio.run(ctl._measure(row, t, ctl.sun.estimate(t)))
+    assert m is not None and m.errors is None
+    assert row.estimator.estimate_image.called is used
+    assert row.frames_seen == ({"no_sun_glare": 1} if used else {"stale frame": 1})
+
+
+def test_a_frame_is_measured_against_the_sun_at_its_own_time():
+    """The offset a frame measures is the panel's position minus where the sun stood when
+    the frame was taken, not at the cycle's time (10 s later the sun has moved 0.04 deg)."""
+    import asyncio
+
+    import numpy as np
+
+    from controller.sun.camera import CameraFrame
+
+    ctl = controller()
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    t = T + 10.0
+    ref_then = Controller.targets(ctl, ctl.sun.estimate(t - 9.0), ModeDecision(ControlMode.TRACK, "up"), None)
+    ref_now = Controller.targets(ctl, ctl.sun.estimate(t), ModeDecision(ControlMode.TRACK, "up"), None)
+    assert abs(ref_then[1][0][0] - ref_now[1][0][0]) > 0.02
+    row.runtime.drive.read_state = mock.AsyncMock(return_value=row_state(ref_now[1][0][0]))
+    row.runtime.configured = True
+    row.sent_t = T
+    row.frames.grab.return_value = CameraFrame(np.zeros((240, 320, 3), np.uint8), t - 9.0, "f.png")
+    row.estimator = mock.Mock()
+    row.estimator.estimate_image.return_value = mock.Mock(
+        found=True, d_cam=np.array([np.sin(np.radians(0.7)), 0.0, np.cos(np.radians(0.7))])
+    )
+    m = asyncio.run(ctl._measure(row, t, ctl.sun.estimate(t)))
+    assert m is not None and m.frame_reference == pytest.approx(ref_then[1][0], abs=1e-9)
+    assert m.errors == pytest.approx([0.7], abs=1e-6)
