@@ -1,11 +1,12 @@
-"""The simulator's side of the panel-mounted closed loop (``[closedloop]``, docs/fisheye.md).
+"""The panel cameras of the panel-mounted closed loop (``[closedloop]``, docs/fisheye.md).
 
-:func:`make_controller` builds the plain :class:`~controller.loop.Controller`, or, with
-``[closedloop] enabled``, the :class:`~controller.closedloop.panel.ClosedLoopController`
+In the simulator, :func:`make_controller` builds the plain :class:`~controller.loop.Controller`,
+or, with ``[closedloop] enabled``, the :class:`~controller.closedloop.panel.ClosedLoopController`
 whose panel cameras are the world's (:class:`hil.panelcam.PanelCamera`): each renders, at
 the simulated time, the sky seen along the panel's true normal (the drive's output angles
 plus the row's ``[[hil.mount_offsets]]``) with the clouds' beam transmittance over the sun
-(0 in ``[[hil.sun_gaps]]``).
+(0 in ``[[hil.sun_gaps]]``).  On a plant (``heliotrack run``, ``check``),
+:func:`open_panel_cameras` opens each tracker's real camera from ``[closedloop] frames``.
 """
 
 from __future__ import annotations
@@ -13,8 +14,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from controller.clock import Clock
 from controller.closedloop.panel import ClosedLoopController, axis_names
-from controller.config import SingleAxisTracker
+from controller.config import Config, SingleAxisTracker
 from controller.errors import ConfigError
 from controller.loop import Controller
 from controller.sun.camera import CallableFrameSource, FrameSource
@@ -46,7 +48,7 @@ def panel_frames(
     """The world's panel camera of every tracker in the closed loop, by tracker name."""
     cl = config.closedloop
     assert cl is not None
-    names = set(cl.trackers) if cl.trackers else {tr.name for tr in config.trackers}
+    names = set(looped_trackers(config))
     site = CameraSite(config.site.latitude, config.site.longitude, config.site.altitude)
     cam_cfg = config.hil.panel_camera
     out: dict[str, FrameSource] = {}
@@ -71,6 +73,42 @@ def panel_frames(
     return out
 
 
+def looped_trackers(config: Config) -> list[str]:
+    """The names of the trackers in the closed loop (none when it is off), in plant order."""
+    cl = config.closedloop
+    if cl is None or not cl.enabled:
+        return []
+    return [tr.name for tr in config.trackers if not cl.trackers or tr.name in cl.trackers]
+
+
+def open_panel_cameras(
+    config: Config, clock: Clock | None = None, only: str | None = None
+) -> dict[str, FrameSource]:
+    """Each looped tracker's panel camera on a plant (or tracker ``only``'s), by tracker
+    name (``[closedloop] frames`` with ``{tracker}`` filled in: a folder, ``device:N`` or a
+    URL).
+
+    Raises
+    ------
+    ConfigError
+        ``frames = "hil"`` (the simulator's renderer), or a camera that cannot be opened
+        (the ones opened before it are closed).
+    """
+    from .sun_sources import open_frame_source
+
+    cl = config.closedloop
+    out: dict[str, FrameSource] = {}
+    try:
+        for name in looped_trackers(config) if only is None else [only]:
+            assert cl is not None
+            out[name] = open_frame_source(cl.camera(name), clock, "closedloop.frames")
+    except BaseException:
+        for source in out.values():
+            source.close()
+        raise
+    return out
+
+
 def make_controller(
     config: ScenarioConfig,
     world: World,
@@ -83,8 +121,13 @@ def make_controller(
     cl = config.closedloop
     if cl is None or not cl.enabled:
         return Controller(config, *args, **kwargs)
-    if cl.frames != "hil":  # pragma: no cover - the schema allows only "hil" today
-        raise ConfigError(f"[closedloop] frames = {cl.frames!r}: the simulator renders only 'hil'")
+    if cl.frames != "hil":  # a real camera would see the real sky, not the simulated panel's
+        raise ConfigError(
+            config.file,
+            "closedloop.frames",
+            '"hil" in the simulator (its panel cameras are rendered)',
+            cl.frames,
+        )
     frames = panel_frames(config, world, transmittance)
     return ClosedLoopController(config, *args, panel_frames=frames, **kwargs)
 

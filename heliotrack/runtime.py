@@ -161,6 +161,12 @@ class StateFolder:
         return self.path / "sunpath.json"
 
     @property
+    def misalignment(self) -> Path:
+        """The panel-mounted closed loop's learned row offsets, unless ``[closedloop] state``
+        names a file."""
+        return self.path / "misalignment.json"
+
+    @property
     def shutdown(self) -> Path:
         """The trackers the last shutdown stowed (resumed by the next start)."""
         return self.path / "shutdown.json"
@@ -179,8 +185,9 @@ class StateFolder:
 
 def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, StateFolder | None]:
     """Create (if needed) and check the state folder; the config with its state files in it:
-    the store (``[store] path``) and the sun-path state file (``[sunpath] state``), each
-    unless the plant file names one.
+    the store (``[store] path``), the sun-path state file (``[sunpath] state``) and the
+    closed loop's learned offsets (``[closedloop] state``), each unless the plant file names
+    one.
 
     Without a folder, the config is unchanged (state persists only where the plant file
     says).
@@ -211,6 +218,9 @@ def use_state_folder(config: Config, folder: Path | None) -> tuple[Config, State
         config = replace(config, store=replace(config.store, path=state.store))
     if config.sunpath.state is None:
         config = replace(config, sunpath=replace(config.sunpath, state=state.sunpath))
+    cl = config.closedloop
+    if cl is not None and cl.state is None:
+        config = replace(config, closedloop=replace(cl, state=state.misalignment))
     return config, state
 
 

@@ -99,6 +99,14 @@ def _devices(config: Config, clock: Clock) -> list[tuple[str, str, Callable[[], 
     if config.wind is not None:
         w = config.wind
         out.append(("anemometer", _where(links[w.link], w.device_id), partial(_anemometer, config, clock)))
+    from heliotrack.panel_loop import looped_trackers
+
+    for tracker in looped_trackers(config):
+        assert config.closedloop is not None
+        spec = config.closedloop.camera(tracker)
+        out.append(
+            (f"{tracker}/camera", spec, partial(asyncio.to_thread, _panel_camera, config, clock, tracker))
+        )
     cameras = {"hotspot": ("hotspot",), "fisheye": ("fisheye",), "fused": ("hotspot", "fisheye")}
     for name in cameras.get(config.control.sun_source, ()):
         label = "camera" if name == "hotspot" else name
@@ -311,15 +319,10 @@ def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, 
     assert hs is not None
     bundle = load_fisheye_bundle(hs.calibration) if name == "fisheye" else load_bundle(hs.calibration)
     width, height = bundle.camera.width, bundle.camera.height
-    source = open_frame_source(hs.frames, clock, f"{name}.frames")
-    try:
-        frame = source.first_frame(clock.now(), CAMERA_TIMEOUT_S)
-    finally:
-        source.close()
+    frame, text = _first_frame(open_frame_source(hs.frames, clock, f"{name}.frames"), hs.frames, clock)
     if frame is None:
-        return False, f"no frame from {hs.frames} within {CAMERA_TIMEOUT_S:g} s"
+        return False, text
     h, w = frame.image.shape[:2]
-    text = f"frame {w}x{h}" + (f" ({frame.name})" if frame.name else "")
     if (w, h) != (width, height):
         return False, f"{text}, the calibration bundle expects {width}x{height}"
     grey = grey8(frame.image)
@@ -328,6 +331,51 @@ def _camera(config: Config, clock: Clock, name: str = "hotspot") -> tuple[bool, 
         return True, text + (f"; {judged.replace('_', ' ')}" if judged else "")
     ok, said = _sky_camera_orientation(config, bundle, frame)
     return ok, f"{text}; {said}"
+
+
+def _first_frame(source, spec: str, clock: Clock) -> tuple[CameraFrame | None, str]:
+    """(the first frame of ``source``, "frame WxH (name)"), or (None, why not); closes it."""
+    try:
+        frame = source.first_frame(clock.now(), CAMERA_TIMEOUT_S)
+    finally:
+        source.close()
+    if frame is None:
+        return None, f"no frame from {spec} within {CAMERA_TIMEOUT_S:g} s"
+    h, w = frame.image.shape[:2]
+    return frame, f"frame {w}x{h}" + (f" ({frame.name})" if frame.name else "")
+
+
+def _panel_camera(config: Config, clock: Clock, tracker: str) -> tuple[bool, str]:
+    """A frame from ``tracker``'s panel camera (``[closedloop] frames``): its size against
+    the ``[closedloop] calibration`` lens, its age, and where the sun lies from the panel's
+    normal (the camera's axis) when it is in view."""
+    import math
+
+    from controller.calibration.fisheye_bundle import load_fisheye_bundle
+    from controller.vision.fisheye import FisheyeEstimator
+    from heliotrack.panel_loop import open_panel_cameras
+
+    cl = config.closedloop
+    assert cl is not None
+    bundle = load_fisheye_bundle(cl.calibration)
+    source = open_panel_cameras(config, clock, only=tracker)[tracker]
+    frame, text = _first_frame(source, cl.camera(tracker), clock)
+    if frame is None:
+        return False, text
+    h, w = frame.image.shape[:2]
+    if (w, h) != (bundle.camera.width, bundle.camera.height):
+        return False, f"{text}, the [closedloop] lens expects {bundle.camera.width}x{bundle.camera.height}"
+    age = clock.now() - frame.time
+    if age > config.control.period_s:  # the loop uses only frames taken since its last setpoint
+        return (
+            False,
+            f"{text}, {age:.0f} s old: the loop needs one at least every {config.control.period_s:g} s",
+        )
+    res = FisheyeEstimator(bundle).estimate_image(frame.image, None)
+    if not res.found or res.d_cam is None:
+        return True, f"{text}; no sun in view ({res.reason})"
+    off = math.degrees(math.acos(max(-1.0, min(1.0, float(res.d_cam[2])))))
+    return True, f"{text}; the sun {off:.2f} deg from the panel's normal"
 
 
 def _sky_camera_orientation(config: Config, bundle: FisheyeBundle, frame: CameraFrame) -> tuple[bool, str]:

@@ -18,6 +18,7 @@ import os
 import signal
 import time
 from collections import Counter
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -124,17 +125,16 @@ class Service:
     # -- the service ---------------------------------------------------------------------------
     async def serve(self, duration: float | None) -> int:
         from controller.clock import RealClock
+        from controller.closedloop.panel import ClosedLoopController
         from controller.loop import Controller
         from controller.store import open_store_or_none
         from heliotrack.devices import open_anemometer, open_drives, open_pyranometer
         from heliotrack.manual_overrides import restore_overrides
+        from heliotrack.panel_loop import open_panel_cameras
         from heliotrack.runtime import resume_last_shutdown
         from heliotrack.stow_requests import restore_stow_requests
         from heliotrack.sun_sources import build_sun_source
 
-        if self.config.closedloop is not None and self.config.closedloop.enabled:
-            log.error('[closedloop] frames = "hil": the panel cameras exist only in `heliotrack simulate`')
-            return 2
         loop = asyncio.get_running_loop()
         self.stop = asyncio.Event()
         for sig in (signal.SIGTERM, signal.SIGINT):
@@ -143,10 +143,13 @@ class Service:
         # in a thread: a camera's estimator takes seconds to build, signals stay heard
         sun, sensor = await asyncio.to_thread(build_sun_source, config, None, clock.now(), clock)
         server = store = None
+        panels: dict = {}
         try:
+            panels = open_panel_cameras(config, clock)
             if config.store.path is not None:
                 store = open_store_or_none(config.store.path, log.warning)
-            ctl = self.ctl = Controller(
+            kind = partial(ClosedLoopController, panel_frames=panels) if panels else Controller
+            ctl = self.ctl = kind(
                 config,
                 open_drives(config),
                 sun,
@@ -179,6 +182,8 @@ class Service:
                 server.stop()
             if sensor is not None:
                 sensor.close()
+            for source in panels.values():
+                source.close()
             if store is not None:
                 store.close()
 
@@ -370,3 +375,25 @@ class Service:
         )
         for name, why in ctl.sensors_down.items():
             log.warning("%s still not answering at exit: %s", name, why)
+        self._log_closedloop(ctl)
+
+    @staticmethod
+    def _log_closedloop(ctl) -> None:
+        """One line per row in the panel-mounted closed loop: what it learned, what set its
+        setpoints and what its camera gave."""
+        summary = getattr(ctl, "closedloop_summary", None)
+        if summary is None:
+            return
+        for name, row in summary()["rows"].items():
+            learned = ", ".join(
+                f"{axis} {v:+.3f} deg (sigma {row['learned_sigma_deg'][axis]:.3f})"
+                for axis, v in row["learned_offset_deg"].items()
+            )
+            log.info(
+                "closed loop %s: learned offset %s; setpoints %s; frames %s",
+                name,
+                learned,
+                ", ".join(f"{k} {v}" for k, v in sorted(row["setpoints"].items())) or "none",
+                ", ".join(f"{k} {v}" for k, v in sorted(row["frames"].items())) or "none",
+                extra={"fields": {"closedloop": {name: row}}},
+            )
