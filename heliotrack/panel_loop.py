@@ -22,6 +22,7 @@ from controller.loop import Controller
 from controller.sun.camera import CallableFrameSource, FrameSource
 from hil.camera import Site as CameraSite
 from hil.panelcam import PanelCamera
+from hil.skycam.distractors import SpecularReflection
 
 from .renderers import cloud_layer
 from .scenario import ScenarioConfig
@@ -64,6 +65,10 @@ def panel_frames(
             scale=cam_cfg.scale,
             noise=cam_cfg.noise,
             clouds=cloud_layer(config) if cam_cfg.clouds else None,
+            distractors=tuple(
+                SpecularReflection(r.azimuth_deg, r.elevation_deg, strength=r.strength)
+                for r in cam_cfg.reflections
+            ),
         )
 
         def angles(name: str = tr.name) -> list[float]:

@@ -287,6 +287,16 @@ class HilSunGap:
 
 
 @dataclass(frozen=True, kw_only=True)
+class HilReflection:
+    """A sun-sized specular reflection fixed in the sky (a window, a neighbour's glass), seen
+    by every panel camera, lit whatever the clouds do."""
+
+    azimuth_deg: float = setting(doc="Its azimuth, clockwise from north.", unit="deg", ge=0, lt=360)
+    elevation_deg: float = setting(doc="Its elevation above the horizon.", unit="deg", ge=-10, le=90)
+    strength: float = setting(1.0, doc="Its brightness relative to the sun's glare.", gt=0, le=1)
+
+
+@dataclass(frozen=True, kw_only=True)
 class HilPanelCamera:
     """The cameras on the panels (``[closedloop]``): the paper's fisheye, looking along the
     panel's normal, rendered at a fraction of its 640 x 480 pixels."""
@@ -297,6 +307,9 @@ class HilPanelCamera:
         True,
         doc="Draw the sky camera's procedural cloud layer on cloudy days (sunlit edges, "
         "thin cloud over the sun); the sun's own visibility follows the scenario's sky.",
+    )
+    reflections: tuple[HilReflection, ...] = setting(
+        (), doc="Sun-sized reflections every panel camera sees (distractors)."
     )
 
 
@@ -446,6 +459,7 @@ __all__ = [
     "HilFaults",
     "HilMountOffset",
     "HilPanelCamera",
+    "HilReflection",
     "HilSkyCamera",
     "HilSunGap",
     "HilWireRates",

@@ -77,7 +77,8 @@ class PanelCamera:
     row's geometry (single-axis); ``angles``: the panel's true angles (deg, with the
     mounting offset: ``DriveFirmware.panel_angles()``); ``transmittance``: the clouds' beam
     transmittance over the sun (0: hidden, 1: clear); ``clouds``: the cloud layer drawn in
-    the frame (None: a clear sky), the one the sky camera draws.
+    the frame (None: a clear sky), the one the sky camera draws; ``distractors``: glares
+    that are not the sun (:mod:`hil.skycam.distractors`), such as a fixed reflection.
     """
 
     kind: str
@@ -87,10 +88,11 @@ class PanelCamera:
     scale: float = 0.5
     noise: bool = True
     clouds: CloudField | None = None
+    distractors: tuple = ()  # hil.skycam.distractors: SpecularReflection, AircraftGlint, ...
 
     def __post_init__(self) -> None:
         self.scene = sky_profile("seed", noise=self.noise).with_(
-            lens=panel_lens(self.scale), site=self.site, clouds=self.clouds
+            lens=panel_lens(self.scale), site=self.site, clouds=self.clouds, distractors=self.distractors
         )
 
     def enu_from_camera(self, angles: list[float]) -> np.ndarray:
