@@ -44,3 +44,27 @@ def single_axis_error(d_cam: np.ndarray) -> float:
     """Rotation error (deg) of a single-axis row from the sun's camera-frame direction."""
     d = np.asarray(d_cam, float)
     return math.degrees(math.atan2(d[0], d[2]))
+
+
+def row_normal(rotation_deg: float, axis_azimuth: float, axis_tilt: float) -> np.ndarray:
+    """Unit ENU normal of a single-axis row at ``rotation_deg`` (pvlib's convention for the
+    rotation, axis azimuth and tilt: ``pvlib.tracking.calc_surface_orientation``)."""
+    from pvlib.tracking import calc_surface_orientation
+
+    o = calc_surface_orientation(rotation_deg, axis_tilt, axis_azimuth)
+    tilt = math.radians(float(np.ravel(o["surface_tilt"])[0]))
+    az = math.radians(float(np.ravel(o["surface_azimuth"])[0]))
+    return np.array([math.sin(tilt) * math.sin(az), math.sin(tilt) * math.cos(az), math.cos(tilt)])
+
+
+def row_enu_from_camera(rotation_deg: float, axis_azimuth: float, axis_tilt: float) -> np.ndarray:
+    """``enu_from_camera`` of a camera on a row at ``rotation_deg`` (columns x, y, z in ENU):
+    z the normal, x across the row towards increasing rotation, y = z x x (along the row)."""
+    h = 1e-3
+    z = row_normal(rotation_deg, axis_azimuth, axis_tilt)
+    x = row_normal(rotation_deg + h, axis_azimuth, axis_tilt) - row_normal(
+        rotation_deg - h, axis_azimuth, axis_tilt
+    )
+    x = x - z * float(x @ z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], axis=1)

@@ -40,7 +40,7 @@ from typing import Any
 
 from .. import setpoints as sp
 from ..calibration.fisheye_bundle import load_fisheye_bundle
-from ..config import Config, DualAxisTracker, TrackerConfig
+from ..config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
 from ..drives.base import DriveCommError
 from ..geometry import lowest_sun_azimuth
 from ..loop import Controller
@@ -48,10 +48,11 @@ from ..modes import ControlMode, ModeDecision
 from ..records import TrackerRuntime
 from ..safety import StowOrder, clamp_targets
 from ..sun.camera import FrameSource
-from ..sun.types import SunEstimate
+from ..sun.types import SunEstimate, azel_to_enu
 from ..vision.fisheye import FisheyeEstimator
+from ..vision.fisheye.gates import CameraPrior
 from .axis import ClosedLoopAxis
-from .geometry import dual_axis_errors, single_axis_error
+from .geometry import dual_axis_enu_from_camera, dual_axis_errors, row_enu_from_camera, single_axis_error
 from .learner import MisalignmentStore
 
 log = logging.getLogger("heliotrack.closedloop")
@@ -79,6 +80,23 @@ def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list
     return [single_axis_error(d_cam)]
 
 
+def expected_sun(
+    cfg: TrackerConfig, sun: SunEstimate, position: list[float], axes: list[ClosedLoopAxis]
+) -> CameraPrior:
+    """Where the sun ``sun`` lies in the panel camera's frame for a drive at ``position``
+    (deg), the panel sitting off it by minus each axis's learned offset; its sigma (deg)
+    that of the learned offsets together."""
+    panel = [p - ax.learner.estimate_deg for p, ax in zip(position, axes)]
+    if isinstance(cfg, DualAxisTracker):
+        enu_from_camera = dual_axis_enu_from_camera(panel[0], panel[1])
+    else:
+        assert isinstance(cfg, SingleAxisTracker)
+        enu_from_camera = row_enu_from_camera(panel[0], cfg.axis_azimuth, cfg.axis_tilt)
+    d_cam = enu_from_camera.T @ azel_to_enu(sun.az_deg, sun.el_deg)
+    sigma = math.sqrt(sum(ax.learner.variance for ax in axes) + sun.sigma_deg**2)
+    return CameraPrior(d_cam, sigma)
+
+
 @dataclass
 class Measurement:
     """What one cycle measured of a row: at the frame's time ``t``."""
@@ -104,6 +122,12 @@ class RowLoop:
     refusals: list[list[float]] = field(default_factory=list)  # offsets of the refused run
     sources: Counter = field(default_factory=Counter)
     frames_seen: Counter = field(default_factory=Counter)
+    last_source: str = ""  # what set this cycle's setpoint ("": not steered by the loop)
+
+    def count(self, source: str) -> None:
+        """This cycle's setpoint came from ``source`` (camera, learned, settling, hold, reference)."""
+        self.sources[source] += 1
+        self.last_source = source
 
     def restart(self) -> None:
         """Out of closed loop: the PID forgets its history, the paper's setpoint its value."""
@@ -213,9 +237,18 @@ class ClosedLoopController(Controller):
             # same frame again): its error is one the loop has already corrected
             row.frames_seen["stale frame"] += 1
             return Measurement(t, position, None, reference)
+        sun = est
         if frame.time != t:  # a live camera's frame: the sun where it was when the frame was taken
-            reference = reference_at(self.sun.estimate(frame.time, now=t))
+            sun = self.sun.estimate(frame.time, now=t)
+            reference = reference_at(sun)
         res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None)
+        if res.reason == "ambiguous_candidates" and sun is not None and self.closedloop.mode == "assisted":
+            # glares of one size (a reflection beside the sun): the one where the sun must be,
+            # by the panel's pose (the drive's position less the learned offset)
+            prior = expected_sun(tr.cfg, sun, position, row.axes)
+            res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None, prior)
+            if res.found:
+                row.frames_seen["chosen by the pose"] += 1
         if not res.found or res.d_cam is None:
             row.frames_seen[res.reason or "not found"] += 1
             return Measurement(t, position, None, reference)
@@ -232,6 +265,7 @@ class ClosedLoopController(Controller):
             i = row.runtime.index
             if math.isfinite(self._t):
                 row.sent_t = self._t  # whatever this cycle sends may move the panel
+            row.last_source = ""
             if not tracking:
                 row.restart()
                 continue
@@ -255,11 +289,11 @@ class ClosedLoopController(Controller):
             if assisted:
                 for ax in row.axes:
                     ax.learner.predict(self._t)
-                row.sources["learned"] += 1
+                row.count("learned")
                 follow = [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)]
                 row.sent = clamp_targets(cfg, follow)
                 return follow, backtracking
-            row.sources["reference"] += 1
+            row.count("reference")
             return reference, backtracking
         if not row.active:
             for ax, p in zip(row.axes, m.position):
@@ -313,7 +347,7 @@ class ClosedLoopController(Controller):
                 ax.correction -= math.copysign(min(abs(t - c), abs(ax.correction)), t - c)
         row.active = True
         row.sent = clamped
-        row.sources[source] += 1
+        row.count(source)
         return clamped, backtracking
 
     @staticmethod
@@ -339,6 +373,11 @@ class ClosedLoopController(Controller):
             self.misalignment.save()
         except OSError as exc:
             log.warning("closed loop: learned offsets not saved: %s", exc)
+
+    def closedloop_cycle(self) -> dict[str, str]:
+        """What set each looped row's setpoint this cycle, by tracker (rows the loop did not
+        steer, in a stow or at night, are left out)."""
+        return {row.runtime.cfg.name: row.last_source for row in self.rows if row.last_source}
 
     def closedloop_summary(self) -> dict[str, Any]:
         """The loop's mode, and per row: learned offsets, sources of its setpoints, frames."""

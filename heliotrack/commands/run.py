@@ -276,13 +276,14 @@ class Service:
         self.tally[f"source {source}"] += 1
         self.tally["row errors"] += len(errors)
         camera = self._camera_outcome()
+        looped = ctl.closedloop_cycle() if hasattr(ctl, "closedloop_cycle") else {}
         az, el = (records[0].sun_az_deg, records[0].sun_el_deg) if records else (math.nan, math.nan)
         text = ", ".join(f"{m} x{n}" if n > 1 else m for m, n in sorted(modes.items()))
         shown = "; ".join(errors[:MAX_ERRORS_SHOWN]) + (
             f"; and {len(errors) - MAX_ERRORS_SHOWN} more" if len(errors) > MAX_ERRORS_SHOWN else ""
         )
         log.info(
-            "cycle %d: %s%s; sun %s (az %.2f, el %.2f)%s; %d error(s)%s",
+            "cycle %d: %s%s; sun %s (az %.2f, el %.2f)%s%s; %d error(s)%s",
             ctl.cycles,
             text,
             "".join(f"; {name} {health}" for name, health in sorted(unwell.items())),
@@ -290,6 +291,7 @@ class Service:
             az,
             el,
             f"; camera {camera}" if camera else "",
+            "; closed loop " + ", ".join(f"{k} {v}" for k, v in looped.items()) if looped else "",
             len(errors),
             (": " + shown) if errors else "",
             extra={
@@ -301,6 +303,7 @@ class Service:
                     "sun_az_deg": az,
                     "sun_el_deg": el,
                     "camera": camera,
+                    "closedloop": looped,
                     "errors": errors,
                     "alarms": list(records[0].alarms) if records else [],
                 }

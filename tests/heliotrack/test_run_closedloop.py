@@ -130,6 +130,8 @@ def test_run_learns_the_rows_offset_and_points_the_panel_at_the_sun(row):
     assert summary, log
     assert float(summary.group(1)) == pytest.approx(-OFFSET, abs=0.1), summary.group(0)
     assert int(re.search(r"found (\d+)", summary.group(2)).group(1)) >= 8, summary.group(0)
+    # each cycle says what set the row's setpoint: the camera, once the drive has arrived
+    assert re.search(r" cycle \d+: TRACK; .*; closed loop row-1 camera; 0 error", log), log
     saved = json.loads((folder / "state" / "misalignment.json").read_text())
     assert saved["rows"]["row-1"]["rotation"]["estimate_deg"] == pytest.approx(-OFFSET, abs=0.1)
 
@@ -153,3 +155,4 @@ def test_a_restart_without_frames_keeps_the_learned_offset(row):
     assert resumed and float(resumed.group(1)) == pytest.approx(-OFFSET, abs=0.1), log
     assert axis.target_deg == pytest.approx(truth - OFFSET, abs=0.2), (axis, truth, log)
     assert re.search(r"closed loop row-1: .*setpoints learned \d+.*; frames no frame \d+$", log, re.M), log
+    assert re.search(r" cycle 4: TRACK; .*; closed loop row-1 learned; 0 error", log), log

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import tomllib
 from datetime import UTC, datetime
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -124,23 +125,39 @@ def test_the_panel_cameras_draw_the_sky_cameras_clouds_on_a_cloudy_day():
     assert changed.mean() > 0.05
 
 
-def test_a_reflection_lit_while_a_cloud_hides_the_sun_does_not_capture_a_row(monkeypatch):
-    """A sun-sized reflection fixed in the sky (a window, a neighbour's panel), drawn in every
-    panel camera and lit while a cloud hides the sun.  It had restarted the row's learner on
-    itself after 20 refusals: the row ended 30 deg off (docs/fisheye-rounds.md, the
-    forty-third round)."""
-    import heliotrack.panel_loop as panel_loop
+def with_a_reflection(cfg: ScenarioConfig) -> ScenarioConfig:
+    """``cfg`` whose panel cameras all see a sun-sized reflection fixed in the sky at azimuth
+    180, elevation 10 (a window, a neighbour's glass), lit whatever the clouds do."""
+    from dataclasses import replace
+
+    from heliotrack.scenario import HilReflection
+
+    cam = replace(cfg.hil.panel_camera, reflections=(HilReflection(azimuth_deg=180.0, elevation_deg=10.0),))
+    return replace(cfg, hil=replace(cfg.hil, panel_camera=cam))
+
+
+def test_a_reflection_beside_the_sun_all_day_does_not_blind_the_loop():
+    """The reflection and the sun both in view on a clear day: two glares of one size, which
+    the pipeline alone cannot tell apart (``ambiguous_candidates``).  Before the panel's pose
+    chose between them, the loop saw no sun all day and the row sat 1.5 deg off."""
+    cfg = with_a_reflection(scenario(("row-1",)))
+    r, s = run(cfg, "2024-03-20T06:00:00+00:00", 0.75, WindowedRun)
+    row = s["closedloop"]["rows"]["row-1"]
+    assert row["frames"]["chosen by the pose"] > 200  # 270 cycles, the reflection in every frame
+    assert row["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.05)
+    t0 = datetime(2024, 3, 20, 6, 15, tzinfo=UTC).timestamp()
+    samples = np.array(r.samples["row-1"])
+    late = samples[samples[:, 0] >= t0, 1]
+    assert late.size > 300 and np.percentile(late, 95) <= 0.2  # outside backtracking
+
+
+def test_a_reflection_lit_while_a_cloud_hides_the_sun_does_not_capture_a_row():
+    """A sun-sized reflection fixed in the sky, drawn in every panel camera and lit while a
+    cloud hides the sun.  It had restarted the row's learner on itself after 20 refusals:
+    the row ended 30 deg off (docs/fisheye-rounds.md, the forty-third round)."""
     from heliotrack.scenario import load_scenario
-    from hil.panelcam import PanelCamera
-    from hil.skycam.distractors import SpecularReflection
 
-    class Reflecting(PanelCamera):
-        def __post_init__(self) -> None:
-            super().__post_init__()
-            self.scene = self.scene.with_(distractors=(SpecularReflection(180.0, 10.0, strength=1.0),))
-
-    monkeypatch.setattr(panel_loop, "PanelCamera", Reflecting)
-    cfg = load_scenario(REPO / "config" / "hil-closedloop-clouds.toml")
+    cfg = with_a_reflection(load_scenario(REPO / "config" / "hil-closedloop-clouds.toml"))
     r, s = run(cfg, "2024-03-20T06:00:00+00:00", 2.0, WindowedRun)
     row = s["closedloop"]["rows"]["row-1"]
     assert row["frames"].get("implausible", 0) > 50  # the reflection, seen alone
@@ -152,3 +169,29 @@ def test_a_reflection_lit_while_a_cloud_hides_the_sun_does_not_capture_a_row(mon
         assert late.size > 1000 and late.max() < 1.0, name  # never steered onto it
     late_row = np.array(r.samples["row-1"])
     assert np.percentile(late_row[late_row[:, 0] >= t0, 1], 95) <= 0.2
+
+
+def test_the_panel_cameras_draw_the_configured_reflections():
+    import cv2
+
+    from heliotrack.panel_loop import panel_frames
+    from heliotrack.scenario import load_scenario
+
+    class Panel:  # both trackers' panels face south-east, 30 deg up
+        def panel_angles(self):
+            return [150.0, 30.0] if self is dual else [-30.0]
+
+    dual, row = Panel(), Panel()
+    world = SimpleNamespace(firmwares={"dual-1": dual, "row-1": row})
+    t = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    glares = {}
+    for name, cfg in (
+        ("plain", load_scenario(OFFSET)),
+        ("reflection", with_a_reflection(load_scenario(OFFSET))),
+    ):
+        frame = panel_frames(cfg, world, lambda _t: 1.0)["dual-1"].grab(t)  # type: ignore[arg-type]
+        assert frame is not None
+        saturated = (frame.image.min(axis=-1) >= 250).astype(np.uint8)
+        n, _, stats, _ = cv2.connectedComponentsWithStats(saturated)
+        glares[name] = int((stats[1:, cv2.CC_STAT_AREA] >= 20).sum())
+    assert glares == {"plain": 1, "reflection": 2}

@@ -8,7 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from controller.closedloop.geometry import dual_axis_enu_from_camera, dual_axis_errors, single_axis_error
+from controller.closedloop.geometry import (
+    dual_axis_enu_from_camera,
+    dual_axis_errors,
+    row_enu_from_camera,
+    single_axis_error,
+)
 from hil import truth
 from hil.camera import Site
 from hil.drive import AxisParams, DriveFirmware
@@ -37,6 +42,8 @@ def test_row_mounting_gives_the_rotation_error_with_its_sign(rot, axis_az, tilt)
     # the sun where the row would face at rot + 1.2 deg: a positive error of 1.2 deg
     sun = truth.row_normal(rot + 1.2, axis_az, tilt)
     assert single_axis_error(R.T @ sun) == pytest.approx(1.2, abs=1e-6)
+    # the controller's own mounting of a row's camera (from pvlib's row geometry) is the world's
+    assert np.allclose(R, row_enu_from_camera(rot, axis_az, tilt), atol=1e-6)
 
 
 def _glare_centre(img: np.ndarray) -> tuple[float, float] | None:

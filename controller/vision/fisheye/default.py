@@ -36,7 +36,15 @@ from .blend import LearnedBlend
 from .blobs import Blob, find_blobs
 from .channel import FrameBuffers, glare_channel
 from .frames import load_mask, sited, with_sky_scale
-from .gates import Ephemeris, Gate, max_self_vouched_sigma, min_rim_share, prior_direction, track_prediction
+from .gates import (
+    CameraPrior,
+    Ephemeris,
+    Gate,
+    max_self_vouched_sigma,
+    min_rim_share,
+    prior_direction,
+    track_prediction,
+)
 from .glare import GlareFit, GlareOptions
 from .history import GlareHistory
 from .lens import FisheyeLens
@@ -102,7 +110,8 @@ class FisheyeEstimator(FramePipeline):
         """Measure the sun in one frame (BGR or grey, 8 or 16 bit) taken at POSIX time ``t``.
 
         ``prior``: an expected sun direction (``az_deg``, ``el_deg``, ``sigma_deg`` in ENU,
-        e.g. the sun-path filter's prediction) that the detection must agree with.
+        e.g. the sun-path filter's prediction), or a :class:`~.gates.CameraPrior` in the
+        camera's frame, that the detection must agree with.
         """
         o = self.options
         img, refused = self.checked_frame(image, t)
@@ -364,7 +373,10 @@ class FisheyeEstimator(FramePipeline):
     def _gates(self, t: float | None, prior) -> list[Gate]:
         g = self.options.gates
         out: list[Gate] = []
-        pd = prior_direction(prior) if self.R is not None else None
+        if isinstance(prior, CameraPrior):  # a camera with no orientation, its pose known
+            radius = max(g.prior_min_deg, g.prior_k_sigma * prior.sigma_deg + g.base_deg)
+            out.append(Gate("prior", np.asarray(prior.d_cam, float), radius, "camera"))
+        pd = prior_direction(prior) if self.R is not None and not isinstance(prior, CameraPrior) else None
         if pd is not None:
             out.append(
                 Gate("prior", pd[0], max(g.prior_min_deg, g.prior_k_sigma * pd[1] + g.base_deg), "enu")

@@ -211,6 +211,19 @@ class Ephemeris:
         return v / np.linalg.norm(v)
 
 
+@dataclass(frozen=True)
+class CameraPrior:
+    """An expected sun direction in the camera's own frame (OpenCV axes), for a camera
+    that has no orientation but whose pose the caller knows: the panel-mounted loop's
+    camera, from the drive's position and the row's learned offset.
+
+    ``d_cam``: unit vector; ``sigma_deg``: its uncertainty (deg).
+    """
+
+    d_cam: np.ndarray
+    sigma_deg: float
+
+
 def prior_direction(prior) -> tuple[np.ndarray, float] | None:
     """(unit ENU vector, sigma deg) from an object with ``az_deg``, ``el_deg`` and
     ``sigma_deg`` (a SunObservation or SunEstimate) or a tuple (az, el, sigma)."""
