@@ -4,8 +4,10 @@ Runs the scenarios ``config/hil-closedloop.toml`` (clear day, rows mounted true)
 ``config/hil-closedloop-offset.toml`` (both trackers' panels 1.5 deg off their encoders,
 the sun hidden from the cameras 06:30-08:30 UTC) and ``config/hil-closedloop-clouds.toml``
 (the same offsets on a day of broken cumulus, drawn in the panel cameras with sunlit edges
-next to the sun; no target in issue 14, ours: the offset day's once learned) through the
-whole HIL (Modbus RTU drives
+next to the sun; no target in issue 14, ours: the offset day's once learned) and
+``config/hil-closedloop-reflection.toml`` (the offset day with a sun-sized reflection
+fixed in every panel camera's sky, beside the sun all day and alone in the gap; the
+offset day's targets) through the whole HIL (Modbus RTU drives
 on a pty, the world's rendered panel cameras, pvlib SPA truth), from 03:00 to 15:00 UTC on
 2024-03-20 at Andimeshk (the sun is above 5 deg from about 03:20 to 14:30), in the
 assisted mode, the paper's mode and the sky-fixed direct-direction mode (the same files
@@ -36,6 +38,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CLEAR = ROOT / "config" / "hil-closedloop.toml"
 OFFSET = ROOT / "config" / "hil-closedloop-offset.toml"
 CLOUDS = ROOT / "config" / "hil-closedloop-clouds.toml"
+REFLECTION = ROOT / "config" / "hil-closedloop-reflection.toml"
 START = datetime(2024, 3, 20, 3, 0, tzinfo=UTC)
 HOURS = 12.0
 #: "Once learned": this long after a tracker's first counted sample.
@@ -172,6 +175,7 @@ def run(quick: bool = False) -> dict:
             "clouds_assisted": one(CLOUDS, "assisted", START, HOURS),
             "clouds_paper": one(CLOUDS, "paper", START, HOURS),
             "clouds_sky_fixed": one(CLOUDS, None, START, HOURS),
+            "reflection_assisted": one(REFLECTION, "assisted", START, HOURS),
         }
     off = cases["offset_assisted"]["pointing_error_deg"]["pooled"]
     acceptance = {
@@ -183,6 +187,9 @@ def run(quick: bool = False) -> dict:
         acceptance["clear_p95_le_0.2"] = (clear["all"]["p95"] or 9) <= 0.2
         clouds = cases["clouds_assisted"]["pointing_error_deg"]["pooled"]
         acceptance["clouds_learned_p95_le_0.2"] = (clouds["learned"]["p95"] or 9) <= 0.2
+        mirror = cases["reflection_assisted"]["pointing_error_deg"]["pooled"]
+        acceptance["reflection_learned_p95_le_0.2"] = (mirror["learned"]["p95"] or 9) <= 0.2
+        acceptance["reflection_gap_p95_le_0.3"] = (mirror["gap"]["p95"] or 9) <= 0.3
     return {
         "definitions": DEFINITIONS,
         "cases": cases,

@@ -186,6 +186,18 @@ def fisheye(r: dict) -> list[Headline]:
                     ok=lacc.get("clouds_learned_p95_le_0.2"),
                 )
             )
+        if "reflection_assisted" in cases:  # runs before the forty-fourth round had none
+            out.append(
+                Headline(
+                    "fisheye",
+                    "panel loop, 1.5 deg row offset, a reflection beside the sun: p95 once learned / in the gap",
+                    f"{fmt(p95('reflection_assisted', 'learned'), 3, ' deg')} / "
+                    f"{fmt(p95('reflection_assisted', 'gap'), 3, ' deg')}",
+                    "<= 0.2 / 0.3 deg (ours: the offset day's)",
+                    "a sun-sized reflection fixed at az 180, el 10, alone in the 2-h gap",
+                    ok=lacc.get("reflection_learned_p95_le_0.2") and lacc.get("reflection_gap_p95_le_0.3"),
+                )
+            )
     return out
 
 
