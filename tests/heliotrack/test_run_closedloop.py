@@ -109,12 +109,13 @@ def test_check_shows_the_panel_cameras_frame_and_the_sun_off_the_normal(row, cap
     assert abs(off - abs(sun_rotation(time.time(), site) - OFFSET)) < 0.6, line
 
 
-def test_run_learns_the_rows_offset_and_points_the_panel_at_the_sun(row):
-    drive, site, folder = row
-    cfg = plant(folder, int(drive.address), site, str(folder / "panelcams" / "{tracker}"))
+def run_until(cfg, folder, row, cycle: int):
+    """``heliotrack run`` until its cycle ``cycle``, then SIGTERM: (its log, the row's axis as
+    the emulator reports it then, pvlib's rotation for the sun then)."""
+    drive, site, _ = row
     run = Run(cfg, folder / "state")
     try:
-        run.wait_line(r" cycle 12: ", timeout=60)
+        run.wait_line(rf" cycle {cycle}: ", timeout=20 + 4 * cycle * PERIOD_S)
         axis = read_axes(drive)[0]
         truth = sun_rotation(time.time(), site)
         run.proc.send_signal(signal.SIGTERM)
@@ -124,6 +125,13 @@ def test_run_learns_the_rows_offset_and_points_the_panel_at_the_sun(row):
             run.proc.kill()
     log = run.text()
     assert "Traceback" not in log, log
+    return log, axis, truth
+
+
+def test_run_learns_the_rows_offset_and_points_the_panel_at_the_sun(row):
+    drive, site, folder = row
+    cfg = plant(folder, int(drive.address), site, str(folder / "panelcams" / "{tracker}"))
+    log, axis, truth = run_until(cfg, folder, row, cycle=12)
     # the panel (shaft + 1.5) on the sun: the shaft's target 1.5 deg short of it
     assert axis.target_deg == pytest.approx(truth - OFFSET, abs=0.2), (axis, truth, log)
     summary = re.search(r"closed loop row-1: learned offset rotation ([-+]\d+\.\d+) deg.*frames (.*)", log)
@@ -140,17 +148,7 @@ def test_a_restart_without_frames_keeps_the_learned_offset(row):
     drive, site, folder = row
     (folder / "blind" / "row-1").mkdir(parents=True)  # a camera that gives nothing
     cfg = plant(folder, int(drive.address), site, str(folder / "blind" / "{tracker}"))
-    run = Run(cfg, folder / "state")
-    try:
-        run.wait_line(r" cycle 4: ", timeout=40)
-        axis = read_axes(drive)[0]
-        truth = sun_rotation(time.time(), site)
-        run.proc.send_signal(signal.SIGTERM)
-        assert run.proc.wait(15) == 0
-    finally:
-        if run.proc.poll() is None:
-            run.proc.kill()
-    log = run.text()
+    log, axis, truth = run_until(cfg, folder, row, cycle=4)
     resumed = re.search(r"row-1 starts from its learned offset rotation ([-+]\d+\.\d+) deg", log)
     assert resumed and float(resumed.group(1)) == pytest.approx(-OFFSET, abs=0.1), log
     assert axis.target_deg == pytest.approx(truth - OFFSET, abs=0.2), (axis, truth, log)
