@@ -158,15 +158,18 @@ def test_a_reflection_lit_while_a_cloud_hides_the_sun_does_not_capture_a_row():
     from heliotrack.scenario import load_scenario
 
     cfg = with_a_reflection(load_scenario(REPO / "config" / "hil-closedloop-clouds.toml"))
-    r, s = run(cfg, "2024-03-20T06:00:00+00:00", 2.0, WindowedRun)
+    # 45 minutes hold three spells of the sun hidden and the reflection lit (06:00-06:07,
+    # 06:13-06:24, 06:31-06:36); with both rules off the row learns +37.8 deg and the
+    # dual-axis tracker +51.3 / -32.1 in them (a 2-h run had cost 2 minutes of the suite)
+    r, s = run(cfg, "2024-03-20T06:00:00+00:00", 0.75, WindowedRun)
     row = s["closedloop"]["rows"]["row-1"]
     assert row["frames"].get("implausible", 0) > 50  # the reflection, seen alone
     assert row["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
-    t0 = datetime(2024, 3, 20, 6, 30, tzinfo=UTC).timestamp()
+    t0 = datetime(2024, 3, 20, 6, 15, tzinfo=UTC).timestamp()
     for name in ("row-1", "dual-1"):
         samples = np.array(r.samples[name])
         late = samples[samples[:, 0] >= t0, 1]
-        assert late.size > 1000 and late.max() < 1.0, name  # never steered onto it
+        assert late.size > 300 and late.max() < 1.0, name  # never steered onto it
     late_row = np.array(r.samples["row-1"])
     assert np.percentile(late_row[late_row[:, 0] >= t0, 1], 95) <= 0.2
 
