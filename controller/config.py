@@ -346,6 +346,17 @@ class Config:
                     cl.frames,
                 )
             )
+        for name in looped:  # each camera's own lens bundle ("{tracker}" in it)
+            assert cl is not None
+            if not cl.lens(name).is_file():
+                raise (
+                    at.child("closedloop")
+                    .child("calibration")
+                    .error(
+                        f"an existing file for every tracker in the loop ({name}: {cl.lens(name)})",
+                        cl.calibration,
+                    )
+                )
         return c
 
     def _check_state_paths(self, at: Where) -> None:
@@ -358,9 +369,14 @@ class Config:
             sensor = getattr(self, table)
             if sensor is not None:
                 read[Path(sensor.calibration).resolve()] = f"{table}.calibration"
+        cl = self.closedloop
+        if cl is not None:
+            for tracker in cl.trackers or [t.name for t in self.trackers]:
+                read[cl.lens(tracker).resolve()] = "closedloop.calibration"
         written = (
             (at.child("store").child("path"), self.store.path),
             (at.child("sunpath").child("state"), self.sunpath.state),
+            (at.child("closedloop").child("state"), cl.state if cl is not None else None),
         )
         for where, path in written:
             if path is not None and Path(path).resolve() in read:

@@ -36,10 +36,11 @@ import math
 from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from .. import setpoints as sp
-from ..calibration.fisheye_bundle import load_fisheye_bundle
+from ..calibration.fisheye_bundle import FisheyeBundle, load_fisheye_bundle
 from ..config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
 from ..drives.base import DriveCommError
 from ..geometry import lowest_sun_azimuth
@@ -168,7 +169,7 @@ class ClosedLoopController(Controller):
         if cl is None:
             raise ValueError("ClosedLoopController needs a [closedloop] table")
         self.closedloop = cl
-        bundle = load_fisheye_bundle(cl.calibration)
+        bundles: dict[Path, FisheyeBundle] = {}  # one camera model: one bundle, read once
         self.misalignment = MisalignmentStore(cl.state)
         if self.misalignment.note:
             log.warning("closed loop: %s", self.misalignment.note)
@@ -189,7 +190,10 @@ class ClosedLoopController(Controller):
                 )
                 for name in axis_names(tr.cfg)
             ]
-            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], FisheyeEstimator(bundle), axes))
+            lens = cl.lens(tr.cfg.name)
+            if lens not in bundles:
+                bundles[lens] = load_fisheye_bundle(lens)
+            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], FisheyeEstimator(bundles[lens]), axes))
             if any(ax.learner.accepted for ax in axes):
                 log.info(
                     "closed loop: %s starts from its learned offset %s (%s)",

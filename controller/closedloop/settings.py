@@ -30,9 +30,14 @@ class ClosedLoopConfig:
         "\"assisted\": the sun source's reference plus the row's learned offset plus the "
         "fuzzy PID's correction (the offset is kept through cloud gaps).",
     )
-    calibration: Path = setting(
-        doc="The panel cameras' lens bundle (fisheye TOML without [orientation]; docs/fisheye.md).",
-        path="file",
+    calibration: str = setting(
+        doc="The panel cameras' lens bundle (fisheye TOML without [orientation]; docs/fisheye.md), "
+        "or with \"{tracker}\" standing for the tracker's name, each camera's own (e.g. "
+        '"calibration/panel-{tracker}.toml"; a camera\'s principal point is its boresight, and '
+        "one pixel off at 320 x 240 points the panel about 0.7 deg off). Relative paths are "
+        "from this file's folder.",
+        nonempty=True,
+        example='"calibration/panel-fisheye.toml"',
     )
     frames: str = setting(
         "hil",
@@ -66,19 +71,38 @@ class ClosedLoopConfig:
     )
 
     def __schema_check__(self, at: Where) -> ClosedLoopConfig:
-        try:
-            spec = self.frames.format(tracker="x")
-        except (KeyError, IndexError, ValueError):
-            raise at.child("frames").error(
-                'a camera address whose only field is "{tracker}" (write other braces twice)', self.frames
-            ) from None
+        spec = _fill(self.frames, at.child("frames"), "a camera address")
+        _fill(self.calibration, at.child("calibration"), "a bundle's path")
+        calibration = str(_from_folder(self.calibration, at))
+        if TRACKER_FIELD not in self.calibration and not Path(calibration).is_file():
+            raise at.child("calibration").error("an existing file", calibration)
+        # with "{tracker}", each looped tracker's bundle is checked with the trackers (Config)
         if self.frames == "hil" or spec.startswith("device:") or "://" in spec:
-            return self
-        folder = Path(self.frames).expanduser()
-        if not folder.is_absolute():
-            folder = at.folder / folder  # not resolved: "{tracker}" need not exist yet
-        return replace(self, frames=str(folder))
+            return replace(self, calibration=calibration)
+        # not resolved: "{tracker}" need not exist yet
+        return replace(self, frames=str(_from_folder(self.frames, at)), calibration=calibration)
 
     def camera(self, tracker: str) -> str:
         """The frames of ``tracker``'s panel camera (``frames`` with its name filled in)."""
         return self.frames.format(tracker=tracker)
+
+    def lens(self, tracker: str) -> Path:
+        """The lens bundle of ``tracker``'s panel camera (``calibration`` with its name
+        filled in)."""
+        return Path(self.calibration.format(tracker=tracker))
+
+
+def _fill(value: str, at: Where, what: str) -> str:
+    """``value`` with ``{tracker}`` filled in, or the error that names its other fields."""
+    try:
+        return value.format(tracker="x")
+    except (KeyError, IndexError, ValueError):
+        raise at.error(
+            f'{what} whose only field is "{TRACKER_FIELD}" (write other braces twice)', value
+        ) from None
+
+
+def _from_folder(value: str, at: Where) -> Path:
+    """``value`` as a path, from the configuration file's folder when relative."""
+    path = Path(value).expanduser()
+    return path if path.is_absolute() else at.folder / path

@@ -357,7 +357,7 @@ def _panel_camera(config: Config, clock: Clock, tracker: str) -> tuple[bool, str
 
     cl = config.closedloop
     assert cl is not None
-    bundle = load_fisheye_bundle(cl.calibration)
+    bundle = load_fisheye_bundle(cl.lens(tracker))
     source = open_panel_cameras(config, clock, only=tracker)[tracker]
     frame, text = _first_frame(source, cl.camera(tracker), clock)
     if frame is None:

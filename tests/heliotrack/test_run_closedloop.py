@@ -31,6 +31,8 @@ def plant(folder, port: int, site, frames: str):
     from tests.conftest import REPO
 
     path = folder / f"plant-{abs(hash(frames))}.toml"
+    (folder / "lenses").mkdir(exist_ok=True)  # each camera's own bundle, as on a plant
+    (folder / "lenses" / "row-1.toml").write_text((REPO / LENS).read_text())
     path.write_text(
         f"""
 [site]
@@ -61,7 +63,7 @@ gcr = 0.4
 safe_position = "hold"
 
 [closedloop]
-calibration = "{REPO / LENS}"
+calibration = "lenses/{{tracker}}.toml"
 frames = "{frames}"
 """
     )

@@ -261,3 +261,26 @@ def test_a_frame_is_measured_against_the_sun_at_its_own_time():
     m = asyncio.run(ctl._measure(row, t, ctl.sun.estimate(t)))
     assert m is not None and m.frame_reference == pytest.approx(ref_then[1][0], abs=1e-9)
     assert m.errors == pytest.approx([0.7], abs=1e-6)
+
+
+def test_each_panel_camera_is_read_through_its_own_lens(tmp_path):
+    """``[closedloop] calibration`` with "{tracker}": a unit whose principal point sits 0.6 px
+    off the model's has its boresight 0.4 deg away, which only its own bundle knows."""
+    from dataclasses import replace
+
+    lens = REPO / "config" / "calibration" / "panel-fisheye.toml"
+    (tmp_path / "panel-dual-1.toml").write_text(lens.read_text())
+    (tmp_path / "panel-row-1.toml").write_text(lens.read_text().replace("cx = 159.5", "cx = 160.1"))
+    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
+    assert cfg.closedloop is not None
+    cfg = replace(cfg, closedloop=replace(cfg.closedloop, calibration=str(tmp_path / "panel-{tracker}.toml")))
+    frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
+    ctl = ClosedLoopController(
+        cfg,
+        {tr.name: mock.Mock() for tr in cfg.trackers},
+        EphemerisSource(cfg.site),
+        SimClock(T),
+        panel_frames=frames,
+    )
+    cx = {r.runtime.cfg.name: r.estimator.lens.cx for r in ctl.rows}
+    assert cx == {"dual-1": 159.5, "row-1": 160.1}

@@ -67,3 +67,64 @@ def test_a_field_other_than_the_trackers_name_is_refused(tmp_path, frames):
 def test_the_simulators_renderer_stays_the_default(tmp_path):
     cl = plant(tmp_path, "hil").closedloop
     assert cl is not None and cl.frames == "hil"
+
+
+def test_each_tracker_can_have_its_own_lens_bundle(tmp_path):
+    """One camera model, but each unit's principal point is its own boresight."""
+    for name in ("row-1", "row-2"):
+        (tmp_path / f"panel-{name}.toml").write_text(LENS.read_text().replace("cx = 159.5", "cx = 160.1"))
+    p = tmp_path / "plant.toml"
+    p.write_text(PLANT.replace('"{lens}"', '"panel-{tracker}.toml"') + 'frames = "cams/{tracker}"\n')
+    cl = load_config(p).closedloop
+    assert cl is not None
+    assert cl.lens("row-2") == tmp_path / "panel-row-2.toml"  # from the plant file's folder
+    shared = plant(tmp_path, "cams/{tracker}").closedloop
+    assert shared is not None and shared.lens("row-1") == shared.lens("row-2") == LENS
+
+
+def test_a_looped_tracker_without_its_lens_bundle_is_refused(tmp_path):
+    (tmp_path / "panel-row-1.toml").write_text(LENS.read_text())
+    p = tmp_path / "plant.toml"
+    p.write_text(PLANT.replace('"{lens}"', '"panel-{tracker}.toml"') + 'frames = "cams/{tracker}"\n')
+    with pytest.raises(
+        ConfigError,
+        match=r"closedloop\.calibration: expected an existing file for every tracker in the loop \(row-2: ",
+    ):
+        load_config(p)
+    # row-2 out of the loop: its bundle is not needed
+    p.write_text(p.read_text() + 'trackers = ["row-1"]\n')
+    cl = load_config(p).closedloop
+    assert cl is not None and cl.trackers == ("row-1",)
+
+
+@pytest.mark.parametrize(
+    "calibration, expected",
+    [
+        ('"missing.toml"', r"closedloop\.calibration: expected an existing file"),
+        (
+            '"panel-{row}.toml"',
+            r'closedloop\.calibration: expected a bundle\'s path whose only field is "\{tracker\}"',
+        ),
+    ],
+)
+def test_a_lens_bundle_that_cannot_be_found_is_refused(tmp_path, calibration, expected):
+    p = tmp_path / "plant.toml"
+    p.write_text(PLANT.replace('"{lens}"', calibration) + 'frames = "cams/{tracker}"\n')
+    with pytest.raises(ConfigError, match=expected):
+        load_config(p)
+
+
+def test_the_learned_offsets_are_never_written_over_a_lens_bundle(tmp_path):
+    """A state file that is not one is moved aside: a lens bundle named as the state would be."""
+    (tmp_path / "panel-row-2.toml").write_text(LENS.read_text())
+    (tmp_path / "panel-row-1.toml").write_text(LENS.read_text())
+    p = tmp_path / "plant.toml"
+    p.write_text(
+        PLANT.replace('"{lens}"', '"panel-{tracker}.toml"')
+        + 'frames = "cams/{tracker}"\nstate = "panel-row-2.toml"\n'
+    )
+    with pytest.raises(
+        ConfigError,
+        match=r"closedloop\.state: expected a file of its own \(this is closedloop\.calibration\)",
+    ):
+        load_config(p)
