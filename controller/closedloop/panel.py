@@ -50,8 +50,9 @@ from ..records import TrackerRuntime
 from ..safety import StowOrder, clamp_targets
 from ..sun.camera import FrameSource
 from ..sun.types import SunEstimate, azel_to_enu
-from ..vision.fisheye import FisheyeEstimator
+from ..vision.fisheye import FisheyeEstimator, SeedEstimator
 from ..vision.fisheye.gates import CameraPrior
+from ..vision.fisheye.pipeline import FramePipeline
 from .axis import ClosedLoopAxis
 from .geometry import dual_axis_enu_from_camera, dual_axis_errors, row_enu_from_camera, single_axis_error
 from .learner import MisalignmentStore
@@ -114,7 +115,7 @@ class RowLoop:
 
     runtime: TrackerRuntime
     frames: FrameSource
-    estimator: FisheyeEstimator
+    estimator: FramePipeline  # the default pipeline, or the paper's ([closedloop] algorithm)
     axes: list[ClosedLoopAxis]
     measured: Measurement | None = None
     active: bool = False  # steered by the loop in the previous cycle
@@ -124,6 +125,7 @@ class RowLoop:
     sources: Counter = field(default_factory=Counter)
     frames_seen: Counter = field(default_factory=Counter)
     last_source: str = ""  # what set this cycle's setpoint ("": not steered by the loop)
+    framed_at: list[float] | None = None  # the drive's position at the previous frame (deg)
 
     def count(self, source: str) -> None:
         """This cycle's setpoint came from ``source`` (camera, learned, settling, hold, reference)."""
@@ -193,7 +195,8 @@ class ClosedLoopController(Controller):
             lens = cl.lens(tr.cfg.name)
             if lens not in bundles:
                 bundles[lens] = load_fisheye_bundle(lens)
-            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], FisheyeEstimator(bundles[lens]), axes))
+            make = SeedEstimator if cl.algorithm == "seed" else FisheyeEstimator
+            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], make(bundles[lens]), axes))
             if any(ax.learner.accepted for ax in axes):
                 log.info(
                     "closed loop: %s starts from its learned offset %s (%s)",
@@ -245,6 +248,12 @@ class ClosedLoopController(Controller):
         if frame.time != t:  # a live camera's frame: the sun where it was when the frame was taken
             sun = self.sun.estimate(frame.time, now=t)
             reference = reference_at(sun)
+        if row.framed_at is None or any(abs(p - q) > SETTLE_DEG for p, q in zip(position, row.framed_at)):
+            # the camera turned: the sun's last centroid says nothing of where it is now in
+            # the image (the paper's rule 3 holds for a camera that moved little between
+            # frames; a slew from stow had locked the seed pipeline out for the day)
+            row.estimator.reset_sequence()
+        row.framed_at = position
         res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None)
         if res.reason == "ambiguous_candidates" and sun is not None and self.closedloop.mode == "assisted":
             # glares of one size (a reflection beside the sun): the one where the sun must be,

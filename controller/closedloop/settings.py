@@ -39,6 +39,12 @@ class ClosedLoopConfig:
         nonempty=True,
         example='"calibration/panel-fisheye.toml"',
     )
+    algorithm: Literal["default", "seed"] = setting(
+        "default",
+        doc='The panel cameras\' pipeline: "default" (ours: the rim on the sphere, gates), or '
+        "\"seed\" (the paper's HSI segmentation and three rules); the paper's own loop is "
+        'mode = "paper" with algorithm = "seed".',
+    )
     frames: str = setting(
         "hil",
         doc='Where the panel cameras\' frames come from: "hil" (rendered by the simulator), or '

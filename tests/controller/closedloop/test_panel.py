@@ -284,3 +284,43 @@ def test_each_panel_camera_is_read_through_its_own_lens(tmp_path):
     )
     cx = {r.runtime.cfg.name: r.estimator.lens.cx for r in ctl.rows}
     assert cx == {"dual-1": 159.5, "row-1": 160.1}
+
+
+def test_the_papers_pipeline_on_a_camera_that_turned_starts_a_new_sequence():
+    """``algorithm = "seed"``: the paper's rule 3 (the centroid near the last one) holds for a
+    camera that moved little between frames.  A panel that slewed further (from stow, to
+    the reference) would leave the last centroid far from the sun's place in the image, and
+    the rule refused every frame after it for the rest of the day."""
+    import asyncio
+    from dataclasses import replace
+
+    import numpy as np
+
+    from controller.sun.camera import CameraFrame
+    from controller.vision.fisheye import SeedEstimator
+
+    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
+    assert cfg.closedloop is not None
+    cfg = replace(cfg, closedloop=replace(cfg.closedloop, mode="paper", algorithm="seed"))
+    frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
+    ctl = ClosedLoopController(
+        cfg,
+        {tr.name: mock.Mock() for tr in cfg.trackers},
+        EphemerisSource(cfg.site),
+        SimClock(T),
+        panel_frames=frames,
+    )
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    assert isinstance(row.estimator, SeedEstimator)
+    row.runtime.configured = True
+    row.estimator = mock.Mock(wraps=row.estimator)
+    restarts = []
+    for k, angle in enumerate((10.0, 10.3, 10.6, 25.0, 25.2)):
+        t = T + 10.0 * (k + 1)
+        row.sent_t = t - 10.0
+        row.runtime.drive.read_state = mock.AsyncMock(return_value=row_state(angle))
+        row.frames.grab.return_value = CameraFrame(np.zeros((240, 320, 3), np.uint8), t, "f.png")
+        before = row.estimator.reset_sequence.call_count
+        asyncio.run(ctl._measure(row, t, ctl.sun.estimate(t)))
+        restarts.append(row.estimator.reset_sequence.call_count > before)
+    assert restarts == [True, False, False, True, False]  # 0.3 deg a frame: one sequence
