@@ -59,6 +59,8 @@ DEFINITIONS = {
     "modes": "assisted: ephemeris reference + learned offset + fuzzy PID correction; paper: "
     "the camera alone through the fuzzy PID (setpoint held without the sun); sky_fixed: "
     "the open-loop ephemeris targets ([closedloop] disabled), the direct-direction mode",
+    "algorithm": "the panel cameras' pipeline: default (ours), or seed (the paper's HSI "
+    "segmentation, three rules and centroid; clear_paper_seed is the paper's whole loop)",
     "camera": "the paper's 190-deg fisheye at 320 x 240 (fx 83 px/rad), JPEG q90, the "
     "world's lens handed over; one frame per 10-s cycle per tracker",
 }
@@ -118,16 +120,17 @@ def windows(run: WindowedRun, gaps: list[tuple[float, float]]) -> dict:
     return {"pooled": {k: _stats(v) for k, v in pooled.items()}, "trackers": per}
 
 
-def scenario(path: Path, mode: str | None) -> ScenarioConfig:
-    """The scenario at ``path`` in ``mode`` ("assisted", "paper"; None: sky-fixed)."""
+def scenario(path: Path, mode: str | None, algorithm: str = "default") -> ScenarioConfig:
+    """The scenario at ``path`` in ``mode`` ("assisted", "paper"; None: sky-fixed), its
+    panel cameras read by ``algorithm`` ("default", or "seed": the paper's pipeline)."""
     cfg = load_scenario(path)
     assert cfg.closedloop is not None
     cl = replace(cfg.closedloop, enabled=False) if mode is None else replace(cfg.closedloop, mode=mode)
-    return replace(cfg, closedloop=cl)
+    return replace(cfg, closedloop=replace(cl, algorithm=algorithm))
 
 
-def one(path: Path, mode: str | None, start: datetime, hours: float) -> dict:
-    cfg = scenario(path, mode)
+def one(path: Path, mode: str | None, start: datetime, hours: float, algorithm: str = "default") -> dict:
+    cfg = scenario(path, mode, algorithm)
     run = WindowedRun(cfg, simulation_span(cfg, 1, start, hours), progress=False, command="bench")
     t0 = time.perf_counter()
     summary = run.execute(None)
@@ -135,6 +138,7 @@ def one(path: Path, mode: str | None, start: datetime, hours: float) -> dict:
     out: dict[str, Any] = {
         "scenario": path.name,
         "mode": mode or "sky_fixed",
+        "algorithm": algorithm,
         "start": start.isoformat(),
         "hours": hours,
         "wall_s": round(time.perf_counter() - t0, 1),
@@ -169,6 +173,7 @@ def run(quick: bool = False) -> dict:
         cases = {
             "clear_assisted": one(CLEAR, "assisted", START, HOURS),
             "clear_sky_fixed": one(CLEAR, None, START, HOURS),
+            "clear_paper_seed": one(CLEAR, "paper", START, HOURS, "seed"),  # the paper's whole loop
             "offset_assisted": one(OFFSET, "assisted", START, HOURS),
             "offset_paper": one(OFFSET, "paper", START, HOURS),
             "offset_sky_fixed": one(OFFSET, None, START, HOURS),

@@ -149,12 +149,16 @@ def fisheye(r: dict) -> list[Headline]:
 
         if not {"clear_assisted", "offset_assisted", "offset_sky_fixed", "offset_paper"} <= set(cases):
             return out  # a --quick run has only the offset case: no headline from it
+        seed = cases.get("clear_paper_seed")  # runs before the forty-fifth round had none
         out += [
             Headline(
                 "fisheye",
                 "panel loop, clear day: pointing p95 (learned)",
                 fmt(p95("clear_assisted", "learned"), 3, " deg"),
                 "<= 0.2 deg",
+                f"the paper's loop (its pipeline, mode paper): {p95('clear_paper_seed', 'learned'):.3f} deg"
+                if seed
+                else "",
                 ok=lacc.get("clear_p95_le_0.2"),
             ),
             Headline(
