@@ -18,7 +18,7 @@ from .diffuse import DiffuseConfig
 from .drives.links import LinkConfig, ModbusRtuLink, ModbusTcpLink
 from .drives.registry import link_config_types
 from .errors import ConfigError
-from .schema import DERIVED, Where, internal, load, load_file, setting, variants
+from .schema import DERIVED, Where, checked_path, internal, load, load_file, setting, variants
 from .sun.source import Site
 from .sunspec.config import SunSpecConfig
 from .trackers import TRACKER_CLASSES, DualAxisTracker, SingleAxisTracker, TrackerConfig
@@ -346,17 +346,6 @@ class Config:
                     cl.frames,
                 )
             )
-        for name in looped:  # each camera's own lens bundle ("{tracker}" in it)
-            assert cl is not None
-            if not cl.lens(name).is_file():
-                raise (
-                    at.child("closedloop")
-                    .child("calibration")
-                    .error(
-                        f"an existing file for every tracker in the loop ({name}: {cl.lens(name)})",
-                        cl.calibration,
-                    )
-                )
         return c
 
     def _check_state_paths(self, at: Where) -> None:
@@ -370,9 +359,12 @@ class Config:
             if sensor is not None:
                 read[Path(sensor.calibration).resolve()] = f"{table}.calibration"
         cl = self.closedloop
-        if cl is not None:
-            for tracker in cl.trackers or [t.name for t in self.trackers]:
-                read[cl.lens(tracker).resolve()] = "closedloop.calibration"
+        if cl is not None and cl.enabled:  # each looped camera's lens bundle ("{tracker}" in it)
+            where = at.child("closedloop").child("calibration")
+            for tracker in [
+                n for n in (t.name for t in self.trackers) if not cl.trackers or n in cl.trackers
+            ]:
+                read[checked_path(str(cl.lens(tracker)), where, "file").resolve()] = "closedloop.calibration"
         written = (
             (at.child("store").child("path"), self.store.path),
             (at.child("sunpath").child("state"), self.sunpath.state),

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Literal
 
-from ..schema import Where, setting
+from ..schema import Where, checked_path, setting
 
 #: The placeholder of ``[closedloop] frames`` that names each tracker's own camera.
 TRACKER_FIELD = "{tracker}"
@@ -79,10 +79,9 @@ class ClosedLoopConfig:
     def __schema_check__(self, at: Where) -> ClosedLoopConfig:
         spec = _fill(self.frames, at.child("frames"), "a camera address")
         _fill(self.calibration, at.child("calibration"), "a bundle's path")
-        calibration = str(_from_folder(self.calibration, at))
-        if TRACKER_FIELD not in self.calibration and not Path(calibration).is_file():
-            raise at.child("calibration").error("an existing file", calibration)
         # with "{tracker}", each looped tracker's bundle is checked with the trackers (Config)
+        kind = "" if TRACKER_FIELD in self.calibration else "file"
+        calibration = str(checked_path(self.calibration, at.child("calibration"), kind))
         if self.frames == "hil" or spec.startswith("device:") or "://" in spec:
             return replace(self, calibration=calibration)
         # not resolved: "{tracker}" need not exist yet

@@ -23,10 +23,11 @@ after the table is read and returns the (possibly completed) instance or raises 
 
 from .fields import DERIVED, Spec, Where, internal, keys_of, setting, spec_of, variants
 from .reference import Row, markdown, rows
-from .validate import load, load_file, read_toml
+from .validate import checked_path, load, load_file, read_toml
 from .words import type_name
 
 __all__ = [
+    "checked_path",
     "DERIVED",
     "Row",
     "Spec",

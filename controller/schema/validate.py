@@ -202,6 +202,12 @@ def _variant(v: Any, at: Where, spec: Spec) -> Any:
 
 
 def _path(v: Any, at: Where, spec: Spec) -> Path:
+    return checked_path(v, at, spec.path)
+
+
+def checked_path(v: Any, at: Where, kind: str = "") -> Path:
+    """``v`` as a path, from the file's folder when relative: ``kind`` "file" or "dir"
+    must exist, "new" must not be a folder; an error at ``at`` that says why otherwise."""
     if not isinstance(v, str) or not v:
         raise at.error("a path", v)
     if "\x00" in v:
@@ -210,11 +216,11 @@ def _path(v: Any, at: Where, spec: Spec) -> Path:
         p = Path(v).expanduser()
         if not p.is_absolute():
             p = (at.folder / p).resolve()
-        if spec.path == "file" and not p.is_file():
+        if kind == "file" and not p.is_file():
             raise at.error("an existing file", str(p))
-        if spec.path == "dir" and not p.is_dir():
+        if kind == "dir" and not p.is_dir():
             raise at.error("an existing folder", str(p))
-        if spec.path == "new" and p.is_dir():  # a file goes there: a folder would be moved aside
+        if kind == "new" and p.is_dir():  # a file goes there: a folder would be moved aside
             raise at.error("a file's path (this is a folder)", str(p))
     except RuntimeError:  # "~user" of no known user
         raise at.error("a path (its '~' names no user with a home folder)", v) from None

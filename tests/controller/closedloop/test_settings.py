@@ -88,7 +88,7 @@ def test_a_looped_tracker_without_its_lens_bundle_is_refused(tmp_path):
     p.write_text(PLANT.replace('"{lens}"', '"panel-{tracker}.toml"') + 'frames = "cams/{tracker}"\n')
     with pytest.raises(
         ConfigError,
-        match=r"closedloop\.calibration: expected an existing file for every tracker in the loop \(row-2: ",
+        match=r"closedloop\.calibration: expected an existing file, got '/.*/panel-row-2\.toml'",
     ):
         load_config(p)
     # row-2 out of the loop: its bundle is not needed
@@ -127,4 +127,18 @@ def test_the_learned_offsets_are_never_written_over_a_lens_bundle(tmp_path):
         ConfigError,
         match=r"closedloop\.state: expected a file of its own \(this is closedloop\.calibration\)",
     ):
+        load_config(p)
+
+
+@pytest.mark.parametrize(
+    "calibration, expected",
+    [
+        ('"~nobody-here-xyz/panel.toml"', r"expected a path \(its '~' names no user"),
+        ('"' + "p" * 300 + '-{tracker}.toml"', r"expected a usable path"),
+    ],
+)
+def test_an_unusable_lens_path_is_a_clear_error(tmp_path, calibration, expected):
+    p = tmp_path / "plant.toml"
+    p.write_text(PLANT.replace('"{lens}"', calibration) + 'frames = "cams/{tracker}"\n')
+    with pytest.raises(ConfigError, match=r"closedloop\.calibration: " + expected):
         load_config(p)
