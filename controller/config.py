@@ -361,10 +361,11 @@ class Config:
         cl = self.closedloop
         if cl is not None and cl.enabled:  # each looped camera's lens bundle ("{tracker}" in it)
             where = at.child("closedloop").child("calibration")
-            for tracker in [
-                n for n in (t.name for t in self.trackers) if not cl.trackers or n in cl.trackers
-            ]:
-                read[checked_path(str(cl.lens(tracker)), where, "file").resolve()] = "closedloop.calibration"
+            for tr in self.trackers:
+                if not cl.trackers or tr.name in cl.trackers:
+                    read[checked_path(str(cl.lens(tr.name)), where, "file").resolve()] = (
+                        "closedloop.calibration"
+                    )
         written = (
             (at.child("store").child("path"), self.store.path),
             (at.child("sunpath").child("state"), self.sunpath.state),
