@@ -21,12 +21,14 @@ from tests.conftest import REPO
 T = datetime(2024, 3, 20, 8, 0, tzinfo=UTC).timestamp()
 
 
-def controller(mode: str = "assisted") -> ClosedLoopController:
+def controller(mode: str = "assisted", **closedloop: str) -> ClosedLoopController:
+    """The clear day's controller, its ``[closedloop]`` in ``mode`` with ``closedloop``'s
+    other keys changed."""
     from dataclasses import replace
 
     cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
     assert cfg.closedloop is not None
-    cfg = replace(cfg, closedloop=replace(cfg.closedloop, mode=mode))
+    cfg = replace(cfg, closedloop=replace(cfg.closedloop, mode=mode, **closedloop))
     frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
     drives = {tr.name: mock.Mock() for tr in cfg.trackers}
     ctl = ClosedLoopController(cfg, drives, EphemerisSource(cfg.site), SimClock(T), panel_frames=frames)
@@ -266,22 +268,11 @@ def test_a_frame_is_measured_against_the_sun_at_its_own_time():
 def test_each_panel_camera_is_read_through_its_own_lens(tmp_path):
     """``[closedloop] calibration`` with "{tracker}": a unit whose principal point sits 0.6 px
     off the model's has its boresight 0.4 deg away, which only its own bundle knows."""
-    from dataclasses import replace
 
     lens = REPO / "config" / "calibration" / "panel-fisheye.toml"
     (tmp_path / "panel-dual-1.toml").write_text(lens.read_text())
     (tmp_path / "panel-row-1.toml").write_text(lens.read_text().replace("cx = 159.5", "cx = 160.1"))
-    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
-    assert cfg.closedloop is not None
-    cfg = replace(cfg, closedloop=replace(cfg.closedloop, calibration=str(tmp_path / "panel-{tracker}.toml")))
-    frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
-    ctl = ClosedLoopController(
-        cfg,
-        {tr.name: mock.Mock() for tr in cfg.trackers},
-        EphemerisSource(cfg.site),
-        SimClock(T),
-        panel_frames=frames,
-    )
+    ctl = controller(calibration=str(tmp_path / "panel-{tracker}.toml"))
     cx = {r.runtime.cfg.name: r.estimator.lens.cx for r in ctl.rows}
     assert cx == {"dual-1": 159.5, "row-1": 160.1}
 
@@ -292,24 +283,13 @@ def test_the_papers_pipeline_on_a_camera_that_turned_starts_a_new_sequence():
     the reference) would leave the last centroid far from the sun's place in the image, and
     the rule refused every frame after it for the rest of the day."""
     import asyncio
-    from dataclasses import replace
 
     import numpy as np
 
     from controller.sun.camera import CameraFrame
     from controller.vision.fisheye import SeedEstimator
 
-    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
-    assert cfg.closedloop is not None
-    cfg = replace(cfg, closedloop=replace(cfg.closedloop, mode="paper", algorithm="seed"))
-    frames = {tr.name: mock.Mock(spec=FrameSource) for tr in cfg.trackers}
-    ctl = ClosedLoopController(
-        cfg,
-        {tr.name: mock.Mock() for tr in cfg.trackers},
-        EphemerisSource(cfg.site),
-        SimClock(T),
-        panel_frames=frames,
-    )
+    ctl = controller("paper", algorithm="seed")
     row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
     assert isinstance(row.estimator, SeedEstimator)
     row.runtime.configured = True
