@@ -34,7 +34,8 @@ class ClosedLoopConfig:
         doc="The panel cameras' lens bundle (fisheye TOML without [orientation]; docs/fisheye.md), "
         "or with \"{tracker}\" standing for the tracker's name, each camera's own (e.g. "
         '"calibration/panel-{tracker}.toml"; a camera\'s principal point is its boresight, and '
-        "one pixel off at 320 x 240 points the panel about 0.7 deg off). Relative paths are "
+        "one pixel off at 320 x 240 points the panel about 0.7 deg off: calibrate each at 640 x 480 "
+        "or more). Relative paths are "
         "from this file's folder.",
         nonempty=True,
         example='"calibration/panel-fisheye.toml"',
