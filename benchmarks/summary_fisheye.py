@@ -156,7 +156,7 @@ def fisheye(r: dict) -> list[Headline]:
                 "panel loop, clear day: pointing p95 (learned)",
                 fmt(p95("clear_assisted", "learned"), 3, " deg"),
                 "<= 0.2 deg",
-                f"the paper's loop (its pipeline, mode paper): {p95('clear_paper_seed', 'learned'):.3f} deg"
+                f"the paper's whole loop (its pipeline): {p95('clear_paper_seed', 'learned'):.2f} deg"
                 if seed
                 else "",
                 ok=lacc.get("clear_p95_le_0.2"),
