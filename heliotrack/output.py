@@ -290,7 +290,8 @@ def closedloop_lines(summary: dict) -> list[str]:
     cl = summary.get("closedloop")
     if not cl:
         return []
-    lines = [f"closed loop ({cl['mode']}):"]
+    seed = ", the paper's pipeline" if cl.get("algorithm") == "seed" else ""
+    lines = [f"closed loop ({cl['mode']}{seed}):"]
     for name, row in cl["rows"].items():
         learned = ", ".join(f"{k} {v:+.3f}" for k, v in row["learned_offset_deg"].items())
         truth = ", ".join(f"{k} {v:+.3f}" for k, v in row.get("mount_offset_deg", {}).items())

@@ -393,7 +393,8 @@ class ClosedLoopController(Controller):
         return {row.runtime.cfg.name: row.last_source for row in self.rows if row.last_source}
 
     def closedloop_summary(self) -> dict[str, Any]:
-        """The loop's mode, and per row: learned offsets, sources of its setpoints, frames."""
+        """The loop's mode and pipeline, and per row: learned offsets, sources of its
+        setpoints, frames."""
         rows = {}
         for row in self.rows:
             names = axis_names(row.runtime.cfg)
@@ -405,7 +406,7 @@ class ClosedLoopController(Controller):
                 "setpoints": dict(row.sources),
                 "frames": dict(row.frames_seen),
             }
-        return {"mode": self.closedloop.mode, "rows": rows}
+        return {"mode": self.closedloop.mode, "algorithm": self.closedloop.algorithm, "rows": rows}
 
     async def close(self) -> None:
         self._save()

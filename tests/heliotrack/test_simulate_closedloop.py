@@ -88,8 +88,11 @@ def test_paper_mode_acquires_the_sun_from_stow_with_the_camera_alone():
 def test_the_papers_pipeline_learns_a_misaligned_rows_offset_after_the_slew_from_stow():
     """``algorithm = "seed"`` in the assisted mode: its rule 3 had refused every frame after
     the first, seen on the slew from stow (1 of 360 found in an hour, the row 1.5 deg off)."""
+    from heliotrack.output import closedloop_lines
+
     cfg = scenario(("row-1",), algorithm="seed")
     r, s = run(cfg, "2024-03-20T07:00:00+00:00", 0.3, WindowedRun)
+    assert closedloop_lines(s)[0] == "closed loop (assisted, the paper's pipeline):"
     row = s["closedloop"]["rows"]["row-1"]
     assert row["frames"]["found"] > 60  # of 108 cycles
     assert row["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
