@@ -32,7 +32,8 @@ from .world import World
 CLOSEDLOOP_DEFINITIONS = {
     "closedloop": "panel-mounted closed loop: learned_offset_deg is the setpoint correction "
     "the loop learned per axis (deg; for a panel sitting d off its encoder it should be -d: "
-    "mount_offset_deg is the world's d); setpoints counts the cycles by what set the "
+    "mount_offset_deg is the world's d; camera_mount_deg, when there is one, the world's "
+    "rotation of the camera on its panel, a rotation vector in deg); setpoints counts the cycles by what set the "
     "target (camera: the fuzzy PID on a frame with the sun; learned: reference + learned "
     "offset without the camera, or with a frame the offset learner refused; settling: "
     "reference + learned offset + correction while the drive is more than 0.5 deg from its "
@@ -69,6 +70,7 @@ def panel_frames(
                 SpecularReflection(r.azimuth_deg, r.elevation_deg, strength=r.strength)
                 for r in cam_cfg.reflections
             ),
+            mount_deg=config.hil.camera_mount(tr.name),
         )
 
         def angles(name: str = tr.name) -> list[float]:
@@ -146,4 +148,7 @@ def closedloop_summary(controller: Controller, config: ScenarioConfig) -> dict:
         if tr.name in out["rows"]:
             truth = config.hil.mount_offset(tr.name, tr.axes)
             out["rows"][tr.name]["mount_offset_deg"] = dict(zip(axis_names(tr), truth))
+            camera = config.hil.camera_mount(tr.name)
+            if any(camera):
+                out["rows"][tr.name]["camera_mount_deg"] = list(camera)
     return {"closedloop": out}

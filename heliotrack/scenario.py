@@ -256,7 +256,19 @@ class HilMountOffset:
 
     tracker: str = setting(doc="The tracker's name.", nonempty=True)
     offset_deg: tuple[float, ...] = setting(
-        doc="Per axis (dual-axis: [azimuth, elevation]; single-axis: [rotation]), panel minus shaft.",
+        (),
+        doc="Per axis (dual-axis: [azimuth, elevation]; single-axis: [rotation]), panel minus shaft "
+        "(empty: none).",
+        unit="deg",
+        ge=-10,
+        le=10,
+    )
+    camera_deg: tuple[float, float, float] = setting(
+        (0.0, 0.0, 0.0),
+        doc="The panel camera's rotation on its panel, a rotation vector in the panel's frame "
+        "(x across the panel towards increasing azimuth or rotation, z its normal, y = z x x): "
+        "[0, 1, 0] turns the camera's axis 1 deg towards +x (a row's rotation error of 1 deg "
+        "that the loop cannot see without the lens bundle's [mount]).",
         unit="deg",
         ge=-10,
         le=10,
@@ -331,7 +343,9 @@ class HilConfig:
     skycam: HilSkyCamera = setting(default_factory=HilSkyCamera, doc="Fisheye sky camera.")
     wind: HilWind = setting(default_factory=HilWind, doc="Wind.")
     faults: HilFaults = setting(default_factory=HilFaults, doc="Fault injection.")
-    mount_offsets: tuple[HilMountOffset, ...] = setting((), doc="Rows whose panel sits off its encoder.")
+    mount_offsets: tuple[HilMountOffset, ...] = setting(
+        (), doc="Rows whose panel sits off its encoder, or whose panel camera sits off the panel's normal."
+    )
     sun_gaps: tuple[HilSunGap, ...] = setting((), doc="Stretches when clouds hide the sun from the cameras.")
     panel_camera: HilPanelCamera = setting(default_factory=HilPanelCamera, doc="Cameras on the panels.")
 
@@ -347,9 +361,16 @@ class HilConfig:
     def mount_offset(self, tracker: str, axes: int) -> list[float]:
         """The tracker's mounting offset per axis (deg; zeros when none)."""
         for m in self.mount_offsets:
-            if m.tracker == tracker:
+            if m.tracker == tracker and m.offset_deg:
                 return [float(x) for x in m.offset_deg]
         return [0.0] * axes
+
+    def camera_mount(self, tracker: str) -> tuple[float, float, float]:
+        """The tracker's panel camera's rotation on its panel (rotation vector, deg)."""
+        for m in self.mount_offsets:
+            if m.tracker == tracker:
+                return m.camera_deg
+        return (0.0, 0.0, 0.0)
 
     def __schema_check__(self, at: Where) -> HilConfig:
         from controller.timestamps import YEARS
@@ -381,7 +402,7 @@ class ScenarioConfig(Config):
             here = at.child("hil").child("mount_offsets").item(i)
             if m.tracker not in axes:
                 raise here.child("tracker").error(f"a tracker name ({', '.join(axes)})", m.tracker)
-            if len(m.offset_deg) != axes[m.tracker]:
+            if m.offset_deg and len(m.offset_deg) != axes[m.tracker]:
                 raise here.child("offset_deg").error(
                     f"{axes[m.tracker]} value(s), one per axis", list(m.offset_deg)
                 )

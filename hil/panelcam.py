@@ -15,6 +15,9 @@ Mounting (camera frame: OpenCV, x right, y down, z along the optical axis):
 * single-axis row at rotation ``rot``: z is the normal, image x runs across the row
   towards increasing rotation (the normal's derivative with the rotation), ``y = z x x``.
 
+That is the panel's frame; a camera mounted off it (``mount_deg``, a rotation vector in
+that frame: ``[[hil.mount_offsets]] camera_deg``) is turned by it on the panel.
+
 Angles in degrees, azimuth clockwise from north; ENU vectors (x East, y North, z Up).
 """
 
@@ -22,8 +25,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
 
+import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import truth
 from .camera.scene import Site
@@ -62,6 +69,13 @@ def row_camera(rotation_deg: float, axis_azimuth: float, axis_tilt: float) -> np
     return _frame(np.asarray(z, float), np.asarray(dz, float))
 
 
+def panel_from_camera(mount_deg: tuple[float, float, float]) -> np.ndarray:
+    """The camera's rotation on its panel: the rotation vector ``mount_deg`` (deg) in the
+    panel's frame (the frame of a camera mounted exactly, above), as a matrix whose columns
+    are the camera's axes in that frame."""
+    return Rotation.from_rotvec(np.radians(np.asarray(mount_deg, float))).as_matrix()
+
+
 def panel_lens(scale: float = 0.5):
     """The panel camera's lens: the paper's 190-deg fisheye (640 x 480) at ``scale`` times
     its pixels per side (0.5: 320 x 240, ~1.45 px/deg at the centre, the sun's saturated
@@ -89,6 +103,7 @@ class PanelCamera:
     noise: bool = True
     clouds: CloudField | None = None
     distractors: tuple = ()  # hil.skycam.distractors: SpecularReflection, AircraftGlint, ...
+    mount_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # the camera's rotation on the panel
 
     def __post_init__(self) -> None:
         self.scene = sky_profile("seed", noise=self.noise).with_(
@@ -97,8 +112,10 @@ class PanelCamera:
 
     def enu_from_camera(self, angles: list[float]) -> np.ndarray:
         if self.kind == "dual-axis":
-            return dual_axis_camera(angles[0], angles[1])
-        return row_camera(angles[0], self.axis_azimuth, self.axis_tilt)
+            enu_from_panel = dual_axis_camera(angles[0], angles[1])
+        else:
+            enu_from_panel = row_camera(angles[0], self.axis_azimuth, self.axis_tilt)
+        return enu_from_panel @ panel_from_camera(self.mount_deg)
 
     def render(self, t: float, angles: list[float], transmittance: float) -> np.ndarray:
         R = self.enu_from_camera(angles)
@@ -112,3 +129,36 @@ class PanelCamera:
     ) -> Callable[[float], np.ndarray]:
         """``render(t)`` for a frame source: the panel's angles and the clouds read at ``t``."""
         return lambda t: self.render(t, angles(), transmittance(t))
+
+
+def write_commissioning(
+    cam: PanelCamera,
+    folder: Path,
+    held: list[list[float]],
+    *,
+    start: float,
+    frames: int = 36,
+    step_s: float = 900.0,
+    inclinometer_deg: float = 0.02,
+    seed: int = 3,
+) -> Path:
+    """What an installer collects to measure a panel camera's mount: ``frames`` frames
+    every ``step_s`` from POSIX ``start`` (a clear sky), the panel held at each of ``held``
+    in turn (its true angles, deg), written as ``<time>.png`` into ``folder``, and the
+    panel's angles as an inclinometer reads them (``inclinometer_deg`` of noise) into
+    ``folder/angles.csv`` (``time`` and one column per axis).  Returns the CSV's path."""
+    from .skycam.dataset import frame_name
+
+    folder.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    axes = "azimuth,elevation" if cam.kind == "dual-axis" else "rotation"
+    lines = [f"time,{axes}"]
+    for k in range(frames):
+        t = start + k * step_s
+        angles = held[k % len(held)]
+        cv2.imwrite(str(folder / frame_name(t)), cam.render(t, angles, 1.0))
+        read = ",".join(f"{a + rng.normal(scale=inclinometer_deg):.3f}" for a in angles)
+        lines.append(f"{datetime.fromtimestamp(t, UTC).isoformat()},{read}")
+    out = folder / "angles.csv"
+    out.write_text("\n".join(lines) + "\n")
+    return out

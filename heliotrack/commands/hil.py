@@ -91,6 +91,16 @@ def _add_panel_camera_options(d: argparse.ArgumentParser) -> None:
         "the encoder sees the shaft, the camera and the sun the panel",
     )
     g.add_argument(
+        "--camera-mount",
+        nargs=3,
+        type=float,
+        metavar=("RX", "RY", "RZ"),
+        default=(0.0, 0.0, 0.0),
+        help="the camera's rotation on its panel, a rotation vector in the panel's frame, deg "
+        "(default 0 0 0; 0 1 0: its axis 1 deg towards increasing azimuth or rotation), for "
+        "heliotrack calibrate fisheye mount",
+    )
+    g.add_argument(
         "--axis-azimuth",
         type=float,
         default=180.0,
@@ -242,6 +252,10 @@ def _check_panel_camera_options(args: argparse.Namespace) -> list[float]:
             raise HilError(
                 f"--site LAT LON: latitude within +-90 and longitude within +-180 deg, got {lat:g} {lon:g}"
             )
+    if not all(abs(r) <= 10.0 for r in args.camera_mount):  # NaN too
+        raise HilError(
+            f"--camera-mount must be within +-10 deg, got {' '.join(f'{r:g}' for r in args.camera_mount)}"
+        )
     if not math.isfinite(args.axis_azimuth):
         raise HilError(f"--axis-azimuth must be a finite angle in deg, got {args.axis_azimuth}")
     if not abs(args.axis_tilt) < 90.0:
@@ -280,12 +294,18 @@ def _start_panel_camera(args: argparse.Namespace, fw) -> PanelCameraWriter | Non
         scale=args.panel_scale,
         noise=True,
         clouds=None,
+        mount_deg=tuple(args.camera_mount),
     )
     lens = cam.scene.lens
     offsets = " ".join(f"{d:+.2f}" for d in fw.mount_offsets)
     print(
         f"panel camera: {folder}, {kind}, every {args.camera_interval:g} s, {lens.width}x{lens.height}, "
-        f"keep {args.keep}, mount offset {offsets} deg",
+        f"keep {args.keep}, mount offset {offsets} deg"
+        + (
+            f", camera turned {' '.join(f'{r:+.2f}' for r in args.camera_mount)} deg on the panel"
+            if any(args.camera_mount)
+            else ""
+        ),
         file=sys.stderr,
         flush=True,
     )

@@ -128,6 +128,10 @@ def _name(t: float) -> str:
         (["--panel-camera", "{dir}", "--site", "95", "0"], "--site"),
         (["--panel-camera", "{dir}", "--site", "20", "181"], "--site"),
         (["--panel-camera", "{dir}", "--site", "20", "0", "--keep", "1"], "--keep"),
+        (
+            ["--panel-camera", "{dir}", "--site", "20", "0", "--camera-mount", "0", "12", "0"],
+            "--camera-mount",
+        ),
     ],
 )
 def test_a_bad_camera_option_is_one_line(tmp_path, capsys, options, says):

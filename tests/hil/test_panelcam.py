@@ -69,6 +69,21 @@ def test_the_sun_on_the_normal_is_at_the_image_centre_and_a_gap_hides_it():
     assert _glare_centre(cam.render(T, [az, el], 0.0)) is None
 
 
+def test_a_camera_turned_on_its_panel_sees_the_sun_off_its_axis():
+    """Turned [0, 2, 0] deg on a panel facing the sun: its axis leans 2 deg towards +x, so
+    the sun on the panel's normal lies 2 deg towards -x in the image (and the row's loop,
+    centring it, would leave the panel 2 deg off)."""
+    site = Site(32.4835, 48.3364, 150.0)
+    sun = truth.sun_truth(np.array([T]), site.latitude, site.longitude, site.altitude)
+    az, el = float(sun.azimuth[0]), float(sun.elevation[0])
+    turned = PanelCamera("dual-axis", site, noise=False, mount_deg=(0.0, 2.0, 0.0))
+    d_cam = turned.enu_from_camera([az, el]).T @ truth.unit_from_azel(az, el)
+    assert single_axis_error(d_cam) == pytest.approx(-2.0, abs=1e-6)
+    lens = turned.scene.lens
+    c = _glare_centre(turned.render(T, [az, el], 1.0))
+    assert c is not None and c[0] < lens.cx - 2.0 and abs(c[1] - lens.cy) < 1.0
+
+
 def test_a_mounting_offset_moves_the_panel_not_the_shaft():
     now = [0.0]
     axes = [
