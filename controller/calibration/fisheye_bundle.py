@@ -31,9 +31,15 @@ vignetting = [c1, c2, c3]   # relative illumination 1 + c1 t^2 + c2 t^4 + c3 t^6
 latitude = 32.4835          # deg, north positive
 longitude = 48.3364         # deg, east positive
 altitude = 150.0            # m
+
+[mount]                     # optional, a panel camera's: how it sits on its panel
+panel_from_camera = [[..], [..], [..]]   # 3 x 3; columns = camera x, y, z in the panel's frame
+residual_deg = 0.02         # optional: RMS residual of the fit (heliotrack calibrate fisheye mount)
 ```
 
-``d_enu = enu_from_camera @ d_cam``; the pose's rotation in ``X_cam = R X_world + t`` is its
+``d_enu = enu_from_camera @ d_cam``; a panel camera's ``d_panel = panel_from_camera @ d_cam``,
+the panel's frame being that of a camera mounted exactly (z the panel's normal, x towards
+increasing azimuth or rotation: :mod:`controller.closedloop.geometry`).  The pose's rotation in ``X_cam = R X_world + t`` is its
 transpose.  Read with the project's one schema (:mod:`controller.schema`): unknown keys are
 errors, and every error names the file, the key and what was expected.
 """
@@ -97,18 +103,49 @@ class OrientationCal:
     )
 
     def __schema_check__(self, at: Where) -> OrientationCal:
-        M = np.asarray(self.enu_from_camera, float)
-        dev = float(np.abs(M.T @ M - np.eye(3)).max())
-        if dev > ORTHONORMAL_TOL or np.linalg.det(M) <= 0:
-            raise at.child("enu_from_camera").error(
-                f"a rotation matrix (orthonormal within {ORTHONORMAL_TOL}, determinant +1)",
-                [list(r) for r in self.enu_from_camera],
-            )
-        return replace(self, enu_from_camera=as_mat3(nearest_rotation(M)))
+        return replace(
+            self, enu_from_camera=_checked_rotation(self.enu_from_camera, at.child("enu_from_camera"))
+        )
 
     @property
     def matrix(self) -> np.ndarray:
         return np.asarray(self.enu_from_camera, float)
+
+
+def _checked_rotation(M: Mat3, at: Where) -> Mat3:
+    """``M`` made exactly a rotation, or an error at ``at`` when it is not near one."""
+    A = np.asarray(M, float)
+    dev = float(np.abs(A.T @ A - np.eye(3)).max())
+    if dev > ORTHONORMAL_TOL or np.linalg.det(A) <= 0:
+        raise at.error(
+            f"a rotation matrix (orthonormal within {ORTHONORMAL_TOL}, determinant +1)", [list(r) for r in M]
+        )
+    return as_mat3(nearest_rotation(A))
+
+
+@dataclass(frozen=True, kw_only=True)
+class MountCal:
+    """A panel camera's rotation on its panel (the panel-mounted closed loop)."""
+
+    panel_from_camera: Mat3 = setting(
+        doc="3 x 3 rotation whose columns are the camera's x, y, z axes (OpenCV) in the panel's "
+        "frame (z the panel's normal, x towards increasing azimuth or rotation, y = z x x): "
+        "d_panel = M d_cam.  The identity: a camera whose axis is the panel's normal."
+    )
+    residual_deg: float | None = setting(
+        None, doc="RMS residual of the fit that produced it.", unit="deg", ge=0
+    )
+    method: str | None = setting(None, doc='How it was obtained ("sun+panel angles", "jig").')
+    frames: int | None = setting(None, doc="Number of sightings used.", ge=0)
+
+    def __schema_check__(self, at: Where) -> MountCal:
+        return replace(
+            self, panel_from_camera=_checked_rotation(self.panel_from_camera, at.child("panel_from_camera"))
+        )
+
+    @property
+    def matrix(self) -> np.ndarray:
+        return np.asarray(self.panel_from_camera, float)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -206,6 +243,9 @@ class FisheyeBundle:
     camera: CameraCal = setting(doc='Lens intrinsics; model = "fisheye" (cv2.fisheye).')
     orientation: OrientationCal | None = setting(None, doc="Rotation to ENU.")
     site: SiteCal | None = setting(None, doc="Site of the camera.")
+    mount: MountCal | None = setting(
+        None, doc="A panel camera's rotation on its panel (without it: its axis is the panel's normal)."
+    )
     radiometry: RadiometryCal | None = setting(
         None, doc="Response and vignetting (without it: linear and evenly lit)."
     )
@@ -309,6 +349,19 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             f"longitude = {toml_value(s.longitude)}",
             f"altitude = {toml_value(s.altitude)}",
         ]
+    m = b.mount
+    if m is not None:
+        out += [
+            "",
+            "[mount]",
+            "panel_from_camera = [" + ", ".join(toml_value(list(r)) for r in m.panel_from_camera) + "]",
+        ]
+        if m.residual_deg is not None:
+            out.append(f"residual_deg = {toml_value(m.residual_deg)}")
+        if m.method is not None:
+            out.append(f"method = {toml_value(m.method)}")
+        if m.frames is not None:
+            out.append(f"frames = {int(m.frames)}")
     out += notes_section(b.notes)
     return "\n".join(out) + "\n"
 

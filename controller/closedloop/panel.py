@@ -7,7 +7,8 @@ Each cycle at time ``t``, before the setpoints (:meth:`ClosedLoopController._obs
 2. the row's camera frame is measured by the default fisheye pipeline (the lens of the
    ``[closedloop] calibration`` bundle, no orientation: the camera moves with the panel,
    so every frame stands alone: no sequence gate, no motion vetoes), and the sun's
-   camera-frame direction becomes per-axis errors (:mod:`.geometry`);
+   camera-frame direction, turned into the panel's frame by the bundle's ``[mount]`` when
+   it has one, becomes per-axis errors (:mod:`.geometry`);
 3. the sun source's reference at ``t`` is kept for the offset's measurement.
 
 Then (:meth:`ClosedLoopController.targets`), only in TRACK mode and with no stow order,
@@ -38,6 +39,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from .. import setpoints as sp
 from ..calibration.fisheye_bundle import FisheyeBundle, load_fisheye_bundle
@@ -83,11 +86,16 @@ def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list
 
 
 def expected_sun(
-    cfg: TrackerConfig, sun: SunEstimate, position: list[float], axes: list[ClosedLoopAxis]
+    cfg: TrackerConfig,
+    sun: SunEstimate,
+    position: list[float],
+    axes: list[ClosedLoopAxis],
+    mount: np.ndarray | None = None,
 ) -> CameraPrior:
     """Where the sun ``sun`` lies in the panel camera's frame for a drive at ``position``
-    (deg), the panel sitting off it by minus each axis's learned offset; its sigma (deg)
-    that of the learned offsets together."""
+    (deg), the panel sitting off it by minus each axis's learned offset and the camera on
+    the panel by ``mount`` (its bundle's ``panel_from_camera``; None: along the normal); its
+    sigma (deg) that of the learned offsets together."""
     panel = [p - ax.learner.estimate_deg for p, ax in zip(position, axes)]
     if isinstance(cfg, DualAxisTracker):
         enu_from_camera = dual_axis_enu_from_camera(panel[0], panel[1])
@@ -95,6 +103,8 @@ def expected_sun(
         assert isinstance(cfg, SingleAxisTracker)
         enu_from_camera = row_enu_from_camera(panel[0], cfg.axis_azimuth, cfg.axis_tilt)
     d_cam = enu_from_camera.T @ azel_to_enu(sun.az_deg, sun.el_deg)
+    if mount is not None:
+        d_cam = mount.T @ d_cam
     sigma = math.sqrt(sum(ax.learner.variance for ax in axes) + sun.sigma_deg**2)
     return CameraPrior(d_cam, sigma)
 
@@ -117,6 +127,7 @@ class RowLoop:
     frames: FrameSource
     estimator: FramePipeline  # the default pipeline, or the paper's ([closedloop] algorithm)
     axes: list[ClosedLoopAxis]
+    mount: np.ndarray | None = None  # the camera on its panel: the bundle's [mount] (None: the normal)
     measured: Measurement | None = None
     active: bool = False  # steered by the loop in the previous cycle
     sent: list[float] | None = None  # the targets of the previous cycle, clamped (None: not ours)
@@ -196,7 +207,16 @@ class ClosedLoopController(Controller):
             if lens not in bundles:
                 bundles[lens] = load_fisheye_bundle(lens)
             make = SeedEstimator if cl.algorithm == "seed" else FisheyeEstimator
-            self.rows.append(RowLoop(tr, panel_frames[tr.cfg.name], make(bundles[lens]), axes))
+            mount = bundles[lens].mount
+            self.rows.append(
+                RowLoop(
+                    tr,
+                    panel_frames[tr.cfg.name],
+                    make(bundles[lens]),
+                    axes,
+                    mount=mount.matrix if mount is not None else None,
+                )
+            )
             if any(ax.learner.accepted for ax in axes):
                 log.info(
                     "closed loop: %s starts from its learned offset %s (%s)",
@@ -258,7 +278,7 @@ class ClosedLoopController(Controller):
         if res.reason == "ambiguous_candidates" and sun is not None and self.closedloop.mode == "assisted":
             # glares of one size (a reflection beside the sun): the one where the sun must be,
             # by the panel's pose (the drive's position less the learned offset)
-            prior = expected_sun(tr.cfg, sun, position, row.axes)
+            prior = expected_sun(tr.cfg, sun, position, row.axes, row.mount)
             res = await asyncio.to_thread(row.estimator.estimate_image, frame.image, None, prior)
             if res.found:
                 row.frames_seen["chosen by the pose"] += 1
@@ -266,7 +286,8 @@ class ClosedLoopController(Controller):
             row.frames_seen[res.reason or "not found"] += 1
             return Measurement(t, position, None, reference)
         row.frames_seen["found"] += 1
-        return Measurement(t, position, camera_errors(tr.cfg, res.d_cam, position), reference)
+        d_panel = res.d_cam if row.mount is None else row.mount @ res.d_cam
+        return Measurement(t, position, camera_errors(tr.cfg, d_panel, position), reference)
 
     # -- steering -------------------------------------------------------------------------
     def targets(

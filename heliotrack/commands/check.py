@@ -374,8 +374,14 @@ def _panel_camera(config: Config, clock: Clock, tracker: str) -> tuple[bool, str
     res = FisheyeEstimator(bundle).estimate_image(frame.image, None)
     if not res.found or res.d_cam is None:
         return True, f"{text}; no sun in view ({res.reason})"
-    off = math.degrees(math.acos(max(-1.0, min(1.0, float(res.d_cam[2])))))
-    return True, f"{text}; the sun {off:.2f} deg from the panel's normal"
+    d = res.d_cam if bundle.mount is None else bundle.mount.matrix @ res.d_cam
+    off = math.degrees(math.acos(max(-1.0, min(1.0, float(d[2])))))
+    mount = (
+        ""
+        if bundle.mount is not None
+        else " (no [mount] in the lens bundle: the camera's axis taken as the normal)"
+    )
+    return True, f"{text}; the sun {off:.2f} deg from the panel's normal{mount}"
 
 
 def _sky_camera_orientation(config: Config, bundle: FisheyeBundle, frame: CameraFrame) -> tuple[bool, str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import tomllib
+from dataclasses import replace
 from datetime import UTC, datetime
 from types import SimpleNamespace
 
@@ -75,6 +76,43 @@ def test_assisted_loop_tracks_a_misaligned_row_learns_its_offset_and_keeps_it_th
     assert saved["rows"]["row-1"]["rotation"]["estimate_deg"] == pytest.approx(-1.5, abs=0.1)
 
 
+def test_a_camera_mounted_off_its_panel_is_corrected_by_its_bundles_mount(tmp_path):
+    """The row's camera leans 0.8 deg across the row: the loop puts the sun on the camera's
+    axis and leaves the panel 0.8 deg off, unless the lens bundle's [mount] says so."""
+    from controller.calibration.fisheye_bundle import (
+        MountCal,
+        as_mat3,
+        load_fisheye_bundle,
+        save_fisheye_bundle,
+    )
+    from hil.panelcam import panel_from_camera
+
+    data = tomllib.loads(OFFSET.read_text())
+    data["trackers"] = [t for t in data["trackers"] if t["name"] == "row-1"]
+    data["hil"]["mount_offsets"] = [{"tracker": "row-1", "offset_deg": [1.5], "camera_deg": [0.0, 0.8, 0.0]}]
+    data["hil"]["sun_gaps"] = []
+    lens = load_fisheye_bundle(REPO / "config" / "calibration" / "panel-fisheye.toml")
+    mounted = tmp_path / "panel-row-1.toml"
+    save_fisheye_bundle(
+        replace(lens, mount=MountCal(panel_from_camera=as_mat3(panel_from_camera((0.0, 0.8, 0.0))))), mounted
+    )
+    t0 = datetime(2024, 3, 20, 7, tzinfo=UTC).timestamp()
+    medians = {}
+    for label, bundle in (("normal", lens.path), ("mounted", mounted)):
+        data["closedloop"]["calibration"] = str(bundle)
+        r, s = run(parse_scenario(data, OFFSET), "2024-03-20T07:00:00+00:00", 0.4, WindowedRun)
+        samples = np.array(r.samples["row-1"])
+        settled = samples[samples[:, 0] >= t0 + 900, 1]
+        assert settled.size > 100
+        medians[label] = (float(np.median(settled)), float(np.percentile(settled, 95)))
+        row = s["closedloop"]["rows"]["row-1"]
+        assert row["camera_mount_deg"] == [0.0, 0.8, 0.0]
+        if label == "mounted":
+            assert row["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
+    assert 0.65 < medians["normal"][0] < 0.95  # the mount, invisible to the loop
+    assert medians["mounted"][1] <= 0.2
+
+
 def test_paper_mode_acquires_the_sun_from_stow_with_the_camera_alone():
     cfg = scenario(("dual-1",), mode="paper")
     r, s = run(cfg, "2024-03-20T07:00:00+00:00", 0.4, WindowedRun)
@@ -101,6 +139,14 @@ def test_the_papers_pipeline_learns_a_misaligned_rows_offset_after_the_slew_from
     assert np.percentile(samples[samples[:, 0] >= t0, 1], 95) <= 0.2
 
 
+def test_a_row_may_have_a_turned_camera_alone():
+    data = tomllib.loads(OFFSET.read_text())
+    data["hil"]["mount_offsets"] = [{"tracker": "row-1", "camera_deg": [0.0, 1.0, 0.0]}]
+    cfg = parse_scenario(data, OFFSET)
+    assert cfg.hil.mount_offset("row-1", 1) == [0.0] and cfg.hil.camera_mount("row-1") == (0.0, 1.0, 0.0)
+    assert cfg.hil.camera_mount("dual-1") == (0.0, 0.0, 0.0)
+
+
 @pytest.mark.parametrize(
     "change, where",
     [
@@ -108,6 +154,14 @@ def test_the_papers_pipeline_learns_a_misaligned_rows_offset_after_the_slew_from
         (
             lambda d: d["hil"]["mount_offsets"][0].update(offset_deg=[1.0, 2.0]),
             "hil.mount_offsets[0].offset_deg",
+        ),
+        (
+            lambda d: d["hil"]["mount_offsets"][0].update(camera_deg=[0.0, 12.0, 0.0]),
+            "hil.mount_offsets[0].camera_deg",
+        ),
+        (
+            lambda d: d["hil"]["mount_offsets"][0].update(camera_deg=[0.0, 1.0]),
+            "hil.mount_offsets[0].camera_deg",
         ),
         (lambda d: d["hil"]["sun_gaps"][0].update(start="10:00"), "hil.sun_gaps[0].start"),
         (lambda d: d["closedloop"].update(trackers=["row-1", "row-9"]), "closedloop.trackers[1]"),

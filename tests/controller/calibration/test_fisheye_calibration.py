@@ -121,12 +121,28 @@ def test_bundle_round_trip(tmp_path):
         ({"radiometry": {"vignetting": [0.0, 0.0, 0.0, 0.0, 0.1]}}, "radiometry.vignetting"),
         ({"camera": {**DOC["camera"], "cx": 5000.0}}, "camera.cx"),
         ({"camera": {**DOC["camera"], "cy": -3.0}}, "camera.cy"),
+        ({"mount": {"panel_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}}, "mount.panel_from_camera"),
+        ({"mount": {"panel_from_camera": [[1, 0, 0], [0, 1, 0]]}}, "mount.panel_from_camera"),
     ],
 )
 def test_bundle_errors_name_the_key(patch, key):
     with pytest.raises(ConfigError) as exc:
         fisheye_bundle_from_dict({**DOC, **patch})
     assert exc.value.key == key
+
+
+def test_a_panel_cameras_mount_round_trips(tmp_path):
+    c, sn = math.cos(math.radians(0.8)), math.sin(math.radians(0.8))
+    M = [[c, 0.0, sn], [0.0, 1.0, 0.0], [-sn, 0.0, c]]
+    doc = {"camera": DOC["camera"], "mount": {"panel_from_camera": M, "residual_deg": 0.03, "frames": 31}}
+    p = save_fisheye_bundle(fisheye_bundle_from_dict(doc), tmp_path / "panel.toml")
+    again = load_fisheye_bundle(p)
+    np.testing.assert_allclose(again.mount.matrix, M, atol=1e-12)
+    assert (again.mount.residual_deg, again.mount.frames) == (0.03, 31)
+    assert (
+        load_fisheye_bundle(save_fisheye_bundle(fisheye_bundle_from_dict(DOC), tmp_path / "s.toml")).mount
+        is None
+    )
 
 
 def test_dist_as_opencv_returns_it_is_taken():
