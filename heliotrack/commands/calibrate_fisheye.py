@@ -1,5 +1,5 @@
-"""``heliotrack calibrate fisheye lens|orientation|level|response|vignetting``: the sky camera's
-bundle from images.
+"""``heliotrack calibrate fisheye lens|orientation|level|response|vignetting|mount``: the sky
+camera's bundle from images.
 
 * ``lens``: ``cv2.fisheye.calibrate`` on checkerboard views -> ``[camera]``.
 * ``orientation``: a day of sky frames (file names with timestamps) and the site -> the
@@ -22,6 +22,8 @@ bundle from images.
   measured response table (the vignetting kept).
 * ``vignetting``: flat fields through the bundle's lens and response -> ``[radiometry]``'s
   vignetting (the response kept).  docs/fisheye-radiometry-calibration.md.
+* ``mount``: a panel camera's rotation on its panel, from its sun sightings and the panel's
+  true angles -> ``[mount]`` (:mod:`.calibrate_mount`).
 
 Each prints one JSON line per step; errors in the input are one plain line, exit status 2.
 """
@@ -39,13 +41,16 @@ import numpy as np
 from controller.errors import InputError
 from heliotrack.argtypes import SQUARE_M, board_pattern, number_in
 
+from .estimate_fisheye import sized_frame
+
 TILT_DEG = number_in(0.0, 180.0)
 
 
 def add_parser(sp: argparse._SubParsersAction) -> None:
     """Add ``fisheye`` (with its steps) to ``heliotrack calibrate``'s sub-parsers."""
     f = sp.add_parser(
-        "fisheye", help="the fisheye sky camera: lens, orientation, level, response, vignetting"
+        "fisheye",
+        help="the fisheye sky camera: lens, orientation, level, response, vignetting; a panel camera's mount",
     )
     f.set_defaults(func=lambda a: (f.print_help(), 2)[1])
     steps = f.add_subparsers(dest="fisheye_step", metavar="STEP")
@@ -134,20 +139,9 @@ def add_parser(sp: argparse._SubParsersAction) -> None:
     v.add_argument("--bundle", type=Path, required=True)
     v.add_argument("images", nargs="+", type=Path, help="at least 3 flat-field frames, all the same size")
     v.set_defaults(func=_vignetting)
+    from . import calibrate_mount
 
-
-def _frame_of(path: Path, camera) -> np.ndarray:
-    """The frame at ``path``, of the bundle's lens's size (else a one-line error)."""
-    from controller.vision.fisheye import load_frame
-
-    img, reason = load_frame(path)
-    if img is None:
-        raise InputError(f"{path}: {reason}")
-    if img.shape[:2] != (camera.height, camera.width):
-        raise InputError(
-            f"{path}: size_mismatch (expected {camera.width}x{camera.height}, got {img.shape[1]}x{img.shape[0]})"
-        )
-    return img
+    calibrate_mount.add_parser(steps)
 
 
 def _grey(path: Path) -> np.ndarray:
@@ -220,7 +214,7 @@ def _orientation(args) -> int:
         frames.append((t, path))
     zen = None
     if args.horizon is not None:
-        zen = level_from_horizon(_frame_of(args.horizon, bundle.camera), bundle.camera).zenith_cam
+        zen = level_from_horizon(sized_frame(args.horizon, bundle.camera), bundle.camera).zenith_cam
     cal = calibrate_from_sun(
         bundle,
         frames,
@@ -278,7 +272,7 @@ def _level(args) -> int:
     from controller.calibration.fisheye_orientation import level_from_horizon
 
     bundle = load_fisheye_bundle(args.bundle)
-    lv = level_from_horizon(_frame_of(args.image, bundle.camera), bundle.camera)
+    lv = level_from_horizon(sized_frame(args.image, bundle.camera), bundle.camera)
     out = {
         "step": "fisheye level",
         "zenith_cam": [round(float(x), 7) for x in lv.zenith_cam],

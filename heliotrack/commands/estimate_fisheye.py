@@ -21,6 +21,8 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
+
 from controller.errors import InputError
 
 log = logging.getLogger("heliotrack.estimate")
@@ -40,6 +42,20 @@ def frame_times(images: list[Path], t_cli: float | None) -> list[tuple[float | N
             untimed.append((None, i, p))
     timed.sort(key=lambda x: (x[0], x[1]))
     return [(t, p) for t, _, p in timed] + [(None, p) for _, _, p in untimed]
+
+
+def sized_frame(path: Path, camera) -> np.ndarray:
+    """The frame at ``path``, of the bundle's lens's size (else a one-line error)."""
+    from controller.vision.fisheye import load_frame
+
+    img, reason = load_frame(path)
+    if img is None:
+        raise InputError(f"{path}: {reason}")
+    if img.shape[:2] != (camera.height, camera.width):
+        raise InputError(
+            f"{path}: size_mismatch (expected {camera.width}x{camera.height}, got {img.shape[1]}x{img.shape[0]})"
+        )
+    return img
 
 
 def make_estimator(calib: Path, algorithm: str):
