@@ -7,7 +7,9 @@ the sun hidden from the cameras 06:30-08:30 UTC) and ``config/hil-closedloop-clo
 next to the sun; no target in issue 14, ours: the offset day's once learned) and
 ``config/hil-closedloop-reflection.toml`` (the offset day with a sun-sized reflection
 fixed in every panel camera's sky, beside the sun all day and alone in the gap; the
-offset day's targets) through the whole HIL (Modbus RTU drives
+offset day's targets), and the offset day with each panel camera turned on its panel
+(read through the lens alone, and with the ``[mount]`` that ``heliotrack calibrate fisheye
+mount`` fits from the world's commissioning frames) through the whole HIL (Modbus RTU drives
 on a pty, the world's rendered panel cameras, pvlib SPA truth), from 03:00 to 15:00 UTC on
 2024-03-20 at Andimeshk (the sun is above 5 deg from about 03:20 to 14:30), in the
 assisted mode, the paper's mode and the sky-fixed direct-direction mode (the same files
@@ -24,7 +26,7 @@ import math
 import sys
 import time
 from dataclasses import replace
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +43,14 @@ CLOUDS = ROOT / "config" / "hil-closedloop-clouds.toml"
 REFLECTION = ROOT / "config" / "hil-closedloop-reflection.toml"
 START = datetime(2024, 3, 20, 3, 0, tzinfo=UTC)
 HOURS = 12.0
+#: The panel cameras' rotations on their panels in the mount cases (rotation vectors in the
+#: panel's frame, deg): the row's axis 0.8 deg across the row, the dual-axis one 0.86 deg.
+CAMERA_MOUNTS = {"row-1": (0.0, 0.8, 0.0), "dual-1": (0.5, 0.7, 0.0)}
+#: The commissioning's held panel angles (deg), in turn, a frame every 15 min.
+HELD = {
+    "row-1": [[-40.0], [-20.0], [0.0], [20.0], [40.0]],
+    "dual-1": [[100.0, 30.0], [140.0, 50.0], [180.0, 90.0], [220.0, 50.0], [260.0, 30.0]],
+}
 #: "Once learned": this long after a tracker's first counted sample.
 LEARN_S = 3600.0
 
@@ -61,6 +71,12 @@ DEFINITIONS = {
     "the open-loop ephemeris targets ([closedloop] disabled), the direct-direction mode",
     "algorithm": "the panel cameras' pipeline: default (ours), or seed (the paper's HSI "
     "segmentation, three rules and centroid; clear_paper_seed is the paper's whole loop)",
+    "camera_mount": "camera_mount_unknown / _calibrated: the offset day (assisted) with each "
+    "panel camera turned on its panel (camera_mount_deg, rotation vectors in the panel's "
+    "frame), read through the lens alone, or through copies of it with the [mount] that "
+    "heliotrack calibrate fisheye mount fitted from 36 commissioning frames of the next day "
+    "(04:00 UTC on, every 15 min, the panel held at five angles in turn, an inclinometer "
+    "with 0.02 deg of noise); mount_fit: what each fit printed",
     "camera": "the paper's 190-deg fisheye at 320 x 240 (fx 83 px/rad), JPEG q90, the "
     "world's lens handed over; one frame per 10-s cycle per tracker",
 }
@@ -130,13 +146,18 @@ def scenario(path: Path, mode: str | None, algorithm: str = "default") -> Scenar
 
 
 def one(path: Path, mode: str | None, start: datetime, hours: float, algorithm: str = "default") -> dict:
-    cfg = scenario(path, mode, algorithm)
+    return measure(scenario(path, mode, algorithm), path.name, mode, start, hours)
+
+
+def measure(cfg: ScenarioConfig, name: str, mode: str | None, start: datetime, hours: float) -> dict:
+    """One case: ``cfg`` (named ``name``) run from ``start`` for ``hours``."""
+    algorithm = cfg.closedloop.algorithm if cfg.closedloop is not None else "default"
     run = WindowedRun(cfg, simulation_span(cfg, 1, start, hours), progress=False, command="bench")
     t0 = time.perf_counter()
     summary = run.execute(None)
     gaps = [(g_start(g), g_start(g) + g.duration_s) for g in cfg.hil.sun_gaps]
     out: dict[str, Any] = {
-        "scenario": path.name,
+        "scenario": name,
         "mode": mode or "sky_fixed",
         "algorithm": algorithm,
         "start": start.isoformat(),
@@ -160,6 +181,85 @@ def one(path: Path, mode: str | None, start: datetime, hours: float, algorithm: 
     return out
 
 
+def mounted(calibration: str) -> ScenarioConfig:
+    """The offset day (assisted) with each panel camera turned on its panel by
+    :data:`CAMERA_MOUNTS`, read through the lens bundles ``calibration``."""
+    cfg = scenario(OFFSET, "assisted")
+    assert cfg.closedloop is not None
+    offsets = tuple(replace(m, camera_deg=CAMERA_MOUNTS[m.tracker]) for m in cfg.hil.mount_offsets)
+    return replace(
+        cfg,
+        closedloop=replace(cfg.closedloop, calibration=calibration),
+        hil=replace(cfg.hil, mount_offsets=offsets),
+    )
+
+
+def commission(folder: Path) -> tuple[str, dict]:
+    """Each turned camera's [mount] as an installer measures it: the world's frames of the
+    next day with the panel held at :data:`HELD` in turn and an inclinometer's log
+    (:func:`hil.panelcam.write_commissioning`), fitted by ``heliotrack calibrate fisheye
+    mount`` into a copy of the lens bundle.  Returns the bundles' ``{tracker}`` pattern and
+    each fit's JSON line."""
+    import contextlib
+    import io
+    import shutil
+
+    from heliotrack.cli import main as cli
+    from hil.camera import Site
+    from hil.panelcam import PanelCamera, write_commissioning
+
+    cfg = mounted("")
+    site = Site(cfg.site.latitude, cfg.site.longitude, cfg.site.altitude)
+    lens = OFFSET.parent / "calibration" / "panel-fisheye.toml"
+    fits = {}
+    for tr in cfg.trackers:
+        cam = PanelCamera(tr.type, site, mount_deg=CAMERA_MOUNTS[tr.name])
+        frames = folder / tr.name
+        angles = write_commissioning(
+            cam, frames, HELD[tr.name], start=(START + timedelta(days=1)).timestamp() + 3600
+        )
+        bundle = shutil.copy(lens, folder / f"lens-{tr.name}.toml")
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = cli(
+                ["calibrate", "fisheye", "mount", "--config", str(OFFSET), "--tracker", tr.name]
+                + ["--angles", str(angles), "--bundle", str(bundle), *map(str, sorted(frames.glob("*.png")))]
+            )
+        if code != 0:
+            raise RuntimeError(f"calibrate fisheye mount failed for {tr.name}")
+        fits[tr.name] = json.loads(out.getvalue())
+    return str(folder / "lens-{tracker}.toml"), fits
+
+
+def mount_cases() -> dict:
+    """A camera turned on its panel: the loop with the lens alone, and with the [mount]
+    fitted from commissioning frames."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="heliotrack-mount-") as tmp:
+        pattern, fits = commission(Path(tmp))
+        calibrated = measure(
+            mounted(pattern), "hil-closedloop-offset.toml + camera mounts", "assisted", START, HOURS
+        )
+    unknown = measure(
+        mounted(str(OFFSET.parent / "calibration" / "panel-fisheye.toml")),
+        "hil-closedloop-offset.toml + camera mounts",
+        "assisted",
+        START,
+        HOURS,
+    )
+    for case in (unknown, calibrated):
+        case["camera_mount_deg"] = {k: list(v) for k, v in CAMERA_MOUNTS.items()}
+    calibrated["mount_fit"] = {
+        k: {
+            f: v[f]
+            for f in ("used", "residual_deg", "axis_off_deg", "axis_lean_deg", "rotvec_deg", "sigma_deg")
+        }
+        for k, v in fits.items()
+    }
+    return {"camera_mount_unknown": unknown, "camera_mount_calibrated": calibrated}
+
+
 def g_start(g: Any) -> float:
     return datetime.fromisoformat(g.start.replace("Z", "+00:00")).timestamp()
 
@@ -181,6 +281,7 @@ def run(quick: bool = False) -> dict:
             "clouds_paper": one(CLOUDS, "paper", START, HOURS),
             "clouds_sky_fixed": one(CLOUDS, None, START, HOURS),
             "reflection_assisted": one(REFLECTION, "assisted", START, HOURS),
+            **mount_cases(),
         }
     off = cases["offset_assisted"]["pointing_error_deg"]["pooled"]
     acceptance = {
@@ -195,6 +296,8 @@ def run(quick: bool = False) -> dict:
         mirror = cases["reflection_assisted"]["pointing_error_deg"]["pooled"]
         acceptance["reflection_learned_p95_le_0.2"] = (mirror["learned"]["p95"] or 9) <= 0.2
         acceptance["reflection_gap_p95_le_0.3"] = (mirror["gap"]["p95"] or 9) <= 0.3
+        mount = cases["camera_mount_calibrated"]["pointing_error_deg"]["pooled"]
+        acceptance["camera_mount_calibrated_learned_p95_le_0.2"] = (mount["learned"]["p95"] or 9) <= 0.2
     return {
         "definitions": DEFINITIONS,
         "cases": cases,
