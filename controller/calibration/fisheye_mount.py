@@ -41,7 +41,7 @@ PRIOR_DEG = 20.0
 #: A sighting's nominal error (deg) for weighing the prior in the fit.
 SIGHTING_DEG = 0.05
 #: A component whose sigma is over this (deg) is reported as not determined by the sightings.
-UNDETERMINED_DEG = 1.0
+UNDETERMINED_DEG = 0.5
 #: A mount this far from the panel's normal is not a camera on that panel (deg): the panel's
 #: angles, the site or the frames' times are wrong.
 MAX_MOUNT_DEG = 10.0
