@@ -304,3 +304,25 @@ def test_the_papers_pipeline_on_a_camera_that_turned_starts_a_new_sequence():
         asyncio.run(ctl._measure(row, t, ctl.sun.estimate(t)))
         restarts.append(row.estimator.reset_sequence.call_count > before)
     assert restarts == [True, False, False, True, False]  # 0.3 deg a frame: one sequence
+
+
+def test_the_pose_places_the_sun_through_the_cameras_mount():
+    """Where the sun must lie in a turned camera: the panel's pose, then the mount."""
+    from types import SimpleNamespace
+
+    from scipy.spatial.transform import Rotation
+
+    from controller.closedloop.geometry import row_normal, single_axis_error
+    from controller.closedloop.panel import expected_sun
+    from controller.sun.types import SunEstimate, enu_to_azel
+
+    cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
+    row = next(tr for tr in cfg.trackers if tr.name == "row-1")
+    az, el = enu_to_azel(row_normal(21.0, row.axis_azimuth, row.axis_tilt))  # the sun 1 deg of rotation ahead
+    sun = SunEstimate(0.0, float(az), float(el))
+    axes = [SimpleNamespace(learner=SimpleNamespace(estimate_deg=0.0, variance=0.0))]
+    plain = expected_sun(row, sun, [20.0], axes)  # type: ignore[arg-type]
+    assert single_axis_error(plain.d_cam) == pytest.approx(1.0, abs=1e-3)
+    mount = Rotation.from_rotvec([0.0, 0.8, 0.0], degrees=True).as_matrix()  # its axis 0.8 deg towards +x
+    turned = expected_sun(row, sun, [20.0], axes, mount)  # type: ignore[arg-type]
+    assert single_axis_error(turned.d_cam) == pytest.approx(0.2, abs=1e-3)
