@@ -208,6 +208,14 @@ class ClosedLoopController(Controller):
                 bundles[lens] = load_fisheye_bundle(lens)
             make = SeedEstimator if cl.algorithm == "seed" else FisheyeEstimator
             mount = bundles[lens].mount
+            if mount is not None:
+                lean = math.degrees(math.acos(max(-1.0, min(1.0, float(mount.matrix[2, 2])))))
+                log.info(
+                    "closed loop: %s's camera sits %.3f deg off its panel's normal ([mount] of %s)",
+                    tr.cfg.name,
+                    lean,
+                    lens,
+                )
             self.rows.append(
                 RowLoop(
                     tr,
