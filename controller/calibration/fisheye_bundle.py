@@ -265,6 +265,12 @@ class FisheyeBundle:
                     self.camera.model,
                 )
             )
+        if self.mount is not None and self.orientation is not None:
+            raise at.child("mount").error(
+                "no [mount] beside an [orientation]: a sky camera's bundle has its rotation to ENU, "
+                "a panel camera's its rotation on the panel",
+                "a [mount] table",
+            )
         return self
 
     @property

@@ -123,6 +123,7 @@ def test_bundle_round_trip(tmp_path):
         ({"camera": {**DOC["camera"], "cy": -3.0}}, "camera.cy"),
         ({"mount": {"panel_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, -1]]}}, "mount.panel_from_camera"),
         ({"mount": {"panel_from_camera": [[1, 0, 0], [0, 1, 0]]}}, "mount.panel_from_camera"),
+        ({"mount": {"panel_from_camera": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}}, "mount"),
     ],
 )
 def test_bundle_errors_name_the_key(patch, key):
