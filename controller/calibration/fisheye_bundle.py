@@ -318,17 +318,7 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
     out += camera_section(b.camera, "fisheye")
     o = b.orientation
     if o is not None:
-        out += [
-            "",
-            "[orientation]",
-            "enu_from_camera = [" + ", ".join(toml_value(list(r)) for r in o.enu_from_camera) + "]",
-        ]
-        if o.residual_deg is not None:
-            out.append(f"residual_deg = {toml_value(o.residual_deg)}")
-        if o.method is not None:
-            out.append(f"method = {toml_value(o.method)}")
-        if o.frames is not None:
-            out.append(f"frames = {int(o.frames)}")
+        out += _rotation_table("orientation", "enu_from_camera", o)
         if o.sky_scale != 1.0:
             out.append(f"sky_scale = {toml_value(o.sky_scale)}")
         if o.sky_calibration is not None:
@@ -355,21 +345,22 @@ def fisheye_bundle_to_toml(b: FisheyeBundle, folder: Path | None = None) -> str:
             f"longitude = {toml_value(s.longitude)}",
             f"altitude = {toml_value(s.altitude)}",
         ]
-    m = b.mount
-    if m is not None:
-        out += [
-            "",
-            "[mount]",
-            "panel_from_camera = [" + ", ".join(toml_value(list(r)) for r in m.panel_from_camera) + "]",
-        ]
-        if m.residual_deg is not None:
-            out.append(f"residual_deg = {toml_value(m.residual_deg)}")
-        if m.method is not None:
-            out.append(f"method = {toml_value(m.method)}")
-        if m.frames is not None:
-            out.append(f"frames = {int(m.frames)}")
+    if b.mount is not None:
+        out += _rotation_table("mount", "panel_from_camera", b.mount)
     out += notes_section(b.notes)
     return "\n".join(out) + "\n"
+
+
+def _rotation_table(table: str, key: str, cal: OrientationCal | MountCal) -> list[str]:
+    """``[table]`` with its rotation ``key`` and the fit's residual, method and frames."""
+    out = ["", f"[{table}]", f"{key} = [" + ", ".join(toml_value(list(r)) for r in getattr(cal, key)) + "]"]
+    if cal.residual_deg is not None:
+        out.append(f"residual_deg = {toml_value(cal.residual_deg)}")
+    if cal.method is not None:
+        out.append(f"method = {toml_value(cal.method)}")
+    if cal.frames is not None:
+        out.append(f"frames = {int(cal.frames)}")
+    return out
 
 
 def save_fisheye_bundle(b: FisheyeBundle, path: str | Path) -> Path:
