@@ -54,15 +54,18 @@ def sun_centroid(image: np.ndarray) -> np.ndarray:
     return centroids[1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))]
 
 
-def predicted_sun(t: float, site: tuple[float, float], rotation: float) -> np.ndarray:
+def predicted_sun(
+    t: float, site: tuple[float, float], rotation: float, mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
+) -> np.ndarray:
     """Where the truth sun (pvlib SPA) falls on the panel lens of a north-south row at
-    ``rotation`` deg (px)."""
+    ``rotation`` deg, the camera turned on the panel by ``mount`` (px)."""
     from hil.camera import Site
     from hil.panelcam import PanelCamera, panel_lens
     from hil.truth import sun_truth
 
     sun = sun_truth(np.array([t]), site[0], site[1]).vectors[0]
-    cam_from_enu = PanelCamera("single-axis", Site(site[0], site[1], 0.0)).enu_from_camera([rotation]).T
+    cam = PanelCamera("single-axis", Site(site[0], site[1], 0.0), mount_deg=mount)
+    cam_from_enu = cam.enu_from_camera([rotation]).T
     uv, inside = panel_lens(0.5).project(cam_from_enu @ sun)
     assert inside[0]
     return uv[0]
@@ -73,7 +76,9 @@ def test_frames_show_the_sun_where_the_panel_with_its_offset_points(tmp_path, pr
     from controller.timestamps import time_from_name
 
     folder = tmp_path / "new" / "frames"  # created by the emulator
-    drive = start_camera_drive(folder, "--mount-offset", str(OFFSET), "--camera-interval", "1")
+    drive = start_camera_drive(
+        folder, "--mount-offset", str(OFFSET), "--camera-mount", "0", "1.5", "0", "--camera-interval", "1"
+    )
     processes.append(drive.proc)
     got = wait_for(lambda: frames(folder)[-2:] if len(frames(folder)) >= 2 else [], 10.0)
     assert len(got) == 2, list(folder.iterdir()) if folder.exists() else "no folder"
@@ -84,15 +89,18 @@ def test_frames_show_the_sun_where_the_panel_with_its_offset_points(tmp_path, pr
         assert image.shape == (240, 320, 3) and image.dtype == np.uint8
         assert np.abs(image[..., 0].astype(int) - image[..., 2]).max() > 10  # colour, not grey
         seen = sun_centroid(image)
-        # the drive holds its stow angle 0: the panel is at 0 + the mounting offset
-        assert np.hypot(*(seen - predicted_sun(t, drive.site, 0.0 + OFFSET))) < 1.0
-        assert np.hypot(*(seen - predicted_sun(t, drive.site, 0.0))) > 2.0  # the offset shows
+        # the drive holds its stow angle 0: the panel is at 0 + the mounting offset, and the
+        # camera turned 1.5 deg on it
+        mount = (0.0, 1.5, 0.0)
+        assert np.hypot(*(seen - predicted_sun(t, drive.site, 0.0 + OFFSET, mount))) < 1.0
+        assert np.hypot(*(seen - predicted_sun(t, drive.site, 0.0, mount))) > 2.0  # the offset shows
+        assert np.hypot(*(seen - predicted_sun(t, drive.site, 0.0 + OFFSET))) > 1.5  # and the turn
     # the controller's reader takes them as they come
     frame = FolderFrameSource(folder).grab(time.time())
     assert frame is not None and frame.image.shape[:2] == (240, 320)
     code, err, _ = terminate(drive.proc)
     assert code == 0, err
-    assert "panel camera: " in err and "+2.00 deg" in err
+    assert "panel camera: " in err and "+2.00 deg" in err and "camera turned +0.00 +1.50 +0.00 deg" in err
 
 
 def test_only_the_newest_frames_are_kept(tmp_path, processes):
