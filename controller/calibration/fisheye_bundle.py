@@ -39,8 +39,8 @@ residual_deg = 0.02         # optional: RMS residual of the fit (heliotrack cali
 
 ``d_enu = enu_from_camera @ d_cam``; a panel camera's ``d_panel = panel_from_camera @ d_cam``,
 the panel's frame being that of a camera mounted exactly (z the panel's normal, x towards
-increasing azimuth or rotation: :mod:`controller.closedloop.geometry`).  The pose's rotation in ``X_cam = R X_world + t`` is its
-transpose.  Read with the project's one schema (:mod:`controller.schema`): unknown keys are
+increasing azimuth or rotation: :mod:`controller.closedloop.geometry`).  The pose's
+rotation in ``X_cam = R X_world + t`` is ``enu_from_camera``'s transpose.  Read with the project's one schema (:mod:`controller.schema`): unknown keys are
 errors, and every error names the file, the key and what was expected.
 """
 
