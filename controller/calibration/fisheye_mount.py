@@ -9,9 +9,10 @@ gives the sun in the panel's frame, ``s_i``, and the camera measures it in its o
 The mount ``M`` (``panel_from_camera``) minimises ``sum |M d_i - s_i|^2``.
 
 Frames of a panel that tracks the sun all see it near the camera's axis, and the rotation
-about that axis is then unobservable.  So the fit is Gauss-Newton on a rotation vector from
-the identity with a weak prior towards it (ridge ``PRIOR_DEG``): a direction the sightings
-do not constrain stays where an exactly mounted camera has it, and its sigma says so.
+about that axis is then unobservable.  So the fit is Gauss-Newton on a rotation vector,
+from Kabsch's rotation, with a weak prior towards the identity (ridge ``PRIOR_DEG``): a
+direction the sightings do not constrain goes where an exactly mounted camera has it, and
+its sigma says so.
 Holding the panel at a few fixed angles while the sun moves across the image (stow, and
 angles 20-40 deg either side) fixes all three.
 
@@ -34,6 +35,7 @@ from scipy.spatial.transform import Rotation
 
 from ..closedloop.geometry import dual_axis_enu_from_camera, row_enu_from_camera
 from ..errors import InputError
+from .fisheye_orientation import kabsch
 
 #: The prior's sigma on each component of the mount's rotation vector (deg): far wider than
 #: any mount a jig leaves, so that it only decides what the sightings leave undecided.
@@ -90,7 +92,7 @@ def _angles_deg(M: np.ndarray, d: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 
 def fit_mount(
-    d_cam: np.ndarray, s_panel: np.ndarray, sigma_deg: np.ndarray | None = None, *, iterations: int = 8
+    d_cam: np.ndarray, s_panel: np.ndarray, sigma_deg: np.ndarray | None = None, *, iterations: int = 20
 ) -> MountFit:
     """The mount ``M`` minimising ``sum |M d_i - s_i|^2 / sigma_i^2`` (camera-frame sightings
     ``d_cam``, the ephemeris's sun in the panel's frame ``s_panel``; N x 3 each; each
@@ -115,7 +117,10 @@ def fit_mount(
     )
     wt = np.repeat((SIGHTING_DEG / sig) ** 2, 3)  # per residual component, 1 at SIGHTING_DEG
     lam = (SIGHTING_DEG / PRIOR_DEG) ** 2
-    w = np.zeros(3)
+    # start from Kabsch's rotation: a camera turned a half turn on its panel (mounted upside
+    # down) lies where Gauss-Newton from the identity does not reach; where the sightings
+    # leave a direction free, the prior below moves it back towards the identity
+    w = Rotation.from_matrix(kabsch(d, s, wt[::3])).as_rotvec()
     for _ in range(iterations):
         R = Rotation.from_rotvec(w)
         p = d @ R.as_matrix().T  # M d_i
