@@ -268,10 +268,11 @@ class HilMountOffset:
         doc="The panel camera's rotation on its panel, a rotation vector in the panel's frame "
         "(x across the panel towards increasing azimuth or rotation, z its normal, y = z x x): "
         "[0, 1, 0] turns the camera's axis 1 deg towards +x (a row's rotation error of 1 deg "
-        "that the loop cannot see without the lens bundle's [mount]).",
+        "that the loop cannot see without the lens bundle's [mount]; [0, 0, 180]: the camera "
+        "upside down).",
         unit="deg",
-        ge=-10,
-        le=10,
+        ge=-180,
+        le=180,
     )
 
 

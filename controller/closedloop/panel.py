@@ -68,6 +68,11 @@ LIMIT_MARGIN_DEG = 0.5
 SAVE_EVERY_S = 3600.0
 #: A drive farther than this (deg) from its last target is still on its way (assisted mode).
 SETTLE_DEG = 0.5
+#: Implausible frames counted up, plausible ones down by :data:`IMPLAUSIBLE_FORGIVE`: at this
+#: count a row's camera is said to disagree with its pose (a camera turned on its panel, or
+#: a reflection that stays; 30 min of 10-s frames).
+IMPLAUSIBLE_WARN = 180
+IMPLAUSIBLE_FORGIVE = 10
 #: A run of refused frames is one new offset only while each stays this close (deg, every
 #: axis) to the run's mean: a reflection's offset drifts at the sun's rate, a slip's does not.
 REFUSAL_SPREAD_DEG = 0.3
@@ -137,6 +142,7 @@ class RowLoop:
     frames_seen: Counter = field(default_factory=Counter)
     last_source: str = ""  # what set this cycle's setpoint ("": not steered by the loop)
     framed_at: list[float] | None = None  # the drive's position at the previous frame (deg)
+    implausible: int = 0  # implausible frames, less IMPLAUSIBLE_FORGIVE per plausible one
 
     def count(self, source: str) -> None:
         """This cycle's setpoint came from ``source`` (camera, learned, settling, hold, reference)."""
@@ -356,7 +362,10 @@ class ClosedLoopController(Controller):
             # not even a refusal, or a run of them would restart the learner on the reflection
             # and steer the row onto it (docs/fisheye.md, the panel loop and a reflection)
             row.frames_seen["implausible"] += 1
+            self._count_implausible(row, max(abs(p + e - f) for e, p, f in zip(errors, m.position, frefs)))
             errors = None
+        elif assisted and settled and errors is not None:
+            row.implausible = max(0, row.implausible - IMPLAUSIBLE_FORGIVE)
         veto = (
             assisted
             and settled
@@ -391,6 +400,21 @@ class ClosedLoopController(Controller):
         row.sent = clamped
         row.count(source)
         return clamped, backtracking
+
+    def _count_implausible(self, row: RowLoop, offset_deg: float) -> None:
+        """Say once, when implausible frames keep coming, what usually causes them."""
+        row.implausible += 1
+        if row.implausible == IMPLAUSIBLE_WARN:
+            log.warning(
+                "closed loop: %s: its camera keeps measuring offsets no row has (%.1f deg, over "
+                "max_offset_deg %g): a camera turned on its panel (upside down, or a quarter turn) "
+                "without its [mount] in %s (heliotrack calibrate fisheye mount), or a reflection "
+                "that stays in view",
+                row.runtime.cfg.name,
+                offset_deg,
+                self.closedloop.max_offset_deg,
+                self.closedloop.lens(row.runtime.cfg.name),
+            )
 
     @staticmethod
     def _count_refusal(row: RowLoop, offsets: list[float]) -> None:

@@ -97,7 +97,8 @@ def _add_panel_camera_options(d: argparse.ArgumentParser) -> None:
         metavar=("RX", "RY", "RZ"),
         default=(0.0, 0.0, 0.0),
         help="the camera's rotation on its panel, a rotation vector in the panel's frame, deg "
-        "(default 0 0 0; 0 1 0: its axis 1 deg towards increasing azimuth or rotation), for "
+        "(default 0 0 0; 0 1 0: its axis 1 deg towards increasing azimuth or rotation; 0 0 180: "
+        "upside down), for "
         "heliotrack calibrate fisheye mount",
     )
     g.add_argument(
@@ -252,9 +253,9 @@ def _check_panel_camera_options(args: argparse.Namespace) -> list[float]:
             raise HilError(
                 f"--site LAT LON: latitude within +-90 and longitude within +-180 deg, got {lat:g} {lon:g}"
             )
-    if not all(abs(r) <= 10.0 for r in args.camera_mount):  # NaN too
+    if not all(abs(r) <= 180.0 for r in args.camera_mount):  # NaN too
         raise HilError(
-            f"--camera-mount must be within +-10 deg, got {' '.join(f'{r:g}' for r in args.camera_mount)}"
+            f"--camera-mount must be within +-180 deg, got {' '.join(f'{r:g}' for r in args.camera_mount)}"
         )
     if not math.isfinite(args.axis_azimuth):
         raise HilError(f"--axis-azimuth must be a finite angle in deg, got {args.axis_azimuth}")

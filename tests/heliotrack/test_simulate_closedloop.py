@@ -139,6 +139,27 @@ def test_the_papers_pipeline_learns_a_misaligned_rows_offset_after_the_slew_from
     assert np.percentile(samples[samples[:, 0] >= t0, 1], 95) <= 0.2
 
 
+def test_a_camera_upside_down_without_its_mount_is_held_near_the_sun_and_said(caplog):
+    """A half turn on the panel turns the loop's feedback round: the plausible offset's
+    bound holds the row a few degrees off, and the run says what is wrong, once."""
+    data = tomllib.loads(OFFSET.read_text())
+    data["trackers"] = [t for t in data["trackers"] if t["name"] == "row-1"]
+    data["hil"]["mount_offsets"] = [
+        {"tracker": "row-1", "offset_deg": [1.5], "camera_deg": [0.0, 0.8, 180.0]}
+    ]
+    data["hil"]["sun_gaps"] = []
+    caplog.set_level("WARNING", logger="heliotrack.closedloop")
+    r, s = run(parse_scenario(data, OFFSET), "2024-03-20T07:00:00+00:00", 0.6, WindowedRun)
+    row = s["closedloop"]["rows"]["row-1"]
+    assert row["frames"]["implausible"] >= 180
+    samples = np.array(r.samples["row-1"])
+    t0 = datetime(2024, 3, 20, 7, 5, tzinfo=UTC).timestamp()  # after the slew from stow
+    held = samples[samples[:, 0] >= t0, 1]
+    assert held.size > 100 and held.max() < 6.0  # bounded by max_offset_deg (5), not run away
+    said = [m for m in caplog.messages if "keeps measuring offsets no row has" in m]
+    assert len(said) == 1 and "upside down" in said[0] and "panel-fisheye.toml" in said[0]
+
+
 def test_a_row_may_have_a_turned_camera_alone():
     data = tomllib.loads(OFFSET.read_text())
     data["hil"]["mount_offsets"] = [{"tracker": "row-1", "camera_deg": [0.0, 1.0, 0.0]}]
@@ -156,7 +177,7 @@ def test_a_row_may_have_a_turned_camera_alone():
             "hil.mount_offsets[0].offset_deg",
         ),
         (
-            lambda d: d["hil"]["mount_offsets"][0].update(camera_deg=[0.0, 12.0, 0.0]),
+            lambda d: d["hil"]["mount_offsets"][0].update(camera_deg=[0.0, 190.0, 0.0]),
             "hil.mount_offsets[0].camera_deg",
         ),
         (
