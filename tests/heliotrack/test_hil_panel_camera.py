@@ -137,7 +137,7 @@ def _name(t: float) -> str:
         (["--panel-camera", "{dir}", "--site", "20", "181"], "--site"),
         (["--panel-camera", "{dir}", "--site", "20", "0", "--keep", "1"], "--keep"),
         (
-            ["--panel-camera", "{dir}", "--site", "20", "0", "--camera-mount", "0", "12", "0"],
+            ["--panel-camera", "{dir}", "--site", "20", "0", "--camera-mount", "0", "200", "0"],
             "--camera-mount",
         ),
     ],
