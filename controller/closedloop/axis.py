@@ -64,12 +64,14 @@ class ClosedLoopAxis:
         self.correction = 0.0
         self._t: float | None = None
 
-    def _seen(self, error_deg: float | None) -> bool:
+    def seen(self, error_deg: float | None) -> bool:
+        """Whether the camera's error is a sight this axis trusts (finite, within
+        ``max_error_deg``)."""
         return error_deg is not None and math.isfinite(error_deg) and abs(error_deg) <= self.max_error_deg
 
     def plausible(self, error_deg: float | None, position_deg: float, frame_reference_deg: float) -> bool:
         """Whether the frame measures an offset this axis could have (``max_offset_deg``)."""
-        if not self._seen(error_deg):
+        if not self.seen(error_deg):
             return False
         assert error_deg is not None
         return abs(position_deg + error_deg - frame_reference_deg) <= self.max_offset_deg
@@ -80,7 +82,7 @@ class ClosedLoopAxis:
         """Whether the learner would take this frame's offset (assisted mode): a row refuses
         a frame that any of its axes refuses (a glint straight above the sun is off in
         elevation only, and is no sight of the sun in azimuth either)."""
-        if not self._seen(error_deg):
+        if not self.seen(error_deg):
             return False
         assert error_deg is not None
         return self.learner.admits(t, position_deg + error_deg - frame_reference_deg)
@@ -107,7 +109,7 @@ class ClosedLoopAxis:
         drive has reached its last target (assisted mode: a frame taken on the way is not
         used, and the correction holds).
         """
-        seen = self._seen(error_deg)
+        seen = self.seen(error_deg)
         dt = 0.0 if self._t is None else max(t - self._t, 0.0)
         self._t = t
         if self.setpoint is None:

@@ -74,8 +74,9 @@ class OffsetLearner:
             self.variance += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
         self.last_t = t if self.last_t is None else max(self.last_t, t)
 
-    def admits(self, t: float, z_deg: float) -> bool:
-        """Whether a measurement ``z`` (deg) at POSIX ``t`` passes the gate; changes nothing."""
+    def admits(self, t: float, z_deg: float, *, sigma_deg: float | None = None) -> bool:
+        """Whether a measurement ``z`` (deg) at POSIX ``t`` passes the gate (``sigma_deg`` as
+        for :meth:`update`); changes nothing."""
         if not math.isfinite(z_deg):
             return False
         if self.accepted == 0 or self.since_start < self.start_frames:
@@ -83,17 +84,20 @@ class OffsetLearner:
         var = self.variance
         if self.last_t is not None and t > self.last_t:
             var += self.drift_deg_per_sqrt_h**2 * (t - self.last_t) / 3600.0
-        return (z_deg - self.estimate_deg) ** 2 <= self.gate_sigma**2 * (var + self.meas_sigma_deg**2)
+        r = max(self.meas_sigma_deg, sigma_deg or 0.0) ** 2
+        return (z_deg - self.estimate_deg) ** 2 <= self.gate_sigma**2 * (var + r)
 
-    def update(self, t: float, z_deg: float, *, veto: bool = False) -> bool:
+    def update(self, t: float, z_deg: float, *, veto: bool = False, sigma_deg: float | None = None) -> bool:
         """Add one measurement ``z`` (deg) at POSIX ``t``; False when it was refused: by the
-        gate, or by ``veto`` (the frame was refused on another axis of the same row)."""
+        gate, or by ``veto`` (the frame was refused on another axis of the same row).
+        ``sigma_deg``: the measurement's own one-sigma, when it is larger than
+        ``meas_sigma_deg`` (a sun seen far off the camera's axis)."""
         if not math.isfinite(z_deg):
             return False
         self.predict(t)
-        r = self.meas_sigma_deg**2
+        r = max(self.meas_sigma_deg, sigma_deg or 0.0) ** 2
         innov = z_deg - self.estimate_deg
-        if veto or not self.admits(t, z_deg):
+        if veto or not self.admits(t, z_deg, sigma_deg=sigma_deg):
             self.refused += 1
             self.refused_run += 1
             if self.refused_run >= self.restart_after:

@@ -22,7 +22,9 @@ controller's: a weather stow, night stow,
 DIFFUSE and an operator's manual setpoint outrank the loop, and every target is clamped to
 the axis's limits on its way to the wire.  While a row backtracks, or its reference is at
 an axis limit (the camera's error then is not a pointing error), it follows the reference
-(plus the learned offset in the assisted mode) and the paper's loop restarts afterwards.
+(plus the learned offset in the assisted mode) and the paper's loop restarts afterwards;
+the assisted loop's learner still takes the offset from the sun seen off the camera's axis
+there (:meth:`ClosedLoopController._learn_aside`).
 
 The learned offsets persist in ``[closedloop] state`` (:class:`~.learner.MisalignmentStore`,
 saved every simulated hour and at close).  Angles in degrees; errors are sun minus
@@ -83,6 +85,18 @@ def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
     return ("azimuth", "elevation") if isinstance(cfg, DualAxisTracker) else ("rotation",)
 
 
+def sun_angles(cfg: TrackerConfig, sun: SunEstimate, position: list[float]) -> list[float]:
+    """The axis angles (deg) that face ``sun``, with no limit, backtracking or travel
+    applied: a row's, the sun's angle in its rotation plane; a dual-axis tracker's, the
+    sun's azimuth (within half a turn of the drive's ``position``) and elevation.  What a
+    camera's error measures the offset against while the row looks elsewhere."""
+    s = azel_to_enu(sun.az_deg, sun.el_deg)
+    if isinstance(cfg, DualAxisTracker):
+        return [position[0] + (sun.az_deg - position[0] + 180.0) % 360.0 - 180.0, sun.el_deg]
+    assert isinstance(cfg, SingleAxisTracker)
+    return [single_axis_error(row_enu_from_camera(0.0, cfg.axis_azimuth, cfg.axis_tilt).T @ s)]
+
+
 def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list[float]:
     """Per-axis errors (deg, sun minus boresight) of the sun's camera-frame direction."""
     if isinstance(cfg, DualAxisTracker):
@@ -122,6 +136,8 @@ class Measurement:
     position: list[float]  # the drive's reported axis angles (deg)
     errors: list[float] | None  # the camera's per-axis errors (None: no sun seen)
     frame_reference: list[float] | None  # the sun source's reference at t
+    frame_sun: list[float] | None = None  # the axes' angles that face the sun at t (unclipped)
+    sigma_deg: float | None = None  # the camera's one-sigma of the sun's direction
 
 
 @dataclass
@@ -301,7 +317,14 @@ class ClosedLoopController(Controller):
             return Measurement(t, position, None, reference)
         row.frames_seen["found"] += 1
         d_panel = res.d_cam if row.mount is None else row.mount @ res.d_cam
-        return Measurement(t, position, camera_errors(tr.cfg, d_panel, position), reference)
+        return Measurement(
+            t,
+            position,
+            camera_errors(tr.cfg, d_panel, position),
+            reference,
+            None if sun is None else sun_angles(tr.cfg, sun, position),
+            res.sigma_deg,
+        )
 
     # -- steering -------------------------------------------------------------------------
     def targets(
@@ -333,10 +356,12 @@ class ClosedLoopController(Controller):
         assisted = self.closedloop.mode == "assisted"
         if m is None or backtracking or near_limit:
             # no position, or a reference the camera cannot judge: follow the reference
+            settled = m is not None and row.settled(m.position)
             row.restart()
             if assisted:
-                for ax in row.axes:
-                    ax.learner.predict(self._t)
+                if m is None or not settled or not self._learn_aside(row, m):
+                    for ax in row.axes:
+                        ax.learner.predict(self._t)
                 row.count("learned")
                 follow = [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)]
                 row.sent = clamp_targets(cfg, follow)
@@ -400,6 +425,37 @@ class ClosedLoopController(Controller):
         row.sent = clamped
         row.count(source)
         return clamped, backtracking
+
+    def _learn_aside(self, row: RowLoop, m: Measurement) -> bool:
+        """A frame taken, the drive settled, while the row backtracks or waits at a limit:
+        the panel looks away from the sun on purpose, but its camera still sees it, and
+        ``position + error`` less the angles that face the sun (:func:`sun_angles`) is the
+        offset as in tracking.  The learner takes it at the camera's own sigma (a sun far
+        off the axis is measured less well), with the same gates; the PID does not run.
+        Whether the learner took it."""
+        if m.errors is None or m.frame_sun is None:
+            return False
+        if not all(ax.seen(e) for ax, e in zip(row.axes, m.errors)):
+            return False  # a sun this far off the camera's axis is not measured well enough
+        suns = m.frame_sun
+        if not all(ax.plausible(e, p, f) for ax, e, p, f in zip(row.axes, m.errors, m.position, suns)):
+            row.frames_seen["implausible"] += 1
+            self._count_implausible(row, max(abs(p + e - f) for e, p, f in zip(m.errors, m.position, suns)))
+            return False
+        row.implausible = max(0, row.implausible - IMPLAUSIBLE_FORGIVE)
+        offsets = [p + e - f for e, p, f in zip(m.errors, m.position, suns)]
+        sigma = m.sigma_deg
+        if not all(ax.learner.admits(m.t, z, sigma_deg=sigma) for ax, z in zip(row.axes, offsets)):
+            # no refusal run either: a run restarts the learner, which only frames of the
+            # sun on the axis may do (an off-axis bias must not teach it a new offset)
+            row.frames_seen["refused aside"] += 1
+            return False
+        row.refusals.clear()
+        for ax, z in zip(row.axes, offsets):
+            ax.learner.update(m.t, z, sigma_deg=sigma)
+        row.frames_seen["aside"] += 1
+        log.debug("%s: offset %s measured aside the sun (sigma %s deg)", row.runtime.cfg.name, offsets, sigma)
+        return True
 
     def _count_implausible(self, row: RowLoop, offset_deg: float) -> None:
         """Say once, when implausible frames keep coming, what usually causes them."""

@@ -27,9 +27,12 @@ def scenario(
     gap=None,
     state=None,
     algorithm: str = "default",
+    row: dict | None = None,
 ):
     data = tomllib.loads(OFFSET.read_text())
     data["trackers"] = [t for t in data["trackers"] if t["name"] in trackers]
+    for t in data["trackers"]:
+        t.update(row if t["name"] == "row-1" and row else {})
     data["hil"]["mount_offsets"] = [m for m in data["hil"]["mount_offsets"] if m["tracker"] in trackers]
     data["closedloop"].update(mode=mode, enabled=enabled, algorithm=algorithm)
     if state is not None:
@@ -74,6 +77,23 @@ def test_assisted_loop_tracks_a_misaligned_row_learns_its_offset_and_keeps_it_th
     assert np.percentile(gap, 95) <= 0.3
     saved = json.loads(state.read_text())
     assert saved["rows"]["row-1"]["rotation"]["estimate_deg"] == pytest.approx(-1.5, abs=0.1)
+
+
+def test_a_row_learns_its_offset_while_it_backtracks_and_keeps_it_through_a_gap_that_follows():
+    """A morning of backtracking, then a cloud gap as tracking begins: the camera saw the
+    sun off its axis all along, so the row tracks the gap with its offset (it had been
+    1.5 deg off there, having never tracked the sun before the gap)."""
+    gap_start = datetime(2024, 3, 20, 4, 40, tzinfo=UTC).timestamp()
+    cfg = scenario(("row-1",), gap=("2024-03-20T04:40:00Z", 1500.0), row={"max_angle": 85.0})
+    r, s = run(cfg, "2024-03-20T03:50:00+00:00", 1.25, WindowedRun)
+    cl = s["closedloop"]["rows"]["row-1"]
+    assert cl["frames"]["aside"] > 200  # the 55 min of backtracking, the sun 20-60 deg off the axis
+    assert cl["setpoints"].get("camera", 0) == 0  # the camera steered no setpoint before the gap
+    assert cl["learned_offset_deg"]["rotation"] == pytest.approx(-1.5, abs=0.1)
+    samples = np.array(r.samples["row-1"])
+    gap = samples[samples[:, 0] >= gap_start + 60, 1]
+    assert gap.size > 150
+    assert np.percentile(gap, 95) <= 0.3
 
 
 def test_a_camera_mounted_off_its_panel_is_corrected_by_its_bundles_mount(tmp_path):

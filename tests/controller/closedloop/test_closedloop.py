@@ -241,3 +241,33 @@ def test_single_axis_error_ignores_the_position_along_the_row():
 def test_unknown_mode_is_refused():
     with pytest.raises(ValueError):
         ClosedLoopAxis(mode="magic")
+
+
+def test_a_measurement_with_a_wider_sigma_counts_less_and_is_gated_wider():
+    narrow, wide = OffsetLearner(), OffsetLearner()
+    for lr in (narrow, wide):
+        for k in range(10):
+            lr.update(10.0 * k, -1.5)
+    var = wide.variance + wide.drift_deg_per_sqrt_h**2 * 10.0 / 3600.0
+    before = wide.estimate_deg
+    assert not narrow.update(100.0, -1.0)  # 0.5 deg off, at 0.05: refused
+    assert wide.update(100.0, -1.0, sigma_deg=0.5)  # at its own 0.5: taken, weighed by it
+    assert wide.estimate_deg == pytest.approx(before + (-1.0 - before) * var / (var + 0.25), rel=1e-9)
+
+
+@pytest.mark.parametrize("axis_tilt", [0.0, 10.0])
+@pytest.mark.parametrize("az, el", [(95.0, 12.0), (200.0, 55.0), (260.0, 30.0)])
+def test_the_angles_that_face_the_sun_are_pvlibs_true_tracking_unclipped(az, el, axis_tilt):
+    import pvlib
+
+    from controller.closedloop.panel import sun_angles
+    from controller.sun.types import SunEstimate
+    from controller.trackers import DualAxisTracker, SingleAxisTracker
+
+    sun = SunEstimate(0.0, az, el)
+    row = SingleAxisTracker(name="r", link="l", device_id=1, axis_tilt=axis_tilt)
+    tt = pvlib.tracking.singleaxis(90.0 - el, az, axis_tilt, 180.0, max_angle=90.0, backtrack=False)
+    (rot,) = sun_angles(row, sun, [0.0])
+    assert rot == pytest.approx(float(np.ravel(tt["tracker_theta"])[0]), abs=1e-6)
+    dual = DualAxisTracker(name="d", link="l", device_id=2)
+    assert sun_angles(dual, sun, [az + 350.0]) == pytest.approx([az + 360.0, el])

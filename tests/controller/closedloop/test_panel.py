@@ -326,3 +326,41 @@ def test_the_pose_places_the_sun_through_the_cameras_mount():
     mount = Rotation.from_rotvec([0.0, 0.8, 0.0], degrees=True).as_matrix()  # its axis 0.8 deg towards +x
     turned = expected_sun(row, sun, [20.0], axes, mount)  # type: ignore[arg-type]
     assert single_axis_error(turned.d_cam) == pytest.approx(0.2, abs=1e-3)
+
+
+def test_a_backtracking_row_learns_its_offset_from_the_sun_off_its_camera_axis():
+    """The panel looks 30 deg away from the sun on purpose; its camera still measures the
+    offset against the angle that faces the sun, at the camera's sigma, without the PID;
+    frames of a sun too far off the axis, or that the learner refuses, are left out, and
+    refusals aside the sun never restart the learner (an off-axis bias is no slipped panel)."""
+    from controller.closedloop.panel import sun_angles
+
+    ctl = controller()
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    (lr,) = [ax.learner for ax in row.axes]
+    est = ctl.sun.estimate(T)
+
+    def cycle(k: int, error_from_offset: float, look_away: float = 30.0) -> list[float]:
+        ctl._t = T + 10 * k
+        facing = sun_angles(row.runtime.cfg, est, [0.0])[0]
+        ref = facing + look_away  # a backtracking angle
+        pos = row.sent if row.sent is not None else [ref]
+        error = facing - pos[0] + error_from_offset  # the panel sits 1.5 deg beyond its encoder
+        row.measured = Measurement(ctl._t, list(pos), [error], [ref], [facing], 0.03)
+        target, backtracking = ctl._steer(row, ([ref], True))
+        assert backtracking
+        return target
+
+    for k in range(20):
+        cycle(k, -1.5)
+    assert lr.estimate_deg == pytest.approx(-1.5, abs=0.01)
+    assert row.frames_seen["aside"] == 19  # the first cycle: no setpoint yet, not settled
+    assert all(ax.correction == 0.0 for ax in row.axes)
+    for k in range(20, 50):  # 3 deg off what was learned, run after run: never a restart
+        cycle(k, 1.5)
+    assert lr.estimate_deg == pytest.approx(-1.5, abs=0.01) and lr.refused_run == 0
+    assert row.frames_seen["refused aside"] == 30
+    cycle(50, -1.5, look_away=65.0)  # the row turns further away...
+    accepted = lr.accepted
+    cycle(51, -1.5, look_away=65.0)  # ...and sees the sun 65 deg off its axis: not measured well enough
+    assert lr.accepted == accepted and row.frames_seen["aside"] == 20
