@@ -364,3 +364,7 @@ def test_a_backtracking_row_learns_its_offset_from_the_sun_off_its_camera_axis()
     accepted = lr.accepted
     cycle(51, -1.5, look_away=65.0)  # ...and sees the sun 65 deg off its axis: not measured well enough
     assert lr.accepted == accepted and row.frames_seen["aside"] == 20
+    for k in range(52, 52 + 200):  # a reflection 30 deg from the sun, nearer the axis: no offset, no warning
+        cycle(k, 30.0)
+    assert row.frames_seen["implausible aside"] == 200 and row.implausible == 0
+    assert lr.accepted == accepted
