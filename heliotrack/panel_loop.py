@@ -15,7 +15,8 @@ from collections.abc import Callable
 from typing import Any
 
 from controller.clock import Clock
-from controller.closedloop.panel import ClosedLoopController, axis_names
+from controller.closedloop.panel import ClosedLoopController
+from controller.closedloop.pose import axis_names
 from controller.config import Config, SingleAxisTracker
 from controller.errors import ConfigError
 from controller.loop import Controller

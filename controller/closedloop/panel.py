@@ -46,7 +46,7 @@ import numpy as np
 
 from .. import setpoints as sp
 from ..calibration.fisheye_bundle import FisheyeBundle, load_fisheye_bundle
-from ..config import Config, DualAxisTracker, SingleAxisTracker, TrackerConfig
+from ..config import Config
 from ..drives.base import DriveCommError
 from ..geometry import lowest_sun_azimuth
 from ..loop import Controller
@@ -54,13 +54,12 @@ from ..modes import ControlMode, ModeDecision
 from ..records import TrackerRuntime
 from ..safety import StowOrder, clamp_targets
 from ..sun.camera import FrameSource
-from ..sun.types import SunEstimate, azel_to_enu
+from ..sun.types import SunEstimate
 from ..vision.fisheye import FisheyeEstimator, SeedEstimator
-from ..vision.fisheye.gates import CameraPrior
 from ..vision.fisheye.pipeline import FramePipeline
 from .axis import ClosedLoopAxis
-from .geometry import dual_axis_enu_from_camera, dual_axis_errors, row_enu_from_camera, single_axis_error
 from .learner import MisalignmentStore
+from .pose import axis_names, camera_errors, expected_sun, sun_angles
 
 log = logging.getLogger("heliotrack.closedloop")
 
@@ -78,54 +77,6 @@ IMPLAUSIBLE_FORGIVE = 10
 #: A run of refused frames is one new offset only while each stays this close (deg, every
 #: axis) to the run's mean: a reflection's offset drifts at the sun's rate, a slip's does not.
 REFUSAL_SPREAD_DEG = 0.3
-
-
-def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
-    """The names of a tracker's axes in the misalignment store."""
-    return ("azimuth", "elevation") if isinstance(cfg, DualAxisTracker) else ("rotation",)
-
-
-def sun_angles(cfg: TrackerConfig, sun: SunEstimate, position: list[float]) -> list[float]:
-    """The axis angles (deg) that face ``sun``, with no limit, backtracking or travel
-    applied: a row's, the sun's angle in its rotation plane; a dual-axis tracker's, the
-    sun's azimuth (within half a turn of the drive's ``position``) and elevation.  What a
-    camera's error measures the offset against while the row looks elsewhere."""
-    s = azel_to_enu(sun.az_deg, sun.el_deg)
-    if isinstance(cfg, DualAxisTracker):
-        return [position[0] + (sun.az_deg - position[0] + 180.0) % 360.0 - 180.0, sun.el_deg]
-    assert isinstance(cfg, SingleAxisTracker)
-    return [single_axis_error(row_enu_from_camera(0.0, cfg.axis_azimuth, cfg.axis_tilt).T @ s)]
-
-
-def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list[float]:
-    """Per-axis errors (deg, sun minus boresight) of the sun's camera-frame direction."""
-    if isinstance(cfg, DualAxisTracker):
-        return list(dual_axis_errors(d_cam, position[0], position[1]))
-    return [single_axis_error(d_cam)]
-
-
-def expected_sun(
-    cfg: TrackerConfig,
-    sun: SunEstimate,
-    position: list[float],
-    axes: list[ClosedLoopAxis],
-    mount: np.ndarray | None = None,
-) -> CameraPrior:
-    """Where the sun ``sun`` lies in the panel camera's frame for a drive at ``position``
-    (deg), the panel sitting off it by minus each axis's learned offset and the camera on
-    the panel by ``mount`` (its bundle's ``panel_from_camera``; None: along the normal); its
-    sigma (deg) that of the learned offsets together."""
-    panel = [p - ax.learner.estimate_deg for p, ax in zip(position, axes)]
-    if isinstance(cfg, DualAxisTracker):
-        enu_from_camera = dual_axis_enu_from_camera(panel[0], panel[1])
-    else:
-        assert isinstance(cfg, SingleAxisTracker)
-        enu_from_camera = row_enu_from_camera(panel[0], cfg.axis_azimuth, cfg.axis_tilt)
-    d_cam = enu_from_camera.T @ azel_to_enu(sun.az_deg, sun.el_deg)
-    if mount is not None:
-        d_cam = mount.T @ d_cam
-    sigma = math.sqrt(sum(ax.learner.variance for ax in axes) + sun.sigma_deg**2)
-    return CameraPrior(d_cam, sigma)
 
 
 @dataclass

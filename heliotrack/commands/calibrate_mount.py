@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     )
     from controller.calibration.fisheye_mount import angles_at, fit_mount, panel_frame, read_panel_angles
     from controller.calibration.fisheye_orientation import sun_vectors
-    from controller.closedloop.panel import axis_names
+    from controller.closedloop.pose import axis_names
     from controller.config import SingleAxisTracker
     from controller.vision.fisheye import FisheyeEstimator
 

@@ -253,21 +253,3 @@ def test_a_measurement_with_a_wider_sigma_counts_less_and_is_gated_wider():
     assert not narrow.update(100.0, -1.0)  # 0.5 deg off, at 0.05: refused
     assert wide.update(100.0, -1.0, sigma_deg=0.5)  # at its own 0.5: taken, weighed by it
     assert wide.estimate_deg == pytest.approx(before + (-1.0 - before) * var / (var + 0.25), rel=1e-9)
-
-
-@pytest.mark.parametrize("axis_tilt", [0.0, 10.0])
-@pytest.mark.parametrize("az, el", [(95.0, 12.0), (200.0, 55.0), (260.0, 30.0)])
-def test_the_angles_that_face_the_sun_are_pvlibs_true_tracking_unclipped(az, el, axis_tilt):
-    import pvlib
-
-    from controller.closedloop.panel import sun_angles
-    from controller.sun.types import SunEstimate
-    from controller.trackers import DualAxisTracker, SingleAxisTracker
-
-    sun = SunEstimate(0.0, az, el)
-    row = SingleAxisTracker(name="r", link="l", device_id=1, axis_tilt=axis_tilt)
-    tt = pvlib.tracking.singleaxis(90.0 - el, az, axis_tilt, 180.0, max_angle=90.0, backtrack=False)
-    (rot,) = sun_angles(row, sun, [0.0])
-    assert rot == pytest.approx(float(np.ravel(tt["tracker_theta"])[0]), abs=1e-6)
-    dual = DualAxisTracker(name="d", link="l", device_id=2)
-    assert sun_angles(dual, sun, [az + 350.0]) == pytest.approx([az + 360.0, el])

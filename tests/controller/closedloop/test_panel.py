@@ -313,7 +313,7 @@ def test_the_pose_places_the_sun_through_the_cameras_mount():
     from scipy.spatial.transform import Rotation
 
     from controller.closedloop.geometry import row_normal, single_axis_error
-    from controller.closedloop.panel import expected_sun
+    from controller.closedloop.pose import expected_sun
     from controller.sun.types import SunEstimate, enu_to_azel
 
     cfg = load_scenario(REPO / "config" / "hil-closedloop.toml")
@@ -333,7 +333,7 @@ def test_a_backtracking_row_learns_its_offset_from_the_sun_off_its_camera_axis()
     offset against the angle that faces the sun, at the camera's sigma, without the PID;
     frames of a sun too far off the axis, or that the learner refuses, are left out, and
     refusals aside the sun never restart the learner (an off-axis bias is no slipped panel)."""
-    from controller.closedloop.panel import sun_angles
+    from controller.closedloop.pose import sun_angles
 
     ctl = controller()
     row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
