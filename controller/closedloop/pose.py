@@ -28,11 +28,11 @@ def sun_angles(cfg: TrackerConfig, sun: SunEstimate, position: list[float]) -> l
     applied: a row's, the sun's angle in its rotation plane; a dual-axis tracker's, the
     sun's azimuth (within half a turn of the drive's ``position``) and elevation.  What a
     camera's error measures the offset against while the row looks elsewhere."""
-    s = azel_to_enu(sun.az_deg, sun.el_deg)
     if isinstance(cfg, DualAxisTracker):
         return [position[0] + (sun.az_deg - position[0] + 180.0) % 360.0 - 180.0, sun.el_deg]
     assert isinstance(cfg, SingleAxisTracker)
-    return [single_axis_error(row_enu_from_camera(0.0, cfg.axis_azimuth, cfg.axis_tilt).T @ s)]
+    flat = row_enu_from_camera(0.0, cfg.axis_azimuth, cfg.axis_tilt)  # the row at rotation 0
+    return [single_axis_error(flat.T @ azel_to_enu(sun.az_deg, sun.el_deg))]
 
 
 def camera_errors(cfg: TrackerConfig, d_cam: Any, position: list[float]) -> list[float]:
