@@ -27,8 +27,9 @@ from hil.sky import SkySeries, sky_series
 #: What the summary's figures mean (written into summary.json).
 DEFINITIONS = {
     "pointing_error_deg": "daylight truth samples (substeps per period) of cycles "
-    "in TRACK mode, outside backtracking and rotation "
-    "limits; dual-axis: angle "
+    "in TRACK mode, outside backtracking and outside what "
+    "the panel's travel can face (the drive's limits plus "
+    "its mounting offset); dual-axis: angle "
     "between panel normal and the true sun; single-axis: "
     "angle between panel normal and the sun projected on "
     "the rotation plane; rms: root mean square; p95 to 1e-5 deg",
@@ -229,21 +230,59 @@ class TruthTally:
         }
 
 
-def panel(tr: TrackerConfig, angles: list[float], sun: np.ndarray) -> tuple[np.ndarray, float]:
-    """The panel normal (ENU unit vector) from the drive's true angles (deg), and its
-    pointing error (deg; NaN when the sample does not count: backtracking, or the sun
-    outside the rotation limits)."""
+def panel(
+    tr: TrackerConfig, angles: list[float], sun: np.ndarray, mount_offsets: list[float] | None = None
+) -> tuple[np.ndarray, float]:
+    """The panel normal and its pointing error.
+
+    Parameters
+    ----------
+    tr : TrackerConfig
+    angles : list of float
+        Where the panel really points (deg): the drive's true output angles plus the
+        mounting offsets (``DriveFirmware.panel_angles``).
+    sun : numpy.ndarray
+        ENU unit vector towards the true sun.
+    mount_offsets : list of float, optional
+        Per axis, how far the panel sits off its drive's output (deg, panel minus
+        shaft; the world's ``[[hil.mount_offsets]]``); 0 when not given. They move the
+        panel's travel: the drive's limits plus the offset.
+
+    Returns
+    -------
+    normal : numpy.ndarray
+        The panel normal (ENU unit vector).
+    error : float
+        Pointing error (deg); NaN when the sample does not count: a row backtracking, or
+        a sun the panel's travel cannot face (a row 1.5 deg off its encoder, waiting at
+        its -55 deg limit, cannot face a sun at -54).
+    """
+    off = list(mount_offsets) if mount_offsets is not None else [0.0] * len(angles)
     if isinstance(tr, DualAxisTracker):
         n = truth.dual_axis_normal(angles[0], angles[1])
+        if not _dual_reaches(tr, off, sun):
+            return n, math.nan
         return n, float(truth.angle_deg(n, sun))
     assert isinstance(tr, SingleAxisTracker)
     n = truth.row_normal(angles[0], tr.axis_azimuth, tr.axis_tilt)
     _, true_rot, bt = truth.row_ideal_rotation(
         sun[None, :], tr.axis_azimuth, tr.axis_tilt, 180.0, tr.gcr, tr.cross_axis_tilt, tr.backtrack
     )
-    if bt[0] or abs(true_rot[0]) > tr.max_angle:
+    if bt[0] or not -tr.max_angle + off[0] <= true_rot[0] <= tr.max_angle + off[0]:
         return n, math.nan
     return n, float(truth.row_pointing_error(angles[0], sun, tr.axis_azimuth, tr.axis_tilt))
+
+
+def _dual_reaches(tr: DualAxisTracker, off: list[float], sun: np.ndarray) -> bool:
+    """Whether a dual-axis panel's travel (the limits plus the mounting offsets) holds the
+    sun's azimuth (in some turn) and elevation."""
+    el = math.degrees(math.asin(max(-1.0, min(1.0, float(sun[2])))))
+    lo, hi = tr.elevation_limits
+    if not lo + off[1] <= el <= hi + off[1]:
+        return False
+    az = math.degrees(math.atan2(float(sun[0]), float(sun[1])))
+    lo, hi = tr.azimuth_limits[0] + off[0], tr.azimuth_limits[1] + off[0]
+    return hi - lo >= 360.0 or (az - lo) % 360.0 <= hi - lo
 
 
 def ideal_normals(tr: TrackerConfig, sun: np.ndarray) -> np.ndarray:

@@ -368,7 +368,8 @@ class ScenarioRun:
             if grid.sun.elevation[k] <= 0:
                 continue
             for tr in self.config.trackers:
-                n, e = panel(tr, firmwares[tr.name].panel_angles(), grid.sun_vecs[k])
+                fw = firmwares[tr.name]
+                n, e = panel(tr, fw.panel_angles(), grid.sun_vecs[k], fw.mount_offsets)
                 tally = self.tally[tr.name]
                 tally.samples.append(k)
                 tally.normals.append(n)
