@@ -49,6 +49,9 @@ UNKNOWN_MAX_MOVE_DEG = 0.1
 #: elevation of it (at least :data:`MIN_OFFSETS` of them; :meth:`LocatorChoice.place`), else
 #: the MIN_OFFSETS nearest in elevation, within NEAREST_OFFSET_DEG of it
 OFFSET_EL_DEG, MIN_OFFSETS, NEAREST_OFFSET_DEG = 2.0, 3, 8.0
+#: a frame whose rim lies farther than this (deg) from where the camera's learned offset puts
+#: it against the rings' fix has rings astray: they are then treated as placing no sun
+OFFSET_ASTRAY_DEG = 0.5
 #: without the site, the choice by the sun's own path (:meth:`LocatorChoice.observe_path`):
 #: a sight of both fixes kept at most every PATH_STEP_S, for PATH_KEEP_S (s; 720 at most),
 #: the sun PATH_MIN_EL_DEG high at least; the paths are compared once PATH_MIN_SIGHTS span
@@ -366,9 +369,12 @@ class LocatorChoice:
                 self.observe_path(float(t), cand.d_enu, d_enu)
             v, h = _vertical_basis(d, up_cam)
             el = math.degrees(math.asin(min(max(float(d_enu[2]), -1.0), 1.0)))
-            self._offsets.append((el, float((cand.d_cam - d) @ v), float((cand.d_cam - d) @ h)))
+            offset = (float((cand.d_cam - d) @ v), float((cand.d_cam - d) @ h))
+            learned = self.median_offset(el)
+            self._offsets.append((el, *offset))
+            astray = learned is not None and math.degrees(math.dist(offset, learned)) > OFFSET_ASTRAY_DEG
             fix = _between(cand.d_cam, d, w)
-            if w > 0.0 and self._within(fix, R, gates):
+            if w > 0.0 and not astray and self._within(fix, R, gates):
                 return self._placed(cand, fix, R, lens, "ring_locator")
         if w > 0.0:
             moved = self.rim_as_rings(cand.d_cam, float(cand.el_deg), up_cam)
@@ -378,16 +384,11 @@ class LocatorChoice:
                     return self._placed(cand, fix, R, lens, "rim_by_rings")
         return cand
 
-    def rim_as_rings(self, rim: np.ndarray, el_deg: float, up_cam: np.ndarray) -> np.ndarray | None:
-        """The rim's fix ``rim`` (camera frame) less its median offset from the rings' fixes
-        on the frames before where both placed the sun within :data:`OFFSET_EL_DEG` of
+    def median_offset(self, el_deg: float) -> tuple[float, float] | None:
+        """The rim's median offset from the rings' fix (rad, along the vertical and across) on
+        the frames before where both placed the sun within :data:`OFFSET_EL_DEG` of
         ``el_deg`` (deg), else on the :data:`MIN_OFFSETS` nearest in elevation within
-        :data:`NEAREST_OFFSET_DEG`, or None with fewer (the caller moves the rim by its weight
-        of that).  Where the rings read the sun better, the rim's error is mostly its sky
-        model's, which keeps its size and sign at an elevation and changes slowly with it: the
-        third renderer's clouds with the site, 0.240 -> 0.21 deg RMS, where 187 suns the rings
-        did not place read 0.316 by the rim; the second renderer's power-law aureole at 5 deg,
-        whose rings placed no sun below 7 (0.174 -> 0.016 deg)."""
+        :data:`NEAREST_OFFSET_DEG`; None with fewer."""
         near = [(dv, dh) for el, dv, dh in self._offsets if abs(el - el_deg) <= OFFSET_EL_DEG]
         if len(near) < MIN_OFFSETS:
             nearest = sorted(self._offsets, key=lambda o: abs(o[0] - el_deg))[:MIN_OFFSETS]
@@ -395,6 +396,23 @@ class LocatorChoice:
         if len(near) < MIN_OFFSETS:
             return None
         dv, dh = np.median(np.array(near), axis=0)
+        return float(dv), float(dh)
+
+    def rim_as_rings(self, rim: np.ndarray, el_deg: float, up_cam: np.ndarray) -> np.ndarray | None:
+        """The rim's fix ``rim`` (camera frame) less its learned offset from the rings' fixes
+        at ``el_deg`` (:meth:`median_offset`), or None before one is learned (the caller
+        moves the rim by its weight of that).  Where the rings read the sun better, the rim's
+        error is mostly its sky model's, which keeps its size and sign at an elevation and
+        changes slowly with it: the third renderer's clouds with the site, 0.240 -> 0.21 deg
+        RMS, where 187 suns the rings did not place read 0.316 by the rim; the second
+        renderer's power-law aureole at 5 deg, whose rings placed no sun below 7 (0.174 ->
+        0.016 deg).  So a frame whose own rings put its rim farther than
+        :data:`OFFSET_ASTRAY_DEG` from that offset has rings astray, and is placed this way too
+        (:meth:`place`)."""
+        learned = self.median_offset(el_deg)
+        if learned is None:
+            return None
+        dv, dh = learned
         v, h = _vertical_basis(rim, up_cam)
         d = rim - dv * v - dh * h
         return d / np.linalg.norm(d)
