@@ -258,6 +258,37 @@ def test_where_the_chosen_rings_place_no_sun_the_rim_is_moved_by_its_offset_from
     assert not rim.rings and rim.place(blind, gates, R, up, _Lens()) is blind
 
 
+def _rings_at(off_deg: float):
+    """A product sky's rings about ``A`` with the sun ``off_deg`` deg off it along E1."""
+    vals, chi, phi, up, _ = product_sky((math.radians(off_deg), 0.0))
+    reading = SkyReading(
+        vals, chi, phi, RHO, np.ones(phi.size, bool), np.ones(vals.shape, bool), A, E1, E2, 6e3
+    )
+    return reading, up
+
+
+def test_rings_astray_from_the_cameras_learned_offset_are_treated_as_placing_no_sun():
+    """A camera whose rings read the sun 0.3 deg off its rim along E1, frame after frame (the
+    fourth renderer's low suns: the rim 0.45-0.7 deg below the rings at 17-22 deg).  A frame
+    whose rings put it 0.3 deg the other way, 0.6 from that offset (its 17.7-deg sun at 1280
+    x 960: the rings 0.93 deg low, read 0.65 off), has rings astray: the rim is moved by the
+    learned offset instead; one whose rings lie 0.4 deg from it keeps them."""
+    sun = A + math.radians(0.3) * E1
+    sun /= np.linalg.norm(sun)
+    gates, R = [_Gate("ephemeris", sun, 1.0)], np.eye(3)
+    c = LocatorChoice(prior="rings")
+    usual, up = _rings_at(0.3)
+    for _ in range(3):
+        assert "ring_locator" in c.place(_Cand(_Fit(usual, []), A, A, 90.0), gates, R, up, _Lens()).fit.flags
+    assert c.weight(90.0) == pytest.approx(1.0, abs=0.01)
+    astray, up = _rings_at(-0.3)
+    placed = c.place(_Cand(_Fit(astray, []), A, A, 90.0), gates, R, up, _Lens())
+    assert "rim_by_rings" in placed.fit.flags and angle_deg(placed.d_enu, sun) < 0.01
+    near, up = _rings_at(-0.1)  # 0.4 deg from the learned offset: the rings, 0.4 deg off the sun
+    placed = c.place(_Cand(_Fit(near, []), A, A, 90.0), gates, R, up, _Lens())
+    assert "ring_locator" in placed.fit.flags and angle_deg(placed.d_enu, sun) == pytest.approx(0.4, abs=0.01)
+
+
 def _day_of_sights(bias_deg, step_s: float = 1200.0):
     """A clear 20 Mar at 40 N: the sun every ``step_s`` while 5 deg up or more, (t, its ENU
     direction, the same moved ``bias_deg(el)`` deg towards the horizon)."""
