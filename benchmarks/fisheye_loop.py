@@ -56,7 +56,8 @@ LEARN_S = 3600.0
 
 DEFINITIONS = {
     "pointing_error_deg": "the simulator's truth samples (2 per 10-s cycle) of cycles in "
-    "TRACK mode, outside backtracking and rotation limits: the angle between the panel's "
+    "TRACK mode, outside backtracking and outside what the panel's travel (the drive's limits "
+    "plus its mounting offset) can face: the angle between the panel's "
     "true normal (drive output + mounting offset) and pvlib SPA's sun (single-axis: the sun "
     "projected on the rotation plane); p95 and rms in deg, pooled over both trackers "
     "unless per tracker",
