@@ -59,7 +59,7 @@ from ..vision.fisheye import FisheyeEstimator, SeedEstimator
 from ..vision.fisheye.pipeline import FramePipeline
 from .axis import ClosedLoopAxis
 from .learner import MisalignmentStore
-from .pose import axis_names, camera_errors, expected_sun, sun_angles
+from .pose import axis_names, camera_errors, expected_sun, sun_angles, unclipped_reference
 
 log = logging.getLogger("heliotrack.closedloop")
 
@@ -291,12 +291,15 @@ class ClosedLoopController(Controller):
             if not tracking:
                 row.restart()
                 continue
-            out[i] = self._steer(row, out[i])
+            wide = unclipped_reference(row.runtime.cfg, est) if est is not None else None
+            out[i] = self._steer(row, out[i], wide)
         if math.isfinite(self._t) and self._t - self._saved_at >= SAVE_EVERY_S:
             self._save()
         return out
 
-    def _steer(self, row: RowLoop, base: sp.Setpoint) -> sp.Setpoint:
+    def _steer(self, row: RowLoop, base: sp.Setpoint, wide: list[float] | None = None) -> sp.Setpoint:
+        """``base`` (the plain controller's targets) steered by the row's camera; ``wide``,
+        a row's reference with no limit (:func:`.pose.unclipped_reference`)."""
         cfg = row.runtime.cfg
         reference, backtracking = base
         m = row.measured
@@ -314,8 +317,10 @@ class ClosedLoopController(Controller):
                     for ax in row.axes:
                         ax.learner.predict(self._t)
                 row.count("learned")
-                follow = [r + ax.learner.estimate_deg for r, ax in zip(reference, row.axes)]
-                row.sent = clamp_targets(cfg, follow)
+                # the limit is the drive's: the offset is added before it clips
+                ref = wide if wide is not None else reference
+                follow = clamp_targets(cfg, [r + ax.learner.estimate_deg for r, ax in zip(ref, row.axes)])
+                row.sent = follow
                 return follow, backtracking
             row.count("reference")
             return reference, backtracking

@@ -7,10 +7,12 @@ Angles in degrees; errors are sun minus boresight (:mod:`.geometry` holds the co
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
+from ..geometry import single_axis_setpoints
 from ..sun.types import SunEstimate, azel_to_enu
 from ..trackers import DualAxisTracker, SingleAxisTracker, TrackerConfig
 from ..vision.fisheye.gates import CameraPrior
@@ -21,6 +23,20 @@ from .geometry import dual_axis_enu_from_camera, dual_axis_errors, row_enu_from_
 def axis_names(cfg: TrackerConfig) -> tuple[str, ...]:
     """The names of a tracker's axes in the misalignment store."""
     return ("azimuth", "elevation") if isinstance(cfg, DualAxisTracker) else ("rotation",)
+
+
+def unclipped_reference(cfg: TrackerConfig, sun: SunEstimate) -> list[float] | None:
+    """A row's reference (deg, backtracking included) with no rotation limit: where its
+    panel should face.  The limit is the drive's, so a row whose panel sits off its shaft
+    is clipped only once the learned offset is added (a panel 1.5 deg off reaches a sun
+    1.5 deg past ``max_angle`` on one side); None for a dual-axis tracker, whose reference
+    is clipped by its elevation limits only where no sun is, or for no sun."""
+    if not isinstance(cfg, SingleAxisTracker) or not (
+        math.isfinite(sun.az_deg) and math.isfinite(sun.el_deg)
+    ):
+        return None
+    (ref,) = single_axis_setpoints(sun.az_deg, sun.el_deg, [replace(cfg, max_angle=90.0)])
+    return [ref.rotation_deg] if math.isfinite(ref.rotation_deg) else None
 
 
 def sun_angles(cfg: TrackerConfig, sun: SunEstimate, position: list[float]) -> list[float]:

@@ -3,6 +3,7 @@ measurement, and what outranks it."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from datetime import UTC, datetime
 from unittest import mock
 
@@ -368,3 +369,30 @@ def test_a_backtracking_row_learns_its_offset_from_the_sun_off_its_camera_axis()
         cycle(k, 30.0)
     assert row.frames_seen["implausible aside"] == 200 and row.implausible == 0
     assert lr.accepted == accepted
+
+
+def test_at_its_limit_a_row_adds_its_learned_offset_before_the_drives_limit_clips():
+    """The limit is the drive's, not the panel's: a panel 1.5 deg beyond its shaft (learned
+    offset -1.5) faces a sun 0.8 deg past ``max_angle`` with the shaft 0.7 deg inside it,
+    and a sun farther out with the shaft at the limit; the reference the plain controller
+    clipped would have left the panel at ``max_angle``, 0.8 deg short (the panel loop's
+    evening at Andimeshk: 1.44 deg)."""
+    from controller.closedloop.pose import sun_angles, unclipped_reference
+
+    ctl = controller()
+    row = next(r for r in ctl.rows if r.runtime.cfg.name == "row-1")
+    (lr,) = [ax.learner for ax in row.axes]
+    for k in range(30):
+        lr.update(T + 10 * k, -1.5, sigma_deg=0.03)
+    limit = row.runtime.cfg.max_angle
+    ctl._t = T + 300
+    row.measured = None  # no position this cycle: the row follows its reference
+    target, _ = ctl._steer(row, ([limit], False), [limit + 0.8])
+    assert target == [pytest.approx(limit + 0.8 + lr.estimate_deg)] and target[0] < limit
+    assert ctl._steer(row, ([limit], False), [limit + 3.0])[0] == [limit]
+    assert ctl._steer(row, ([limit], False))[0] == [pytest.approx(limit + lr.estimate_deg)]  # as before
+    # the unclipped reference of a row that does not backtrack is the angle facing the sun
+    cfg = row.runtime.cfg
+    est = ctl.sun.estimate(T)
+    flat = replace(cfg, backtrack=False)
+    assert unclipped_reference(flat, est) == [pytest.approx(sun_angles(flat, est, [0.0])[0], abs=1e-6)]
